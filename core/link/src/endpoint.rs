@@ -1,0 +1,684 @@
+//! One MAVLink endpoint: one fixed socket (PX4 locks onto the first address it hears), a
+//! receive task that decodes frames, counts malformed input and routes frames by system
+//! id, and a send path shared by the link actors, the heartbeat and the setpoint streams.
+//!
+//! An endpoint may carry one vehicle (PX4 SITL convention, a port per instance) or many
+//! (PX4 instances ≥ 10 all send to 14549, telemetry radios, mavlink-router): frames are
+//! demultiplexed by sysid, and a HEARTBEAT from an autopilot whose sysid has no route yet
+//! is reported through the discovery callback so the coordinator can create its vehicle.
+//!
+//! The endpoint outlives the actors that use it: a restarted link actor re-registers its
+//! route on the same socket, so the vehicle never sees a new address.
+
+use crate::address::ConnectionAddress;
+use skein_mavlink::dialect::{MavAutopilot, MavType};
+use skein_mavlink::{DecodeCounts, DecodeStats, Decoder, Encoder, Frame, MavMessage};
+use std::collections::HashMap;
+use std::io;
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, RwLock, Weak};
+use std::time::Instant;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpStream, UdpSocket};
+use tokio::sync::mpsc;
+use tokio::task::JoinHandle;
+
+/// Our own MAVLink identity on an endpoint (sender of heartbeats, commands, setpoints).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Identity {
+    /// Our system id (255 is the usual ground station id).
+    pub sysid: u8,
+    /// Our component id (190 = `MAV_COMP_ID_MISSIONPLANNER`, 191 = `MAV_COMP_ID_ONBOARD_COMPUTER`).
+    pub compid: u8,
+    /// The MAV_TYPE our heartbeat announces: `MAV_TYPE_GCS` on a ground station,
+    /// `MAV_TYPE_ONBOARD_CONTROLLER` on a companion computer. PX4 tracks each with its own
+    /// timeout (GCS loss drives `NAV_DLL_ACT`).
+    pub mav_type: MavType,
+}
+
+impl Default for Identity {
+    fn default() -> Self {
+        Identity {
+            sysid: 255,
+            compid: 190,
+            mav_type: MavType::MAV_TYPE_GCS,
+        }
+    }
+}
+
+/// A HEARTBEAT from an autopilot the endpoint has no route for.
+#[derive(Debug, Clone, Copy)]
+pub struct Discovery {
+    /// The vehicle's system id.
+    pub sysid: u8,
+    /// The component that sent the heartbeat (1 for PX4's autopilot).
+    pub compid: u8,
+    /// Its `HEARTBEAT.type`.
+    pub mav_type: MavType,
+}
+
+/// Receives the frames of one routed sysid. Called on the receive task: must be cheap
+/// (typically an actor `cast`).
+pub type FrameHandler = Arc<dyn Fn(Frame) + Send + Sync>;
+/// Receives discoveries (see [`Discovery`]).
+pub type DiscoveryHandler = Arc<dyn Fn(Discovery) + Send + Sync>;
+
+#[derive(Default)]
+struct Peer {
+    addr: Option<SocketAddr>,
+    handler: Option<FrameHandler>,
+    last_seen: Option<Instant>,
+    discovered: bool,
+}
+
+enum Transport {
+    Udp {
+        socket: Arc<UdpSocket>,
+        /// Remote address for `udpout`; `None` for `udpin` (reply to each sender).
+        remote: Option<SocketAddr>,
+    },
+    Stream {
+        tx: mpsc::UnboundedSender<Vec<u8>>,
+    },
+}
+
+/// Counters of the send path.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct SendCounts {
+    /// Frames handed to the socket.
+    pub frames_sent: u64,
+    /// Frames dropped because the socket would block or failed.
+    pub send_errors: u64,
+    /// Frames dropped because the vehicle's address is not known yet.
+    pub no_route: u64,
+}
+
+/// Why a frame could not be sent.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SendError {
+    /// A `udpin` endpoint has not heard from this sysid yet, so it has no address.
+    NoAddress(u8),
+    /// The socket refused the datagram.
+    Io(String),
+}
+
+impl std::fmt::Display for SendError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SendError::NoAddress(s) => write!(f, "no address known yet for sysid {s}"),
+            SendError::Io(e) => write!(f, "send failed: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for SendError {}
+
+/// A MAVLink endpoint (see module docs). Shared as `Arc<Endpoint>`; the receive task holds
+/// only a weak reference and stops when the last `Arc` is dropped.
+pub struct Endpoint {
+    address: ConnectionAddress,
+    local_addr: Option<SocketAddr>,
+    identity: Identity,
+    transport: Transport,
+    encoder: Mutex<Encoder>,
+    peers: RwLock<HashMap<u8, Peer>>,
+    discovery: RwLock<Option<DiscoveryHandler>>,
+    decode_stats: Arc<DecodeStats>,
+    frames_sent: AtomicU64,
+    send_errors: AtomicU64,
+    no_route: AtomicU64,
+    tasks: Mutex<Vec<JoinHandle<()>>>,
+}
+
+impl std::fmt::Debug for Endpoint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Endpoint")
+            .field("address", &self.address)
+            .field("local_addr", &self.local_addr)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Drop for Endpoint {
+    fn drop(&mut self) {
+        for t in self.tasks.lock().expect("tasks lock").drain(..) {
+            t.abort();
+        }
+    }
+}
+
+const MAX_DATAGRAM: usize = 65_536;
+
+impl Endpoint {
+    /// Opens the endpoint and starts its receive task. `udpin` binds the address (port 0
+    /// picks a free port, see [`Endpoint::local_addr`]); `udpout` binds an ephemeral local
+    /// port and sends to the remote; `tcpout` connects (and reconnects with backoff).
+    ///
+    /// # Errors
+    /// The bind or connect error; `serial:` is refused until the serial transport exists.
+    pub async fn open(address: ConnectionAddress, identity: Identity) -> io::Result<Arc<Self>> {
+        let (transport, local_addr, reader) = match &address {
+            ConnectionAddress::UdpIn(bind) => {
+                let socket = Arc::new(UdpSocket::bind(bind).await?);
+                let local = socket.local_addr()?;
+                (
+                    Transport::Udp {
+                        socket: socket.clone(),
+                        remote: None,
+                    },
+                    Some(local),
+                    Reader::Udp(socket),
+                )
+            }
+            ConnectionAddress::UdpOut(remote) => {
+                let bind: SocketAddr = if remote.is_ipv4() {
+                    "0.0.0.0:0".parse().expect("literal")
+                } else {
+                    "[::]:0".parse().expect("literal")
+                };
+                let socket = Arc::new(UdpSocket::bind(bind).await?);
+                let local = socket.local_addr()?;
+                (
+                    Transport::Udp {
+                        socket: socket.clone(),
+                        remote: Some(*remote),
+                    },
+                    Some(local),
+                    Reader::Udp(socket),
+                )
+            }
+            ConnectionAddress::TcpOut(remote) => {
+                let (tx, rx) = mpsc::unbounded_channel();
+                (
+                    Transport::Stream { tx },
+                    None,
+                    Reader::Stream(Connector::Tcp(*remote), rx),
+                )
+            }
+            ConnectionAddress::Serial { device, baud } => {
+                // Open once now so a wrong path or baud is an error at start, not a
+                // silent retry loop.
+                drop(open_serial(device, *baud)?);
+                let (tx, rx) = mpsc::unbounded_channel();
+                (
+                    Transport::Stream { tx },
+                    None,
+                    Reader::Stream(
+                        Connector::Serial {
+                            device: device.clone(),
+                            baud: *baud,
+                        },
+                        rx,
+                    ),
+                )
+            }
+        };
+        // Show the port actually bound (`udpin:127.0.0.1:0` becomes `…:41234`).
+        let address = match (address, local_addr) {
+            (ConnectionAddress::UdpIn(_), Some(local)) => ConnectionAddress::UdpIn(local),
+            (a, _) => a,
+        };
+        let endpoint = Arc::new(Endpoint {
+            address,
+            local_addr,
+            identity,
+            transport,
+            encoder: Mutex::new(Encoder::new(identity.sysid, identity.compid)),
+            peers: RwLock::new(HashMap::new()),
+            discovery: RwLock::new(None),
+            decode_stats: Arc::new(DecodeStats::default()),
+            frames_sent: AtomicU64::new(0),
+            send_errors: AtomicU64::new(0),
+            no_route: AtomicU64::new(0),
+            tasks: Mutex::new(Vec::new()),
+        });
+        let weak = Arc::downgrade(&endpoint);
+        let task = match reader {
+            Reader::Udp(socket) => tokio::spawn(udp_reader(weak, socket)),
+            Reader::Stream(connector, rx) => tokio::spawn(stream_session(weak, connector, rx)),
+        };
+        endpoint.tasks.lock().expect("tasks lock").push(task);
+        Ok(endpoint)
+    }
+
+    /// The connection string this endpoint was opened with.
+    pub fn address(&self) -> &ConnectionAddress {
+        &self.address
+    }
+
+    /// The bound local socket address (UDP endpoints).
+    pub fn local_addr(&self) -> Option<SocketAddr> {
+        self.local_addr
+    }
+
+    /// Our identity on this endpoint.
+    pub fn identity(&self) -> Identity {
+        self.identity
+    }
+
+    /// Installs the callback for HEARTBEATs of unrouted autopilots.
+    pub fn set_discovery(&self, handler: DiscoveryHandler) {
+        *self.discovery.write().expect("discovery lock") = Some(handler);
+    }
+
+    /// Routes every frame from `sysid` (any component) to `handler`, replacing a previous
+    /// route (a restarted link actor re-registers here).
+    pub fn route(&self, sysid: u8, handler: FrameHandler) {
+        let mut peers = self.peers.write().expect("peers lock");
+        let p = peers.entry(sysid).or_default();
+        p.handler = Some(handler);
+        p.discovered = true;
+    }
+
+    /// Removes the route of `sysid` (its frames are then dropped, and its next heartbeat is
+    /// reported as a discovery again).
+    pub fn unroute(&self, sysid: u8) {
+        if let Some(p) = self.peers.write().expect("peers lock").get_mut(&sysid) {
+            p.handler = None;
+            p.discovered = false;
+        }
+    }
+
+    /// When a valid frame from `sysid` last arrived.
+    pub fn last_seen(&self, sysid: u8) -> Option<Instant> {
+        self.peers
+            .read()
+            .expect("peers lock")
+            .get(&sysid)
+            .and_then(|p| p.last_seen)
+    }
+
+    /// The address frames to `sysid` go to, if known.
+    pub fn peer_addr(&self, sysid: u8) -> Option<SocketAddr> {
+        match &self.transport {
+            Transport::Udp {
+                remote: Some(r), ..
+            } => Some(*r),
+            _ => self
+                .peers
+                .read()
+                .expect("peers lock")
+                .get(&sysid)
+                .and_then(|p| p.addr),
+        }
+    }
+
+    /// Decoder counters (malformed, bad CRC, unknown messages …) of this endpoint.
+    pub fn decode_counts(&self) -> DecodeCounts {
+        self.decode_stats.snapshot()
+    }
+
+    /// Send-path counters.
+    pub fn send_counts(&self) -> SendCounts {
+        SendCounts {
+            frames_sent: self.frames_sent.load(Ordering::Relaxed),
+            send_errors: self.send_errors.load(Ordering::Relaxed),
+            no_route: self.no_route.load(Ordering::Relaxed),
+        }
+    }
+
+    /// Encodes `msg` with our identity and sends it to vehicle `sysid`. Never blocks: a
+    /// datagram the socket cannot take right now is dropped and counted.
+    ///
+    /// # Errors
+    /// [`SendError::NoAddress`] before a `udpin` endpoint has heard from `sysid`;
+    /// [`SendError::Io`] when the socket refuses.
+    pub fn send(&self, sysid: u8, msg: &MavMessage) -> Result<(), SendError> {
+        let dest = match &self.transport {
+            Transport::Udp { remote, .. } => match remote.or_else(|| self.peer_addr(sysid)) {
+                Some(a) => Some(a),
+                None => {
+                    self.no_route.fetch_add(1, Ordering::Relaxed);
+                    return Err(SendError::NoAddress(sysid));
+                }
+            },
+            Transport::Stream { .. } => None,
+        };
+        let frame = self.encoder.lock().expect("encoder lock").encode(msg);
+        let result = match (&self.transport, dest) {
+            (Transport::Udp { socket, .. }, Some(dest)) => socket
+                .try_send_to(frame.as_bytes(), dest)
+                .map(|_| ())
+                .map_err(|e| SendError::Io(e.to_string())),
+            (Transport::Stream { tx }, _) => tx
+                .send(frame.as_bytes().to_vec())
+                .map_err(|_| SendError::Io("stream closed".into())),
+            (Transport::Udp { .. }, None) => unreachable!("dest resolved above"),
+        };
+        match &result {
+            Ok(()) => self.frames_sent.fetch_add(1, Ordering::Relaxed),
+            Err(_) => self.send_errors.fetch_add(1, Ordering::Relaxed),
+        };
+        result
+    }
+
+    /// Sends `msg` where vehicles of this endpoint will hear it: to the remote (`udpout`,
+    /// `tcpout`), or to every vehicle heard so far (`udpin`). Returns how many were sent.
+    pub fn broadcast(&self, msg: &MavMessage) -> usize {
+        match &self.transport {
+            Transport::Udp { remote: None, .. } => {
+                let sysids: Vec<u8> = self
+                    .peers
+                    .read()
+                    .expect("peers lock")
+                    .iter()
+                    .filter(|(_, p)| p.addr.is_some())
+                    .map(|(s, _)| *s)
+                    .collect();
+                sysids
+                    .iter()
+                    .filter(|s| self.send(**s, msg).is_ok())
+                    .count()
+            }
+            _ => usize::from(self.send(0, msg).is_ok()),
+        }
+    }
+
+    fn deliver(&self, frame: Frame, from: Option<SocketAddr>) {
+        let now = Instant::now();
+        let sysid = frame.sysid;
+        let (handler, discover) = {
+            let mut peers = self.peers.write().expect("peers lock");
+            let p = peers.entry(sysid).or_default();
+            if from.is_some() {
+                p.addr = from;
+            }
+            p.last_seen = Some(now);
+            let discover = match (&frame.msg, p.handler.is_none() && !p.discovered) {
+                (MavMessage::HEARTBEAT(hb), true)
+                    if hb.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID =>
+                {
+                    p.discovered = true;
+                    Some(Discovery {
+                        sysid,
+                        compid: frame.compid,
+                        mav_type: hb.mavtype,
+                    })
+                }
+                _ => None,
+            };
+            (p.handler.clone(), discover)
+        };
+        if let Some(d) = discover {
+            let cb = self.discovery.read().expect("discovery lock").clone();
+            match cb {
+                Some(cb) => cb(d),
+                None => {
+                    // Nobody to tell yet: forget it so the next heartbeat is reported.
+                    if let Some(p) = self.peers.write().expect("peers lock").get_mut(&sysid) {
+                        p.discovered = false;
+                    }
+                }
+            }
+        }
+        if let Some(h) = handler {
+            h(frame);
+        }
+    }
+}
+
+enum Reader {
+    Udp(Arc<UdpSocket>),
+    Stream(Connector, mpsc::UnboundedReceiver<Vec<u8>>),
+}
+
+/// How a byte-stream transport (re)opens.
+#[derive(Debug, Clone)]
+enum Connector {
+    Tcp(SocketAddr),
+    Serial { device: String, baud: u32 },
+}
+
+trait ByteStream: tokio::io::AsyncRead + tokio::io::AsyncWrite + Send + Unpin {}
+impl<T: tokio::io::AsyncRead + tokio::io::AsyncWrite + Send + Unpin> ByteStream for T {}
+
+fn open_serial(device: &str, baud: u32) -> io::Result<tokio_serial::SerialStream> {
+    use tokio_serial::SerialPortBuilderExt;
+    tokio_serial::new(device, baud)
+        .open_native_async()
+        .map_err(|e| io::Error::other(format!("serial:{device}:{baud}: {e}")))
+}
+
+impl Connector {
+    async fn open(&self) -> io::Result<Box<dyn ByteStream>> {
+        match self {
+            Connector::Tcp(remote) => {
+                let s = TcpStream::connect(remote).await?;
+                let _ = s.set_nodelay(true);
+                Ok(Box::new(s))
+            }
+            Connector::Serial { device, baud } => Ok(Box::new(open_serial(device, *baud)?)),
+        }
+    }
+}
+
+async fn udp_reader(endpoint: Weak<Endpoint>, socket: Arc<UdpSocket>) {
+    let mut buf = vec![0u8; MAX_DATAGRAM];
+    let Some(stats) = endpoint.upgrade().map(|e| e.decode_stats.clone()) else {
+        return;
+    };
+    let mut decoder = Decoder::new(stats);
+    let mut frames = Vec::with_capacity(16);
+    loop {
+        let (n, from) = match socket.recv_from(&mut buf).await {
+            Ok(r) => r,
+            // ICMP port unreachable from an earlier send shows up here on Linux: ignore.
+            Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => continue,
+            Err(e) => {
+                tracing::warn!("udp receive failed: {e}");
+                continue;
+            }
+        };
+        let Some(ep) = endpoint.upgrade() else { return };
+        decoder.decode_datagram(&buf[..n], |f| frames.push(f));
+        for f in frames.drain(..) {
+            ep.deliver(f, Some(from));
+        }
+    }
+}
+
+/// TCP or serial: (re)open with capped backoff, decode what arrives, write what is sent.
+/// Frames sent while the stream is down are dropped (setpoints are repeated anyway;
+/// commands are resent by the command protocol).
+async fn stream_session(
+    endpoint: Weak<Endpoint>,
+    connector: Connector,
+    mut outgoing: mpsc::UnboundedReceiver<Vec<u8>>,
+) {
+    let mut backoff = std::time::Duration::from_millis(100);
+    loop {
+        let stream = match connector.open().await {
+            Ok(s) => s,
+            Err(e) => {
+                tracing::debug!("{connector:?}: open failed: {e}; retrying in {backoff:?}");
+                let deadline = tokio::time::Instant::now() + backoff;
+                // Drain what is sent meanwhile so the queue cannot grow without bound.
+                loop {
+                    tokio::select! {
+                        _ = tokio::time::sleep_until(deadline) => break,
+                        out = outgoing.recv() => if out.is_none() { return },
+                    }
+                }
+                backoff = (backoff * 2).min(std::time::Duration::from_secs(5));
+                if endpoint.strong_count() == 0 {
+                    return;
+                }
+                continue;
+            }
+        };
+        backoff = std::time::Duration::from_millis(100);
+        let (mut rd, mut wr) = tokio::io::split(stream);
+        let Some(stats) = endpoint.upgrade().map(|e| e.decode_stats.clone()) else {
+            return;
+        };
+        let mut decoder = Decoder::new(stats);
+        let mut buf = vec![0u8; 8192];
+        loop {
+            tokio::select! {
+                r = rd.read(&mut buf) => {
+                    let n = match r { Ok(0) | Err(_) => break, Ok(n) => n };
+                    let Some(ep) = endpoint.upgrade() else { return };
+                    decoder.push(&buf[..n]);
+                    while let Some(f) = decoder.next_frame() {
+                        ep.deliver(f, None);
+                    }
+                }
+                out = outgoing.recv() => {
+                    let Some(bytes) = out else { return };
+                    if wr.write_all(&bytes).await.is_err() { break; }
+                }
+            }
+        }
+        tracing::info!("{connector:?}: stream closed, reopening");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use skein_mavlink::dialect::*;
+    use std::time::Duration;
+
+    fn heartbeat(autopilot: MavAutopilot) -> MavMessage {
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode: 0,
+            mavtype: MavType::MAV_TYPE_QUADROTOR,
+            autopilot,
+            base_mode: MavModeFlag::empty(),
+            system_status: MavState::MAV_STATE_STANDBY,
+            mavlink_version: 3,
+        })
+    }
+
+    async fn eventually(what: &str, mut f: impl FnMut() -> bool) {
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while !f() {
+            assert!(Instant::now() < deadline, "timed out waiting for {what}");
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+    }
+
+    #[tokio::test]
+    async fn shared_udpin_endpoint_demultiplexes_by_sysid_and_discovers() {
+        let ep = Endpoint::open(
+            ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
+            Identity::default(),
+        )
+        .await
+        .unwrap();
+        let addr = ep.local_addr().unwrap();
+        let found = Arc::new(Mutex::new(Vec::new()));
+        let f2 = found.clone();
+        ep.set_discovery(Arc::new(move |d| f2.lock().unwrap().push(d.sysid)));
+        // Three "vehicles" on their own sockets, all sending to the one endpoint.
+        let mut vehicles = Vec::new();
+        for sysid in [1u8, 2, 3] {
+            let s = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+            let mut enc = Encoder::new(sysid, 1);
+            s.send_to(
+                enc.encode(&heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4))
+                    .as_bytes(),
+                addr,
+            )
+            .await
+            .unwrap();
+            vehicles.push((s, enc));
+        }
+        eventually("three discoveries", || found.lock().unwrap().len() == 3).await;
+        // A GCS heartbeat (autopilot INVALID) is not a vehicle.
+        let gcs = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+        gcs.send_to(
+            Encoder::new(200, 190)
+                .encode(&heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID))
+                .as_bytes(),
+            addr,
+        )
+        .await
+        .unwrap();
+        // Route sysid 2 and check only its frames arrive there.
+        let got = Arc::new(Mutex::new(Vec::new()));
+        let g2 = got.clone();
+        ep.route(
+            2,
+            Arc::new(move |f: Frame| g2.lock().unwrap().push(f.sysid)),
+        );
+        for (s, enc) in vehicles.iter_mut() {
+            s.send_to(
+                enc.encode(&heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4))
+                    .as_bytes(),
+                addr,
+            )
+            .await
+            .unwrap();
+        }
+        eventually("sysid 2 routed", || !got.lock().unwrap().is_empty()).await;
+        eventually("gcs seen", || ep.last_seen(200).is_some()).await;
+        assert!(got.lock().unwrap().iter().all(|&s| s == 2));
+        assert_eq!(found.lock().unwrap().len(), 3, "GCS not discovered");
+        // Replies go back to each vehicle's own address.
+        ep.send(3, &heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID))
+            .unwrap();
+        let mut buf = [0u8; 300];
+        let n = tokio::time::timeout(Duration::from_secs(5), vehicles[2].0.recv(&mut buf))
+            .await
+            .unwrap()
+            .unwrap();
+        let mut dec = Decoder::default();
+        let mut frames = Vec::new();
+        dec.decode_datagram(&buf[..n], |f| frames.push(f));
+        assert_eq!(frames[0].sysid, 255);
+    }
+
+    #[tokio::test]
+    async fn malformed_datagrams_are_counted_and_dropped() {
+        let ep = Endpoint::open(
+            ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
+            Identity::default(),
+        )
+        .await
+        .unwrap();
+        let s = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+        s.send_to(
+            b"\xfd\x09garbage that is not mavlink",
+            ep.local_addr().unwrap(),
+        )
+        .await
+        .unwrap();
+        eventually("rejected datagram counted", || {
+            ep.decode_counts().rejected_datagrams == 1
+        })
+        .await;
+        assert_eq!(ep.decode_counts().frames_ok, 0);
+    }
+
+    #[tokio::test]
+    async fn send_before_the_vehicle_spoke_is_refused() {
+        let ep = Endpoint::open(
+            ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
+            Identity::default(),
+        )
+        .await
+        .unwrap();
+        assert_eq!(
+            ep.send(7, &heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID)),
+            Err(SendError::NoAddress(7))
+        );
+        assert_eq!(ep.send_counts().no_route, 1);
+    }
+
+    #[tokio::test]
+    async fn a_missing_serial_device_is_refused_naming_it() {
+        let e = Endpoint::open(
+            "serial:/dev/skein-no-such-tty:57600".parse().unwrap(),
+            Identity::default(),
+        )
+        .await
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("serial:/dev/skein-no-such-tty:57600"),
+            "{e}"
+        );
+    }
+}

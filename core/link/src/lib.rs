@@ -1,0 +1,36 @@
+//! `Px4Link`: how skein talks to PX4 autopilots over MAVLink 2.
+//!
+//! - [`address`]: connection strings (`udpin:`, `udpout:`, `tcpout:`, `serial:`).
+//! - [`endpoint`]: one fixed socket per endpoint, frames demultiplexed by sysid, vehicles
+//!   discovered from their first heartbeat, malformed input counted and dropped.
+//! - [`telemetry`]: the latest state of a vehicle folded from PX4's streams.
+//! - [`command`]: the command protocol's operations and errors.
+//! - [`params`]: the parameter protocol (PX4's bytewise integers, duplicate answers).
+//! - [`setup`]: what is configured at connect: telemetry rates, parameters.
+//! - [`setpoint`]: the offboard setpoint stream, a task that outlives actor restarts.
+//! - [`px4link`]: the `Px4Link` actor tying these together per vehicle.
+//! - [`fault`]: fault injection shared by every supervised actor.
+//!
+//! PX4 facts honoured here (see the project's `px4.md`): PX4 locks onto the first sender,
+//! so an endpoint never changes its socket; OFFBOARD needs a setpoint stream running for
+//! more than a second; mode changes are confirmed from `HEARTBEAT.custom_mode`, not from
+//! PX4's first ACK.
+#![warn(missing_docs)]
+
+pub mod address;
+pub mod command;
+pub mod endpoint;
+pub mod fault;
+pub mod params;
+pub mod px4link;
+pub mod setpoint;
+pub mod setup;
+pub mod telemetry;
+
+pub use address::ConnectionAddress;
+pub use command::{LinkCommand, LinkError};
+pub use endpoint::{Discovery, Endpoint, Identity};
+pub use px4link::{EventSink, LinkEvent, Px4Link, Px4LinkArgs, Px4LinkMsg, VehicleLink};
+pub use setpoint::{LocalSetpoint, SetpointStream};
+pub use setup::{LinkSetup, TelemetryProfile};
+pub use telemetry::Telemetry;

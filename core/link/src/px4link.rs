@@ -1,0 +1,614 @@
+//! The `Px4Link` actor: the adapter between one PX4 autopilot and skein.
+//!
+//! It receives the vehicle's frames from its [`Endpoint`] route, folds them into
+//! [`Telemetry`], reports what the state machine needs as [`LinkEvent`]s, sends a 1 Hz
+//! heartbeat, watches liveness (lost after [`LINK_TIMEOUT`] of silence), and runs the
+//! command protocol: one command per id in flight, ACK matched by command id, resent with
+//! `confirmation + 1` every [`ACK_TIMEOUT`] up to [`MAX_ATTEMPTS`] transmissions,
+//! `IN_PROGRESS` waited out, mode changes confirmed from `HEARTBEAT.custom_mode`.
+//!
+//! Everything that must survive a restart of this actor (the route's socket, telemetry,
+//! the setpoint stream) lives in the shared [`VehicleLink`]; a restarted actor picks it up
+//! and re-registers its route.
+
+use crate::command::{LinkCommand, LinkError, result_name};
+use crate::endpoint::Endpoint;
+use crate::params::{ParamClient, ParamOp, ParamReply, Transmit};
+use crate::setpoint::SetpointStream;
+use crate::setup::{LinkSetup, interval_us};
+use crate::telemetry::{Change, Telemetry};
+use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
+use skein_mavlink::dialect::{
+    HEARTBEAT_DATA, MavAutopilot, MavCmd, MavModeFlag, MavResult, MavState,
+};
+use skein_mavlink::param::{ParamValue, param_name};
+use skein_mavlink::{Frame, MavMessage, MessageData};
+use skein_model::fsm::Observed;
+use skein_model::px4::Px4Mode;
+use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, RwLock};
+use std::time::{Duration, Instant};
+
+/// Silence after which a vehicle is Lost.
+pub const LINK_TIMEOUT: Duration = Duration::from_secs(3);
+/// Wait for a `COMMAND_ACK` before resending.
+pub const ACK_TIMEOUT: Duration = Duration::from_millis(400);
+/// Transmissions of a command before it fails with [`LinkError::Timeout`].
+pub const MAX_ATTEMPTS: u32 = 5;
+/// Longest wait for a command PX4 reported `IN_PROGRESS`.
+pub const IN_PROGRESS_TIMEOUT: Duration = Duration::from_secs(30);
+/// Longest wait for a heartbeat that shows a mode PX4 accepted.
+pub const MODE_CONFIRM_TIMEOUT: Duration = Duration::from_millis(3500);
+/// Rate of our heartbeat to the vehicle.
+pub const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
+
+/// Something the vehicle did that its owner (the Vehicle actor) must know.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LinkEvent {
+    /// Armed flag, mode or landed state changed (the first heartbeat included).
+    Observed(Observed),
+    /// No valid message for [`LINK_TIMEOUT`].
+    Lost,
+    /// Messages again after [`LinkEvent::Lost`].
+    Restored(Observed),
+    /// The autopilot rebooted (boot time went backwards).
+    Rebooted,
+    /// A `STATUSTEXT` from the vehicle.
+    StatusText {
+        /// `MAV_SEVERITY` (0 emergency … 7 debug).
+        severity: u8,
+        /// The text.
+        text: String,
+    },
+}
+
+/// Receives [`LinkEvent`]s (typically casts them to the Vehicle actor).
+pub type EventSink = Arc<dyn Fn(LinkEvent) + Send + Sync>;
+
+/// Sees every frame of the vehicle's system after the link has handled it (the vehicle
+/// forwards gimbal and camera traffic to its payloads). Called on the link actor: must be
+/// cheap and filter for itself.
+pub type FrameSink = Arc<dyn Fn(&Frame) + Send + Sync>;
+
+/// The per-vehicle state that outlives the link actor: the endpoint route, the latest
+/// telemetry and the setpoint stream. Identity of a vehicle is (endpoint, sysid).
+pub struct VehicleLink {
+    /// The endpoint the vehicle is reached through.
+    pub endpoint: Arc<Endpoint>,
+    /// The vehicle's system id.
+    pub sysid: u8,
+    /// The autopilot's component id (1 for PX4).
+    pub compid: u8,
+    telemetry: RwLock<Telemetry>,
+    stream: SetpointStream,
+    lost: AtomicBool,
+    setup: LinkSetup,
+}
+
+impl std::fmt::Debug for VehicleLink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("VehicleLink")
+            .field("endpoint", &self.endpoint.address())
+            .field("sysid", &self.sysid)
+            .finish_non_exhaustive()
+    }
+}
+
+impl VehicleLink {
+    /// Creates the shared state and starts the (idle) setpoint stream at `stream_rate_hz`;
+    /// `setup` is applied at every (re)connection.
+    pub fn new(
+        endpoint: Arc<Endpoint>,
+        sysid: u8,
+        compid: u8,
+        stream_rate_hz: f64,
+        setup: LinkSetup,
+    ) -> Arc<Self> {
+        let stream = SetpointStream::start(endpoint.clone(), sysid, compid, stream_rate_hz);
+        Arc::new(VehicleLink {
+            endpoint,
+            sysid,
+            compid,
+            telemetry: RwLock::new(Telemetry::default()),
+            stream,
+            lost: AtomicBool::new(false),
+            setup,
+        })
+    }
+
+    /// A copy of the latest telemetry.
+    pub fn telemetry(&self) -> Telemetry {
+        self.telemetry.read().expect("telemetry lock").clone()
+    }
+
+    /// Reads the telemetry in place (no clone) under the lock.
+    pub fn with_telemetry<R>(&self, f: impl FnOnce(&Telemetry) -> R) -> R {
+        f(&self.telemetry.read().expect("telemetry lock"))
+    }
+
+    /// The offboard setpoint stream.
+    pub fn stream(&self) -> &SetpointStream {
+        &self.stream
+    }
+
+    /// True while the link is lost.
+    pub fn is_lost(&self) -> bool {
+        self.lost.load(Ordering::Relaxed)
+    }
+
+    /// Time since the last valid message from the vehicle.
+    pub fn silence(&self) -> Option<Duration> {
+        self.endpoint.last_seen(self.sysid).map(|t| t.elapsed())
+    }
+}
+
+/// Arguments of [`Px4Link`].
+pub struct Px4LinkArgs {
+    /// The shared per-vehicle state.
+    pub link: Arc<VehicleLink>,
+    /// Where events go.
+    pub events: EventSink,
+    /// Where the vehicle's component traffic goes, if anywhere.
+    pub components: Option<FrameSink>,
+}
+
+/// Messages of [`Px4Link`].
+// ractor boxes every message already; boxing the frame again would add an allocation
+// per telemetry message for nothing.
+#[allow(clippy::large_enum_variant)]
+pub enum Px4LinkMsg {
+    /// A frame from the vehicle (from the endpoint route).
+    Frame(Frame),
+    /// Run a command; the reply comes when it is acknowledged (and, for modes, confirmed).
+    Command(LinkCommand, RpcReplyPort<Result<(), LinkError>>),
+    /// Run a command without waiting for the outcome (fire and forget, still retried).
+    CommandNoReply(LinkCommand),
+    /// 1 Hz: heartbeat and liveness.
+    Tick,
+    /// An ACK deadline of the command in flight with this id and generation.
+    AckDeadline(u32, u64),
+    /// The mode-confirmation deadline of the command in flight with this generation.
+    ModeDeadline(u64),
+    /// Read a parameter.
+    ParamGet(String, ParamReply),
+    /// Write a parameter, given as a number, in its own type.
+    ParamSet(String, f64, ParamReply),
+    /// A parameter request's deadline (name, generation).
+    ParamDeadline(String, u64),
+    /// The parameter values seen so far.
+    Params(RpcReplyPort<Vec<(String, ParamValue)>>),
+    /// Liveness probe of the supervisor's watchdog.
+    Ping(RpcReplyPort<()>),
+    /// Fault injection (see [`crate::fault::inject`]).
+    Fault(skein_model::supervision::FaultKind),
+}
+
+/// The `Px4Link` actor (see module docs).
+pub struct Px4Link;
+
+/// Where a command's outcome goes.
+pub type CommandReply = RpcReplyPort<Result<(), LinkError>>;
+
+struct Pending {
+    command: LinkCommand,
+    reply: Option<CommandReply>,
+    attempts: u32,
+    generation: u64,
+    in_progress: bool,
+    /// For `SetMode`: ACK accepted, waiting for the heartbeat to show the mode.
+    awaiting_mode: Option<Px4Mode>,
+}
+
+/// State of [`Px4Link`].
+pub struct Px4LinkState {
+    link: Arc<VehicleLink>,
+    events: EventSink,
+    components: Option<FrameSink>,
+    pending: HashMap<u32, Pending>,
+    queued: HashMap<u32, VecDeque<(LinkCommand, Option<CommandReply>)>>,
+    generation: u64,
+    greeted: bool,
+    params: ParamClient,
+}
+
+impl Px4LinkState {
+    fn target(&self) -> (u8, u8) {
+        (self.link.sysid, self.link.compid)
+    }
+
+    fn transmit(&self, command: &LinkCommand, confirmation: u8) -> Result<(), LinkError> {
+        let (sys, comp) = self.target();
+        self.link
+            .endpoint
+            .send(sys, &command.encode(sys, comp, confirmation))
+            .map_err(|e| LinkError::Send(e.to_string()))
+    }
+
+    fn start(
+        &mut self,
+        myself: &ActorRef<Px4LinkMsg>,
+        command: LinkCommand,
+        reply: Option<CommandReply>,
+    ) {
+        let id = command.mav_cmd() as u32;
+        if self.pending.contains_key(&id) {
+            self.queued
+                .entry(id)
+                .or_default()
+                .push_back((command, reply));
+            return;
+        }
+        if let Err(e) = self.transmit(&command, 0) {
+            if let Some(r) = reply {
+                let _ = r.send(Err(e));
+            }
+            return;
+        }
+        self.generation += 1;
+        let generation = self.generation;
+        self.pending.insert(
+            id,
+            Pending {
+                command,
+                reply,
+                attempts: 1,
+                generation,
+                in_progress: false,
+                awaiting_mode: None,
+            },
+        );
+        myself.send_after(ACK_TIMEOUT, move || Px4LinkMsg::AckDeadline(id, generation));
+    }
+
+    fn finish(&mut self, myself: &ActorRef<Px4LinkMsg>, id: u32, result: Result<(), LinkError>) {
+        if let Some(p) = self.pending.remove(&id) {
+            if let Err(e) = &result {
+                tracing::debug!(sysid = self.link.sysid, "{e}");
+            }
+            if let Some(r) = p.reply {
+                let _ = r.send(result);
+            }
+        }
+        if let Some((cmd, reply)) = self.queued.get_mut(&id).and_then(|q| q.pop_front()) {
+            self.start(myself, cmd, reply);
+        }
+    }
+
+    fn on_ack(&mut self, myself: &ActorRef<Px4LinkMsg>, id: u32, result: MavResult) {
+        let Some(p) = self.pending.get_mut(&id) else {
+            return; // e.g. PX4's second DO_SET_MODE ACK after confirmation
+        };
+        match result {
+            MavResult::MAV_RESULT_ACCEPTED => {
+                if let LinkCommand::SetMode(mode) = p.command {
+                    if p.awaiting_mode.is_some() {
+                        return; // PX4's second ACK
+                    }
+                    let current = self.link.with_telemetry(|t| t.heartbeat.map(|h| h.mode));
+                    if current == Some(mode) {
+                        self.finish(myself, id, Ok(()));
+                    } else {
+                        p.awaiting_mode = Some(mode);
+                        let generation = p.generation;
+                        myself.send_after(MODE_CONFIRM_TIMEOUT, move || {
+                            Px4LinkMsg::ModeDeadline(generation)
+                        });
+                    }
+                } else {
+                    self.finish(myself, id, Ok(()));
+                }
+            }
+            MavResult::MAV_RESULT_IN_PROGRESS => {
+                if !p.in_progress {
+                    p.in_progress = true;
+                    let generation = p.generation;
+                    myself.send_after(IN_PROGRESS_TIMEOUT, move || {
+                        Px4LinkMsg::AckDeadline(id, generation)
+                    });
+                }
+            }
+            other => {
+                let command = p.command.describe();
+                self.finish(
+                    myself,
+                    id,
+                    Err(LinkError::Rejected {
+                        command,
+                        result: result_name(other),
+                    }),
+                );
+            }
+        }
+    }
+
+    fn on_ack_deadline(&mut self, myself: &ActorRef<Px4LinkMsg>, id: u32, generation: u64) {
+        let Some(p) = self.pending.get_mut(&id) else {
+            return;
+        };
+        if p.generation != generation || p.awaiting_mode.is_some() {
+            return;
+        }
+        if p.in_progress || p.attempts >= MAX_ATTEMPTS {
+            let err = LinkError::Timeout {
+                command: p.command.describe(),
+                attempts: p.attempts,
+            };
+            self.finish(myself, id, Err(err));
+            return;
+        }
+        let confirmation = p.attempts.min(255) as u8;
+        p.attempts += 1;
+        let command = p.command.clone();
+        if let Err(e) = self.transmit(&command, confirmation) {
+            self.finish(myself, id, Err(e));
+            return;
+        }
+        myself.send_after(ACK_TIMEOUT, move || Px4LinkMsg::AckDeadline(id, generation));
+    }
+
+    fn check_mode_confirmations(&mut self, myself: &ActorRef<Px4LinkMsg>, mode: Px4Mode) {
+        let id = MavCmd::MAV_CMD_DO_SET_MODE as u32;
+        if self
+            .pending
+            .get(&id)
+            .is_some_and(|p| p.awaiting_mode == Some(mode))
+        {
+            self.finish(myself, id, Ok(()));
+        }
+    }
+
+    fn send_heartbeat(&self) {
+        let identity = self.link.endpoint.identity();
+        let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode: 0,
+            mavtype: identity.mav_type,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+            base_mode: MavModeFlag::empty(),
+            system_status: MavState::MAV_STATE_ACTIVE,
+            mavlink_version: 3,
+        });
+        // Before the vehicle has spoken a udpin endpoint has no address: nothing to do.
+        let _ = self.link.endpoint.send(self.link.sysid, &hb);
+    }
+
+    /// First contact (and after a reboot or a restored link): ask for what we need now
+    /// rather than waiting for PX4's slow streams, and apply the [`LinkSetup`].
+    fn greet(&mut self, myself: &ActorRef<Px4LinkMsg>) {
+        self.greeted = true;
+        self.send_heartbeat();
+        self.start(
+            myself,
+            LinkCommand::RequestMessage {
+                message_id: skein_mavlink::dialect::HOME_POSITION_DATA::ID,
+            },
+            None,
+        );
+        let setup = self.link.setup.clone();
+        for (message_id, rate_hz) in setup.telemetry.rates() {
+            self.start(
+                myself,
+                LinkCommand::SetMessageInterval {
+                    message_id,
+                    interval_us: interval_us(rate_hz),
+                },
+                None,
+            );
+        }
+        for (name, value) in setup.params {
+            self.param(myself, &name, ParamOp::Set(value), None);
+        }
+    }
+
+    fn param(
+        &mut self,
+        myself: &ActorRef<Px4LinkMsg>,
+        name: &str,
+        op: ParamOp,
+        reply: Option<ParamReply>,
+    ) {
+        let t = self.params.start(name, op, reply, self.target());
+        self.transmit_param(myself, t);
+    }
+
+    fn transmit_param(&self, myself: &ActorRef<Px4LinkMsg>, t: Option<Transmit>) {
+        if let Some(t) = t {
+            let _ = self.link.endpoint.send(self.link.sysid, &t.msg);
+            let (name, generation) = (t.name, t.generation);
+            myself.send_after(ACK_TIMEOUT, move || {
+                Px4LinkMsg::ParamDeadline(name, generation)
+            });
+        }
+    }
+
+    fn on_frame(&mut self, myself: &ActorRef<Px4LinkMsg>, frame: Frame) {
+        if frame.sysid != self.link.sysid {
+            return;
+        }
+        if let Some(sink) = &self.components {
+            sink(&frame);
+        }
+        if let MavMessage::COMMAND_ACK(ack) = &frame.msg {
+            let ours = self.link.endpoint.identity();
+            let for_us = (ack.target_system == 0 || ack.target_system == ours.sysid)
+                && (ack.target_component == 0 || ack.target_component == ours.compid);
+            if for_us {
+                self.on_ack(myself, ack.command as u32, ack.result);
+            }
+            return;
+        }
+        if frame.compid != self.link.compid {
+            return; // other components (camera, gimbal) are the payloads' business
+        }
+        if let MavMessage::PARAM_VALUE(pv) = &frame.msg
+            && let Some(value) = ParamValue::from_wire(pv.param_value, pv.param_type)
+        {
+            let t = self
+                .params
+                .on_value(&param_name(&pv.param_id), value, self.target());
+            self.transmit_param(myself, t);
+        }
+        if self.link.lost.swap(false, Ordering::Relaxed) {
+            let observed = self.link.with_telemetry(|t| t.observed());
+            if let Some(o) = observed {
+                (self.events)(LinkEvent::Restored(o));
+            }
+            self.greet(myself);
+        }
+        let change = self
+            .link
+            .telemetry
+            .write()
+            .expect("telemetry lock")
+            .apply(&frame.msg, Instant::now());
+        match change {
+            Change::None => {}
+            Change::Observed(o) => {
+                if !self.greeted {
+                    self.greet(myself);
+                }
+                self.check_mode_confirmations(myself, o.mode);
+                (self.events)(LinkEvent::Observed(o));
+            }
+            Change::StatusText(severity, text) => {
+                (self.events)(LinkEvent::StatusText { severity, text });
+            }
+            Change::Rebooted => {
+                (self.events)(LinkEvent::Rebooted);
+                self.greet(myself);
+            }
+        }
+    }
+
+    fn on_tick(&mut self) {
+        self.send_heartbeat();
+        let silent = self.link.silence().is_none_or(|s| s > LINK_TIMEOUT);
+        let heard_before = self.link.with_telemetry(|t| t.heartbeat.is_some());
+        if silent && heard_before && !self.link.lost.swap(true, Ordering::Relaxed) {
+            (self.events)(LinkEvent::Lost);
+        }
+    }
+}
+
+impl Actor for Px4Link {
+    type Msg = Px4LinkMsg;
+    type State = Px4LinkState;
+    type Arguments = Px4LinkArgs;
+
+    async fn pre_start(
+        &self,
+        myself: ActorRef<Self::Msg>,
+        args: Px4LinkArgs,
+    ) -> Result<Self::State, ActorProcessingErr> {
+        let route_to = myself.clone();
+        args.link.endpoint.route(
+            args.link.sysid,
+            Arc::new(move |f| {
+                let _ = route_to.cast(Px4LinkMsg::Frame(f));
+            }),
+        );
+        myself.send_interval(HEARTBEAT_PERIOD, || Px4LinkMsg::Tick);
+        let greeted = false;
+        Ok(Px4LinkState {
+            link: args.link,
+            events: args.events,
+            components: args.components,
+            pending: HashMap::new(),
+            queued: HashMap::new(),
+            generation: 0,
+            greeted,
+            params: ParamClient::default(),
+        })
+    }
+
+    async fn post_start(
+        &self,
+        myself: ActorRef<Self::Msg>,
+        state: &mut Self::State,
+    ) -> Result<(), ActorProcessingErr> {
+        // A restarted actor of a vehicle already heard from greets at once.
+        if state.link.with_telemetry(|t| t.heartbeat.is_some()) {
+            state.greet(&myself);
+        }
+        Ok(())
+    }
+
+    async fn handle(
+        &self,
+        myself: ActorRef<Self::Msg>,
+        msg: Self::Msg,
+        state: &mut Self::State,
+    ) -> Result<(), ActorProcessingErr> {
+        match msg {
+            Px4LinkMsg::Frame(f) => state.on_frame(&myself, f),
+            Px4LinkMsg::Command(cmd, reply) => {
+                if state.link.is_lost() {
+                    let _ = reply.send(Err(LinkError::NoLink));
+                } else {
+                    state.start(&myself, cmd, Some(reply));
+                }
+            }
+            Px4LinkMsg::CommandNoReply(cmd) => state.start(&myself, cmd, None),
+            Px4LinkMsg::Tick => state.on_tick(),
+            Px4LinkMsg::AckDeadline(id, generation) => {
+                state.on_ack_deadline(&myself, id, generation)
+            }
+            Px4LinkMsg::ModeDeadline(generation) => {
+                let id = MavCmd::MAV_CMD_DO_SET_MODE as u32;
+                if let Some(p) = state.pending.get(&id)
+                    && p.generation == generation
+                    && let Some(wanted) = p.awaiting_mode
+                {
+                    let reported = state
+                        .link
+                        .with_telemetry(|t| t.heartbeat.map(|h| h.mode.name()))
+                        .unwrap_or("nothing");
+                    state.finish(
+                        &myself,
+                        id,
+                        Err(LinkError::ModeNotConfirmed {
+                            wanted: wanted.name().to_string(),
+                            reported: reported.to_string(),
+                        }),
+                    );
+                }
+            }
+            Px4LinkMsg::ParamGet(name, reply) => {
+                if state.link.is_lost() {
+                    let _ = reply.send(Err(LinkError::NoLink));
+                } else {
+                    state.param(&myself, &name, ParamOp::Get, Some(reply));
+                }
+            }
+            Px4LinkMsg::ParamSet(name, value, reply) => {
+                if state.link.is_lost() {
+                    let _ = reply.send(Err(LinkError::NoLink));
+                } else {
+                    state.param(&myself, &name, ParamOp::Set(value), Some(reply));
+                }
+            }
+            Px4LinkMsg::ParamDeadline(name, generation) => {
+                let t = state.params.on_deadline(&name, generation, state.target());
+                state.transmit_param(&myself, t);
+            }
+            Px4LinkMsg::Params(reply) => {
+                let mut all: Vec<(String, ParamValue)> = state
+                    .params
+                    .cache()
+                    .iter()
+                    .map(|(k, v)| (k.clone(), *v))
+                    .collect();
+                all.sort_by(|a, b| a.0.cmp(&b.0));
+                let _ = reply.send(all);
+            }
+            Px4LinkMsg::Ping(reply) => {
+                let _ = reply.send(());
+            }
+            Px4LinkMsg::Fault(kind) => {
+                let who = format!("px4link of sysid {}", state.link.sysid);
+                crate::fault::inject(kind, &myself, &who).await?;
+            }
+        }
+        Ok(())
+    }
+}

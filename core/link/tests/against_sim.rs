@@ -1,0 +1,340 @@
+//! The link against the simulator over real UDP: shared-endpoint demultiplexing, loss and
+//! recovery, reboots, the command and parameter protocols, telemetry profiles.
+
+use ractor::{Actor, ActorRef};
+use skein_link::endpoint::Discovery;
+use skein_link::{
+    ConnectionAddress, Endpoint, Identity, LinkCommand, LinkError, LinkEvent, LinkSetup, Px4Link,
+    Px4LinkArgs, Px4LinkMsg, TelemetryProfile, VehicleLink,
+};
+use skein_mavlink::param::ParamValue;
+use skein_model::px4::Px4Mode;
+use skein_sim::{SimConfig, SimVehicleConfig, Simulator};
+use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+async fn eventually<T>(what: &str, timeout: Duration, mut f: impl FnMut() -> Option<T>) -> T {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(v) = f() {
+            return v;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "timed out after {timeout:?} waiting for {what}"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+struct Vehicle {
+    link: Arc<VehicleLink>,
+    actor: ActorRef<Px4LinkMsg>,
+    events: Arc<Mutex<Vec<LinkEvent>>>,
+}
+
+impl Vehicle {
+    fn saw(&self, pred: impl Fn(&LinkEvent) -> bool) -> bool {
+        self.events.lock().unwrap().iter().any(pred)
+    }
+
+    async fn command(&self, cmd: LinkCommand) -> Result<(), LinkError> {
+        ractor::call_t!(self.actor, Px4LinkMsg::Command, 15_000, cmd).expect("link actor answers")
+    }
+}
+
+async fn attach(endpoint: &Arc<Endpoint>, d: Discovery, setup: LinkSetup) -> Vehicle {
+    let link = VehicleLink::new(endpoint.clone(), d.sysid, d.compid, 20.0, setup);
+    let events = Arc::new(Mutex::new(Vec::new()));
+    let sink = events.clone();
+    let (actor, _) = Actor::spawn(
+        None,
+        Px4Link,
+        Px4LinkArgs {
+            link: link.clone(),
+            events: Arc::new(move |e| sink.lock().unwrap().push(e)),
+            components: None,
+        },
+    )
+    .await
+    .unwrap();
+    Vehicle {
+        link,
+        actor,
+        events,
+    }
+}
+
+/// `n` simulated vehicles all sending to one `udpin` endpoint; links attached as they are
+/// discovered.
+async fn swarm_on_one_port(n: u8, setup: LinkSetup) -> (Simulator, Arc<Endpoint>, Vec<Vehicle>) {
+    let endpoint = Endpoint::open(
+        ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
+        Identity::default(),
+    )
+    .await
+    .unwrap();
+    let found: Arc<Mutex<Vec<Discovery>>> = Arc::default();
+    let f = found.clone();
+    endpoint.set_discovery(Arc::new(move |d| f.lock().unwrap().push(d)));
+    let target = endpoint.local_addr().unwrap();
+    let bind: SocketAddr = "127.0.0.1:0".parse().unwrap();
+    let sim = Simulator::start(SimConfig::with_vehicles(
+        (1..=n)
+            .map(|sysid| SimVehicleConfig {
+                sysid,
+                bind,
+                target,
+            })
+            .collect(),
+    ))
+    .await
+    .unwrap();
+    let discoveries = eventually("every vehicle discovered", Duration::from_secs(20), || {
+        let f = found.lock().unwrap();
+        (f.len() == usize::from(n)).then(|| f.clone())
+    })
+    .await;
+    let mut vehicles = Vec::new();
+    for d in discoveries {
+        vehicles.push(attach(&endpoint, d, setup.clone()).await);
+    }
+    vehicles.sort_by_key(|v| v.link.sysid);
+    (sim, endpoint, vehicles)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn twelve_vehicles_on_one_port_keep_their_identities() {
+    let (sim, endpoint, vehicles) = swarm_on_one_port(12, LinkSetup::default()).await;
+    let sysids: Vec<u8> = vehicles.iter().map(|v| v.link.sysid).collect();
+    assert_eq!(sysids, (1..=12).collect::<Vec<u8>>());
+    for v in &vehicles {
+        eventually(
+            "telemetry of every vehicle",
+            Duration::from_secs(20),
+            || {
+                v.link
+                    .with_telemetry(|t| t.home.is_some() && t.heartbeat.is_some())
+                    .then_some(())
+            },
+        )
+        .await;
+    }
+    // Each vehicle's own position: they spawn at different places, so no two agree.
+    let homes: Vec<_> = vehicles
+        .iter()
+        .map(|v| v.link.with_telemetry(|t| t.home.unwrap().geo))
+        .collect();
+    for (i, a) in homes.iter().enumerate() {
+        for b in &homes[i + 1..] {
+            assert!(
+                a != b,
+                "two vehicles reported the same home: frames crossed"
+            );
+        }
+    }
+    // A command to vehicle 11 reaches vehicle 11 only (the target_system pain point).
+    vehicles[10].command(LinkCommand::Arm).await.unwrap();
+    eventually("sysid 11 armed", Duration::from_secs(10), || {
+        sim.truth(11).unwrap().armed.then_some(())
+    })
+    .await;
+    for sysid in (1..=12).filter(|s| *s != 11) {
+        assert!(!sim.truth(sysid).unwrap().armed, "sysid {sysid} armed too");
+    }
+    assert_eq!(
+        endpoint.decode_counts().errors(),
+        0,
+        "{:?}",
+        endpoint.decode_counts()
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_silent_vehicle_is_lost_after_3_s_and_rejoins_with_its_identity() {
+    let (sim, _endpoint, vehicles) = swarm_on_one_port(2, LinkSetup::default()).await;
+    let v = &vehicles[0];
+    eventually("connected", Duration::from_secs(10), || {
+        v.link
+            .with_telemetry(|t| t.heartbeat.is_some())
+            .then_some(())
+    })
+    .await;
+    let t0 = Instant::now();
+    sim.set_silent(1, true);
+    eventually("Lost", Duration::from_secs(10), || {
+        v.saw(|e| *e == LinkEvent::Lost).then_some(())
+    })
+    .await;
+    let lost_after = t0.elapsed();
+    assert!(
+        lost_after >= Duration::from_millis(2900),
+        "lost after {lost_after:?}"
+    );
+    assert!(v.link.is_lost());
+    // Commands to a lost vehicle fail at once with NoLink.
+    assert_eq!(v.command(LinkCommand::Arm).await, Err(LinkError::NoLink));
+    // The other vehicle on the same port is unaffected.
+    assert!(!vehicles[1].link.is_lost());
+    sim.set_silent(1, false);
+    eventually("Restored", Duration::from_secs(10), || {
+        v.saw(|e| matches!(e, LinkEvent::Restored(_))).then_some(())
+    })
+    .await;
+    assert!(!v.link.is_lost());
+    v.command(LinkCommand::SetMode(Px4Mode::Hold))
+        .await
+        .unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_rebooted_vehicle_is_detected_and_readopted() {
+    let (sim, _endpoint, vehicles) = swarm_on_one_port(1, LinkSetup::default()).await;
+    let v = &vehicles[0];
+    eventually("home known", Duration::from_secs(10), || {
+        v.link.with_telemetry(|t| t.home.is_some()).then_some(())
+    })
+    .await;
+    // Let the boot clock run a while so a restart is visible.
+    eventually("boot time past 2 s", Duration::from_secs(10), || {
+        v.link
+            .with_telemetry(|t| t.global.is_some_and(|g| g.time_boot_ms > 2000))
+            .then_some(())
+    })
+    .await;
+    sim.reboot(1);
+    eventually("Rebooted", Duration::from_secs(10), || {
+        v.saw(|e| *e == LinkEvent::Rebooted).then_some(())
+    })
+    .await;
+    // Re-adopted: the home (forgotten on reboot) is requested and comes back.
+    eventually("home again", Duration::from_secs(10), || {
+        v.link.with_telemetry(|t| t.home.is_some()).then_some(())
+    })
+    .await;
+    v.command(LinkCommand::Arm).await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn parameters_read_and_write_with_bytewise_integers() {
+    let setup = LinkSetup {
+        telemetry: TelemetryProfile::Px4Default,
+        params: vec![
+            ("COM_OBL_RC_ACT".into(), 5.0),
+            ("COM_OF_LOSS_T".into(), 0.8),
+        ],
+    };
+    let (_sim, _endpoint, vehicles) = swarm_on_one_port(1, setup).await;
+    let v = &vehicles[0];
+    let get = |name: &'static str| {
+        let actor = v.actor.clone();
+        async move {
+            ractor::call_t!(actor, Px4LinkMsg::ParamGet, 15_000, name.to_string()).expect("answer")
+        }
+    };
+    // Set at connect (once the first heartbeat has been seen), read back.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while get("COM_OBL_RC_ACT").await != Ok(ParamValue::Int32(5)) {
+        assert!(Instant::now() < deadline, "COM_OBL_RC_ACT never became 5");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert_eq!(get("COM_OF_LOSS_T").await, Ok(ParamValue::Real32(0.8)));
+    assert_eq!(get("MIS_TAKEOFF_ALT").await, Ok(ParamValue::Real32(2.5)));
+    let set = ractor::call_t!(
+        v.actor,
+        Px4LinkMsg::ParamSet,
+        15_000,
+        "MIS_TAKEOFF_ALT".to_string(),
+        7.5
+    )
+    .unwrap();
+    assert_eq!(set, Ok(ParamValue::Real32(7.5)));
+    assert_eq!(get("MIS_TAKEOFF_ALT").await, Ok(ParamValue::Real32(7.5)));
+    let missing = get("NO_SUCH_PARAM").await;
+    assert!(
+        matches!(missing, Err(LinkError::Timeout { .. })),
+        "{missing:?}"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn command_results_map_to_errors_and_silence_times_out() {
+    let (sim, _endpoint, vehicles) = swarm_on_one_port(1, LinkSetup::default()).await;
+    let v = &vehicles[0];
+    eventually("home known", Duration::from_secs(10), || {
+        v.link.with_telemetry(|t| t.home.is_some()).then_some(())
+    })
+    .await;
+    // OFFBOARD without a setpoint stream: PX4's second ACK refuses it.
+    let r = v.command(LinkCommand::SetMode(Px4Mode::Offboard)).await;
+    assert!(matches!(r, Err(LinkError::Rejected { .. })), "{r:?}");
+    // Arming is refused in LAND.
+    v.command(LinkCommand::SetMode(Px4Mode::Land))
+        .await
+        .unwrap();
+    let r = v.command(LinkCommand::Arm).await;
+    assert!(matches!(r, Err(LinkError::Rejected { .. })), "{r:?}");
+    // Mode changes are confirmed from the heartbeat.
+    v.command(LinkCommand::SetMode(Px4Mode::Hold))
+        .await
+        .unwrap();
+    assert_eq!(
+        v.link.with_telemetry(|t| t.heartbeat.unwrap().mode),
+        Px4Mode::Hold
+    );
+    // No ACK at all: every resend, then a timeout.
+    sim.set_silent(1, true);
+    let t0 = Instant::now();
+    let r = v.command(LinkCommand::Arm).await;
+    assert_eq!(
+        r,
+        Err(LinkError::Timeout {
+            command: "arm".into(),
+            attempts: skein_link::px4link::MAX_ATTEMPTS
+        })
+    );
+    assert!(t0.elapsed() >= skein_link::px4link::ACK_TIMEOUT * 4);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_swarm_profile_cuts_telemetry_to_what_skein_uses() {
+    let count = |v: &Vehicle| v.link.with_telemetry(|t| t.messages);
+    let rate = |v: &Vehicle| {
+        let v = v.link.clone();
+        async move {
+            let a = v.with_telemetry(|t| t.messages);
+            let t0 = Instant::now();
+            tokio::time::sleep(Duration::from_millis(1000)).await; // measurement window
+            (v.with_telemetry(|t| t.messages) - a) as f64 / t0.elapsed().as_secs_f64()
+        }
+    };
+    let (_sim, _e, full) = swarm_on_one_port(1, LinkSetup::default()).await;
+    eventually("streaming", Duration::from_secs(10), || {
+        (count(&full[0]) > 100).then_some(())
+    })
+    .await;
+    let full_rate = rate(&full[0]).await;
+    let setup = LinkSetup {
+        telemetry: TelemetryProfile::Swarm,
+        params: vec![],
+    };
+    let (_sim2, _e2, reduced) = swarm_on_one_port(1, setup).await;
+    eventually("streaming", Duration::from_secs(10), || {
+        (count(&reduced[0]) > 50).then_some(())
+    })
+    .await;
+    assert!(full_rate > 250.0, "PX4 default profile: {full_rate} msg/s");
+    // The SET_MESSAGE_INTERVAL commands go one at a time: measure until they have landed.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let reduced_rate = rate(&reduced[0]).await;
+        if reduced_rate < 60.0 {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "swarm profile still at {reduced_rate} msg/s"
+        );
+    }
+}

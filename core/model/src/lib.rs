@@ -1,0 +1,24 @@
+//! The pure model of a skein swarm: everything that can be decided without I/O.
+//!
+//! - [`geo`]: geodetic points, NED vectors and tangent-plane frames (the swarm frame and
+//!   each vehicle's own local NED frame), converted through global positions with `map_3d`.
+//! - [`px4`]: PX4 flight modes as carried in `HEARTBEAT.custom_mode`, landed states and
+//!   `SET_POSITION_TARGET_LOCAL_NED` type masks.
+//! - [`fsm`]: the vehicle state machine (GenericUAVModel) as a plain transition function.
+//! - [`formation`]: formation shapes, slot offsets and optimal slot assignment.
+//! - [`safety`]: geofence, setpoint speed limiting and separation checks that every
+//!   setpoint passes before it leaves skein.
+//! - [`supervision`]: restart policies, child kinds and statuses, injectable faults.
+//! - [`vehicle`]: the vehicle snapshot the API and dashboard show.
+//!
+//! Nothing in this crate blocks, allocates threads or touches a socket, so all of it is
+//! unit- and property-tested directly.
+#![warn(missing_docs)]
+
+pub mod formation;
+pub mod fsm;
+pub mod geo;
+pub mod px4;
+pub mod safety;
+pub mod supervision;
+pub mod vehicle;

@@ -1,0 +1,754 @@
+//! The checks every setpoint passes before it leaves skein: geofence, speed and
+//! acceleration limits, and separation from the other vehicles.
+//!
+//! The [`SetpointShaper`] is the single gate: the vehicle asks for a *target* (a hold
+//! point, a slot, a go-to point) and the shaper produces the setpoint actually streamed,
+//! a "carrot" that moves toward the target no faster than the vehicle model allows, is
+//! clamped into the [`Geofence`], steers around the other vehicles (see
+//! [`SetpointShaper::step`]) and never advances toward one already closer than the minimum
+//! separation. The streamed setpoint carries the carrot's velocity as
+//! feed-forward, so PX4 tracks a moving target without lag.
+
+use crate::geo::Ned;
+use serde::{Deserialize, Serialize};
+
+/// A cylinder around the swarm origin (swarm frame): horizontal radius, an altitude band
+/// above the origin, and optionally a polygon the vehicles must stay inside too.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Geofence {
+    /// Largest horizontal distance from the swarm origin, metres.
+    pub radius_m: f64,
+    /// Highest altitude above the swarm origin, metres.
+    pub max_altitude_m: f64,
+    /// Lowest altitude above the swarm origin for airborne targets (not enforced while
+    /// taking off or landing), metres.
+    #[serde(default)]
+    pub min_altitude_m: f64,
+    /// Optional polygon, `[north_m, east_m]` vertices in the swarm frame, in order
+    /// (at least 3; empty = none).
+    #[serde(default)]
+    pub polygon: Vec<[f64; 2]>,
+}
+
+impl Default for Geofence {
+    fn default() -> Self {
+        Geofence {
+            radius_m: 500.0,
+            max_altitude_m: 120.0,
+            min_altitude_m: 0.0,
+            polygon: vec![],
+        }
+    }
+}
+
+/// Why a setpoint was changed by the geofence.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum FenceViolation {
+    /// Outside the horizontal radius.
+    Radius,
+    /// Outside the polygon.
+    Polygon,
+    /// Above the ceiling.
+    Ceiling,
+    /// Below the floor.
+    Floor,
+}
+
+impl FenceViolation {
+    /// The name events use (`"radius"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            FenceViolation::Radius => "radius",
+            FenceViolation::Polygon => "polygon",
+            FenceViolation::Ceiling => "ceiling",
+            FenceViolation::Floor => "floor",
+        }
+    }
+}
+
+/// True when (n, e) is inside the polygon (ray casting).
+fn inside_polygon(poly: &[[f64; 2]], n: f64, e: f64) -> bool {
+    let mut inside = false;
+    let mut j = poly.len() - 1;
+    for i in 0..poly.len() {
+        let ([ni, ei], [nj, ej]) = (poly[i], poly[j]);
+        if (ei > e) != (ej > e) && n < (nj - ni) * (e - ei) / (ej - ei) + ni {
+            inside = !inside;
+        }
+        j = i;
+    }
+    inside
+}
+
+/// The point of the polygon's boundary nearest to (n, e).
+fn nearest_on_polygon(poly: &[[f64; 2]], n: f64, e: f64) -> (f64, f64) {
+    let mut best = (poly[0][0], poly[0][1]);
+    let mut best_d2 = f64::INFINITY;
+    for i in 0..poly.len() {
+        let [an, ae] = poly[i];
+        let [bn, be] = poly[(i + 1) % poly.len()];
+        let (dn, de) = (bn - an, be - ae);
+        let len2 = dn * dn + de * de;
+        let t = if len2 > 0.0 {
+            (((n - an) * dn + (e - ae) * de) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let (pn, pe) = (an + t * dn, ae + t * de);
+        let d2 = (pn - n).powi(2) + (pe - e).powi(2);
+        if d2 < best_d2 {
+            best_d2 = d2;
+            best = (pn, pe);
+        }
+    }
+    best
+}
+
+impl Geofence {
+    /// Clamps a swarm-frame position into the fence; returns the clamped point and the
+    /// violation, if any (the first found: radius, polygon, ceiling, floor). The floor is
+    /// only applied when `enforce_floor` (airborne targets; not a takeoff or a landing).
+    pub fn clamp(&self, p: Ned, enforce_floor: bool) -> (Ned, Option<FenceViolation>) {
+        let mut out = p;
+        let mut violation = None;
+        let h = p.horizontal_norm();
+        if h > self.radius_m {
+            let k = self.radius_m / h;
+            out.north_m *= k;
+            out.east_m *= k;
+            violation = Some(FenceViolation::Radius);
+        }
+        if self.polygon.len() >= 3 && !inside_polygon(&self.polygon, out.north_m, out.east_m) {
+            let (n, e) = nearest_on_polygon(&self.polygon, out.north_m, out.east_m);
+            out.north_m = n;
+            out.east_m = e;
+            violation.get_or_insert(FenceViolation::Polygon);
+        }
+        if -out.down_m > self.max_altitude_m {
+            out.down_m = -self.max_altitude_m;
+            violation.get_or_insert(FenceViolation::Ceiling);
+        }
+        if enforce_floor && -out.down_m < self.min_altitude_m {
+            out.down_m = -self.min_altitude_m;
+            violation.get_or_insert(FenceViolation::Floor);
+        }
+        (out, violation)
+    }
+
+    /// The fence moved `buffer_m` inwards: radius and ceiling lower, floor higher (the
+    /// polygon is kept as is).
+    pub fn shrunk(&self, buffer_m: f64) -> Geofence {
+        Geofence {
+            radius_m: (self.radius_m - buffer_m).max(0.0),
+            max_altitude_m: (self.max_altitude_m - buffer_m).max(self.min_altitude_m),
+            min_altitude_m: (self.min_altitude_m + buffer_m).min(self.max_altitude_m),
+            polygon: self.polygon.clone(),
+        }
+    }
+
+    /// True when `p` is inside the fence (floor included).
+    pub fn contains(&self, p: Ned) -> bool {
+        // A point on the polygon's edge counts as inside.
+        let (q, v) = self.clamp(p, true);
+        v.is_none() || (q - p).norm() < 1e-9
+    }
+
+    /// Checks the fence's own consistency.
+    ///
+    /// # Errors
+    /// The field at fault and why.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if !(self.radius_m.is_finite() && self.radius_m > 0.0) {
+            return Err((
+                "radius_m",
+                format!("must be positive, got {}", self.radius_m),
+            ));
+        }
+        if !(self.max_altitude_m.is_finite() && self.max_altitude_m > 0.0) {
+            return Err((
+                "max_altitude_m",
+                format!("must be positive, got {}", self.max_altitude_m),
+            ));
+        }
+        if !(self.min_altitude_m.is_finite()
+            && self.min_altitude_m >= 0.0
+            && self.min_altitude_m < self.max_altitude_m)
+        {
+            return Err((
+                "min_altitude_m",
+                format!(
+                    "must be in [0, max_altitude_m), got {}",
+                    self.min_altitude_m
+                ),
+            ));
+        }
+        if !self.polygon.is_empty() && self.polygon.len() < 3 {
+            return Err((
+                "polygon",
+                format!("needs at least 3 vertices, got {}", self.polygon.len()),
+            ));
+        }
+        if self.polygon.iter().flatten().any(|x| !x.is_finite()) {
+            return Err(("polygon", "vertices must be finite numbers".into()));
+        }
+        Ok(())
+    }
+}
+
+/// Motion limits of a vehicle model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MotionLimits {
+    /// Horizontal speed limit, m/s.
+    pub max_speed_m_s: f64,
+    /// Climb rate limit, m/s.
+    pub max_climb_m_s: f64,
+    /// Descent rate limit, m/s.
+    pub max_descent_m_s: f64,
+    /// Acceleration limit (any direction), m/s².
+    pub max_accel_m_s2: f64,
+}
+
+impl Default for MotionLimits {
+    /// Under PX4's multicopter defaults (`MPC_XY_VEL_MAX` 12 m/s, `MPC_Z_VEL_MAX_UP`
+    /// 3 m/s, `MPC_Z_VEL_MAX_DN` 1.5 m/s, `MPC_ACC_HOR` 3 m/s²): a setpoint that
+    /// accelerates slower than the vehicle can is followed closely, which keeps the
+    /// separation kept between setpoints true between vehicles.
+    fn default() -> Self {
+        MotionLimits {
+            max_speed_m_s: 8.0,
+            max_climb_m_s: 3.0,
+            max_descent_m_s: 1.5,
+            max_accel_m_s2: 2.5,
+        }
+    }
+}
+
+/// A setpoint as it leaves skein: position and velocity feed-forward in the swarm frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ShapedSetpoint {
+    /// Position, swarm-frame NED metres.
+    pub position: Ned,
+    /// Velocity feed-forward, NED m/s.
+    pub velocity: Ned,
+    /// Yaw, radians clockwise from north.
+    pub yaw_rad: f64,
+    /// Set when the geofence moved the setpoint.
+    pub fence: Option<FenceViolation>,
+    /// Set when the separation check held the setpoint back.
+    pub separation_hold: bool,
+}
+
+/// The gate between a vehicle's target and the setpoint it streams (see module docs).
+#[derive(Debug, Clone)]
+pub struct SetpointShaper {
+    limits: MotionLimits,
+    fence: Geofence,
+    enforce_floor: bool,
+    min_separation_m: f64,
+    planned_separation_m: f64,
+    carrot: Ned,
+    velocity: Ned,
+}
+
+/// Gain from carrot-to-target distance to the carrot's desired speed (1/s): the carrot
+/// slows down over the last metres instead of overshooting.
+const APPROACH_GAIN_PER_S: f64 = 1.0;
+/// Distance setpoints keep inside the geofence for the vehicle's tracking error, metres.
+pub const FENCE_TRACKING_BUFFER_M: f64 = 0.5;
+/// Fraction of the acceleration limit avoidance counts on for braking (the rest is left
+/// for steering around).
+pub const BRAKE_FRACTION: f64 = 0.6;
+
+/// Another vehicle, as the separation check sees it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Obstacle {
+    /// Where it is, or where it is being sent, swarm frame.
+    pub position: Ned,
+    /// Its velocity, m/s.
+    pub velocity: Ned,
+    /// True when skein steers it too: it takes half of the avoidance.
+    pub reciprocal: bool,
+    /// True when both vehicles fly one formation transition plan, which keeps them apart
+    /// by construction: the shaper then only guards the inner limit (see
+    /// [`SetpointShaper::step`]) instead of shaping the approach.
+    pub planned: bool,
+}
+
+impl Obstacle {
+    /// A vehicle standing still that does not avoid.
+    pub fn fixed(position: Ned) -> Self {
+        Obstacle {
+            position,
+            velocity: Ned::ZERO,
+            reciprocal: false,
+            planned: false,
+        }
+    }
+}
+
+impl SetpointShaper {
+    /// A shaper whose carrot starts at `start` (the vehicle's current position) at rest.
+    pub fn new(start: Ned, limits: MotionLimits, fence: Geofence, min_separation_m: f64) -> Self {
+        SetpointShaper {
+            limits,
+            fence,
+            enforce_floor: false,
+            min_separation_m,
+            planned_separation_m: min_separation_m,
+            carrot: start,
+            velocity: Ned::ZERO,
+        }
+    }
+
+    /// Sets the inner limit kept from [`Obstacle::planned`] vehicles (metres; at most the
+    /// minimum separation): a transition plan keeps members apart by construction, so the
+    /// shaper only stops the carrot from closing in below this distance.
+    pub fn with_planned_separation(mut self, planned_separation_m: f64) -> Self {
+        self.planned_separation_m = planned_separation_m.min(self.min_separation_m);
+        self
+    }
+
+    /// The current carrot (last position setpoint).
+    pub fn carrot(&self) -> Ned {
+        self.carrot
+    }
+
+    /// Moves the carrot to `p` and stops it (used when a hold point is re-anchored).
+    pub fn reset(&mut self, p: Ned) {
+        self.carrot = p;
+        self.velocity = Ned::ZERO;
+    }
+
+    /// Whether the fence's floor applies (airborne phases; not takeoff or landing).
+    pub fn enforce_floor(&mut self, on: bool) {
+        self.enforce_floor = on;
+    }
+
+    /// Changes the limits (vehicle model change).
+    pub fn set_limits(&mut self, limits: MotionLimits, fence: Geofence, min_separation_m: f64) {
+        self.limits = limits;
+        self.fence = fence;
+        self.min_separation_m = min_separation_m;
+        self.planned_separation_m = self.planned_separation_m.min(min_separation_m);
+    }
+
+    /// Advances the carrot by `dt_s` toward `target` (with the target's own velocity
+    /// `target_velocity` as feed-forward), keeping to the speed and acceleration limits, the
+    /// geofence, and the minimum separation from `others` (swarm-frame positions of the
+    /// other vehicles). Returns the setpoint to stream.
+    pub fn step(
+        &mut self,
+        target: Ned,
+        target_velocity: Ned,
+        yaw_rad: f64,
+        dt_s: f64,
+        others: &[Obstacle],
+    ) -> ShapedSetpoint {
+        // Setpoints stay a tracking buffer inside the fence, so that the vehicle's own
+        // overshoot does not take it out.
+        let inner = self.fence.shrunk(FENCE_TRACKING_BUFFER_M);
+        let (target, fence) = inner.clamp(target, self.enforce_floor);
+        let to_target = target - self.carrot;
+        // Approach speed: proportional near the target, and never more than can be braked
+        // to zero within the acceleration limit (a linear profile from cruise speed would
+        // ask for more deceleration than the vehicle has and arrive fast).
+        let dist = to_target.norm();
+        let brake = BRAKE_FRACTION * self.limits.max_accel_m_s2;
+        let approach = (dist * APPROACH_GAIN_PER_S).min((2.0 * brake * dist).sqrt());
+        let mut desired = if dist > 1e-9 {
+            target_velocity + to_target * (approach / dist)
+        } else {
+            target_velocity
+        };
+        desired = self.limit_speed(desired);
+        desired = self.limit_speed(self.avoid(desired, others));
+        // Acceleration limit on the change of the carrot's velocity.
+        let dv = desired - self.velocity;
+        let max_dv = self.limits.max_accel_m_s2 * dt_s;
+        let dv = if dv.norm() > max_dv {
+            dv * (max_dv / dv.norm())
+        } else {
+            dv
+        };
+        let mut velocity = self.limit_speed(self.velocity + dv);
+        let mut next = self.carrot + velocity * dt_s;
+        // Never step past the target.
+        if to_target.norm() <= (velocity * dt_s).norm() && target_velocity.norm() < 1e-9 {
+            next = target;
+            velocity = Ned::ZERO;
+        }
+        let (next, fence_step) = inner.clamp(next, self.enforce_floor);
+        if fence_step.is_some() && dt_s > 0.0 {
+            // Against the fence the feed-forward is what the carrot really does, never a
+            // push through it.
+            velocity = (next - self.carrot) * (1.0 / dt_s);
+        }
+        let separation_hold = self.violates_separation(next, others);
+        if separation_hold {
+            self.velocity = Ned::ZERO;
+        } else {
+            self.carrot = next;
+            self.velocity = velocity;
+        }
+        ShapedSetpoint {
+            position: self.carrot,
+            velocity: self.velocity,
+            yaw_rad,
+            fence: fence.or(fence_step),
+            separation_hold,
+        }
+    }
+
+    fn limit_speed(&self, v: Ned) -> Ned {
+        let mut v = v;
+        let h = v.horizontal_norm();
+        if h > self.limits.max_speed_m_s {
+            let k = self.limits.max_speed_m_s / h;
+            v.north_m *= k;
+            v.east_m *= k;
+        }
+        v.down_m = v
+            .down_m
+            .clamp(-self.limits.max_climb_m_s, self.limits.max_descent_m_s);
+        v
+    }
+
+    /// Velocity-space avoidance. For every other vehicle, the speed at which the carrot
+    /// closes on it (relative to its velocity) is limited to what can still be braked away
+    /// before the separation: `sqrt(2·a·(d − d_min))` with `a` a fraction
+    /// ([`BRAKE_FRACTION`]) of the acceleration limit, halved when the other vehicle is
+    /// steered by skein too (each takes half, as in reciprocal velocity obstacles). What
+    /// is removed is turned into a sideways velocity, in the direction the vehicle already
+    /// slides around the other one, or to the right when it comes straight at it (the
+    /// right-hand rule: two vehicles meeting head-on both veer right and pass; a vehicle
+    /// behind a stationary one slides around it instead of stopping).
+    ///
+    /// A [`Obstacle::planned`] vehicle is left to the formation's transition plan (which
+    /// keeps the pair apart by construction; shaping the approach would take the vehicles
+    /// off the plan's common time scale): only closing in below the planned separation
+    /// is removed.
+    fn avoid(&self, v: Ned, others: &[Obstacle]) -> Ned {
+        let brake = BRAKE_FRACTION * self.limits.max_accel_m_s2;
+        let mut out = v;
+        for o in others {
+            let away = self.carrot - o.position;
+            let dist = away.norm();
+            if dist < 1e-6 {
+                continue;
+            }
+            let n = away * (1.0 / dist);
+            let closing = -(out - o.velocity).dot(&n);
+            if o.planned {
+                if dist < self.planned_separation_m && closing > 0.0 {
+                    out = out + n * closing;
+                }
+                continue;
+            }
+            let spare = (dist - self.min_separation_m).max(0.0);
+            let share = if o.reciprocal { 0.5 } else { 1.0 };
+            let allowed = share * (2.0 * brake * spare).sqrt();
+            if closing > allowed {
+                let excess = closing - allowed;
+                out = out + n * excess;
+                // Sideways, horizontally: keep sliding the way the vehicle already slides
+                // around the other one; when it comes straight at it, to the right.
+                let h = (n.north_m.powi(2) + n.east_m.powi(2)).sqrt();
+                if h > 1e-6 {
+                    let right = Ned::new(n.east_m / h, -n.north_m / h, 0.0);
+                    let side = if out.dot(&right) >= -1e-9 {
+                        right
+                    } else {
+                        right * -1.0
+                    };
+                    out = out + side * excess;
+                }
+            }
+        }
+        out
+    }
+
+    /// True when moving the carrot to `next` brings it closer to a vehicle that is already
+    /// within the minimum separation (moving away is always allowed, so two vehicles that
+    /// start too close can still separate).
+    fn violates_separation(&self, next: Ned, others: &[Obstacle]) -> bool {
+        others.iter().any(|o| {
+            let min = if o.planned {
+                self.planned_separation_m
+            } else {
+                self.min_separation_m
+            };
+            let d_next = (next - o.position).norm_squared();
+            d_next < min * min && d_next < (self.carrot - o.position).norm_squared()
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shaper(start: Ned) -> SetpointShaper {
+        SetpointShaper::new(start, MotionLimits::default(), Geofence::default(), 3.0)
+    }
+
+    #[test]
+    fn fence_clamps_radius_ceiling_and_floor() {
+        let fence = Geofence {
+            radius_m: 100.0,
+            max_altitude_m: 50.0,
+            min_altitude_m: 5.0,
+            polygon: vec![],
+        };
+        let (p, v) = fence.clamp(Ned::new(300.0, 400.0, -10.0), true);
+        assert_eq!(v, Some(FenceViolation::Radius));
+        assert!((p.horizontal_norm() - 100.0).abs() < 1e-9);
+        assert!((p.north_m - 60.0).abs() < 1e-9);
+        let (p, v) = fence.clamp(Ned::new(0.0, 0.0, -80.0), true);
+        assert_eq!((p.down_m, v), (-50.0, Some(FenceViolation::Ceiling)));
+        assert!(fence.contains(Ned::new(10.0, 10.0, -10.0)));
+        let (p, v) = fence.clamp(Ned::new(0.0, 0.0, -2.0), true);
+        assert_eq!((p.down_m, v), (-5.0, Some(FenceViolation::Floor)));
+        assert_eq!(
+            fence.clamp(Ned::new(0.0, 0.0, -2.0), false).1,
+            None,
+            "takeoff passes the floor"
+        );
+        assert!(fence.validate().is_ok());
+        assert_eq!(
+            Geofence {
+                min_altitude_m: 60.0,
+                ..fence.clone()
+            }
+            .validate()
+            .unwrap_err()
+            .0,
+            "min_altitude_m"
+        );
+    }
+
+    #[test]
+    fn fence_polygon_clamps_to_the_nearest_edge() {
+        // A 40 m × 20 m rectangle north-east of the origin.
+        let fence = Geofence {
+            polygon: vec![[-10.0, -10.0], [30.0, -10.0], [30.0, 10.0], [-10.0, 10.0]],
+            ..Geofence::default()
+        };
+        assert!(fence.contains(Ned::new(0.0, 0.0, -10.0)));
+        let (p, v) = fence.clamp(Ned::new(50.0, 0.0, -10.0), true);
+        assert_eq!(v, Some(FenceViolation::Polygon));
+        assert!((p - Ned::new(30.0, 0.0, -10.0)).norm() < 1e-9, "{p:?}");
+        let (p, _) = fence.clamp(Ned::new(0.0, 25.0, -10.0), true);
+        assert!((p - Ned::new(0.0, 10.0, -10.0)).norm() < 1e-9, "{p:?}");
+        assert_eq!(
+            Geofence {
+                polygon: vec![[0.0, 0.0], [1.0, 1.0]],
+                ..Geofence::default()
+            }
+            .validate()
+            .unwrap_err()
+            .0,
+            "polygon"
+        );
+    }
+
+    #[test]
+    fn carrot_respects_speed_and_reaches_target() {
+        let mut s = shaper(Ned::ZERO);
+        let target = Ned::new(100.0, 0.0, -10.0);
+        let dt = 0.05;
+        let mut prev = s.carrot();
+        for _ in 0..2000 {
+            let sp = s.step(target, Ned::ZERO, 0.0, dt, &[]);
+            let v = (sp.position - prev) * (1.0 / dt);
+            assert!(v.horizontal_norm() <= 8.0 + 1e-9, "{v:?}");
+            assert!(-v.down_m <= 3.0 + 1e-9);
+            prev = sp.position;
+        }
+        assert!((s.carrot() - target).norm() < 1e-6);
+    }
+
+    #[test]
+    fn acceleration_is_limited() {
+        let mut s = shaper(Ned::ZERO);
+        let sp = s.step(Ned::new(100.0, 0.0, 0.0), Ned::ZERO, 0.0, 0.1, &[]);
+        assert!(
+            (sp.velocity.norm() - 0.25).abs() < 1e-9,
+            "{:?}",
+            sp.velocity
+        );
+    }
+
+    #[test]
+    fn target_outside_fence_is_clamped_and_reported() {
+        let mut s = shaper(Ned::ZERO);
+        s.enforce_floor(true);
+        let sp = s.step(Ned::new(0.0, 0.0, -500.0), Ned::ZERO, 0.0, 0.05, &[]);
+        assert_eq!(sp.fence, Some(FenceViolation::Ceiling));
+        for _ in 0..5000 {
+            s.step(Ned::new(0.0, 0.0, -500.0), Ned::ZERO, 0.0, 0.05, &[]);
+        }
+        // It stops the tracking buffer under the ceiling.
+        assert!((s.carrot().down_m + 120.0 - FENCE_TRACKING_BUFFER_M).abs() < 1e-6);
+    }
+
+    #[test]
+    fn slides_around_a_vehicle_in_its_path_without_breaking_separation() {
+        // The straight path from (0,0) to (20,0) runs through a vehicle hovering at (10,0).
+        let other = Ned::new(10.0, 0.0, -10.0);
+        let mut s = shaper(Ned::new(0.0, 0.0, -10.0));
+        let target = Ned::new(20.0, 0.0, -10.0);
+        let mut closest = f64::INFINITY;
+        for _ in 0..4000 {
+            let sp = s.step(target, Ned::ZERO, 0.0, 0.05, &[Obstacle::fixed(other)]);
+            closest = closest.min((sp.position - other).norm());
+        }
+        assert!(closest >= 3.0 - 1e-9, "came within {closest} m");
+        assert!(
+            (s.carrot() - target).norm() < 1e-3,
+            "stuck at {:?}",
+            s.carrot()
+        );
+    }
+
+    #[test]
+    fn at_full_speed_it_brakes_within_the_acceleration_limit_never_stopping_dead() {
+        // Cruising at 8 m/s toward a vehicle hovering 60 m ahead, target 60 m beyond it:
+        // the carrot must slow down and steer around in time (a hard stop would make the
+        // real vehicle, which cannot brake harder than its limit, overshoot into the other).
+        let other = Ned::new(60.0, 0.0, -10.0);
+        let mut s = shaper(Ned::new(0.0, 0.0, -10.0));
+        let dt = 0.05;
+        for _ in 0..200 {
+            s.step(Ned::new(1000.0, 0.0, -10.0), Ned::ZERO, 0.0, dt, &[]);
+            if s.velocity.norm() > 7.99 {
+                break;
+            }
+        }
+        let mut prev_v = s.velocity;
+        let mut closest = f64::INFINITY;
+        for _ in 0..2000 {
+            let sp = s.step(
+                Ned::new(120.0, 0.0, -10.0),
+                Ned::ZERO,
+                0.0,
+                dt,
+                &[Obstacle::fixed(other)],
+            );
+            assert!(
+                !sp.separation_hold,
+                "the hard guard had to stop the carrot at {:?}",
+                sp.position
+            );
+            let dv = (sp.velocity - prev_v).norm() / dt;
+            assert!(dv <= 2.5 + 1e-6, "accelerated at {dv} m/s²");
+            prev_v = sp.velocity;
+            closest = closest.min((sp.position - other).norm());
+        }
+        assert!(closest >= 3.0, "came within {closest} m");
+        assert!(
+            (s.carrot() - Ned::new(120.0, 0.0, -10.0)).norm() < 1e-3,
+            "stuck at {:?}",
+            s.carrot()
+        );
+    }
+
+    #[test]
+    fn a_target_left_of_an_obstacle_is_reached_around_its_left_side() {
+        // The e2e case that once deadlocked: the obstacle sits right of the straight path
+        // and the target lies beyond it to the left.
+        let other = Ned::new(0.0, 0.0, -10.0);
+        let mut s = shaper(Ned::new(3.0, -3.0, -10.0));
+        let target = Ned::new(0.0, 5.0, -10.0);
+        let mut closest = f64::INFINITY;
+        for _ in 0..4000 {
+            let sp = s.step(target, Ned::ZERO, 0.0, 0.05, &[Obstacle::fixed(other)]);
+            closest = closest.min((sp.position - other).norm());
+        }
+        assert!(closest >= 3.0 - 1e-9, "came within {closest} m");
+        assert!(
+            (s.carrot() - target).norm() < 1e-3,
+            "stuck at {:?}",
+            s.carrot()
+        );
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn reaches_any_target_around_a_stationary_vehicle(
+            sx in -15.0..15.0f64, sy in -15.0..15.0f64,
+            tx in -15.0..15.0f64, ty in -15.0..15.0f64,
+        ) {
+            let other = Ned::new(0.0, 0.0, -10.0);
+            let start = Ned::new(sx, sy, -10.0);
+            let target = Ned::new(tx, ty, -10.0);
+            proptest::prop_assume!(start.horizontal_norm() > 3.5 && target.horizontal_norm() > 3.5);
+            let mut s = shaper(start);
+            let mut closest = f64::INFINITY;
+            for _ in 0..6000 {
+                let sp = s.step(target, Ned::ZERO, 0.0, 0.05, &[Obstacle::fixed(other)]);
+                closest = closest.min((sp.position - other).norm());
+            }
+            proptest::prop_assert!(closest >= 3.0 - 1e-9, "came within {} m", closest);
+            proptest::prop_assert!((s.carrot() - target).norm() < 1e-3, "stuck at {:?}", s.carrot());
+        }
+    }
+
+    #[test]
+    fn two_vehicles_head_on_pass_each_other() {
+        let mut a = shaper(Ned::new(0.0, 0.0, -10.0));
+        let mut b = shaper(Ned::new(20.0, 0.0, -10.0));
+        let (ta, tb) = (Ned::new(20.0, 0.0, -10.0), Ned::new(0.0, 0.0, -10.0));
+        let mut closest = f64::INFINITY;
+        for _ in 0..4000 {
+            let (pa, pb) = (a.carrot(), b.carrot());
+            let (va, vb) = (a.velocity, b.velocity);
+            let ob = Obstacle {
+                position: pb,
+                velocity: vb,
+                reciprocal: true,
+                planned: false,
+            };
+            let oa = Obstacle {
+                position: pa,
+                velocity: va,
+                reciprocal: true,
+                planned: false,
+            };
+            a.step(ta, Ned::ZERO, 0.0, 0.05, &[ob]);
+            b.step(tb, Ned::ZERO, 0.0, 0.05, &[oa]);
+            closest = closest.min((a.carrot() - b.carrot()).norm());
+        }
+        assert!(closest >= 3.0 - 0.05, "came within {closest} m");
+        assert!((a.carrot() - ta).norm() < 1e-3 && (b.carrot() - tb).norm() < 1e-3);
+    }
+
+    #[test]
+    fn inside_the_separation_it_never_closes_in_and_can_move_away() {
+        let other = Ned::new(2.0, 0.0, 0.0);
+        let mut s = shaper(Ned::ZERO);
+        let mut dist = 2.0;
+        for _ in 0..100 {
+            let sp = s.step(
+                Ned::new(10.0, 0.0, 0.0),
+                Ned::ZERO,
+                0.0,
+                0.05,
+                &[Obstacle::fixed(other)],
+            );
+            let d = (sp.position - other).norm();
+            if dist < 3.0 {
+                assert!(d >= dist - 1e-9, "closed in from {dist} to {d}");
+            }
+            dist = d;
+        }
+        let sp = s.step(
+            Ned::new(-10.0, 0.0, 0.0),
+            Ned::ZERO,
+            0.0,
+            0.05,
+            &[Obstacle::fixed(other)],
+        );
+        assert!(!sp.separation_hold);
+    }
+}

@@ -1,0 +1,163 @@
+//! The vehicle snapshot: what the API (`GET /api/v1/vehicles/{id}`), the WebSocket stream
+//! and the dashboard show of one vehicle. Serialises to the JSON of the design brief.
+
+use crate::fsm::VehicleState;
+use crate::geo::{GeoPoint, Ned, NedFrame};
+use serde::{Deserialize, Serialize};
+
+/// Position of a vehicle: swarm-frame NED plus its geodetic position.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Position {
+    /// North of the swarm origin, metres.
+    pub north_m: f64,
+    /// East of the swarm origin, metres.
+    pub east_m: f64,
+    /// Down from the swarm origin, metres (negative is above it).
+    pub down_m: f64,
+    /// Latitude, degrees (`GLOBAL_POSITION_INT.lat`).
+    pub lat_deg: f64,
+    /// Longitude, degrees (`GLOBAL_POSITION_INT.lon`).
+    pub lon_deg: f64,
+    /// Altitude above mean sea level, metres (`GLOBAL_POSITION_INT.alt`).
+    pub alt_amsl_m: f64,
+    /// Height above the vehicle's home, metres (`GLOBAL_POSITION_INT.relative_alt`).
+    pub relative_alt_m: f64,
+}
+
+impl Position {
+    /// Builds the position from a geodetic point, its height above home, and the swarm
+    /// frame.
+    pub fn from_geo(geo: GeoPoint, relative_alt_m: f64, swarm: &NedFrame) -> Position {
+        let ned = swarm.to_ned(&geo);
+        Position {
+            north_m: ned.north_m,
+            east_m: ned.east_m,
+            down_m: ned.down_m,
+            lat_deg: geo.lat_deg,
+            lon_deg: geo.lon_deg,
+            alt_amsl_m: geo.alt_amsl_m,
+            relative_alt_m,
+        }
+    }
+
+    /// The swarm-frame NED part.
+    pub fn ned(&self) -> Ned {
+        Ned::new(self.north_m, self.east_m, self.down_m)
+    }
+}
+
+/// Velocity, NED, metres per second (`GLOBAL_POSITION_INT.vx/vy/vz`).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Velocity {
+    /// North, m/s.
+    pub north_m_s: f64,
+    /// East, m/s.
+    pub east_m_s: f64,
+    /// Down, m/s.
+    pub down_m_s: f64,
+}
+
+/// Battery (`BATTERY_STATUS` / `SYS_STATUS`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Battery {
+    /// Remaining charge, percent (0–100).
+    pub percent: f64,
+    /// Pack voltage, volts.
+    pub voltage_v: f64,
+}
+
+/// Link health.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LinkStatus {
+    /// False after the link timeout (3 s) without a valid message.
+    pub connected: bool,
+    /// Milliseconds since the last valid message.
+    pub last_seen_ms: u64,
+}
+
+/// The vehicle's place in the formation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FormationSlot {
+    /// Slot index (0 is the leader's slot).
+    pub slot: usize,
+    /// True for the formation leader.
+    pub leader: bool,
+    /// The slot's position, swarm-frame NED.
+    pub target: Ned,
+    /// Distance from the vehicle to its slot, metres.
+    pub error_m: f64,
+}
+
+/// One vehicle as the API shows it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VehicleSnapshot {
+    /// User-facing id (`uav-<sysid>` by default).
+    pub id: String,
+    /// MAVLink system id.
+    pub sysid: u8,
+    /// Vehicle model name (`generic`, `observation`).
+    pub model: String,
+    /// FSM state.
+    pub state: VehicleState,
+    /// Armed flag from the last `HEARTBEAT`.
+    pub armed: bool,
+    /// PX4 mode name from the last `HEARTBEAT.custom_mode` (`"OFFBOARD"`).
+    pub px4_mode: String,
+    /// `EXTENDED_SYS_STATE.landed_state` (`"OnGround"`, `"InAir"` …).
+    pub landed_state: crate::px4::LandedState,
+    /// Position, once a global position has been received.
+    pub position: Option<Position>,
+    /// Velocity.
+    pub velocity: Velocity,
+    /// Heading, degrees clockwise from north in `[0, 360)` (`ATTITUDE.yaw`).
+    pub heading_deg: f64,
+    /// Battery, once reported.
+    pub battery: Option<Battery>,
+    /// Link health.
+    pub link: LinkStatus,
+    /// Formation slot, while in formation.
+    pub formation: Option<FormationSlot>,
+    /// Payload instances (filled by the plugin host).
+    pub payloads: Vec<serde_json::Value>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn snapshot_serialises_to_the_contract_shape() {
+        let swarm = NedFrame::new(GeoPoint::new(47.3977, 8.5456, 488.0));
+        let geo = swarm.to_geo(Ned::new(0.0, 5.0, -10.0));
+        let snap = VehicleSnapshot {
+            id: "uav-1".into(),
+            sysid: 1,
+            model: "generic".into(),
+            state: VehicleState::InFormation,
+            armed: true,
+            px4_mode: "OFFBOARD".into(),
+            landed_state: crate::px4::LandedState::InAir,
+            position: Some(Position::from_geo(geo, 10.0, &swarm)),
+            velocity: Velocity::default(),
+            heading_deg: 90.0,
+            battery: Some(Battery {
+                percent: 87.0,
+                voltage_v: 15.9,
+            }),
+            link: LinkStatus {
+                connected: true,
+                last_seen_ms: 12,
+            },
+            formation: None,
+            payloads: vec![],
+        };
+        let v = serde_json::to_value(&snap).unwrap();
+        assert_eq!(v["state"], "InFormation");
+        assert_eq!(v["px4_mode"], "OFFBOARD");
+        assert!((v["position"]["east_m"].as_f64().unwrap() - 5.0).abs() < 1e-6);
+        assert!((v["position"]["down_m"].as_f64().unwrap() + 10.0).abs() < 1e-6);
+        assert_eq!(v["battery"]["voltage_v"], 15.9);
+        assert_eq!(v["link"]["connected"], true);
+        assert!(v["payloads"].as_array().unwrap().is_empty());
+    }
+}
