@@ -1,0 +1,711 @@
+//! skein's embedded multicopter simulator: N simulated PX4 v1.16 vehicles that behave like
+//! PX4 SITL on the wire (MAVLink 2 over UDP), so that third-party clients (pymavlink,
+//! MAVSDK, QGroundControl) and skein's own link fly them exactly as they would fly PX4.
+//!
+//! Each vehicle has one UDP socket (PX4 SITL convention: sysid i+1 binds 14580+i and sends
+//! to 14540+i), locks onto the first client that talks to it, streams PX4's onboard-mode
+//! telemetry at PX4's rates (or a reduced swarm profile), and implements PX4's arming,
+//! modes (`custom_mode` encoding), takeoff, land, RTL, hold, reposition, offboard control
+//! with PX4's `type_mask` semantics and offboard-loss failsafe, the command protocol
+//! (COMMAND_LONG/INT, ACKs, retransmissions) and parameters (bytewise integer encoding).
+//! Dynamics are a point mass per vehicle under a PX4-like position controller with speed
+//! and acceleration limits, wind and gusts, GPS noise, ground contact and a draining
+//! battery. Each vehicle spawns at its own place with its own local NED origin.
+//!
+//! The simulator is also skein's test peer: [`Simulator`] exposes ground truth, counters
+//! and fault injection (link cut, reboot, kill) in-process, and [`cli`] exposes the same
+//! over a line-based TCP stats socket for tests and benchmarks in other processes.
+#![warn(missing_docs)]
+#![forbid(unsafe_code)]
+
+pub mod cli;
+mod config;
+mod histogram;
+mod impairment;
+pub mod params;
+mod runtime;
+mod telemetry;
+mod vehicle;
+
+pub use config::{
+    MAX_SHARED_SYSIDS, PX4_LISTEN_BASE_PORT, PX4_SITL_HOME, PX4_TARGET_BASE_PORT, SimConfig,
+    SimVehicleConfig, TelemetryProfile, WindConfig, instance_sysid,
+};
+pub use histogram::{IntervalBucket, IntervalHistogram, IntervalSummary};
+pub use telemetry::PX4_FLIGHT_SW_VERSION;
+
+use impairment::Impairment;
+use runtime::{Cell, SHARD_SIZE, Silence, Slot};
+use serde::Serialize;
+use skein_mavlink::{DecodeCounts, DecodeStats, Encoder};
+use skein_model::geo::{GeoPoint, Ned, NedFrame};
+use skein_model::px4::{LandedState, Px4Mode};
+use std::collections::BTreeMap;
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tokio::task::JoinHandle;
+use vehicle::{Environment, Vehicle};
+
+/// One message of the telemetry table: id, name and default rates.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TelemetryStreamInfo {
+    /// MAVLink message id.
+    pub message_id: u32,
+    /// MAVLink message name.
+    pub name: &'static str,
+    /// Default rate in the [`TelemetryProfile::Px4Onboard`] profile, Hz.
+    pub px4_rate_hz: f64,
+    /// Default rate in the [`TelemetryProfile::Swarm`] profile, Hz (0 = not sent).
+    pub swarm_rate_hz: f64,
+}
+
+/// The telemetry the simulator streams (px4.md's table) with the default rates of both
+/// profiles.
+pub fn telemetry_streams() -> Vec<TelemetryStreamInfo> {
+    telemetry::STREAMS
+        .iter()
+        .map(
+            |&(_, message_id, name, px4_rate_hz, swarm_rate_hz)| TelemetryStreamInfo {
+                message_id,
+                name,
+                px4_rate_hz,
+                swarm_rate_hz,
+            },
+        )
+        .collect()
+}
+
+/// A vehicle's identity and actual endpoints.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct SimVehicleInfo {
+    /// MAVLink system id.
+    pub sysid: u8,
+    /// Address the vehicle's socket is bound to (the real port when 0 was asked).
+    pub bound: SocketAddr,
+    /// Address it sends to until a client has talked to it.
+    pub target: SocketAddr,
+}
+
+/// Ground truth of one vehicle.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SimTruth {
+    /// MAVLink system id.
+    pub sysid: u8,
+    /// True geodetic position.
+    pub position: GeoPoint,
+    /// True position in the vehicle's own local NED frame (origin at its spawn point), m.
+    pub local_ned_m: Ned,
+    /// True velocity, NED, m/s.
+    pub velocity_ned_m_s: Ned,
+    /// Heading, degrees in [0, 360).
+    pub heading_deg: f64,
+    /// Armed.
+    pub armed: bool,
+    /// PX4 mode.
+    pub mode: Px4Mode,
+    /// PX4 mode name (`"HOLD"`, `"OFFBOARD"` …).
+    pub mode_name: &'static str,
+    /// `HEARTBEAT.custom_mode`.
+    pub custom_mode: u32,
+    /// Landed state as reported in EXTENDED_SYS_STATE.
+    pub landed_state: LandedState,
+    /// A failsafe picked the current mode.
+    pub failsafe: bool,
+    /// Battery remaining, percent.
+    pub battery_percent: f64,
+    /// Battery voltage, V.
+    pub battery_voltage_v: f64,
+    /// Home position (set where the vehicle armed, or at its first fix).
+    pub home: GeoPoint,
+    /// Geodetic origin of the vehicle's local NED frame (its spawn point).
+    pub local_origin: GeoPoint,
+    /// Seconds since the vehicle (re)booted.
+    pub uptime_s: f64,
+}
+
+/// Counters of one vehicle (since start or the last [`Simulator::reset_stats`]) and its
+/// ground truth.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SimVehicleStats {
+    /// MAVLink system id.
+    pub sysid: u8,
+    /// Bound socket address.
+    pub bound: SocketAddr,
+    /// Configured target address.
+    pub target: SocketAddr,
+    /// The client address the vehicle locked onto, if any.
+    pub peer: Option<SocketAddr>,
+    /// Link currently cut by [`Simulator::set_silent`] / `silence`.
+    pub silent: bool,
+    /// Removed by [`Simulator::kill`].
+    pub killed: bool,
+    /// SET_POSITION_TARGET_* messages accepted.
+    pub setpoints_received: u64,
+    /// Largest gap between two consecutive setpoints, ms.
+    pub setpoint_max_gap_ms: f64,
+    /// Largest gap between two consecutive setpoints while in OFFBOARD, ms.
+    pub setpoint_max_gap_offboard_ms: f64,
+    /// Intervals between consecutive setpoints as received (after the simulated link),
+    /// ms: count, mean, p50/p99/p99.9 (bucket upper edges) and exact max.
+    pub setpoint_intervals: IntervalSummary,
+    /// Offboard-loss failsafes taken (COM_OF_LOSS_T expired in OFFBOARD).
+    pub offboard_loss_failsafes: u64,
+    /// GCS-link-loss failsafes taken (NAV_DLL_ACT).
+    pub gcs_loss_failsafes: u64,
+    /// COMMAND_LONG / COMMAND_INT addressed to the vehicle.
+    pub commands_received: u64,
+    /// Valid MAVLink frames received.
+    pub frames_received: u64,
+    /// Malformed input dropped (bad CRC, unknown message, parse errors, truncation,
+    /// datagrams without a valid frame).
+    pub malformed_frames: u64,
+    /// Datagrams received (not counting those dropped while silent).
+    pub datagrams_received: u64,
+    /// Datagrams dropped because the link was cut.
+    pub datagrams_dropped_silent: u64,
+    /// Configured loss fraction of the simulated link (0..=1, each direction), see
+    /// [`Simulator::set_link_quality`].
+    pub link_loss_fraction: f64,
+    /// Configured one-way latency of the simulated link, ms (each direction).
+    pub link_latency_ms: f64,
+    /// Datagrams the simulated link dropped, both directions.
+    pub datagrams_dropped_link: u64,
+    /// Of those, datagrams to the vehicle.
+    pub datagrams_dropped_link_inbound: u64,
+    /// Measured loss: datagrams dropped by the simulated link / datagrams that crossed
+    /// it, both directions (0 before any traffic).
+    pub link_loss_effective: f64,
+    /// Measured mean one-way delay of the datagrams the simulated link delayed, ms (0
+    /// before any).
+    pub link_latency_effective_ms: f64,
+    /// Datagrams waiting in the simulated link's delay lines now.
+    pub link_in_flight: usize,
+    /// Datagrams sent.
+    pub datagrams_sent: u64,
+    /// MAVLink frames sent.
+    pub frames_sent: u64,
+    /// Bytes sent.
+    pub bytes_sent: u64,
+    /// Datagrams dropped because the socket buffer was full.
+    pub send_drops: u64,
+    /// STATUSTEXT frames sent.
+    pub statustexts_sent: u64,
+    /// STATUSTEXTs not sent because no GCS heartbeat arrived in the last 2.5 s.
+    pub statustexts_suppressed: u64,
+    /// A GCS heartbeat arrived in the last 1.5 s.
+    pub gcs_connected: bool,
+    /// An onboard-controller heartbeat arrived in the last 1.5 s.
+    pub onboard_controller_connected: bool,
+    /// Detailed decoder counters.
+    pub decode: DecodeCounts,
+    /// Ground truth.
+    pub truth: SimTruth,
+}
+
+/// Totals over every vehicle, see [`Simulator::summary`].
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct SimSummary {
+    /// Vehicles simulated.
+    pub vehicles: usize,
+    /// Vehicles removed by [`Simulator::kill`].
+    pub killed: usize,
+    /// Vehicles armed now.
+    pub armed: usize,
+    /// Vehicles per PX4 mode name now (`{"OFFBOARD": 1000}`).
+    pub modes: BTreeMap<&'static str, usize>,
+    /// Vehicles that heard a GCS heartbeat in the last 1.5 s.
+    pub gcs_connected: usize,
+    /// SET_POSITION_TARGET_* messages accepted.
+    pub setpoints_received: u64,
+    /// Valid MAVLink frames received.
+    pub frames_received: u64,
+    /// COMMAND_LONG / COMMAND_INT received.
+    pub commands_received: u64,
+    /// Offboard-loss failsafes taken.
+    pub offboard_loss_failsafes: u64,
+    /// GCS-link-loss failsafes taken.
+    pub gcs_loss_failsafes: u64,
+    /// Malformed input dropped.
+    pub malformed_frames: u64,
+    /// Datagrams received.
+    pub datagrams_received: u64,
+    /// Datagrams sent.
+    pub datagrams_sent: u64,
+    /// Datagrams dropped because a socket buffer was full.
+    pub send_drops: u64,
+    /// Datagrams the simulated links dropped.
+    pub datagrams_dropped_link: u64,
+    /// Intervals between consecutive setpoints of each vehicle, all vehicles together, ms.
+    pub setpoint_intervals: IntervalSummary,
+    /// The non-empty buckets of that histogram (0.1 ms wide below 100 ms, 1 ms wide up to
+    /// 1 s, then one overflow bucket ending at the maximum).
+    pub setpoint_interval_buckets: Vec<IntervalBucket>,
+}
+
+/// Seed of vehicle `index`'s link-loss generator (distinct from its physics generator).
+fn link_seed(seed: u64, index: usize) -> u64 {
+    (seed ^ 0x5EED_11C0_0000_0000).wrapping_mul(0xD1B5_4A32_D192_ED03) ^ index as u64
+}
+
+fn decode_delta(now: DecodeCounts, base: DecodeCounts) -> DecodeCounts {
+    DecodeCounts {
+        frames_ok: now.frames_ok - base.frames_ok,
+        mavlink1_frames: now.mavlink1_frames - base.mavlink1_frames,
+        bad_crc: now.bad_crc - base.bad_crc,
+        unknown_message: now.unknown_message - base.unknown_message,
+        parse_errors: now.parse_errors - base.parse_errors,
+        truncated: now.truncated - base.truncated,
+        bad_flags: now.bad_flags - base.bad_flags,
+        garbage_bytes: now.garbage_bytes - base.garbage_bytes,
+        datagrams: now.datagrams - base.datagrams,
+        rejected_datagrams: now.rejected_datagrams - base.rejected_datagrams,
+    }
+}
+
+fn truth_of(v: &Vehicle, now: Instant) -> SimTruth {
+    SimTruth {
+        sysid: v.sysid,
+        position: v.geo_of(v.pos),
+        local_ned_m: v.pos,
+        velocity_ned_m_s: v.vel,
+        heading_deg: skein_model::geo::wrap_deg_360(v.yaw_rad.to_degrees()),
+        armed: v.armed,
+        mode: v.mode,
+        mode_name: v.mode.name(),
+        custom_mode: v.mode.custom_mode(),
+        landed_state: v.landed_state(),
+        failsafe: v.failsafe,
+        battery_percent: v.battery.remaining * 100.0,
+        battery_voltage_v: v.battery.voltage_v,
+        home: v.home,
+        local_origin: v.origin.origin,
+        uptime_s: now.saturating_duration_since(v.boot).as_secs_f64(),
+    }
+}
+
+struct Inner {
+    cells: Vec<Arc<Cell>>,
+    tasks: Mutex<Vec<JoinHandle<()>>>,
+    stop: Arc<AtomicBool>,
+}
+
+impl Drop for Inner {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in self
+            .tasks
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .drain(..)
+        {
+            t.abort();
+        }
+        for cell in &self.cells {
+            if let Some(t) = cell
+                .recv_task
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .take()
+            {
+                t.abort();
+            }
+        }
+    }
+}
+
+/// A running simulator. Cheap to clone; the simulation stops when the last clone is
+/// dropped or [`Simulator::shutdown`] is called.
+#[derive(Clone)]
+pub struct Simulator {
+    inner: Arc<Inner>,
+}
+
+impl std::fmt::Debug for Simulator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Simulator")
+            .field("vehicles", &self.inner.cells.len())
+            .finish()
+    }
+}
+
+/// Spawn point of vehicle `index` on a grid around `home`: `ceil(sqrt(n))` columns east,
+/// rows north, `spacing_m` apart.
+fn spawn_point(home: GeoPoint, index: usize, n: usize, spacing_m: f64) -> GeoPoint {
+    let cols = (n as f64).sqrt().ceil().max(1.0) as usize;
+    let row = index / cols;
+    let col = index % cols;
+    NedFrame::new(home).to_geo(Ned::new(
+        row as f64 * spacing_m,
+        col as f64 * spacing_m,
+        0.0,
+    ))
+}
+
+impl Simulator {
+    /// Binds every vehicle's socket and starts the simulation on the current tokio
+    /// runtime. Fails on a bind error, no vehicles, a zero system id, or two vehicles
+    /// with the same system id *and* the same target (a receiver could not tell them
+    /// apart). The same system id on different targets is allowed (identity is
+    /// (link, sysid): that is how more than 255 vehicles run in one process); the methods
+    /// taking a `sysid` then address the first vehicle with it.
+    pub async fn start(cfg: SimConfig) -> std::io::Result<Simulator> {
+        use std::io::{Error, ErrorKind};
+        if cfg.vehicles.is_empty() {
+            return Err(Error::new(
+                ErrorKind::InvalidInput,
+                "no vehicles configured",
+            ));
+        }
+        let mut seen = std::collections::HashSet::new();
+        for v in &cfg.vehicles {
+            if v.sysid == 0 || !seen.insert((v.sysid, v.target)) {
+                return Err(Error::new(
+                    ErrorKind::InvalidInput,
+                    format!(
+                        "invalid system id {} or duplicate (sysid, target) ({}, {})",
+                        v.sysid, v.sysid, v.target
+                    ),
+                ));
+            }
+        }
+        let env = Environment {
+            wind: cfg.wind,
+            gps_noise_m: cfg.gps_noise_m.max(0.0),
+            ekf_fix_delay: Duration::from_secs_f64(cfg.ekf_fix_delay_s.max(0.0)),
+            params: cfg.params.clone(),
+            seed: cfg.seed,
+            profile: cfg.telemetry,
+            offboard_min_stream: Duration::from_secs_f64(cfg.offboard_min_stream_s.max(0.0)),
+        };
+        let now = Instant::now();
+        let n = cfg.vehicles.len();
+        let mut cells = Vec::with_capacity(n);
+        let mut sockets = Vec::with_capacity(n);
+        for (i, vc) in cfg.vehicles.iter().enumerate() {
+            let std_socket = std::net::UdpSocket::bind(vc.bind).map_err(|e| {
+                Error::new(
+                    e.kind(),
+                    format!("sysid {}: bind {}: {e}", vc.sysid, vc.bind),
+                )
+            })?;
+            std_socket.set_nonblocking(true)?;
+            let socket = Arc::new(tokio::net::UdpSocket::from_std(std_socket)?);
+            let bound = socket.local_addr()?;
+            let spawn = spawn_point(cfg.home, i, n, cfg.spacing_m);
+            let vehicle = Vehicle::new(vc.sysid, spawn, env.clone(), now);
+            let decode_stats = Arc::new(DecodeStats::default());
+            let cell = Arc::new(Cell {
+                sysid: vc.sysid,
+                bound,
+                target: vc.target,
+                slot: Mutex::new(Slot {
+                    vehicle,
+                    encoder: Encoder::new(vc.sysid, 1),
+                    peer: None,
+                    silence: Silence::Off,
+                    killed: false,
+                    socket: Some(socket.clone()),
+                    out: Vec::with_capacity(4096),
+                    net: Default::default(),
+                    decode_baseline: DecodeCounts::default(),
+                    impair: Impairment::new(link_seed(cfg.seed, i)),
+                }),
+                decode_stats,
+                recv_task: Mutex::new(None),
+            });
+            cells.push(cell);
+            sockets.push(socket);
+        }
+        for (cell, socket) in cells.iter().zip(sockets) {
+            let handle = tokio::spawn(runtime::recv_loop(cell.clone(), socket));
+            *cell.recv_task.lock().unwrap_or_else(|e| e.into_inner()) = Some(handle);
+        }
+        let stop = Arc::new(AtomicBool::new(false));
+        let period = Duration::from_secs_f64(1.0 / cfg.telemetry.tick_rate_hz());
+        let shards: Vec<Vec<Arc<Cell>>> = cells.chunks(SHARD_SIZE).map(|c| c.to_vec()).collect();
+        let n_shards = shards.len() as u32;
+        let mut tasks = Vec::with_capacity(shards.len());
+        for (k, shard) in shards.into_iter().enumerate() {
+            let phase = period * k as u32 / n_shards;
+            tasks.push(tokio::spawn(runtime::shard_loop(
+                shard,
+                period,
+                phase,
+                stop.clone(),
+            )));
+        }
+        Ok(Simulator {
+            inner: Arc::new(Inner {
+                cells,
+                tasks: Mutex::new(tasks),
+                stop,
+            }),
+        })
+    }
+
+    fn cell(&self, sysid: u8) -> Option<&Arc<Cell>> {
+        self.inner.cells.iter().find(|c| c.sysid == sysid)
+    }
+
+    /// Every vehicle's system id and endpoints, in configuration order.
+    pub fn vehicles(&self) -> Vec<SimVehicleInfo> {
+        self.inner
+            .cells
+            .iter()
+            .map(|c| SimVehicleInfo {
+                sysid: c.sysid,
+                bound: c.bound,
+                target: c.target,
+            })
+            .collect()
+    }
+
+    /// Counters and ground truth of every vehicle.
+    pub fn stats(&self) -> Vec<SimVehicleStats> {
+        let now = Instant::now();
+        self.inner
+            .cells
+            .iter()
+            .map(|c| {
+                let decode_now = c.decode_stats.snapshot();
+                let mut slot = c.lock();
+                let silent = slot.is_silent(now);
+                let decode = decode_delta(decode_now, slot.decode_baseline);
+                let v = &slot.vehicle;
+                SimVehicleStats {
+                    sysid: c.sysid,
+                    bound: c.bound,
+                    target: c.target,
+                    peer: slot.peer,
+                    silent,
+                    killed: slot.killed,
+                    setpoints_received: v.counters.setpoints_received,
+                    setpoint_max_gap_ms: v.counters.setpoint_max_gap.as_secs_f64() * 1e3,
+                    setpoint_max_gap_offboard_ms: v
+                        .counters
+                        .setpoint_max_gap_offboard
+                        .as_secs_f64()
+                        * 1e3,
+                    setpoint_intervals: v.setpoint_intervals.summary(),
+                    offboard_loss_failsafes: v.counters.offboard_loss_failsafes,
+                    gcs_loss_failsafes: v.counters.gcs_loss_failsafes,
+                    commands_received: v.counters.commands_received,
+                    frames_received: v.counters.frames_received,
+                    malformed_frames: decode.errors(),
+                    datagrams_received: slot.net.datagrams_received,
+                    datagrams_dropped_silent: slot.net.datagrams_dropped_silent,
+                    link_loss_fraction: slot.impair.loss_fraction(),
+                    link_latency_ms: slot.impair.latency_ms(),
+                    datagrams_dropped_link: slot.impair.counters.dropped,
+                    datagrams_dropped_link_inbound: slot.impair.counters.dropped_inbound,
+                    link_loss_effective: slot.impair.effective_loss(),
+                    link_latency_effective_ms: slot.impair.effective_latency_ms(),
+                    link_in_flight: slot.impair.in_flight(),
+                    datagrams_sent: slot.net.datagrams_sent,
+                    frames_sent: slot.net.frames_sent,
+                    bytes_sent: slot.net.bytes_sent,
+                    send_drops: slot.net.send_drops,
+                    statustexts_sent: v.counters.statustexts_sent,
+                    statustexts_suppressed: v.counters.statustexts_suppressed,
+                    gcs_connected: v.gcs_connected(now),
+                    onboard_controller_connected: v.onboard_controller_connected(now),
+                    decode,
+                    truth: truth_of(v, now),
+                }
+            })
+            .collect()
+    }
+
+    /// Clears every vehicle's counters (setpoint gaps and intervals, failsafes, commands,
+    /// malformed input, traffic, simulated-link drops and delays); the link quality
+    /// settings stay.
+    pub fn reset_stats(&self) {
+        for c in &self.inner.cells {
+            let decode_now = c.decode_stats.snapshot();
+            let mut slot = c.lock();
+            slot.vehicle.counters = Default::default();
+            slot.vehicle.setpoint_intervals.clear();
+            slot.net = Default::default();
+            slot.impair.counters = Default::default();
+            slot.decode_baseline = decode_now;
+        }
+    }
+
+    /// Totals over every vehicle (counters since start or the last
+    /// [`Simulator::reset_stats`]) with the setpoint intervals of all vehicles in one
+    /// histogram: what a benchmark of the whole swarm reads.
+    pub fn summary(&self) -> SimSummary {
+        let now = Instant::now();
+        let mut s = SimSummary::default();
+        let mut intervals = IntervalHistogram::new();
+        for c in &self.inner.cells {
+            let decode_now = c.decode_stats.snapshot();
+            let slot = c.lock();
+            let v = &slot.vehicle;
+            s.vehicles += 1;
+            s.killed += usize::from(slot.killed);
+            s.armed += usize::from(v.armed);
+            *s.modes.entry(v.mode.name()).or_default() += 1;
+            s.setpoints_received += v.counters.setpoints_received;
+            s.frames_received += v.counters.frames_received;
+            s.commands_received += v.counters.commands_received;
+            s.offboard_loss_failsafes += v.counters.offboard_loss_failsafes;
+            s.gcs_loss_failsafes += v.counters.gcs_loss_failsafes;
+            s.malformed_frames += decode_delta(decode_now, slot.decode_baseline).errors();
+            s.datagrams_received += slot.net.datagrams_received;
+            s.datagrams_sent += slot.net.datagrams_sent;
+            s.send_drops += slot.net.send_drops;
+            s.datagrams_dropped_link += slot.impair.counters.dropped;
+            s.gcs_connected += usize::from(v.gcs_connected(now));
+            intervals.merge(&v.setpoint_intervals);
+        }
+        s.setpoint_intervals = intervals.summary();
+        s.setpoint_interval_buckets = intervals.buckets();
+        s
+    }
+
+    /// The setpoint intervals of every vehicle (since start or the last reset) in one
+    /// histogram.
+    pub fn setpoint_intervals(&self) -> IntervalHistogram {
+        let mut all = IntervalHistogram::new();
+        for c in &self.inner.cells {
+            all.merge(&c.lock().vehicle.setpoint_intervals);
+        }
+        all
+    }
+
+    /// Sets the simulated link quality of vehicle `sysid`: each datagram, in both
+    /// directions, is lost with probability `loss_fraction` (0..=1, clamped; drawn from
+    /// the run's seed, so reproducible) and delayed by `latency_ms` (one way, ms; a round
+    /// trip takes twice that). `(0.0, 0.0)` restores a perfect link (datagrams already
+    /// delayed are still delivered, in order). Returns false when no vehicle has that
+    /// sysid (with repeated sysids, the first one is set).
+    pub fn set_link_quality(&self, sysid: u8, loss_fraction: f64, latency_ms: f64) -> bool {
+        match self.cell(sysid) {
+            Some(cell) => {
+                let mut slot = cell.lock();
+                slot.impair.set(loss_fraction, latency_ms);
+                // The receive task recomputes its wake-up time.
+                slot.impair.wake.notify_one();
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// [`Simulator::set_link_quality`] for every vehicle.
+    pub fn set_link_quality_all(&self, loss_fraction: f64, latency_ms: f64) {
+        for c in &self.inner.cells {
+            let mut slot = c.lock();
+            slot.impair.set(loss_fraction, latency_ms);
+            slot.impair.wake.notify_one();
+        }
+    }
+
+    /// Ground truth of vehicle `sysid`.
+    pub fn truth(&self, sysid: u8) -> Option<SimTruth> {
+        let cell = self.cell(sysid)?;
+        let slot = cell.lock();
+        Some(truth_of(&slot.vehicle, Instant::now()))
+    }
+
+    /// Cuts (`true`) or restores the vehicle's link: while cut it sends nothing and drops
+    /// everything it receives; it keeps flying (and its failsafes keep running).
+    pub fn set_silent(&self, sysid: u8, silent: bool) {
+        if let Some(cell) = self.cell(sysid) {
+            let mut slot = cell.lock();
+            slot.silence = if silent {
+                Silence::Forever
+            } else {
+                Silence::Off
+            };
+        }
+    }
+
+    /// Cuts the vehicle's link for `duration`, then restores it.
+    pub fn silence_for(&self, sysid: u8, duration: Duration) {
+        if let Some(cell) = self.cell(sysid) {
+            cell.lock().silence = match Instant::now().checked_add(duration) {
+                Some(until) => Silence::Until(until),
+                None => Silence::Forever,
+            };
+        }
+    }
+
+    /// Reboots the vehicle like a PX4 SITL restart: state reset (disarmed, HOLD, back on
+    /// the ground at its spawn point, parameters to their configured values), boot time
+    /// and sequence numbers restart, and it locks onto the next client that talks to it.
+    pub fn reboot(&self, sysid: u8) {
+        if let Some(cell) = self.cell(sysid) {
+            cell.lock().reboot(Instant::now());
+        }
+    }
+
+    /// Removes the vehicle for good: its socket is closed, it neither sends nor receives.
+    pub fn kill(&self, sysid: u8) {
+        if let Some(cell) = self.cell(sysid) {
+            {
+                let mut slot = cell.lock();
+                slot.killed = true;
+                slot.socket = None;
+            }
+            if let Some(t) = cell
+                .recv_task
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .take()
+            {
+                t.abort();
+            }
+        }
+    }
+
+    /// Stops every task and closes every socket.
+    pub async fn shutdown(self) {
+        self.inner.stop.store(true, Ordering::Relaxed);
+        let tasks: Vec<JoinHandle<()>> = self
+            .inner
+            .tasks
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .drain(..)
+            .collect();
+        for cell in &self.inner.cells {
+            let recv_task = cell
+                .recv_task
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .take();
+            if let Some(t) = recv_task {
+                t.abort();
+                let _ = t.await;
+            }
+            let mut slot = cell.lock();
+            slot.socket = None;
+            slot.killed = true;
+        }
+        for t in tasks {
+            t.abort();
+            let _ = t.await;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spawn_grid_is_spaced() {
+        let home = PX4_SITL_HOME;
+        let frame = NedFrame::new(home);
+        let p0 = frame.to_ned(&spawn_point(home, 0, 4, 5.0));
+        let p1 = frame.to_ned(&spawn_point(home, 1, 4, 5.0));
+        let p2 = frame.to_ned(&spawn_point(home, 2, 4, 5.0));
+        assert!(p0.norm() < 1e-6);
+        assert!((p1.east_m - 5.0).abs() < 1e-3 && p1.north_m.abs() < 1e-3);
+        assert!((p2.north_m - 5.0).abs() < 1e-3 && p2.east_m.abs() < 1e-3);
+    }
+}
