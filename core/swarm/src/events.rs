@@ -1,0 +1,129 @@
+//! Events of the swarm, as the WebSocket stream and the dashboard's event log show them.
+
+use serde::Serialize;
+use skein_model::fsm::VehicleState;
+
+/// Something that happened in the swarm. Serialised with a `"type"` tag in snake case
+/// (`{"type": "state_changed", "id": "uav-1", "from": "Hovering", "to": "InFormation"}`).
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum SwarmEvent {
+    /// A vehicle's first heartbeat arrived and it joined the swarm.
+    VehicleJoined {
+        /// Vehicle id.
+        id: String,
+        /// MAVLink system id.
+        sysid: u8,
+        /// Connection string of its endpoint.
+        connection: String,
+    },
+    /// FSM state change.
+    StateChanged {
+        /// Vehicle id.
+        id: String,
+        /// Previous state.
+        from: VehicleState,
+        /// New state.
+        to: VehicleState,
+    },
+    /// Outcome of an accepted command (the API answered 202 with `command_id`).
+    CommandResult {
+        /// The id the API returned.
+        command_id: u64,
+        /// Vehicle id.
+        id: String,
+        /// Command name (`"takeoff"`).
+        command: String,
+        /// True when the vehicle carried it out.
+        ok: bool,
+        /// Why not, when `ok` is false.
+        error: Option<String>,
+    },
+    /// `STATUSTEXT` from a vehicle.
+    StatusText {
+        /// Vehicle id.
+        id: String,
+        /// `MAV_SEVERITY` (0 emergency … 7 debug).
+        severity: u8,
+        /// The text.
+        text: String,
+    },
+    /// The link to a vehicle went silent for the link timeout.
+    LinkLost {
+        /// Vehicle id.
+        id: String,
+    },
+    /// The link came back.
+    LinkRestored {
+        /// Vehicle id.
+        id: String,
+    },
+    /// The vehicle's autopilot rebooted.
+    Rebooted {
+        /// Vehicle id.
+        id: String,
+    },
+    /// The formation was set or changed.
+    FormationChanged {
+        /// The formation as `GET /api/v1/formation` shows it.
+        formation: serde_json::Value,
+    },
+    /// The formation has a new leader (failover, or the first one).
+    LeaderChanged {
+        /// The previous leader, if any.
+        from: Option<String>,
+        /// The new leader (a vehicle id or `"virtual"`).
+        to: String,
+        /// Why.
+        reason: String,
+    },
+    /// A setpoint was moved by the geofence.
+    GeofenceClamp {
+        /// Vehicle id.
+        id: String,
+        /// `"radius"`, `"polygon"`, `"ceiling"` or `"floor"`.
+        violation: String,
+    },
+    /// A supervised actor ended (panic, error, hang, stop).
+    ActorFailed {
+        /// Actor path (`"coordinator/uav-1/px4link"`).
+        path: String,
+        /// Actor kind (`"px4link"`).
+        kind: String,
+        /// Panic message, error, hang or stop reason.
+        reason: String,
+        /// Restarts of this actor so far.
+        restarts: u32,
+        /// Delay before its restart, ms; `None` when it is not restarted.
+        next_backoff_ms: Option<u64>,
+        /// True when its restart budget is spent and the failure escalates.
+        escalated: bool,
+    },
+    /// An escalation was carried out (a payload disabled, a vehicle commanded to HOLD …).
+    ActorEscalated {
+        /// Actor path.
+        path: String,
+        /// What was done.
+        action: String,
+    },
+    /// A supervised actor was restarted and answers again.
+    ActorRestarted {
+        /// Actor path (`"coordinator/uav-1/px4link"`).
+        path: String,
+        /// Why it had ended.
+        reason: String,
+        /// Restarts of this actor so far.
+        restarts: u32,
+    },
+    /// An event raised by a payload.
+    PayloadEvent {
+        /// Vehicle id.
+        id: String,
+        /// Payload slot.
+        slot: String,
+        /// Event kind, as the payload names it.
+        kind: String,
+        /// Event data.
+        data: serde_json::Value,
+    },
+}

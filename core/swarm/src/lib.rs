@@ -1,0 +1,43 @@
+//! The swarm at run time: the actor tree of the design.
+//!
+//! ```text
+//! Coordinator                root; registry; formation engine
+//!  ├─ Api                    HTTP server (skein-api), supervised like the others
+//!  ├─ Vehicle uav-1          FSM; owns what its setpoint stream carries
+//!  │   ├─ Px4Link            MAVLink adapter (skein-link)
+//!  │   └─ Payload <slot> …   plugin instances (gimbal, camera, radio)
+//!  └─ Vehicle uav-2 …
+//! ```
+//!
+//! - [`coordinator`]: the root actor, vehicle discovery, commands, formation loop.
+//! - [`vehicle`]: the per-vehicle actor, its control loop and procedures.
+//! - [`formation`]: the formation engine's state between ticks.
+//! - [`rehearsal`]: formation flight in virtual time (transition tests, `skein bench formation`).
+//! - [`payload`]: payload actors, the vehicle side of the payload contract, built-ins.
+//! - [`supervision`]: restart policies, failure records, the supervision tree.
+//! - [`metrics`]: Prometheus metrics.
+//! - [`view`]: configuration and the swarm frame shared by all vehicles.
+//! - [`events`]: what the stream and dashboard are told.
+//!
+//! Actors never block in `handle`: link I/O runs in tasks that post results back as
+//! messages; queries use `call` with a timeout.
+#![warn(missing_docs)]
+
+pub mod coordinator;
+pub mod events;
+pub mod formation;
+pub mod metrics;
+pub mod payload;
+pub mod rehearsal;
+pub mod supervision;
+pub mod vehicle;
+pub mod view;
+
+pub use coordinator::{
+    CommandOutcome, Coordinator, CoordinatorMsg, EndpointSpec, FaultError, FieldError, ServiceMsg,
+    ServiceSpawner, ServiceSpec, Swarm, VehicleSpec,
+};
+pub use events::SwarmEvent;
+pub use formation::{FormationSpec, FormationStatus};
+pub use vehicle::{VehicleCommand, VehicleMsg};
+pub use view::{SwarmConfig, SwarmServices, VehicleModel};

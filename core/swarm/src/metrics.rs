@@ -1,0 +1,193 @@
+//! Prometheus metrics of the swarm (`GET /metrics`), with the `prometheus-client` crate.
+//!
+//! Supervision counters are labelled by actor kind (`kind="vehicle"`); gauges are set by
+//! their owners (the formation loop, the link statistics).
+
+use prometheus_client::encoding::text::encode;
+use prometheus_client::metrics::counter::Counter;
+use prometheus_client::metrics::family::Family;
+use prometheus_client::metrics::gauge::Gauge;
+use prometheus_client::registry::Registry;
+use skein_model::supervision::ChildKind;
+use std::sync::atomic::AtomicU64;
+
+type Labels = Vec<(String, String)>;
+
+/// The metrics registry and the handles to update it.
+pub struct Metrics {
+    registry: Registry,
+    failures: Family<Labels, Counter>,
+    restarts: Family<Labels, Counter>,
+    hangs: Family<Labels, Counter>,
+    escalations: Family<Labels, Counter>,
+    /// Vehicles known to the coordinator.
+    pub vehicles: Gauge,
+    /// Vehicles with a live link.
+    pub vehicles_connected: Gauge,
+    /// Root mean square of the formation slot errors, metres (NaN when no formation).
+    pub formation_rms_error_m: Gauge<f64, AtomicU64>,
+    /// Smallest distance between two airborne vehicles, metres.
+    pub min_separation_m: Gauge<f64, AtomicU64>,
+    /// Per-vehicle slot error, metres (`vehicle` label).
+    pub slot_error_m: Family<Labels, Gauge<f64, AtomicU64>>,
+    /// MAVLink frames dropped as malformed, per endpoint (`connection` label).
+    pub mavlink_malformed: Family<Labels, Gauge>,
+    /// Setpoints sent, per vehicle (`vehicle` label).
+    pub setpoints_sent: Family<Labels, Gauge>,
+}
+
+impl std::fmt::Debug for Metrics {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Metrics").finish_non_exhaustive()
+    }
+}
+
+impl Default for Metrics {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+fn kind(k: ChildKind) -> Labels {
+    vec![("kind".to_string(), k.name().to_string())]
+}
+
+impl Metrics {
+    /// A registry with every skein metric registered.
+    pub fn new() -> Self {
+        let mut registry = Registry::with_prefix("skein");
+        let failures = Family::<Labels, Counter>::default();
+        let restarts = Family::<Labels, Counter>::default();
+        let hangs = Family::<Labels, Counter>::default();
+        let escalations = Family::<Labels, Counter>::default();
+        let vehicles = Gauge::default();
+        let vehicles_connected = Gauge::default();
+        let formation_rms_error_m = Gauge::<f64, AtomicU64>::default();
+        let min_separation_m = Gauge::<f64, AtomicU64>::default();
+        let slot_error_m = Family::<Labels, Gauge<f64, AtomicU64>>::default();
+        let mavlink_malformed = Family::<Labels, Gauge>::default();
+        let setpoints_sent = Family::<Labels, Gauge>::default();
+        registry.register(
+            "actor_failures",
+            "Supervised actor failures (panic, error, hang), by actor kind",
+            failures.clone(),
+        );
+        registry.register(
+            "actor_restarts",
+            "Supervised actor restarts, by actor kind",
+            restarts.clone(),
+        );
+        registry.register(
+            "actor_hangs",
+            "Actors killed by the watchdog for not answering, by actor kind",
+            hangs.clone(),
+        );
+        registry.register(
+            "actor_escalations",
+            "Restart budgets spent (escalated to the parent), by actor kind",
+            escalations.clone(),
+        );
+        registry.register("vehicles", "Vehicles known", vehicles.clone());
+        registry.register(
+            "vehicles_connected",
+            "Vehicles with a live link",
+            vehicles_connected.clone(),
+        );
+        registry.register(
+            "formation_rms_error_m",
+            "Root mean square of the formation slot errors, metres",
+            formation_rms_error_m.clone(),
+        );
+        registry.register(
+            "min_separation_m",
+            "Smallest distance between two airborne vehicles, metres",
+            min_separation_m.clone(),
+        );
+        registry.register(
+            "slot_error_m",
+            "Distance from each vehicle to its formation slot, metres",
+            slot_error_m.clone(),
+        );
+        registry.register(
+            "mavlink_malformed_frames",
+            "MAVLink input dropped as malformed (bad CRC, unknown id, garbage), per endpoint",
+            mavlink_malformed.clone(),
+        );
+        registry.register(
+            "setpoints_sent",
+            "Offboard setpoints sent, per vehicle",
+            setpoints_sent.clone(),
+        );
+        Metrics {
+            registry,
+            failures,
+            restarts,
+            hangs,
+            escalations,
+            vehicles,
+            vehicles_connected,
+            formation_rms_error_m,
+            min_separation_m,
+            slot_error_m,
+            mavlink_malformed,
+            setpoints_sent,
+        }
+    }
+
+    /// Counts a failure of an actor of `k`.
+    pub fn failed(&self, k: ChildKind) {
+        self.failures.get_or_create(&kind(k)).inc();
+    }
+
+    /// Counts a restart.
+    pub fn restarted(&self, k: ChildKind) {
+        self.restarts.get_or_create(&kind(k)).inc();
+    }
+
+    /// Counts a hang.
+    pub fn hung(&self, k: ChildKind) {
+        self.hangs.get_or_create(&kind(k)).inc();
+    }
+
+    /// Counts an escalation.
+    pub fn escalated(&self, k: ChildKind) {
+        self.escalations.get_or_create(&kind(k)).inc();
+    }
+
+    /// One label set (`[("vehicle", "uav-1")]`).
+    pub fn label(name: &str, value: &str) -> Labels {
+        vec![(name.to_string(), value.to_string())]
+    }
+
+    /// The OpenMetrics text exposition.
+    pub fn render(&self) -> String {
+        let mut out = String::new();
+        encode(&mut out, &self.registry).expect("writing to a String cannot fail");
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counters_render_with_kind_labels() {
+        let m = Metrics::new();
+        m.failed(ChildKind::Vehicle);
+        m.failed(ChildKind::Vehicle);
+        m.restarted(ChildKind::Px4Link);
+        m.formation_rms_error_m.set(0.25);
+        let text = m.render();
+        assert!(
+            text.contains("skein_actor_failures_total{kind=\"vehicle\"} 2"),
+            "{text}"
+        );
+        assert!(
+            text.contains("skein_actor_restarts_total{kind=\"px4link\"} 1"),
+            "{text}"
+        );
+        assert!(text.contains("skein_formation_rms_error_m 0.25"), "{text}");
+        assert!(text.ends_with("# EOF\n"));
+    }
+}

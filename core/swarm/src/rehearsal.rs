@@ -1,0 +1,322 @@
+//! Formation flight rehearsed in virtual time: the real [`FormationEngine`] and one real
+//! [`SetpointShaper`] per vehicle, flying point-mass multicopters with a PX4-like position
+//! controller, stepped as fast as the CPU allows and fully deterministic.
+//!
+//! What runs is the code that flies: slot targets at the formation rate, extrapolated by
+//! each vehicle between formation ticks as the Vehicle actor does, shaped against every
+//! other vehicle's position and setpoint (planned between members, as [`crate::view`]
+//! marks them). What is modelled is the aircraft: position P gain `MPC_XY_P` 0.95 /
+//! `MPC_Z_P` 1.0 plus velocity feed-forward, velocity setpoint smoothed at `MPC_ACC_HOR`
+//! 3 m/s², velocity P 1.8 (the structure of `skein-sim`'s offboard controller, without
+//! wind and noise). Used by the transition tests and `skein bench formation`; the
+//! end-to-end tests fly the same code against the simulator over MAVLink.
+
+use crate::formation::{FormationEngine, FormationSpec, FormationStatus, LeaderMotion, Member};
+use skein_model::geo::Ned;
+use skein_model::safety::{Geofence, MotionLimits, Obstacle, SetpointShaper};
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+/// Position P gain, horizontal (PX4 `MPC_XY_P`), 1/s.
+const POS_P_XY: f64 = 0.95;
+/// Position P gain, vertical (PX4 `MPC_Z_P`), 1/s.
+const POS_P_Z: f64 = 1.0;
+/// Velocity P gain, 1/s.
+const VEL_P: f64 = 1.8;
+/// Acceleration of the velocity setpoint (PX4 `MPC_ACC_HOR`), m/s².
+const ACC_HOR_M_S2: f64 = 3.0;
+/// Largest acceleration the airframe delivers, m/s².
+const ACC_MAX_M_S2: f64 = 5.0;
+
+/// How a rehearsal is set up.
+#[derive(Debug, Clone)]
+pub struct RehearsalConfig {
+    /// Number of vehicles (ids `uav-1` …).
+    pub vehicles: usize,
+    /// Integration step, seconds (the control loop's period).
+    pub dt_s: f64,
+    /// Formation loop period, in integration steps.
+    pub formation_every: usize,
+    /// Every vehicle's limits.
+    pub limits: MotionLimits,
+    /// Geofence around the origin.
+    pub fence: Geofence,
+    /// Minimum separation to keep, metres (the setpoint separation adds `margin_m`).
+    pub min_separation_m: f64,
+    /// Tracking margin on top of the separation, metres.
+    pub margin_m: f64,
+    /// Vehicles start hovering on a grid this far apart, metres.
+    pub spawn_spacing_m: f64,
+    /// Altitude they start at, metres above the origin.
+    pub spawn_altitude_m: f64,
+}
+
+impl RehearsalConfig {
+    /// `vehicles` with skein's defaults: 50 Hz control, 10 Hz formation, the default
+    /// limits and fence, 3 m separation with a 0.5 m margin, spawned 5.25 m apart at 10 m.
+    pub fn new(vehicles: usize) -> Self {
+        RehearsalConfig {
+            vehicles,
+            dt_s: 0.02,
+            formation_every: 5,
+            limits: MotionLimits::default(),
+            fence: Geofence::default(),
+            min_separation_m: 3.0,
+            margin_m: 0.5,
+            spawn_spacing_m: 5.25,
+            spawn_altitude_m: 10.0,
+        }
+    }
+}
+
+/// What a rehearsal has seen so far.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RehearsalStats {
+    /// Smallest distance between two vehicles at any step, metres.
+    pub min_separation_m: f64,
+    /// Steps at which some pair was closer than the minimum separation.
+    pub separation_violations: u64,
+    /// Vehicle-steps outside the geofence (radius, ceiling, or floor).
+    pub fence_violations: u64,
+    /// Setpoints the geofence clamped.
+    pub fence_clamps: u64,
+    /// Steps flown.
+    pub steps: u64,
+}
+
+#[derive(Debug, Clone)]
+struct Aircraft {
+    id: String,
+    position: Ned,
+    velocity: Ned,
+    velocity_sp: Ned,
+    shaper: SetpointShaper,
+    /// Slot target and velocity from the last formation tick, and its age in steps.
+    slot: Option<(Ned, Ned, bool)>,
+    slot_age_s: f64,
+    setpoint: (Ned, Ned),
+}
+
+/// A formation flown in virtual time (see the module docs).
+#[derive(Debug)]
+pub struct Rehearsal {
+    config: RehearsalConfig,
+    engine: FormationEngine,
+    aircraft: Vec<Aircraft>,
+    step: u64,
+    stats: RehearsalStats,
+    obstacles: Vec<Obstacle>,
+}
+
+impl Rehearsal {
+    /// Vehicles hovering on a square grid around the origin.
+    pub fn new(config: RehearsalConfig) -> Self {
+        let cols = (config.vehicles as f64).sqrt().ceil().max(1.0) as usize;
+        let aircraft = (0..config.vehicles)
+            .map(|i| {
+                let p = Ned::new(
+                    (i / cols) as f64 * config.spawn_spacing_m,
+                    (i % cols) as f64 * config.spawn_spacing_m,
+                    -config.spawn_altitude_m,
+                );
+                let shaper = SetpointShaper::new(
+                    p,
+                    config.limits,
+                    config.fence.clone(),
+                    config.min_separation_m + config.margin_m,
+                )
+                .with_planned_separation(config.min_separation_m + 0.5 * config.margin_m);
+                let mut shaper = shaper;
+                shaper.enforce_floor(true);
+                Aircraft {
+                    id: format!("uav-{}", i + 1),
+                    position: p,
+                    velocity: Ned::ZERO,
+                    velocity_sp: Ned::ZERO,
+                    shaper,
+                    slot: None,
+                    slot_age_s: 0.0,
+                    setpoint: (p, Ned::ZERO),
+                }
+            })
+            .collect();
+        let separation_m = config.min_separation_m + config.margin_m;
+        Rehearsal {
+            config,
+            engine: FormationEngine::new(separation_m),
+            aircraft,
+            step: 0,
+            stats: RehearsalStats {
+                min_separation_m: f64::INFINITY,
+                ..RehearsalStats::default()
+            },
+            obstacles: Vec::new(),
+        }
+    }
+
+    /// Flies `spec` from the next formation tick on.
+    pub fn set_formation(&mut self, spec: FormationSpec) {
+        self.engine.set(spec);
+    }
+
+    /// Gives the reference point a motion.
+    ///
+    /// # Errors
+    /// When no formation is flown yet.
+    pub fn set_motion(&mut self, motion: LeaderMotion) -> Result<(), String> {
+        self.engine.set_motion(motion)
+    }
+
+    /// Virtual time flown, seconds.
+    pub fn time_s(&self) -> f64 {
+        self.step as f64 * self.config.dt_s
+    }
+
+    /// What has been seen so far.
+    pub fn stats(&self) -> RehearsalStats {
+        self.stats
+    }
+
+    /// The formation status of the last tick (positions of all vehicles as airborne).
+    pub fn status(&self) -> FormationStatus {
+        let positions: Vec<Ned> = self.aircraft.iter().map(|a| a.position).collect();
+        self.engine.status(&positions)
+    }
+
+    /// Positions of the vehicles, by id.
+    pub fn positions(&self) -> BTreeMap<String, Ned> {
+        self.aircraft
+            .iter()
+            .map(|a| (a.id.clone(), a.position))
+            .collect()
+    }
+
+    /// Setpoints streamed at the last step, and slot targets from the last formation
+    /// tick, by id.
+    pub fn setpoints(&self) -> BTreeMap<String, (Ned, Option<Ned>)> {
+        self.aircraft
+            .iter()
+            .map(|a| (a.id.clone(), (a.setpoint.0, a.slot.map(|s| s.0))))
+            .collect()
+    }
+
+    /// Steps until `done` holds (checked after every formation tick) or `max_s` of
+    /// virtual time passed; returns whether `done` held.
+    pub fn run_until(&mut self, max_s: f64, mut done: impl FnMut(&Rehearsal) -> bool) -> bool {
+        let end = self.time_s() + max_s;
+        while self.time_s() < end {
+            self.advance();
+            if self.step.is_multiple_of(self.config.formation_every as u64) && done(self) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// One integration step.
+    pub fn advance(&mut self) {
+        let dt = self.config.dt_s;
+        if self.step.is_multiple_of(self.config.formation_every as u64) {
+            let members: BTreeMap<String, Member> = self
+                .aircraft
+                .iter()
+                .map(|a| {
+                    let heading = a.velocity.east_m.atan2(a.velocity.north_m);
+                    (
+                        a.id.clone(),
+                        Member {
+                            position: a.position,
+                            velocity: a.velocity,
+                            heading_rad: heading,
+                            silence: Duration::ZERO,
+                            target: Some(a.setpoint.0),
+                        },
+                    )
+                })
+                .collect();
+            let period = dt * self.config.formation_every as f64;
+            let slots = self.engine.tick(&members, period, &self.config.fence);
+            for a in &mut self.aircraft {
+                if let Some(s) = slots.get(&a.id) {
+                    a.slot = Some((s.position, s.velocity, !s.leader));
+                    a.slot_age_s = 0.0;
+                }
+            }
+        }
+        // Shape every vehicle's setpoint against the others (as of the previous step).
+        let n = self.aircraft.len();
+        for i in 0..n {
+            let Some((slot_p, slot_v, _)) = self.aircraft[i].slot else {
+                continue;
+            };
+            self.obstacles.clear();
+            for (j, o) in self.aircraft.iter().enumerate() {
+                if j == i {
+                    continue;
+                }
+                let planned = o.slot.is_some();
+                for (position, velocity) in [(o.position, o.velocity), o.setpoint] {
+                    self.obstacles.push(Obstacle {
+                        position,
+                        velocity,
+                        reciprocal: true,
+                        planned,
+                    });
+                }
+            }
+            let a = &mut self.aircraft[i];
+            // The Vehicle actor extrapolates the slot between formation ticks.
+            let target = slot_p + slot_v * a.slot_age_s;
+            a.slot_age_s += dt;
+            let sp = a.shaper.step(target, slot_v, 0.0, dt, &self.obstacles);
+            if sp.fence.is_some() {
+                self.stats.fence_clamps += 1;
+            }
+            a.setpoint = (sp.position, sp.velocity);
+        }
+        // Fly.
+        for a in &mut self.aircraft {
+            let (sp, ff) = a.setpoint;
+            let e = sp - a.position;
+            let mut vel_sp = Ned::new(
+                POS_P_XY * e.north_m,
+                POS_P_XY * e.east_m,
+                POS_P_Z * e.down_m,
+            ) + ff;
+            let h = vel_sp.horizontal_norm();
+            if h > 12.0 {
+                vel_sp.north_m *= 12.0 / h;
+                vel_sp.east_m *= 12.0 / h;
+            }
+            let dv = vel_sp - a.velocity_sp;
+            let max = ACC_HOR_M_S2 * dt;
+            let dv = if dv.norm() > max {
+                dv * (max / dv.norm())
+            } else {
+                dv
+            };
+            a.velocity_sp = a.velocity_sp + dv;
+            let mut acc = (a.velocity_sp - a.velocity) * VEL_P + dv * (1.0 / dt);
+            if acc.norm() > ACC_MAX_M_S2 {
+                acc = acc * (ACC_MAX_M_S2 / acc.norm());
+            }
+            a.velocity = a.velocity + acc * dt;
+            a.position = a.position + a.velocity * dt;
+            if !self.config.fence.contains(a.position) {
+                self.stats.fence_violations += 1;
+            }
+        }
+        let mut min = f64::INFINITY;
+        for (i, a) in self.aircraft.iter().enumerate() {
+            for b in &self.aircraft[i + 1..] {
+                min = min.min((a.position - b.position).norm());
+            }
+        }
+        self.stats.min_separation_m = self.stats.min_separation_m.min(min);
+        if min < self.config.min_separation_m {
+            self.stats.separation_violations += 1;
+        }
+        self.step += 1;
+        self.stats.steps = self.step;
+    }
+}
