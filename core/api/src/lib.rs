@@ -1,0 +1,656 @@
+//! The web face of skein: the v1 HTTP API, the WebSocket stream and the embedded
+//! dashboard.
+//!
+//! [`app`] builds the axum router (tests call it without a socket); [`serve`] runs it on a
+//! listener. Handlers reach the swarm only by messages to the coordinator (`call` with a
+//! timeout). Errors are JSON, `{"error": "...", "field": "..."}`, with a 4xx status naming
+//! the problem (see [`error::ApiError`]).
+//!
+//! Routes (all JSON):
+//! - `GET /api/v1/health`
+//! - `GET /api/v1/vehicles`, `GET /api/v1/vehicles/{id}`
+//! - `POST /api/v1/vehicles/{id}/commands`, `POST /api/v1/swarm/commands`: `202` with
+//!   `{"command_id", "accepted", "refused"}`; the outcome follows on the stream
+//! - `GET /api/v1/vehicles/{id}/params`, `GET` / `PUT /api/v1/vehicles/{id}/params/{name}`:
+//!   PX4 parameters through the vehicle's link (`{"name", "value", "type"}`)
+//! - `GET` / `PUT /api/v1/formation`
+//! - `DELETE /api/v1/formation`: stop flying the formation (vehicles hold)
+//! - `POST /api/v1/formation/leader/{goto,waypoints,orbit,hold}`: move the formation's
+//!   reference point; `GET /api/v1/formation/shapes`
+//! - `GET /api/v1/vehicles/{id}/payloads`, `POST /api/v1/vehicles/{id}/payloads/{slot}`
+//!   (the payload's JSON command), `GET …/payloads/{slot}/snapshot` (JPEG),
+//!   `GET …/payloads/{slot}/stream` (MJPEG)
+//! - `GET /api/v1/supervision`: the actor tree with status, restarts, last failures
+//! - `POST /api/v1/faults`: `{"target": "<actor path>", "kind": "panic" | "hang" |
+//!   "stop" | "error"}`, only with `--enable-fault-injection` (403 otherwise)
+//! - `GET /metrics`: Prometheus (OpenMetrics text)
+//! - `GET /api/v1/links`: per-endpoint MAVLink counters (malformed input)
+//! - `GET /api/v1/stream`: WebSocket, `{"type": "vehicles", "vehicles": [...]}` at
+//!   [`TELEMETRY_HZ`] plus every [`skein_swarm::SwarmEvent`]
+//! - `/`: the dashboard (`web-ui/`, embedded at build time)
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod requests;
+pub mod server;
+
+pub use server::ApiServer;
+
+use axum::body::Bytes;
+use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::extract::{Path, State};
+use axum::http::{StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use error::ApiError;
+use include_dir::{Dir, include_dir};
+use ractor::ActorRef;
+use skein_swarm::payload::PayloadCommandError;
+use skein_swarm::{CommandOutcome, CoordinatorMsg, SwarmEvent, VehicleCommand};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::broadcast;
+
+/// The dashboard, embedded from `web-ui/`.
+static WEB_UI: Dir<'static> = include_dir!("$CARGO_MANIFEST_DIR/../../web-ui");
+
+/// Rate of the `vehicles` frames on the stream, Hz.
+pub const TELEMETRY_HZ: f64 = 10.0;
+/// How long a handler waits for the coordinator.
+pub const COORDINATOR_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// What the handlers share.
+#[derive(Clone)]
+pub struct ApiState {
+    coordinator: ActorRef<CoordinatorMsg>,
+    events: broadcast::Sender<SwarmEvent>,
+    telemetry: broadcast::Sender<Arc<str>>,
+}
+
+impl ApiState {
+    /// State for a running swarm. Starts the task that publishes the `vehicles` frames of
+    /// the stream (it ends when the coordinator stops).
+    pub fn new(
+        coordinator: ActorRef<CoordinatorMsg>,
+        events: broadcast::Sender<SwarmEvent>,
+    ) -> Self {
+        let (telemetry, _) = broadcast::channel(16);
+        tokio::spawn(publish_telemetry(coordinator.clone(), telemetry.clone()));
+        ApiState {
+            coordinator,
+            events,
+            telemetry,
+        }
+    }
+
+    async fn ask<T: Send + 'static>(
+        &self,
+        msg: impl FnOnce(ractor::RpcReplyPort<T>) -> CoordinatorMsg,
+    ) -> Result<T, ApiError> {
+        match self.coordinator.call(msg, Some(COORDINATOR_TIMEOUT)).await {
+            Ok(ractor::rpc::CallResult::Success(v)) => Ok(v),
+            Ok(_) => Err(ApiError::unavailable(
+                "the coordinator did not answer in time",
+            )),
+            Err(e) => Err(ApiError::unavailable(format!(
+                "the coordinator is not running: {e}"
+            ))),
+        }
+    }
+}
+
+async fn publish_telemetry(coordinator: ActorRef<CoordinatorMsg>, tx: broadcast::Sender<Arc<str>>) {
+    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / TELEMETRY_HZ));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    loop {
+        tick.tick().await;
+        if tx.receiver_count() == 0 {
+            if coordinator.get_status() == ractor::ActorStatus::Stopped {
+                return;
+            }
+            continue;
+        }
+        let Ok(ractor::rpc::CallResult::Success(list)) = coordinator
+            .call(CoordinatorMsg::ListVehicles, Some(COORDINATOR_TIMEOUT))
+            .await
+        else {
+            if coordinator.get_status() == ractor::ActorStatus::Stopped {
+                return;
+            }
+            continue;
+        };
+        let frame = serde_json::json!({"type": "vehicles", "vehicles": list});
+        let _ = tx.send(Arc::from(frame.to_string()));
+    }
+}
+
+/// The router (no socket: tests call it directly).
+pub fn app(state: ApiState) -> Router {
+    Router::new()
+        .route("/api/v1/health", get(health))
+        .route("/api/v1/vehicles", get(list_vehicles))
+        .route("/api/v1/vehicles/{id}", get(get_vehicle))
+        .route("/api/v1/vehicles/{id}/commands", post(vehicle_command))
+        .route("/api/v1/vehicles/{id}/params", get(list_params))
+        .route(
+            "/api/v1/vehicles/{id}/params/{name}",
+            get(get_param).put(put_param),
+        )
+        .route("/api/v1/swarm/commands", post(swarm_command))
+        .route(
+            "/api/v1/formation",
+            get(get_formation)
+                .put(put_formation)
+                .delete(delete_formation),
+        )
+        .route("/api/v1/formation/leader/{command}", post(leader_command))
+        .route("/api/v1/formation/shapes", get(shapes))
+        .route("/api/v1/vehicles/{id}/payloads", get(list_payloads))
+        .route(
+            "/api/v1/vehicles/{id}/payloads/{slot}",
+            post(payload_command),
+        )
+        .route(
+            "/api/v1/vehicles/{id}/payloads/{slot}/snapshot",
+            get(payload_snapshot),
+        )
+        .route(
+            "/api/v1/vehicles/{id}/payloads/{slot}/stream",
+            get(payload_stream),
+        )
+        .route("/api/v1/supervision", get(supervision_tree))
+        .route("/api/v1/faults", post(inject_fault))
+        .route("/metrics", get(metrics))
+        .route("/api/v1/links", get(links))
+        .route("/api/v1/stream", get(stream))
+        .route("/api/{*rest}", axum::routing::any(api_not_found))
+        .fallback(get(static_file))
+        .with_state(state)
+}
+
+/// Serves [`app`] on `listener` until `shutdown` resolves.
+///
+/// # Errors
+/// The server's I/O error.
+pub async fn serve(
+    listener: tokio::net::TcpListener,
+    state: ApiState,
+    shutdown: impl std::future::Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    axum::serve(listener, app(state))
+        .with_graceful_shutdown(shutdown)
+        .await
+}
+
+async fn health(State(s): State<ApiState>) -> Result<Response, ApiError> {
+    let h = s.ask(CoordinatorMsg::Health).await?;
+    Ok(Json(h).into_response())
+}
+
+async fn list_vehicles(State(s): State<ApiState>) -> Result<Response, ApiError> {
+    let v = s.ask(CoordinatorMsg::ListVehicles).await?;
+    Ok(Json(v).into_response())
+}
+
+async fn get_vehicle(
+    State(s): State<ApiState>,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let id2 = id.clone();
+    match s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r)).await? {
+        Some(v) => Ok(Json(v).into_response()),
+        None => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
+    }
+}
+
+fn accepted(outcome: CommandOutcome) -> Response {
+    (StatusCode::ACCEPTED, Json(outcome)).into_response()
+}
+
+async fn vehicle_command(
+    State(s): State<ApiState>,
+    Path(id): Path<String>,
+    body: Bytes,
+) -> Result<Response, ApiError> {
+    let cmd = requests::command(&body)?;
+    let id2 = id.clone();
+    match s
+        .ask(move |r| CoordinatorMsg::VehicleCommand(id2, cmd, r))
+        .await?
+    {
+        Ok(outcome) => Ok(accepted(outcome)),
+        Err(None) => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
+        Err(Some(reason)) => Err(ApiError::conflict(reason, Some("command"))),
+    }
+}
+
+async fn swarm_command(State(s): State<ApiState>, body: Bytes) -> Result<Response, ApiError> {
+    let cmd: VehicleCommand = requests::command(&body)?;
+    let outcome = s.ask(move |r| CoordinatorMsg::SwarmCommand(cmd, r)).await?;
+    if outcome.accepted.is_empty() {
+        let error = if outcome.refused.is_empty() {
+            "no vehicles in the swarm".to_string()
+        } else {
+            outcome
+                .refused
+                .iter()
+                .map(|r| format!("{}: {}", r.id, r.reason))
+                .collect::<Vec<_>>()
+                .join("; ")
+        };
+        return Err(ApiError::conflict(error, Some("command")));
+    }
+    Ok(accepted(outcome))
+}
+
+/// How long a parameter exchange may take (resends included).
+const PARAM_TIMEOUT: Duration = Duration::from_secs(15);
+
+async fn link_of(s: &ApiState, id: &str) -> Result<ActorRef<skein_link::Px4LinkMsg>, ApiError> {
+    let id2 = id.to_string();
+    let vehicle = s
+        .ask(move |r| CoordinatorMsg::GetVehicleActor(id2, r))
+        .await?
+        .ok_or_else(|| ApiError::not_found(format!("no vehicle `{id}`")))?;
+    match vehicle
+        .call(skein_swarm::VehicleMsg::GetLink, Some(COORDINATOR_TIMEOUT))
+        .await
+    {
+        Ok(ractor::rpc::CallResult::Success(Some(link))) => Ok(link),
+        _ => Err(ApiError::unavailable(format!(
+            "the link of `{id}` is not running"
+        ))),
+    }
+}
+
+fn param_json(name: &str, v: skein_mavlink::param::ParamValue) -> Response {
+    use skein_mavlink::param::ParamValue;
+    let (value, ty) = match v {
+        ParamValue::Int32(i) => (serde_json::json!(i), "int32"),
+        ParamValue::Real32(f) => (serde_json::json!(f64::from(f)), "real32"),
+    };
+    Json(serde_json::json!({"name": name, "value": value, "type": ty})).into_response()
+}
+
+fn link_error(e: skein_link::LinkError) -> ApiError {
+    use skein_link::LinkError;
+    let status = match &e {
+        LinkError::Timeout { .. } => StatusCode::GATEWAY_TIMEOUT,
+        LinkError::Rejected { .. } | LinkError::ModeNotConfirmed { .. } => StatusCode::CONFLICT,
+        LinkError::NoLink | LinkError::Send(_) => StatusCode::SERVICE_UNAVAILABLE,
+    };
+    ApiError::status(status, e.to_string())
+}
+
+fn check_param_name(name: &str) -> Result<(), ApiError> {
+    if name.is_empty() || name.len() > 16 || !name.is_ascii() {
+        return Err(ApiError::field(
+            "name",
+            format!("`{name}` is not a PX4 parameter name (1 to 16 ASCII characters)"),
+        ));
+    }
+    Ok(())
+}
+
+async fn list_params(
+    State(s): State<ApiState>,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let link = link_of(&s, &id).await?;
+    match link
+        .call(skein_link::Px4LinkMsg::Params, Some(COORDINATOR_TIMEOUT))
+        .await
+    {
+        Ok(ractor::rpc::CallResult::Success(all)) => Ok(Json(
+            all.into_iter()
+                .map(|(k, v)| serde_json::json!({"name": k, "value": v.as_f64()}))
+                .collect::<Vec<_>>(),
+        )
+        .into_response()),
+        _ => Err(ApiError::unavailable(format!(
+            "the link of `{id}` did not answer"
+        ))),
+    }
+}
+
+async fn get_param(
+    State(s): State<ApiState>,
+    Path((id, name)): Path<(String, String)>,
+) -> Result<Response, ApiError> {
+    check_param_name(&name)?;
+    let link = link_of(&s, &id).await?;
+    let n = name.clone();
+    match link
+        .call(
+            move |r| skein_link::Px4LinkMsg::ParamGet(n, r),
+            Some(PARAM_TIMEOUT),
+        )
+        .await
+    {
+        Ok(ractor::rpc::CallResult::Success(Ok(v))) => Ok(param_json(&name, v)),
+        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(e)),
+        _ => Err(ApiError::unavailable(format!(
+            "the link of `{id}` did not answer"
+        ))),
+    }
+}
+
+async fn put_param(
+    State(s): State<ApiState>,
+    Path((id, name)): Path<(String, String)>,
+    body: Bytes,
+) -> Result<Response, ApiError> {
+    check_param_name(&name)?;
+    let value = requests::param_value(&body)?;
+    let link = link_of(&s, &id).await?;
+    let n = name.clone();
+    match link
+        .call(
+            move |r| skein_link::Px4LinkMsg::ParamSet(n, value, r),
+            Some(PARAM_TIMEOUT),
+        )
+        .await
+    {
+        Ok(ractor::rpc::CallResult::Success(Ok(v))) => Ok(param_json(&name, v)),
+        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(e)),
+        _ => Err(ApiError::unavailable(format!(
+            "the link of `{id}` did not answer"
+        ))),
+    }
+}
+
+async fn get_formation(State(s): State<ApiState>) -> Result<Response, ApiError> {
+    let f = s.ask(CoordinatorMsg::GetFormation).await?;
+    Ok(Json(f).into_response())
+}
+
+async fn put_formation(State(s): State<ApiState>, body: Bytes) -> Result<Response, ApiError> {
+    let spec = requests::formation(&body)?;
+    match s
+        .ask(move |r| CoordinatorMsg::SetFormation(spec, r))
+        .await?
+    {
+        Ok(status) => Ok(Json(status).into_response()),
+        Err(e) => Err(ApiError::field(&e.field, e.error)),
+    }
+}
+
+async fn leader_command(
+    State(s): State<ApiState>,
+    Path(command): Path<String>,
+    body: Bytes,
+) -> Result<Response, ApiError> {
+    let motion = requests::leader_motion(&command, &body)?;
+    match s
+        .ask(move |r| CoordinatorMsg::LeaderMotion(motion, r))
+        .await?
+    {
+        Ok(status) => Ok(Json(status).into_response()),
+        Err(e) if e.field == "formation" => Err(ApiError::conflict(e.error, Some("formation"))),
+        Err(e) => Err(ApiError::field(&e.field, e.error)),
+    }
+}
+
+async fn shapes() -> Response {
+    use skein_model::formation::Shape;
+    let list: Vec<serde_json::Value> = Shape::ALL
+        .iter()
+        .map(|s| serde_json::json!({"shape": s.name(), "min_vehicles": s.min_vehicles()}))
+        .collect();
+    Json(list).into_response()
+}
+
+async fn delete_formation(State(s): State<ApiState>) -> Result<Response, ApiError> {
+    let f = s.ask(CoordinatorMsg::ClearFormation).await?;
+    Ok(Json(f).into_response())
+}
+
+async fn supervision_tree(State(s): State<ApiState>) -> Result<Response, ApiError> {
+    let t = s.ask(CoordinatorMsg::GetSupervision).await?;
+    Ok(Json(t).into_response())
+}
+
+async fn metrics(State(s): State<ApiState>) -> Result<Response, ApiError> {
+    let text = s.ask(CoordinatorMsg::RenderMetrics).await?;
+    Ok((
+        [(
+            header::CONTENT_TYPE,
+            "application/openmetrics-text; version=1.0.0; charset=utf-8",
+        )],
+        text,
+    )
+        .into_response())
+}
+
+async fn inject_fault(State(s): State<ApiState>, body: Bytes) -> Result<Response, ApiError> {
+    let (target, kind) = requests::fault(&body)?;
+    let t = target.clone();
+    match s
+        .ask(move |r| CoordinatorMsg::InjectFault(t, kind, r))
+        .await?
+    {
+        Ok(()) => Ok((
+            StatusCode::ACCEPTED,
+            Json(serde_json::json!({"target": target, "kind": kind.name()})),
+        )
+            .into_response()),
+        Err(skein_swarm::FaultError::Disabled) => Err(ApiError {
+            status: StatusCode::FORBIDDEN,
+            error: "fault injection is disabled: start skein with --enable-fault-injection".into(),
+            field: None,
+        }),
+        Err(skein_swarm::FaultError::UnknownTarget(why)) => Err(ApiError {
+            status: StatusCode::NOT_FOUND,
+            error: why,
+            field: Some("target".into()),
+        }),
+        Err(skein_swarm::FaultError::Unreachable(why)) => Err(ApiError::unavailable(why)),
+    }
+}
+
+async fn list_payloads(
+    State(s): State<ApiState>,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let id2 = id.clone();
+    match s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r)).await? {
+        Some(v) => Ok(Json(v.payloads).into_response()),
+        None => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
+    }
+}
+
+async fn payload_command(
+    State(s): State<ApiState>,
+    Path((id, slot)): Path<(String, String)>,
+    body: Bytes,
+) -> Result<Response, ApiError> {
+    let cmd = serde_json::Value::Object(requests::object(&body)?);
+    match s
+        .ask(move |r| CoordinatorMsg::PayloadCommand(id, slot, cmd, r))
+        .await?
+    {
+        Ok(answer) => Ok(Json(answer).into_response()),
+        Err(PayloadCommandError::NotFound(why)) => Err(ApiError::not_found(why)),
+        Err(PayloadCommandError::Unavailable(why)) => Err(ApiError::unavailable(why)),
+        Err(PayloadCommandError::Refused(why)) => {
+            // A plugin names the field at fault as "field: message" by convention.
+            let field = why
+                .split_once(':')
+                .map(|(f, _)| f.trim())
+                .filter(|f| {
+                    !f.is_empty() && f.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+                })
+                .map(str::to_string);
+            Err(ApiError {
+                status: StatusCode::BAD_REQUEST,
+                error: why,
+                field,
+            })
+        }
+    }
+}
+
+async fn payload_of(
+    s: &ApiState,
+    id: String,
+    slot: String,
+) -> Result<std::sync::Arc<skein_swarm::payload::PayloadShared>, ApiError> {
+    s.ask(move |r| CoordinatorMsg::GetPayload(id, slot, r))
+        .await?
+        .map_err(ApiError::not_found)
+}
+
+async fn payload_snapshot(
+    State(s): State<ApiState>,
+    Path((id, slot)): Path<(String, String)>,
+) -> Result<Response, ApiError> {
+    let p = payload_of(&s, id.clone(), slot.clone()).await?;
+    match p.frame() {
+        Some(jpeg) => Ok((
+            [
+                (header::CONTENT_TYPE, "image/jpeg"),
+                (header::CACHE_CONTROL, "no-store"),
+            ],
+            jpeg.as_ref().clone(),
+        )
+            .into_response()),
+        None => Err(ApiError::not_found(format!(
+            "payload `{slot}` of {id} has published no frame yet"
+        ))),
+    }
+}
+
+/// Boundary of the MJPEG multipart stream.
+const MJPEG_BOUNDARY: &str = "skeinframe";
+
+async fn payload_stream(
+    State(s): State<ApiState>,
+    Path((id, slot)): Path<(String, String)>,
+) -> Result<Response, ApiError> {
+    let p = payload_of(&s, id, slot).await?;
+    let rx = p.subscribe_frames();
+    // Each part is sent once: the current frame first, then every new one.
+    let frames = futures_util::stream::unfold((rx, true), |(mut rx, first)| async move {
+        loop {
+            if !first && rx.changed().await.is_err() {
+                return None; // the payload is gone
+            }
+            let frame = rx.borrow_and_update().clone();
+            let Some(jpeg) = frame else {
+                if first {
+                    // Nothing yet: wait for the first frame.
+                    if rx.changed().await.is_err() {
+                        return None;
+                    }
+                    continue;
+                }
+                continue;
+            };
+            let mut part = format!(
+                "--{MJPEG_BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",
+                jpeg.len()
+            )
+            .into_bytes();
+            part.extend_from_slice(&jpeg);
+            part.extend_from_slice(b"\r\n");
+            return Some((
+                Ok::<_, std::convert::Infallible>(Bytes::from(part)),
+                (rx, false),
+            ));
+        }
+    });
+    let body = axum::body::Body::from_stream(frames);
+    Ok((
+        [
+            (
+                header::CONTENT_TYPE,
+                format!("multipart/x-mixed-replace; boundary={MJPEG_BOUNDARY}"),
+            ),
+            (header::CACHE_CONTROL, "no-store".to_string()),
+        ],
+        body,
+    )
+        .into_response())
+}
+
+async fn links(State(s): State<ApiState>) -> Result<Response, ApiError> {
+    let l = s.ask(CoordinatorMsg::LinkStats).await?;
+    Ok(Json(l).into_response())
+}
+
+async fn api_not_found(uri: axum::http::Uri) -> ApiError {
+    ApiError::not_found(format!("no such endpoint: {}", uri.path()))
+}
+
+async fn stream(State(s): State<ApiState>, ws: WebSocketUpgrade) -> Response {
+    ws.on_upgrade(move |socket| stream_session(socket, s))
+}
+
+async fn stream_session(mut socket: WebSocket, s: ApiState) {
+    let mut events = s.events.subscribe();
+    let mut telemetry = s.telemetry.subscribe();
+    // Send the current picture at once so a new dashboard is never empty for a tick.
+    if let Ok(list) = s.ask(CoordinatorMsg::ListVehicles).await {
+        let frame = serde_json::json!({"type": "vehicles", "vehicles": list});
+        if socket
+            .send(Message::Text(frame.to_string().into()))
+            .await
+            .is_err()
+        {
+            return;
+        }
+    }
+    loop {
+        let text: String = tokio::select! {
+            t = telemetry.recv() => match t {
+                Ok(t) => t.to_string(),
+                Err(broadcast::error::RecvError::Lagged(_)) => continue,
+                Err(broadcast::error::RecvError::Closed) => return,
+            },
+            e = events.recv() => match e {
+                Ok(e) => match serde_json::to_string(&e) { Ok(s) => s, Err(_) => continue },
+                Err(broadcast::error::RecvError::Lagged(n)) => {
+                    serde_json::json!({"type": "events_dropped", "count": n}).to_string()
+                }
+                Err(broadcast::error::RecvError::Closed) => return,
+            },
+            incoming = socket.recv() => match incoming {
+                Some(Ok(Message::Close(_))) | None | Some(Err(_)) => return,
+                Some(Ok(_)) => continue,
+            },
+        };
+        if socket.send(Message::Text(text.into())).await.is_err() {
+            return;
+        }
+    }
+}
+
+fn content_type(path: &str) -> &'static str {
+    match path.rsplit('.').next() {
+        Some("html") => "text/html; charset=utf-8",
+        Some("js") => "text/javascript; charset=utf-8",
+        Some("css") => "text/css; charset=utf-8",
+        Some("svg") => "image/svg+xml",
+        Some("png") => "image/png",
+        Some("json") => "application/json",
+        Some("ico") => "image/x-icon",
+        _ => "application/octet-stream",
+    }
+}
+
+async fn static_file(uri: axum::http::Uri) -> Response {
+    let path = uri.path().trim_start_matches('/');
+    let path = if path.is_empty() { "index.html" } else { path };
+    match WEB_UI.get_file(path) {
+        Some(f) => (
+            [
+                (header::CONTENT_TYPE, content_type(path)),
+                (header::CACHE_CONTROL, "no-cache"),
+            ],
+            f.contents(),
+        )
+            .into_response(),
+        None => ApiError::not_found(format!("no such file: /{path}")).into_response(),
+    }
+}

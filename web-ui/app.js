@@ -1,0 +1,136 @@
+// skein ground station: wires the stream to the plan view, the vehicle table, the event
+// log and the header summary, and the controls to the HTTP API.
+
+import * as api from './api.js';
+import { PlanView } from './plan.js';
+import { VehicleTable } from './table.js';
+import { EventLog, describeFormation } from './log.js';
+import { Toasts } from './toast.js';
+import { Controls } from './controls.js';
+import { AIRBORNE, fmt } from './model.js';
+
+const $ = (id) => document.getElementById(id);
+
+const toasts = new Toasts($('toasts'));
+const log = new EventLog($('event-log'), $('log-filter'), $('log-clear'));
+const controls = new Controls({ toasts, log });
+
+let selected = null;
+const select = (id) => {
+  selected = id;
+  plan.setSelected(id);
+  table.setSelected(id);
+};
+const plan = new PlanView($('plan'), $('plan-markers'), $('plan-empty'), { onSelect: select });
+const table = new VehicleTable($('vehicle-rows'), $('table-empty'), {
+  onCommand: (id, command, button) => controls.vehicleCommand(id, command, button),
+  onSelect: select,
+});
+
+let formation = null;
+const setFormation = (f) => {
+  formation = f;
+  plan.setFormation(f);
+  $('sum-formation-desc').textContent = f && f.shape ? (f.active ? `${f.shape} ${f.spacing_m} m` : `${f.shape} (inactive)`) : 'none';
+  $('sum-formation-desc').title = describeFormation(f);
+};
+controls.onFormation = setFormation;
+
+// Header summary from a vehicles frame.
+function summarise(vehicles) {
+  let connected = 0, airborne = 0, inForm = 0, sq = 0, nErr = 0;
+  const pts = [];
+  for (const v of vehicles) {
+    if (v.link && v.link.connected) connected++;
+    if (AIRBORNE.has(v.state)) {
+      airborne++;
+      if (v.position) pts.push(v.position);
+    }
+    if (v.state === 'InFormation') inForm++;
+    if (v.formation && Number.isFinite(v.formation.error_m)) { sq += v.formation.error_m ** 2; nErr++; }
+  }
+  let minSep = Infinity;
+  for (let i = 0; i < pts.length; i++) {
+    for (let j = i + 1; j < pts.length; j++) {
+      const a = pts[i], b = pts[j];
+      minSep = Math.min(minSep, Math.hypot(a.north_m - b.north_m, a.east_m - b.east_m, a.down_m - b.down_m));
+    }
+  }
+  const put = (id, text) => { const el = $(id); if (el.textContent !== text) el.textContent = text; };
+  put('sum-total', String(vehicles.length));
+  put('sum-connected', String(connected));
+  put('sum-airborne', String(airborne));
+  put('sum-formation', String(inForm));
+  put('sum-rms', nErr ? `${fmt(Math.sqrt(sq / nErr), 2)} m` : '–');
+  put('sum-sep', Number.isFinite(minSep) ? `${fmt(minSep, 1)} m` : '–');
+}
+
+function onVehicles(vehicles) {
+  if (!Array.isArray(vehicles)) return;
+  table.update(vehicles);
+  plan.setVehicles(vehicles);
+  controls.setVehicleIds(vehicles.map((v) => v.id));
+  summarise(vehicles);
+  if (selected && !vehicles.some((v) => v.id === selected)) select(null);
+}
+
+function onEvent(ev) {
+  log.event(ev);
+  switch (ev.type) {
+    case 'formation_changed':
+      setFormation(ev.formation);
+      break;
+    case 'command_result':
+      if (!ev.ok) toasts.show('error', `${ev.id}: ${ev.command} failed`, ev.error || '');
+      break;
+    case 'link_lost':
+      toasts.show('warn', `${ev.id}: link lost`);
+      break;
+    case 'actor_restarted':
+      toasts.show('warn', `${ev.path} restarted`, ev.reason);
+      break;
+    default:
+  }
+}
+
+// Connection indicator and stream.
+const conn = $('connection');
+let wasConnected = false;
+let countdown = 0;
+function onStatus(status, delay) {
+  conn.dataset.state = status;
+  clearInterval(countdown);
+  if (status === 'reconnecting') {
+    // Live countdown to the next attempt.
+    const due = performance.now() + delay;
+    const tick = () => {
+      conn.textContent = `reconnecting in ${Math.max(0, (due - performance.now()) / 1000).toFixed(1)} s`;
+    };
+    tick();
+    countdown = setInterval(tick, 100);
+  } else {
+    conn.textContent = status;
+  }
+  document.body.classList.toggle('offline', status !== 'connected');
+  if (status === 'connected') {
+    if (wasConnected) log.note('stream', 'ok', 'stream', 'reconnected to skein');
+    else log.note('stream', 'ok', 'stream', 'connected to skein');
+    wasConnected = true;
+    // The formation is not repeated on the stream: fetch it on every (re)connection.
+    api.getFormation().then((res) => { if (res.ok) setFormation(res.data); });
+  } else if (status === 'reconnecting' && conn.dataset.logged !== 'down') {
+    log.note('stream', 'warn', 'stream', 'stream closed; reconnecting');
+  }
+  conn.dataset.logged = status === 'connected' ? 'up' : status === 'reconnecting' ? 'down' : conn.dataset.logged || '';
+}
+
+const stream = new api.Stream(api.streamUrl(), {
+  onStatus,
+  onMessage: (msg) => (msg.type === 'vehicles' ? onVehicles(msg.vehicles) : onEvent(msg)),
+});
+stream.start();
+
+// Escape clears the selection.
+document.addEventListener('keydown', (ev) => {
+  if (ev.key === 'Escape' && selected) select(null);
+});

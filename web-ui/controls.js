@@ -1,0 +1,165 @@
+// Swarm controls (take off, formation, hold / RTL / land) and per-vehicle commands, and
+// how their HTTP outcome is shown: a toast plus a line in the event log for every answer
+// (202 accepted / refused, 200 formation, 4xx {error, field}, network failure).
+
+import * as api from './api.js';
+import { describeFormation } from './log.js';
+import { compareIds } from './model.js';
+
+// Formation shapes the server knows (skein_model::formation::Shape); one button each.
+const SHAPES = [['line', 'Line']];
+
+export class Controls {
+  constructor({ toasts, log }) {
+    this.toasts = toasts;
+    this.log = log;
+    this.leaderIds = '';
+    this.onFormation = () => {};
+
+    const takeoffForm = document.getElementById('takeoff-form');
+    this.altInput = document.getElementById('takeoff-alt');
+    takeoffForm.addEventListener('submit', (ev) => {
+      ev.preventDefault();
+      const alt = this.takeoffAltitude();
+      if (alt === null) return;
+      this.run(ev.submitter || takeoffForm.querySelector('button'), 'takeoff',
+        () => api.swarmCommand({ command: 'takeoff', altitude_m: alt }), { altitude_m: 'takeoff-alt' });
+    });
+
+    // Formation: one submit button per shape.
+    const shapes = document.getElementById('shape-buttons');
+    for (const [shape, label] of SHAPES) {
+      const b = document.createElement('button');
+      b.type = 'submit';
+      b.className = 'btn primary';
+      b.dataset.shape = shape;
+      b.dataset.testid = shape;
+      b.textContent = label;
+      shapes.append(b);
+    }
+    this.leaderSelect = document.getElementById('form-leader');
+    const formForm = document.getElementById('formation-form');
+    formForm.addEventListener('submit', (ev) => {
+      ev.preventDefault();
+      const btn = ev.submitter || shapes.querySelector('button');
+      const spec = this.formationSpec(btn.dataset.shape);
+      if (!spec) return;
+      this.run(btn, `formation ${spec.shape}`, () => api.putFormation(spec), {
+        spacing_m: 'form-spacing', heading_deg: 'form-heading', altitude_m: 'form-alt', leader: 'form-leader',
+      });
+    });
+
+    // A field flagged by a 400 stays marked until it is edited.
+    for (const el of document.querySelectorAll('.ctl-group input, .ctl-group select')) {
+      el.addEventListener('input', () => el.removeAttribute('aria-invalid'));
+    }
+
+    for (const b of document.querySelectorAll('[data-swarm-command]')) {
+      b.addEventListener('click', () => {
+        const command = b.dataset.swarmCommand;
+        this.run(b, command, () => api.swarmCommand({ command }));
+      });
+    }
+  }
+
+  /** The takeoff altitude input as a number, or null (and a toast) when invalid. */
+  takeoffAltitude() {
+    const alt = Number(this.altInput.value);
+    if (!this.altInput.value || !Number.isFinite(alt) || alt <= 0) {
+      this.toasts.show('error', 'Take off', 'altitude must be a number of metres above 0');
+      this.altInput.focus();
+      return null;
+    }
+    return alt;
+  }
+
+  /** The PUT /api/v1/formation body from the form, or null when a field is invalid. */
+  formationSpec(shape) {
+    const num = (id) => {
+      const el = document.getElementById(id);
+      return el.value.trim() === '' ? null : Number(el.value);
+    };
+    const spacing = num('form-spacing');
+    if (spacing === null || !Number.isFinite(spacing) || spacing <= 0) {
+      this.toasts.show('error', 'Formation', 'spacing must be a number of metres above 0');
+      return null;
+    }
+    const spec = { shape, spacing_m: spacing };
+    const heading = num('form-heading');
+    if (heading !== null && Number.isFinite(heading) && heading !== 0) spec.heading_deg = heading;
+    const alt = num('form-alt');
+    if (alt !== null && Number.isFinite(alt)) spec.altitude_m = alt;
+    if (this.leaderSelect.value) spec.leader = this.leaderSelect.value;
+    return spec;
+  }
+
+  /** A per-vehicle command from the table. */
+  vehicleCommand(id, command, button) {
+    let body = { command };
+    if (command === 'takeoff') {
+      const alt = this.takeoffAltitude();
+      if (alt === null) return;
+      body = { command, altitude_m: alt };
+    }
+    this.run(button, `${id} ${command}`, () => api.vehicleCommand(id, body), { altitude_m: 'takeoff-alt' });
+  }
+
+  /** Keeps the leader choices in step with the swarm (and the current choice). */
+  setVehicleIds(ids) {
+    const sorted = [...ids].sort(compareIds);
+    const key = sorted.join('\n');
+    if (key === this.leaderIds) return;
+    this.leaderIds = key;
+    const keep = this.leaderSelect.value;
+    const opts = [new Option('auto', '')];
+    for (const id of sorted) opts.push(new Option(id, id));
+    this.leaderSelect.replaceChildren(...opts);
+    this.leaderSelect.value = sorted.includes(keep) ? keep : '';
+  }
+
+  /**
+   * Sends one request with its button disabled, then reports the outcome. fields maps the
+   * API's field names to the ids of the inputs that fill them (marked when named by a 400).
+   */
+  async run(button, label, send, fields = {}) {
+    if (button) button.disabled = true;
+    try {
+      const res = await send();
+      this.report(label, res);
+      const bad = res.data && res.data.field && fields[res.data.field];
+      if (!res.ok && bad) document.getElementById(bad).setAttribute('aria-invalid', 'true');
+    } finally {
+      if (button) button.disabled = false;
+    }
+  }
+
+  report(label, res) {
+    const d = res.data || {};
+    if (!res.ok) {
+      const where = d.field ? ` (field ${d.field})` : '';
+      const status = res.status ? `HTTP ${res.status}` : 'no answer';
+      this.toasts.show('error', `${label}: ${status}`, `${d.error}${where}`);
+      this.log.note('api', 'error', 'api', `${label}: ${status}: ${d.error}${where}`);
+      return;
+    }
+    if (res.status === 202) {
+      const acc = d.accepted || [];
+      const ref = d.refused || [];
+      const accText = acc.length ? `accepted by ${acc.join(', ')}` : 'accepted by none';
+      this.toasts.show(ref.length ? 'warn' : 'ok', `${label} #${d.command_id}`, accText);
+      this.log.note('api', 'ok', 'api', `${label} #${d.command_id}: ${accText}`);
+      for (const r of ref) {
+        this.toasts.show('warn', `${label}: ${r.id} refused`, r.reason);
+        this.log.note('api', 'warn', 'api', `${label}: ${r.id} refused: ${r.reason}`);
+      }
+      return;
+    }
+    if (d && 'active' in d) { // a FormationStatus (PUT /formation)
+      this.onFormation(d);
+      this.toasts.show('ok', label, describeFormation(d));
+      this.log.note('api', 'ok', 'api', `${label}: ${describeFormation(d)}`);
+      return;
+    }
+    this.toasts.show('ok', label, `HTTP ${res.status}`);
+  }
+}

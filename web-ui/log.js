@@ -1,0 +1,123 @@
+// Event log: every stream event plus the dashboard's own notes (HTTP outcomes, link to
+// the server), newest first, capped. Entries are batched into one DOM update per frame.
+// Test hook: <li data-type="state_changed"> etc.
+
+import { fmtTime } from './model.js';
+
+const CAP = 500;
+const SEVERITY = ['emergency', 'alert', 'critical', 'error', 'warning', 'notice', 'info', 'debug'];
+
+/** Turns a stream event into {level, label, text}; level is info | ok | warn | error. */
+export function describe(ev) {
+  switch (ev.type) {
+    case 'vehicle_joined':
+      return { level: 'ok', label: 'joined', text: `${ev.id} joined (sysid ${ev.sysid}, ${ev.connection})` };
+    case 'state_changed':
+      return {
+        level: ev.to === 'Failsafe' || ev.to === 'Lost' ? 'error' : 'info',
+        label: 'state',
+        text: `${ev.id}: ${ev.from} → ${ev.to}`,
+      };
+    case 'command_result':
+      return ev.ok
+        ? { level: 'ok', label: 'command', text: `${ev.id}: ${ev.command} done (#${ev.command_id})` }
+        : { level: 'error', label: 'command', text: `${ev.id}: ${ev.command} failed (#${ev.command_id}): ${ev.error || 'no reason given'}` };
+    case 'status_text': {
+      const sev = SEVERITY[ev.severity] || `severity ${ev.severity}`;
+      const level = ev.severity <= 3 ? 'error' : ev.severity === 4 ? 'warn' : 'info';
+      return { level, label: 'px4', text: `${ev.id} [${sev}] ${ev.text}` };
+    }
+    case 'link_lost':
+      return { level: 'error', label: 'link', text: `${ev.id}: link lost` };
+    case 'link_restored':
+      return { level: 'ok', label: 'link', text: `${ev.id}: link restored` };
+    case 'rebooted':
+      return { level: 'warn', label: 'reboot', text: `${ev.id}: autopilot rebooted` };
+    case 'formation_changed':
+      return { level: 'info', label: 'formation', text: describeFormation(ev.formation) };
+    case 'geofence_clamp':
+      return { level: 'warn', label: 'geofence', text: `${ev.id}: setpoint clamped (${ev.violation})` };
+    case 'actor_restarted':
+      return { level: 'warn', label: 'restart', text: `${ev.path} restarted (${ev.restarts}×): ${ev.reason}` };
+    case 'events_dropped':
+      return { level: 'warn', label: 'stream', text: `${ev.count} events dropped (dashboard too slow)` };
+    default: {
+      const { type, ...rest } = ev;
+      return { level: 'info', label: String(type || 'event'), text: JSON.stringify(rest) };
+    }
+  }
+}
+
+/** One line for a FormationStatus. */
+export function describeFormation(f) {
+  if (!f || !f.shape) return 'no formation';
+  const parts = [`${f.shape} ${f.spacing_m} m`];
+  if (f.heading_deg) parts.push(`heading ${f.heading_deg}°`);
+  if (f.altitude_m != null) parts.push(`alt ${f.altitude_m} m`);
+  if (f.leader_id) parts.push(`leader ${f.leader_id}`);
+  parts.push(f.active ? `active, ${(f.members || []).length} members` : 'inactive');
+  return parts.join(', ');
+}
+
+export class EventLog {
+  constructor(list, filterInput, clearButton) {
+    this.list = list;
+    this.pending = [];
+    this.raf = 0;
+    this.filter = '';
+    filterInput.addEventListener('input', () => {
+      this.filter = filterInput.value.trim().toLowerCase();
+      for (const li of this.list.children) this.applyFilter(li);
+    });
+    clearButton.addEventListener('click', () => this.list.replaceChildren());
+  }
+
+  /** A stream event. */
+  event(ev) {
+    const d = describe(ev);
+    this.push(ev.type || 'event', d.level, d.label, d.text);
+  }
+
+  /** A note of the dashboard itself (type: "api", "stream" …). */
+  note(type, level, label, text) {
+    this.push(type, level, label, text);
+  }
+
+  push(type, level, label, text) {
+    this.pending.push({ when: new Date(), type, level, label, text });
+    if (this.pending.length > CAP) this.pending.splice(0, this.pending.length - CAP);
+    if (!this.raf) this.raf = requestAnimationFrame(() => this.flush());
+  }
+
+  flush() {
+    this.raf = 0;
+    const frag = document.createDocumentFragment();
+    // Newest first: the last pending entry goes on top.
+    for (let i = this.pending.length - 1; i >= 0; i--) {
+      const e = this.pending[i];
+      const li = document.createElement('li');
+      li.className = `lvl-${e.level}`;
+      li.dataset.type = e.type;
+      const time = document.createElement('time');
+      time.dateTime = e.when.toISOString();
+      time.textContent = fmtTime(e.when);
+      time.title = fmtTime(e.when, true);
+      const tag = document.createElement('span');
+      tag.className = 'tag';
+      tag.textContent = e.label;
+      const msg = document.createElement('span');
+      msg.className = 'msg';
+      msg.textContent = e.text;
+      li.append(time, tag, msg);
+      this.applyFilter(li);
+      frag.append(li);
+    }
+    this.pending = [];
+    this.list.prepend(frag);
+    while (this.list.childElementCount > CAP) this.list.lastElementChild.remove();
+  }
+
+  applyFilter(li) {
+    li.hidden = !!this.filter && !li.textContent.toLowerCase().includes(this.filter);
+  }
+}
