@@ -1,0 +1,421 @@
+//! Test support: building the plugin crates (cargo does not build cdylib dependencies for
+//! tests), a fake vehicle world implementing `PayloadHost`, and polling helpers.
+
+use serde_json::Value;
+use skein_mavlink::MavMessage;
+use skein_model::fsm::VehicleState;
+use skein_model::geo::{GeoPoint, Ned, NedFrame};
+use skein_model::px4::LandedState;
+use skein_model::vehicle::{LinkStatus, Position, VehicleSnapshot, Velocity};
+use skein_plugin_host::{ChildCommand, HostConfig, PayloadHost, PluginManager};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::{Duration, Instant};
+
+/// Every plugin crate of the workspace.
+pub const PLUGIN_PACKAGES: [&str; 6] = [
+    "skein-plugin-example",
+    "skein-plugin-gimbal",
+    "skein-plugin-camera",
+    "skein-plugin-radio",
+    "skein-plugin-fault",
+    "skein-plugin-abi-mismatch",
+];
+
+/// Environment variables that select plugin build variants; cleared for the default build.
+const VARIANT_VARS: [&str; 2] = ["SKEIN_EXAMPLE_VERSION", "SKEIN_FIXTURE_MISMATCH"];
+
+/// Serialises builds: variants of one crate overwrite the same output file, so a build and
+/// the copy of its output must not interleave with another build.
+static BUILD_LOCK: Mutex<()> = Mutex::new(());
+
+/// Where the running test binary was built: the target directory, the profile's output
+/// directory, and the cargo arguments that select the same profile and target.
+struct Layout {
+    target_dir: PathBuf,
+    out_dir: PathBuf,
+    args: Vec<String>,
+}
+
+fn layout() -> Layout {
+    // <target>/[<triple>/]<profile>/deps/<test binary>
+    let exe = std::env::current_exe().expect("test executable path");
+    let out_dir = exe
+        .parent()
+        .and_then(Path::parent)
+        .expect("test binary under <profile>/deps")
+        .to_path_buf();
+    let profile = out_dir.file_name().unwrap().to_string_lossy().into_owned();
+    let above = out_dir.parent().unwrap().to_path_buf();
+    let (target_dir, triple) =
+        if above.join("CACHEDIR.TAG").exists() || above.join(".rustc_info.json").exists() {
+            (above, None)
+        } else {
+            let triple = above.file_name().unwrap().to_string_lossy().into_owned();
+            (above.parent().unwrap().to_path_buf(), Some(triple))
+        };
+    let mut args = match profile.as_str() {
+        "debug" => vec![],
+        "release" => vec!["--release".to_string()],
+        other => vec!["--profile".to_string(), other.to_string()],
+    };
+    if let Some(t) = triple {
+        args.extend(["--target".to_string(), t]);
+    }
+    Layout {
+        target_dir,
+        out_dir,
+        args,
+    }
+}
+
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .canonicalize()
+        .expect("workspace root")
+}
+
+/// The library file cargo produces for a package.
+pub fn lib_file(package: &str) -> String {
+    format!("lib{}.so", package.replace('-', "_"))
+}
+
+/// The package selection of the plugin build. Cargo unifies dependency features over the
+/// packages a command selects, so building the plugins alone would compile their shared
+/// dependencies (the MAVLink dialect above all) a second time with other features. The
+/// selection therefore mirrors the test run's own:
+/// - default (`cargo test -p skein-plugin-host`): this crate plus the plugins;
+/// - `SKEIN_PLUGIN_TEST_SELECTION=workspace` (set it when the run is
+///   `cargo test --workspace`): the whole workspace with all targets, which after the test
+///   build only adds the plugin libraries.
+fn selection(packages: &[&str]) -> Vec<String> {
+    if std::env::var("SKEIN_PLUGIN_TEST_SELECTION").as_deref() == Ok("workspace") {
+        return vec!["--workspace".into(), "--all-targets".into()];
+    }
+    let mut args = vec!["-p".to_string(), env!("CARGO_PKG_NAME").to_string()];
+    for p in packages {
+        args.extend(["-p".to_string(), p.to_string()]);
+    }
+    args
+}
+
+/// Builds `packages` with the test's own cargo, target directory and profile (so the
+/// dependencies the test build compiled are reused, see [`selection`]), with `env` set and
+/// the other variant variables cleared; copies each library into `dest`. Returns the
+/// copies.
+fn build_into(packages: &[&str], env: &[(&str, &str)], dest: &Path) -> Vec<PathBuf> {
+    let _lock = BUILD_LOCK.lock().unwrap_or_else(|p| p.into_inner());
+    let l = layout();
+    // Another test process on the same target directory would overwrite the outputs
+    // between our build and our copy: hold a file lock across both.
+    let lock_file = std::fs::File::create(l.target_dir.join("skein-plugin-test-build.lock"))
+        .expect("create the build lock file");
+    lock_file.lock().expect("lock the build lock file");
+    let mut cmd = Command::new(env!("CARGO"));
+    cmd.current_dir(workspace_root())
+        .arg("build")
+        .arg("--quiet")
+        .arg("--target-dir")
+        .arg(&l.target_dir)
+        .args(&l.args)
+        .args(selection(packages));
+    for v in VARIANT_VARS {
+        cmd.env_remove(v);
+    }
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let started = Instant::now();
+    let out = cmd.output().expect("run cargo build");
+    assert!(
+        out.status.success(),
+        "cargo build {packages:?} {env:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    eprintln!(
+        "built {packages:?} {env:?} in {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
+    std::fs::create_dir_all(dest).unwrap();
+    packages
+        .iter()
+        .map(|p| {
+            let src = l.out_dir.join(lib_file(p));
+            let dst = dest.join(lib_file(p));
+            std::fs::copy(&src, &dst).unwrap_or_else(|e| panic!("copy {}: {e}", src.display()));
+            dst
+        })
+        .collect()
+}
+
+/// A directory private to this test process.
+pub fn scratch(name: &str) -> PathBuf {
+    static BASE: OnceLock<PathBuf> = OnceLock::new();
+    let base = BASE.get_or_init(|| {
+        // Remove what earlier runs left (their process is gone), then make ours.
+        if let Ok(dir) = std::fs::read_dir(std::env::temp_dir()) {
+            for e in dir.flatten() {
+                let name = e.file_name().to_string_lossy().into_owned();
+                if let Some(pid) = name.strip_prefix("skein-plugin-tests-")
+                    && !Path::new(&format!("/proc/{pid}")).exists()
+                {
+                    let _ = std::fs::remove_dir_all(e.path());
+                }
+            }
+        }
+        let b = std::env::temp_dir().join(format!("skein-plugin-tests-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&b);
+        std::fs::create_dir_all(&b).unwrap();
+        b
+    });
+    static COUNTER: Mutex<u32> = Mutex::new(0);
+    let mut n = COUNTER.lock().unwrap();
+    *n += 1;
+    let dir = base.join(format!("{name}-{n}"));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The default build of every plugin (once per test process): a directory of copies.
+pub fn built_plugins() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = scratch("built");
+        build_into(&PLUGIN_PACKAGES, &[], &dir);
+        dir
+    })
+}
+
+/// One package built with `env` (e.g. `SKEIN_EXAMPLE_VERSION=9.9.9`): the library copy.
+pub fn built_variant(package: &str, env: &[(&str, &str)]) -> PathBuf {
+    static CACHE: Mutex<Option<HashMap<String, PathBuf>>> = Mutex::new(None);
+    let key = format!("{package}{env:?}");
+    if let Some(p) = CACHE
+        .lock()
+        .unwrap()
+        .get_or_insert_with(HashMap::new)
+        .get(&key)
+    {
+        return p.clone();
+    }
+    let dir = scratch("variant");
+    let file = build_into(&[package], env, &dir).remove(0);
+    CACHE
+        .lock()
+        .unwrap()
+        .get_or_insert_with(HashMap::new)
+        .insert(key, file.clone());
+    file
+}
+
+/// A fresh plugin directory holding copies of the given packages' default builds.
+pub fn plugin_dir_with(packages: &[&str]) -> PathBuf {
+    let dir = scratch("plugins");
+    for p in packages {
+        std::fs::copy(built_plugins().join(lib_file(p)), dir.join(lib_file(p))).unwrap();
+    }
+    dir
+}
+
+/// The child command for process isolation in tests: this crate's standalone binary.
+pub fn child_command() -> ChildCommand {
+    ChildCommand::standalone(env!("CARGO_BIN_EXE_skein-plugin-host"))
+}
+
+/// A manager over a fresh plugin directory with `packages`, scanned.
+pub fn manager_with(packages: &[&str]) -> PluginManager {
+    let dir = plugin_dir_with(packages);
+    let mut cfg = HostConfig::new(&dir);
+    cfg.child = Some(child_command());
+    cfg.work_dir = Some(scratch("work"));
+    let m = PluginManager::new(cfg).unwrap();
+    for e in m.scan().unwrap() {
+        e.result
+            .unwrap_or_else(|err| panic!("{}: {err}", e.file.display()));
+    }
+    m
+}
+
+/// Polls `f` until it returns `Some` or `limit` passes.
+pub fn wait_for<T>(limit: Duration, what: &str, mut f: impl FnMut() -> Option<T>) -> T {
+    let deadline = Instant::now() + limit;
+    loop {
+        if let Some(v) = f() {
+            return v;
+        }
+        assert!(Instant::now() < deadline, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// The swarm origin of the fake world.
+pub const ORIGIN: GeoPoint = GeoPoint::new(47.397_742, 8.545_594, 488.0);
+
+/// A vehicle snapshot at a swarm-frame NED position with a heading.
+pub fn snapshot(id: &str, sysid: u8, ned: (f64, f64, f64), heading_deg: f64) -> VehicleSnapshot {
+    let frame = NedFrame::new(ORIGIN);
+    let geo = frame.to_geo(Ned::new(ned.0, ned.1, ned.2));
+    VehicleSnapshot {
+        id: id.into(),
+        sysid,
+        model: "observation".into(),
+        state: VehicleState::Hovering,
+        armed: true,
+        px4_mode: "OFFBOARD".into(),
+        landed_state: LandedState::InAir,
+        position: Some(Position::from_geo(geo, -ned.2, &frame)),
+        velocity: Velocity::default(),
+        heading_deg,
+        battery: None,
+        link: LinkStatus {
+            connected: true,
+            last_seen_ms: 0,
+        },
+        formation: None,
+        payloads: vec![],
+    }
+}
+
+/// A fake swarm: vehicles whose snapshots the test moves, and everything the payloads
+/// publish, per vehicle and slot.
+#[derive(Default)]
+pub struct World {
+    pub simulated: bool,
+    pub vehicles: Mutex<Vec<VehicleSnapshot>>,
+    pub states: Mutex<HashMap<(String, String), Value>>,
+    pub frames: Mutex<HashMap<String, Vec<Vec<u8>>>>,
+    pub events: Mutex<Vec<(String, String, Value)>>,
+    pub links: Mutex<Vec<(String, f64, f64)>>,
+    pub mavlink: Mutex<Vec<(String, MavMessage)>>,
+}
+
+impl World {
+    pub fn new(simulated: bool) -> Arc<World> {
+        Arc::new(World {
+            simulated,
+            ..Default::default()
+        })
+    }
+
+    /// Adds or moves a vehicle.
+    pub fn put(&self, id: &str, sysid: u8, ned: (f64, f64, f64), heading_deg: f64) {
+        let mut v = self.vehicles.lock().unwrap();
+        let s = snapshot(id, sysid, ned, heading_deg);
+        match v.iter_mut().find(|x| x.id == id) {
+            Some(x) => *x = s,
+            None => v.push(s),
+        }
+    }
+
+    pub fn host(self: &Arc<Self>, vehicle: &str, slot: &str) -> Arc<dyn PayloadHost> {
+        Arc::new(FakeHost {
+            world: Arc::clone(self),
+            vehicle_id: vehicle.into(),
+            slot: slot.into(),
+        })
+    }
+
+    pub fn state(&self, vehicle: &str, slot: &str) -> Option<Value> {
+        self.states
+            .lock()
+            .unwrap()
+            .get(&(vehicle.to_string(), slot.to_string()))
+            .cloned()
+    }
+
+    pub fn set_state(&self, vehicle: &str, slot: &str, state: Value) {
+        self.states
+            .lock()
+            .unwrap()
+            .insert((vehicle.to_string(), slot.to_string()), state);
+    }
+
+    pub fn frames(&self, vehicle: &str) -> Vec<Vec<u8>> {
+        self.frames
+            .lock()
+            .unwrap()
+            .get(vehicle)
+            .cloned()
+            .unwrap_or_default()
+    }
+
+    pub fn links(&self, vehicle: &str) -> Vec<(f64, f64)> {
+        self.links
+            .lock()
+            .unwrap()
+            .iter()
+            .filter(|(v, _, _)| v == vehicle)
+            .map(|(_, l, t)| (*l, *t))
+            .collect()
+    }
+}
+
+/// One payload's view of the world.
+pub struct FakeHost {
+    world: Arc<World>,
+    vehicle_id: String,
+    slot: String,
+}
+
+impl PayloadHost for FakeHost {
+    fn vehicle_id(&self) -> &str {
+        &self.vehicle_id
+    }
+    fn vehicle(&self) -> VehicleSnapshot {
+        self.world
+            .vehicles
+            .lock()
+            .unwrap()
+            .iter()
+            .find(|v| v.id == self.vehicle_id)
+            .cloned()
+            .expect("the payload's vehicle is in the world")
+    }
+    fn swarm(&self) -> Vec<VehicleSnapshot> {
+        self.world.vehicles.lock().unwrap().clone()
+    }
+    fn simulated(&self) -> bool {
+        self.world.simulated
+    }
+    fn send_mavlink(&self, msg: &MavMessage) -> Result<(), String> {
+        self.world
+            .mavlink
+            .lock()
+            .unwrap()
+            .push((self.vehicle_id.clone(), msg.clone()));
+        Ok(())
+    }
+    fn emit_event(&self, kind: &str, data: Value) {
+        self.world
+            .events
+            .lock()
+            .unwrap()
+            .push((self.vehicle_id.clone(), kind.to_string(), data));
+    }
+    fn publish_state(&self, state: Value) {
+        self.world.set_state(&self.vehicle_id, &self.slot, state);
+    }
+    fn payload_state(&self, slot: &str) -> Option<Value> {
+        self.world.state(&self.vehicle_id, slot)
+    }
+    fn publish_frame(&self, jpeg: Vec<u8>) {
+        self.world
+            .frames
+            .lock()
+            .unwrap()
+            .entry(self.vehicle_id.clone())
+            .or_default()
+            .push(jpeg);
+    }
+    fn set_simulated_link(&self, loss_fraction: f64, latency_ms: f64) -> bool {
+        self.world
+            .links
+            .lock()
+            .unwrap()
+            .push((self.vehicle_id.clone(), loss_fraction, latency_ms));
+        self.world.simulated
+    }
+}

@@ -1,0 +1,265 @@
+//! The camera payload plugin: frames for the vehicle's video stream, as JPEG.
+//!
+//! The frames come from a [`source::FrameSource`]. The one provided, `simulated`, renders
+//! what the vehicle would see: the other aircraft of the swarm projected through a pinhole
+//! model from the vehicle's position and heading and the angles its gimbal publishes,
+//! drawn over a sky/ground background split by the horizon; the focal length is the zoom.
+//! Each tick captures a frame, encodes it as JPEG (`jpeg-encoder`) and publishes it with
+//! `publish_frame` (skein serves it as MJPEG and snapshots).
+//!
+//! # Configuration (all optional)
+//! `{"source": "simulated", "width_px": 640, "height_px": 480, "frame_rate_hz": 5,
+//! "focal_length_mm": 4.0, "focal_min_mm": 4.0, "focal_max_mm": 48.0, "sensor_width_mm": 6.17,
+//! "jpeg_quality": 75, "gimbal_slot": "gimbal", "mount_pitch_deg": 0, "mount_yaw_deg": 0,
+//! "ground_down_m": 0, "aircraft_span_m": 1.0}`.
+//! `frame_rate_hz` 0 captures only on command. `gimbal_slot` `""` means a fixed mount
+//! (`mount_pitch_deg`, `mount_yaw_deg` relative to the vehicle), which is also used while
+//! the gimbal has published no angles.
+//!
+//! # Commands
+//! - `{"command": "capture"}`: capture, publish and describe one frame now →
+//!   `{"frame": 12, "bytes": 23114, "width_px": 640, "height_px": 480, "pointing": {...}, "visible": [...]}`
+//! - `{"command": "set_focal_length", "focal_length_mm": 12.0}` (within the zoom range)
+//! - `{"command": "set_zoom", "zoom": 3.0}` (focal length = `focal_min_mm` × zoom)
+//! - `{"command": "set_frame_rate", "frame_rate_hz": 10}`
+//! - `{"command": "status"}`
+//!
+//! # Published state
+//! ```json
+//! {"source": "simulated", "width_px": 640, "height_px": 480, "frame_rate_hz": 5.0,
+//!  "focal_length_mm": 4.0, "zoom": 1.0, "horizontal_fov_deg": 75.3, "vertical_fov_deg": 60.2,
+//!  "frames": 120, "last_frame_bytes": 23114, "last_error": null,
+//!  "pointing": {"azimuth_deg": 90.0, "elevation_deg": -10.0, "from": "gimbal"},
+//!  "visible": [{"id": "uav-2", "x_px": 311.5, "y_px": 240.2, "depth_m": 41.0, "radius_px": 3.0}]}
+//! ```
+
+pub mod render;
+pub mod source;
+
+use render::Pinhole;
+use skein_plugin_sdk::args::{Args, command_name};
+use skein_plugin_sdk::serde_json::{Value, json};
+use skein_plugin_sdk::{Context, Plugin, export_plugin};
+use source::{CapturedFrame, FrameData, FrameSource, SimulatedSource};
+
+/// Encodes RGB8 pixels as a baseline JPEG.
+///
+/// # Errors
+/// A size the encoder refuses (above 65535 px) or a buffer of the wrong length.
+pub fn encode_jpeg(
+    width_px: u32,
+    height_px: u32,
+    rgb: &[u8],
+    quality: u8,
+) -> Result<Vec<u8>, String> {
+    let (w, h) = (
+        u16::try_from(width_px).map_err(|_| "frame too wide for JPEG")?,
+        u16::try_from(height_px).map_err(|_| "frame too tall for JPEG")?,
+    );
+    let mut out = Vec::with_capacity(rgb.len() / 8);
+    jpeg_encoder::Encoder::new(&mut out, quality)
+        .encode(rgb, w, h, jpeg_encoder::ColorType::Rgb)
+        .map_err(|e| format!("JPEG encoding failed: {e}"))?;
+    Ok(out)
+}
+
+/// One camera instance.
+pub struct Camera {
+    optics: Pinhole,
+    focal_min_mm: f64,
+    focal_max_mm: f64,
+    frame_rate_hz: f64,
+    jpeg_quality: u8,
+    source: Box<dyn FrameSource>,
+    frames: u64,
+    last_frame_bytes: usize,
+    last_info: Value,
+    last_error: Option<String>,
+}
+
+impl Camera {
+    fn state(&self) -> Value {
+        let mut s = json!({
+            "source": self.source.name(),
+            "width_px": self.optics.width_px,
+            "height_px": self.optics.height_px,
+            "frame_rate_hz": self.frame_rate_hz,
+            "focal_length_mm": self.optics.focal_length_mm,
+            "zoom": self.optics.focal_length_mm / self.focal_min_mm,
+            "horizontal_fov_deg": self.optics.horizontal_fov_deg(),
+            "vertical_fov_deg": self.optics.vertical_fov_deg(),
+            "frames": self.frames,
+            "last_frame_bytes": self.last_frame_bytes,
+            "last_error": self.last_error,
+            "pointing": Value::Null,
+            "visible": [],
+        });
+        if let (Some(s), Some(info)) = (s.as_object_mut(), self.last_info.as_object()) {
+            for (k, v) in info {
+                s.insert(k.clone(), v.clone());
+            }
+        }
+        s
+    }
+
+    /// Captures, encodes and publishes one frame; returns its description.
+    fn capture(&mut self, ctx: &Context) -> Result<Value, String> {
+        let CapturedFrame {
+            width_px,
+            height_px,
+            data,
+            info,
+        } = self.source.capture(ctx, &self.optics)?;
+        let jpeg = match data {
+            FrameData::Jpeg(j) => j,
+            FrameData::Rgb8(rgb) => encode_jpeg(width_px, height_px, &rgb, self.jpeg_quality)?,
+        };
+        ctx.publish_frame(&jpeg)?;
+        self.frames += 1;
+        self.last_frame_bytes = jpeg.len();
+        self.last_info = info;
+        self.last_error = None;
+        let mut reply = json!({
+            "frame": self.frames,
+            "bytes": jpeg.len(),
+            "width_px": width_px,
+            "height_px": height_px,
+        });
+        if let (Some(r), Some(info)) = (reply.as_object_mut(), self.last_info.as_object()) {
+            for (k, v) in info {
+                r.insert(k.clone(), v.clone());
+            }
+        }
+        Ok(reply)
+    }
+}
+
+impl Plugin for Camera {
+    const NAME: &'static str = "camera";
+    const VERSION: &'static str = env!("CARGO_PKG_VERSION");
+    const KINDS: &'static [&'static str] = &["camera"];
+
+    fn create(_kind: &str, config: Value, _ctx: &Context) -> Result<Self, String> {
+        let a = Args::new(
+            &config,
+            "camera config",
+            &[
+                "source",
+                "width_px",
+                "height_px",
+                "frame_rate_hz",
+                "focal_length_mm",
+                "focal_min_mm",
+                "focal_max_mm",
+                "sensor_width_mm",
+                "jpeg_quality",
+                "gimbal_slot",
+                "mount_pitch_deg",
+                "mount_yaw_deg",
+                "ground_down_m",
+                "aircraft_span_m",
+            ],
+        )?;
+        a.opt_choice("source", &["simulated"])?;
+        let focal_min_mm = a.f64_in("focal_min_mm", 4.0, 0.5, 500.0)?;
+        let focal_max_mm = a.f64_in("focal_max_mm", 48.0, focal_min_mm, 2000.0)?;
+        let optics = Pinhole {
+            width_px: a.f64_in("width_px", 640.0, 16.0, 4096.0)? as u32,
+            height_px: a.f64_in("height_px", 480.0, 16.0, 4096.0)? as u32,
+            focal_length_mm: a.f64_in(
+                "focal_length_mm",
+                focal_min_mm,
+                focal_min_mm,
+                focal_max_mm,
+            )?,
+            sensor_width_mm: a.f64_in("sensor_width_mm", 6.17, 1.0, 100.0)?,
+        };
+        let gimbal_slot = match a.opt_str("gimbal_slot")? {
+            None => Some("gimbal".to_string()),
+            Some("") => None,
+            Some(s) => Some(s.to_string()),
+        };
+        let source = SimulatedSource {
+            gimbal_slot,
+            mount_pitch_deg: a.f64_in("mount_pitch_deg", 0.0, -90.0, 90.0)?,
+            mount_yaw_deg: a.f64_in("mount_yaw_deg", 0.0, -180.0, 180.0)?,
+            ground_down_m: a.f64_in("ground_down_m", 0.0, -10_000.0, 10_000.0)?,
+            aircraft_span_m: a.f64_in("aircraft_span_m", 1.0, 0.05, 100.0)?,
+        };
+        Ok(Camera {
+            optics,
+            focal_min_mm,
+            focal_max_mm,
+            frame_rate_hz: a.f64_in("frame_rate_hz", 5.0, 0.0, 60.0)?,
+            jpeg_quality: a.f64_in("jpeg_quality", 75.0, 1.0, 100.0)? as u8,
+            source: Box::new(source),
+            frames: 0,
+            last_frame_bytes: 0,
+            last_info: Value::Null,
+            last_error: None,
+        })
+    }
+
+    fn tick_rate_hz(&self) -> f64 {
+        self.frame_rate_hz
+    }
+
+    fn tick(&mut self, ctx: &Context, _dt_s: f64) -> Result<(), String> {
+        // A frame that cannot be made now (no position yet) is reported in the state, not
+        // raised: the supervisor need not restart a camera waiting for its vehicle.
+        if let Err(e) = self.capture(ctx) {
+            if self.last_error.as_deref() != Some(e.as_str()) {
+                ctx.log_warn(&format!("camera: no frame: {e}"));
+            }
+            self.last_error = Some(e);
+        }
+        ctx.publish_state(&self.state())
+    }
+
+    fn handle(&mut self, ctx: &Context, command: Value) -> Result<Value, String> {
+        let name = command_name(
+            &command,
+            &[
+                "capture",
+                "set_focal_length",
+                "set_zoom",
+                "set_frame_rate",
+                "status",
+            ],
+        )?;
+        let what = format!("command `{name}`");
+        let reply = match name {
+            "capture" => {
+                Args::new(&command, what, &["command"])?;
+                let reply = self.capture(ctx)?;
+                ctx.publish_state(&self.state())?;
+                return Ok(reply);
+            }
+            "set_focal_length" => {
+                let a = Args::new(&command, what, &["command", "focal_length_mm"])?;
+                self.optics.focal_length_mm =
+                    a.f64_required_in("focal_length_mm", self.focal_min_mm, self.focal_max_mm)?;
+                self.state()
+            }
+            "set_zoom" => {
+                let a = Args::new(&command, what, &["command", "zoom"])?;
+                let zoom = a.f64_required_in("zoom", 1.0, self.focal_max_mm / self.focal_min_mm)?;
+                self.optics.focal_length_mm = self.focal_min_mm * zoom;
+                self.state()
+            }
+            "set_frame_rate" => {
+                let a = Args::new(&command, what, &["command", "frame_rate_hz"])?;
+                self.frame_rate_hz = a.f64_required_in("frame_rate_hz", 0.0, 60.0)?;
+                self.state()
+            }
+            _ => {
+                Args::new(&command, what, &["command"])?;
+                self.state()
+            }
+        };
+        ctx.publish_state(&reply)?;
+        Ok(reply)
+    }
+}
+
+export_plugin!(Camera);

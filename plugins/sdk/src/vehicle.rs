@@ -1,0 +1,114 @@
+//! A plugin's typed view of the vehicle snapshot JSON the host sends (the object of
+//! `GET /api/v1/vehicles/{id}`, see skein's `VehicleSnapshot`).
+//!
+//! Every field has a default and unknown fields are ignored, so a plugin keeps working when
+//! skein adds fields to the snapshot; a field whose *meaning* changes bumps
+//! [`crate::abi::MESSAGES_VERSION`].
+
+use crate::geometry::Ned;
+use serde::{Deserialize, Serialize};
+
+/// Position of a vehicle: swarm-frame NED plus geodetic.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Position {
+    /// North of the swarm origin, metres.
+    pub north_m: f64,
+    /// East of the swarm origin, metres.
+    pub east_m: f64,
+    /// Down from the swarm origin, metres (negative is above it).
+    pub down_m: f64,
+    /// Latitude, degrees (WGS84).
+    pub lat_deg: f64,
+    /// Longitude, degrees (WGS84).
+    pub lon_deg: f64,
+    /// Altitude above mean sea level, metres.
+    pub alt_amsl_m: f64,
+    /// Height above the vehicle's home, metres.
+    pub relative_alt_m: f64,
+}
+
+impl Position {
+    /// The swarm-frame NED part.
+    pub fn ned(&self) -> Ned {
+        Ned::new(self.north_m, self.east_m, self.down_m)
+    }
+}
+
+/// Velocity, NED, metres per second.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Velocity {
+    /// North, m/s.
+    pub north_m_s: f64,
+    /// East, m/s.
+    pub east_m_s: f64,
+    /// Down, m/s.
+    pub down_m_s: f64,
+}
+
+/// Link health of the vehicle's MAVLink link.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Link {
+    /// False after the link timeout (3 s) without a valid message.
+    pub connected: bool,
+    /// Milliseconds since the last valid message.
+    pub last_seen_ms: u64,
+}
+
+/// One vehicle as a plugin sees it.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Vehicle {
+    /// User-facing id (`"uav-1"`).
+    pub id: String,
+    /// MAVLink system id.
+    pub sysid: u8,
+    /// Vehicle model name (`"generic"`, `"observation"`).
+    pub model: String,
+    /// FSM state name (`"InFormation"`).
+    pub state: String,
+    /// Armed flag.
+    pub armed: bool,
+    /// PX4 mode name (`"OFFBOARD"`).
+    pub px4_mode: String,
+    /// Position, once known.
+    pub position: Option<Position>,
+    /// Velocity.
+    pub velocity: Velocity,
+    /// Heading, degrees clockwise from north in `[0, 360)`.
+    pub heading_deg: f64,
+    /// Link health.
+    pub link: Link,
+}
+
+impl Vehicle {
+    /// The swarm-frame NED position, if known.
+    pub fn ned(&self) -> Option<Ned> {
+        self.position.map(|p| p.ned())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_the_api_shape_and_ignores_unknown_fields() {
+        let v: Vehicle = serde_json::from_value(serde_json::json!({
+            "id": "uav-1", "sysid": 1, "model": "generic", "state": "InFormation", "armed": true,
+            "px4_mode": "OFFBOARD", "landed_state": "InAir",
+            "position": {"north_m": 0.0, "east_m": 5.0, "down_m": -10.0, "lat_deg": 47.3977,
+                         "lon_deg": 8.5456, "alt_amsl_m": 498.0, "relative_alt_m": 10.0},
+            "velocity": {"north_m_s": 1.0, "east_m_s": 0.0, "down_m_s": 0.0}, "heading_deg": 90.0,
+            "battery": {"percent": 87.0, "voltage_v": 15.9}, "link": {"connected": true, "last_seen_ms": 12},
+            "formation": null, "payloads": [], "something_new": 3
+        }))
+        .unwrap();
+        assert_eq!(v.id, "uav-1");
+        assert_eq!(v.ned(), Some(Ned::new(0.0, 5.0, -10.0)));
+        assert_eq!(v.heading_deg, 90.0);
+        assert!(v.link.connected);
+    }
+}
