@@ -1,0 +1,483 @@
+//! The `skein up --config FILE` file (TOML).
+//!
+//! ```toml
+//! [swarm]                      # optional, every key optional
+//! origin = { lat_deg = 47.397742, lon_deg = 8.545594, alt_amsl_m = 488.0 }
+//! stream_rate_hz = 20.0        # offboard setpoints per second per vehicle
+//! min_separation_m = 3.0        # guaranteed distance between vehicles
+//! separation_margin_m = 0.5     # kept on top between setpoints, for tracking error
+//! default_takeoff_altitude_m = 10.0
+//! geofence = { radius_m = 500.0, max_altitude_m = 120.0, min_altitude_m = 5.0 }
+//! # optional polygon in the swarm frame ([north_m, east_m] vertices):
+//! # geofence = { ..., polygon = [[-100.0, -100.0], [300.0, -100.0], [300.0, 100.0], [-100.0, 100.0]] }
+//!
+//! [link]                       # our MAVLink identity, and what we ask of vehicles
+//! mav_type = "gcs"             # or "onboard_controller" on a companion computer
+//! sysid = 255
+//! compid = 190
+//! telemetry = "swarm"          # reduced rates for big swarms; default "px4_default"
+//! params = { COM_OF_LOSS_T = 1.0, COM_OBL_RC_ACT = 5, NAV_DLL_ACT = 0 }  # set at connect
+//!
+//! [http]
+//! listen = "127.0.0.1:8080"
+//!
+//! [supervision]                # restart policies (vehicle, px4link, payload, api)
+//! vehicle_escalation = "hold"  # or "land": what a vehicle whose actor keeps failing does
+//! watchdog_deadline_ms = 2000  # a child not answering a ping this long is hung
+//! payload = { policy = "on-failure", max_restarts = 5, window_s = 60.0,
+//!             backoff_initial_ms = 100, backoff_max_ms = 5000 }
+//!
+//! [models.observation]         # vehicle models: limits and payload slots
+//! payloads = [{ slot = "gimbal", kind = "gimbal" }, { slot = "camera", kind = "camera" }]
+//! limits = { max_speed_m_s = 8.0, max_climb_m_s = 3.0, max_descent_m_s = 1.5, max_accel_m_s2 = 3.0 }
+//!
+//! [[vehicles]]                 # one table per vehicle (or per shared endpoint)
+//! connection = "udpin:0.0.0.0:14540"
+//! id = "uav-1"                 # optional, default uav-<sysid>
+//! model = "generic"            # optional
+//! sysid = 1                    # optional: only this sysid on the endpoint gets this id
+//! ```
+//!
+//! Unknown keys, wrong types and bad values are refused with the TOML parser's message,
+//! which names the key and shows the line.
+
+use serde::Deserialize;
+use skein_link::{ConnectionAddress, Identity};
+use skein_mavlink::dialect::MavType;
+use skein_model::geo::GeoPoint;
+use skein_model::safety::Geofence;
+use skein_swarm::{EndpointSpec, SwarmConfig, VehicleSpec};
+use std::collections::BTreeMap;
+use std::net::SocketAddr;
+use std::path::Path;
+
+/// A connection string, validated while parsing so the error points at its line.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Connection(pub ConnectionAddress);
+
+impl<'de> Deserialize<'de> for Connection {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse()
+            .map(Connection)
+            .map_err(|e: skein_link::address::AddressError| serde::de::Error::custom(e.0))
+    }
+}
+
+/// `[swarm]`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SwarmSection {
+    /// Swarm frame anchor.
+    pub origin: Option<GeoPoint>,
+    /// Setpoint stream rate, Hz.
+    pub stream_rate_hz: Option<f64>,
+    /// Minimum separation, metres.
+    pub min_separation_m: Option<f64>,
+    /// Tracking margin kept between setpoints on top of the separation, metres.
+    pub separation_margin_m: Option<f64>,
+    /// Default takeoff altitude, metres above home.
+    pub default_takeoff_altitude_m: Option<f64>,
+    /// Geofence.
+    pub geofence: Option<Geofence>,
+}
+
+/// `[link]`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinkSection {
+    /// Telemetry profile asked of every vehicle: `"px4_default"` or `"swarm"`.
+    pub telemetry: Option<skein_link::TelemetryProfile>,
+    /// PX4 parameters set at connect, e.g. `{ COM_OF_LOSS_T = 1.0, COM_OBL_RC_ACT = 5 }`.
+    pub params: Option<BTreeMap<String, f64>>,
+    /// `"gcs"` or `"onboard_controller"`.
+    pub mav_type: Option<MavTypeName>,
+    /// Our system id.
+    pub sysid: Option<u8>,
+    /// Our component id.
+    pub compid: Option<u8>,
+}
+
+/// The MAV_TYPE of our heartbeat.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MavTypeName {
+    /// `MAV_TYPE_GCS`: a ground station.
+    Gcs,
+    /// `MAV_TYPE_ONBOARD_CONTROLLER`: a companion computer.
+    OnboardController,
+}
+
+/// `[http]`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HttpSection {
+    /// Listen address.
+    pub listen: Option<SocketAddr>,
+}
+
+/// One `[models.NAME]` table.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelEntry {
+    /// Motion limits (default: PX4 multicopter defaults).
+    pub limits: Option<skein_model::safety::MotionLimits>,
+    /// Payload slots.
+    #[serde(default)]
+    pub payloads: Vec<skein_payload::PayloadSpec>,
+}
+
+/// One `[[vehicles]]` table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VehicleEntry {
+    /// Connection string.
+    pub connection: Connection,
+    /// Vehicle id.
+    pub id: Option<String>,
+    /// Model name.
+    pub model: Option<String>,
+    /// Restrict to this sysid.
+    pub sysid: Option<u8>,
+}
+
+/// The whole file.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConfigFile {
+    /// `[swarm]`.
+    #[serde(default)]
+    pub swarm: SwarmSection,
+    /// `[link]`.
+    #[serde(default)]
+    pub link: LinkSection,
+    /// `[http]`.
+    #[serde(default)]
+    pub http: HttpSection,
+    /// `[supervision]`.
+    pub supervision: Option<skein_swarm::supervision::SupervisionConfig>,
+    /// `[models.NAME]`.
+    #[serde(default)]
+    pub models: BTreeMap<String, ModelEntry>,
+    /// `[[vehicles]]`.
+    #[serde(default)]
+    pub vehicles: Vec<VehicleEntry>,
+}
+
+impl ConfigFile {
+    /// Reads and parses `path`.
+    ///
+    /// # Errors
+    /// A message naming the file, and the parser's message naming the key and line.
+    pub fn load(path: &Path) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+        Self::parse(&text).map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    /// Parses TOML text.
+    ///
+    /// # Errors
+    /// The parser's message (line, column, key) or a validation message naming the key.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let cfg: ConfigFile = toml::from_str(text).map_err(|e| e.to_string())?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        let positive = |key: &str, v: Option<f64>| match v {
+            Some(x) if !(x.is_finite() && x > 0.0) => {
+                Err(format!("{key} must be a positive number, got {x}"))
+            }
+            _ => Ok(()),
+        };
+        positive("swarm.stream_rate_hz", self.swarm.stream_rate_hz)?;
+        if let Some(r) = self.swarm.stream_rate_hz
+            && r <= 2.0
+        {
+            return Err(format!(
+                "swarm.stream_rate_hz must be above 2 Hz (PX4 refuses OFFBOARD below), got {r}"
+            ));
+        }
+        positive("swarm.min_separation_m", self.swarm.min_separation_m)?;
+        if let Some(m) = self.swarm.separation_margin_m
+            && !(m.is_finite() && m >= 0.0)
+        {
+            return Err(format!(
+                "swarm.separation_margin_m must be 0 or more, got {m}"
+            ));
+        }
+        positive(
+            "swarm.default_takeoff_altitude_m",
+            self.swarm.default_takeoff_altitude_m,
+        )?;
+        for (name, v) in self.link.params.iter().flatten() {
+            if name.is_empty() || name.len() > 16 || !name.is_ascii() {
+                return Err(format!(
+                    "link.params.{name}: a PX4 parameter name is 1 to 16 ASCII characters"
+                ));
+            }
+            if !v.is_finite() {
+                return Err(format!("link.params.{name}: {v} is not a number"));
+            }
+        }
+        if let Some(g) = &self.swarm.geofence {
+            g.validate()
+                .map_err(|(field, why)| format!("swarm.geofence.{field}: {why}"))?;
+        }
+        for (name, m) in &self.models {
+            let mut slots = std::collections::BTreeSet::new();
+            for (i, p) in m.payloads.iter().enumerate() {
+                if p.slot.is_empty() || p.slot.contains('/') {
+                    return Err(format!(
+                        "models.{name}.payloads[{i}].slot `{}` must be non-empty and contain no `/`",
+                        p.slot
+                    ));
+                }
+                if !slots.insert(p.slot.clone()) {
+                    return Err(format!(
+                        "models.{name}.payloads[{i}].slot `{}` is used twice",
+                        p.slot
+                    ));
+                }
+            }
+        }
+        let known_model =
+            |m: &str| self.models.contains_key(m) || m == "generic" || m == "observation";
+        for (i, v) in self.vehicles.iter().enumerate() {
+            if let Some(m) = &v.model
+                && !known_model(m)
+            {
+                return Err(format!(
+                    "vehicles[{i}].model `{m}`: no such model (generic, observation, or a [models.NAME] table)"
+                ));
+            }
+        }
+        let mut ids = std::collections::BTreeSet::new();
+        for (i, v) in self.vehicles.iter().enumerate() {
+            if let Some(id) = &v.id {
+                if id.is_empty() || id.contains('/') {
+                    return Err(format!(
+                        "vehicles[{i}].id `{id}` must be non-empty and contain no `/`"
+                    ));
+                }
+                if !ids.insert(id.clone()) {
+                    return Err(format!("vehicles[{i}].id `{id}` is used twice"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The swarm configuration, defaults filled in.
+    ///
+    /// # Errors
+    /// None today beyond what [`ConfigFile::parse`] checked; kept fallible for models
+    /// that need the plugin host.
+    pub fn swarm_config(&self) -> Result<SwarmConfig, String> {
+        let mut c = SwarmConfig {
+            swarm_origin: self.swarm.origin,
+            ..SwarmConfig::default()
+        };
+        if let Some(v) = self.swarm.stream_rate_hz {
+            c.stream_rate_hz = v;
+        }
+        if let Some(v) = self.swarm.min_separation_m {
+            c.min_separation_m = v;
+        }
+        if let Some(v) = self.swarm.separation_margin_m {
+            c.separation_margin_m = v;
+        }
+        if let Some(v) = self.swarm.default_takeoff_altitude_m {
+            c.default_takeoff_altitude_m = v;
+        }
+        if let Some(g) = &self.swarm.geofence {
+            c.geofence = g.clone();
+        }
+        c.link_setup = skein_link::LinkSetup {
+            telemetry: self.link.telemetry.unwrap_or_default(),
+            params: self
+                .link
+                .params
+                .iter()
+                .flatten()
+                .map(|(k, v)| (k.clone(), *v))
+                .collect(),
+        };
+        if let Some(sup) = &self.supervision {
+            c.supervision = sup.clone();
+        }
+        for (name, m) in &self.models {
+            c.models.insert(
+                name.clone(),
+                skein_swarm::VehicleModel {
+                    name: name.clone(),
+                    limits: m.limits.unwrap_or_default(),
+                    payloads: m.payloads.clone(),
+                },
+            );
+        }
+        Ok(c)
+    }
+
+    /// Our MAVLink identity.
+    pub fn identity(&self) -> Identity {
+        let d = Identity::default();
+        Identity {
+            sysid: self.link.sysid.unwrap_or(d.sysid),
+            compid: self.link.compid.unwrap_or(d.compid),
+            mav_type: match self.link.mav_type {
+                Some(MavTypeName::OnboardController) => MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+                _ => MavType::MAV_TYPE_GCS,
+            },
+        }
+    }
+
+    /// The endpoints to open: vehicles sharing a connection string share the endpoint.
+    pub fn endpoints(&self) -> Vec<EndpointSpec> {
+        let mut by_conn: BTreeMap<String, EndpointSpec> = BTreeMap::new();
+        let mut order = Vec::new();
+        for v in &self.vehicles {
+            let key = v.connection.0.to_string();
+            let e = by_conn.entry(key.clone()).or_insert_with(|| {
+                order.push(key.clone());
+                EndpointSpec {
+                    connection: v.connection.0.clone(),
+                    vehicles: vec![],
+                    simulated: false,
+                }
+            });
+            e.vehicles.push(VehicleSpec {
+                id: v.id.clone(),
+                sysid: v.sysid,
+                model: v.model.clone(),
+            });
+        }
+        order
+            .into_iter()
+            .map(|k| by_conn.remove(&k).expect("inserted"))
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn full_file_parses() {
+        let c = ConfigFile::parse(
+            r#"
+[swarm]
+origin = { lat_deg = 47.397742, lon_deg = 8.545594, alt_amsl_m = 488.0 }
+stream_rate_hz = 30.0
+geofence = { radius_m = 200.0, max_altitude_m = 60.0 }
+
+[link]
+mav_type = "onboard_controller"
+telemetry = "swarm"
+params = { COM_OF_LOSS_T = 1.0, COM_OBL_RC_ACT = 5 }
+
+[[vehicles]]
+connection = "udpin:0.0.0.0:14540"
+id = "alpha"
+
+[[vehicles]]
+connection = "udpin:0.0.0.0:14549"
+sysid = 11
+
+[[vehicles]]
+connection = "udpin:0.0.0.0:14549"
+sysid = 12
+model = "generic"
+"#,
+        )
+        .unwrap();
+        let s = c.swarm_config().unwrap();
+        assert_eq!(s.stream_rate_hz, 30.0);
+        assert_eq!(s.geofence.radius_m, 200.0);
+        assert_eq!(c.identity().mav_type, MavType::MAV_TYPE_ONBOARD_CONTROLLER);
+        assert_eq!(s.link_setup.telemetry, skein_link::TelemetryProfile::Swarm);
+        assert_eq!(
+            s.link_setup.params,
+            vec![
+                ("COM_OBL_RC_ACT".to_string(), 5.0),
+                ("COM_OF_LOSS_T".to_string(), 1.0)
+            ]
+        );
+        let eps = c.endpoints();
+        assert_eq!(eps.len(), 2, "the two 14549 entries share an endpoint");
+        assert_eq!(eps[1].vehicles.len(), 2);
+        assert_eq!(eps[0].vehicles[0].id.as_deref(), Some("alpha"));
+    }
+
+    #[test]
+    fn errors_name_the_key_and_line() {
+        let e =
+            ConfigFile::parse("[[vehicles]]\nconection = \"udpin:0.0.0.0:14540\"\n").unwrap_err();
+        assert!(e.contains("line 2"), "{e}");
+        assert!(e.contains("conection"), "{e}");
+
+        let e = ConfigFile::parse("[[vehicles]]\nid = \"a\"\nconnection = \"udpn:1.2.3.4:5\"\n")
+            .unwrap_err();
+        assert!(e.contains("line 3"), "{e}");
+        assert!(e.contains("unknown scheme `udpn`"), "{e}");
+
+        let e = ConfigFile::parse("[swarm]\nstream_rate_hz = \"fast\"\n").unwrap_err();
+        assert!(e.contains("line 2") && e.contains("stream_rate_hz"), "{e}");
+
+        let e = ConfigFile::parse("[swarm]\nstream_rate_hz = 1.0\n").unwrap_err();
+        assert!(e.contains("swarm.stream_rate_hz"), "{e}");
+
+        let e = ConfigFile::parse(
+            "[[vehicles]]\nconnection = \"udpin:0.0.0.0:1\"\nid = \"x\"\n[[vehicles]]\nconnection = \"udpin:0.0.0.0:2\"\nid = \"x\"\n",
+        )
+        .unwrap_err();
+        assert!(e.contains("vehicles[1].id"), "{e}");
+    }
+
+    #[test]
+    fn supervision_and_models() {
+        let c = ConfigFile::parse(
+            r#"
+[supervision]
+vehicle_escalation = "land"
+payload = { max_restarts = 2, window_s = 30.0 }
+
+[models.tester]
+payloads = [{ slot = "fixture", kind = "fault-fixture" }]
+"#,
+        )
+        .unwrap();
+        let s = c.swarm_config().unwrap();
+        assert_eq!(
+            s.supervision.vehicle_escalation,
+            skein_swarm::supervision::VehicleEscalation::Land
+        );
+        assert_eq!(s.supervision.payload.max_restarts, 2);
+        assert_eq!(
+            s.supervision.payload.backoff_max_ms, 5000,
+            "other fields default"
+        );
+        assert_eq!(s.models["tester"].payloads[0].kind, "fault-fixture");
+        let e = ConfigFile::parse("[supervision]\npayload = { max_restart = 2 }\n").unwrap_err();
+        assert!(e.contains("max_restart") && e.contains("line 2"), "{e}");
+        let e = ConfigFile::parse(
+            "[models.x]\npayloads = [{ slot = \"a\", kind = \"k\" }, { slot = \"a\", kind = \"k\" }]\n",
+        )
+        .unwrap_err();
+        assert!(e.contains("models.x.payloads[1].slot"), "{e}");
+        let e =
+            ConfigFile::parse("[[vehicles]]\nconnection = \"udpin:0.0.0.0:1\"\nmodel = \"nope\"\n")
+                .unwrap_err();
+        assert!(e.contains("vehicles[0].model `nope`"), "{e}");
+    }
+
+    #[test]
+    fn empty_file_is_fine() {
+        let c = ConfigFile::parse("").unwrap();
+        assert!(c.vehicles.is_empty());
+        assert_eq!(c.swarm_config().unwrap().stream_rate_hz, 20.0);
+    }
+}

@@ -1,0 +1,427 @@
+//! `skein`: orchestrate a heterogeneous PX4 UAV swarm as one, from a browser.
+//!
+//! - `skein up --sim N`: a simulated swarm of N PX4-like multicopters, the coordinator and
+//!   the dashboard (prints its URL).
+//! - `skein up --config FILE`: the same for real vehicles (one `[[vehicles]]` table per
+//!   vehicle, see [`config`]).
+//! - `skein sim --vehicles N`: the simulator alone, for any MAVLink client.
+//! - `skein fault --target PATH --kind panic|hang|stop|error`: inject a fault through the
+//!   API of a running `skein up --enable-fault-injection`.
+//! - `skein plugin-host --socket PATH --library PATH` (internal, not in `--help`): the
+//!   child process that runs one payload plugin library under process isolation, spoken
+//!   to over a Unix socket (see `skein_plugin_host`).
+#![warn(missing_docs)]
+
+mod bench;
+mod config;
+
+use clap::{Parser, Subcommand};
+use config::ConfigFile;
+use skein_link::ConnectionAddress;
+use skein_swarm::{EndpointSpec, Swarm, VehicleSpec};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// Command line.
+#[derive(Parser, Debug)]
+#[command(
+    name = "skein",
+    version,
+    about = "Fly a swarm of PX4 drones as one, from a browser."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Commands,
+}
+
+#[derive(Subcommand, Debug)]
+enum Commands {
+    /// Run the coordinator, the HTTP API and the dashboard (with simulated and/or real vehicles).
+    Up(UpArgs),
+    /// Run the PX4 SITL-like simulator alone (instance i: sysid i+1, binds 14580+i, sends to 14540+i).
+    Sim(skein_sim::cli::SimArgs),
+    /// Benchmarks printing one JSON object (`skein bench swarm --vehicles N --rate-hz 50 --seconds S`).
+    Bench(bench::BenchArgs),
+    /// Inject a fault into an actor of a running skein (needs --enable-fault-injection there).
+    Fault(FaultArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct FaultArgs {
+    /// Base URL of the running skein's API.
+    #[arg(long, default_value = "http://127.0.0.1:8080")]
+    url: String,
+    /// Actor path, e.g. coordinator/uav-1/px4link (see GET /api/v1/supervision).
+    #[arg(long)]
+    target: String,
+    /// What to do to it: panic, hang, stop or error.
+    #[arg(long)]
+    kind: String,
+}
+
+#[derive(clap::Args, Debug)]
+struct UpArgs {
+    /// Simulate this many vehicles in-process.
+    #[arg(long, value_name = "N")]
+    sim: Option<usize>,
+    /// Configuration file (TOML) with real vehicles and swarm settings.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Listen address of the HTTP API and dashboard (port 0 picks a free port).
+    #[arg(long, value_name = "ADDR:PORT")]
+    http: Option<SocketAddr>,
+    /// With --sim: links listen on PORT+i and simulated vehicle i binds PORT+40+i (the
+    /// PX4 SITL layout for 14540); 0 = free ports for both.
+    #[arg(long, value_name = "PORT", default_value_t = 14540)]
+    sim_base_port: u16,
+    /// With --sim: seed of the simulator's random processes.
+    #[arg(long, default_value_t = 0)]
+    sim_seed: u64,
+    /// With --sim: the vehicle model of the simulated vehicles (default `generic`).
+    #[arg(long, value_name = "MODEL")]
+    sim_model: Option<String>,
+    /// With --sim: open the simulator's stats socket here (one JSON line per command:
+    /// stats, reset, silence SYSID MS, reboot SYSID); port 0 picks one, printed at start.
+    #[arg(long, value_name = "ADDR:PORT")]
+    sim_stats: Option<SocketAddr>,
+    /// Accept POST /api/v1/faults (make actors panic, hang, stop or fail on purpose).
+    #[arg(long)]
+    enable_fault_injection: bool,
+}
+
+const DEFAULT_HTTP: SocketAddr = SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 8080);
+
+fn main() -> ExitCode {
+    // The plugin host child runs before anything else: no runtime, no logging set-up of
+    // ours, nothing a plugin could disturb.
+    let mut argv = std::env::args_os();
+    if argv.nth(1).is_some_and(|a| a == "plugin-host") {
+        return match skein_plugin_host::PluginHostArgs::parse(argv) {
+            Ok(args) => skein_plugin_host::plugin_host_main(args),
+            Err(e) => {
+                eprintln!("skein {e}");
+                ExitCode::from(2)
+            }
+        };
+    }
+    let cli = Cli::parse();
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("SKEIN_LOG")
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("skein: cannot start the runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    install_panic_hook();
+    let result = runtime.block_on(async {
+        match cli.command {
+            Commands::Up(args) => up(args).await,
+            Commands::Sim(args) => skein_sim::cli::run(args)
+                .await
+                .map(|()| ExitCode::SUCCESS)
+                .map_err(|e| e.to_string()),
+            Commands::Fault(args) => fault(args),
+            Commands::Bench(args) => bench::run(args).await.map(|()| ExitCode::SUCCESS),
+        }
+    });
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("skein: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Exit status when the coordinator failed (EX_SOFTWARE): for systemd or Docker to
+/// restart the process.
+const EXIT_COORDINATOR_FAILED: u8 = 70;
+
+/// One line per panic, no backtrace: supervised actors panic on purpose in fault tests,
+/// and the default hook (with `RUST_BACKTRACE=1`) costs ~100 µs of restart latency.
+fn install_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "non-string panic payload".into());
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        tracing::error!("panic: {msg}{at}");
+    }));
+}
+
+/// Pings the coordinator from a thread of its own (so a wedged runtime cannot stop it);
+/// a coordinator that does not answer within `deadline` is a hung root: exit non-zero.
+fn spawn_process_watchdog(
+    coordinator: ractor::ActorRef<skein_swarm::CoordinatorMsg>,
+    deadline: Duration,
+) {
+    std::thread::Builder::new()
+        .name("skein-watchdog".into())
+        .spawn(move || {
+            let Ok(rt) = tokio::runtime::Builder::new_current_thread()
+                .enable_time()
+                .build()
+            else {
+                return;
+            };
+            rt.block_on(async move {
+                loop {
+                    tokio::time::sleep(Duration::from_millis(500)).await;
+                    match coordinator
+                        .call(skein_swarm::CoordinatorMsg::Ping, Some(deadline))
+                        .await
+                    {
+                        Ok(ractor::rpc::CallResult::Success(())) => {}
+                        Ok(ractor::rpc::CallResult::Timeout) => {
+                            tracing::error!(
+                                "the coordinator did not answer for {} ms: exiting",
+                                deadline.as_millis()
+                            );
+                            std::process::exit(i32::from(EXIT_COORDINATOR_FAILED));
+                        }
+                        // Stopped or failed: the main task handles it.
+                        _ => return,
+                    }
+                }
+            });
+        })
+        .expect("spawn the watchdog thread");
+}
+
+fn fault(args: FaultArgs) -> Result<ExitCode, String> {
+    let agent: ureq::Agent = ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .timeout_global(Some(Duration::from_secs(10)))
+        .build()
+        .into();
+    let url = format!("{}/api/v1/faults", args.url.trim_end_matches('/'));
+    let mut resp = agent
+        .post(&url)
+        .send_json(serde_json::json!({"target": args.target, "kind": args.kind}))
+        .map_err(|e| format!("{url}: {e}"))?;
+    let status = resp.status().as_u16();
+    let body = resp.body_mut().read_to_string().unwrap_or_default();
+    if status == 202 {
+        println!("{body}");
+        Ok(ExitCode::SUCCESS)
+    } else {
+        Err(format!("{url}: HTTP {status}: {body}"))
+    }
+}
+
+async fn shutdown_signal() {
+    let ctrl_c = tokio::signal::ctrl_c();
+    #[cfg(unix)]
+    {
+        let mut term =
+            match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+                Ok(t) => t,
+                Err(_) => {
+                    let _ = ctrl_c.await;
+                    return;
+                }
+            };
+        tokio::select! {
+            _ = ctrl_c => {}
+            _ = term.recv() => {}
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = ctrl_c.await;
+}
+
+/// Runs the in-process simulator's radio-link impairment for the radio payload.
+struct SimControl(skein_sim::Simulator);
+
+impl skein_swarm::payload::SimulatorControl for SimControl {
+    fn set_link_quality(&self, sysid: u8, loss_fraction: f64, latency_ms: f64) -> bool {
+        self.0.set_link_quality(sysid, loss_fraction, latency_ms)
+    }
+}
+
+async fn up(args: UpArgs) -> Result<ExitCode, String> {
+    let file = match &args.config {
+        Some(path) => ConfigFile::load(path)?,
+        None => ConfigFile::default(),
+    };
+    if args.sim.is_none() && file.vehicles.is_empty() {
+        return Err("nothing to fly: give --sim N or a --config file with [[vehicles]]".into());
+    }
+    let mut endpoints: Vec<EndpointSpec> = file.endpoints();
+    let real = endpoints.len();
+    let n_sim = args.sim.unwrap_or(0);
+    if n_sim > 255 {
+        return Err(format!(
+            "--sim {n_sim}: at most 255 simulated vehicles (MAVLink system ids)"
+        ));
+    }
+    let localhost = IpAddr::V4(Ipv4Addr::LOCALHOST);
+    let port = |offset: usize| -> Result<u16, String> {
+        if args.sim_base_port == 0 {
+            return Ok(0);
+        }
+        u16::try_from(usize::from(args.sim_base_port) + offset).map_err(|_| {
+            format!(
+                "--sim-base-port {}: ports run past 65535",
+                args.sim_base_port
+            )
+        })
+    };
+    let mut config = file.swarm_config()?;
+    config.fault_injection = args.enable_fault_injection;
+    let swarm_setpoint_separation = config.setpoint_separation_m();
+    if let Some(m) = &args.sim_model
+        && !config.models.contains_key(m)
+    {
+        return Err(format!(
+            "--sim-model {m}: no such vehicle model (known: {})",
+            config.models.keys().cloned().collect::<Vec<_>>().join(", ")
+        ));
+    }
+    for i in 0..n_sim {
+        endpoints.push(EndpointSpec {
+            connection: ConnectionAddress::UdpIn(SocketAddr::new(localhost, port(i)?)),
+            vehicles: vec![VehicleSpec {
+                id: None,
+                sysid: Some((i + 1) as u8),
+                model: args.sim_model.clone(),
+            }],
+            simulated: true,
+        });
+    }
+    // The simulator is created before the swarm so payloads can reach it; it starts
+    // sending once it knows where (after the endpoints are bound).
+    let sim_slot: Arc<std::sync::OnceLock<skein_sim::Simulator>> = Arc::default();
+    let services = skein_swarm::SwarmServices {
+        payloads: Arc::new(skein_swarm::payload::BuiltinPayloads),
+        simulator: if n_sim > 0 {
+            Some(Arc::new(LateSimControl(sim_slot.clone())))
+        } else {
+            None
+        },
+    };
+    let mut swarm = Swarm::start(config, services, file.identity(), endpoints)
+        .await
+        .map_err(|e| e.to_string())?;
+
+    let sim = if n_sim > 0 {
+        let vehicles = (0..n_sim)
+            .map(|i| {
+                let target = swarm.endpoints[real + i]
+                    .local_addr()
+                    .expect("udp endpoint has an address");
+                Ok(skein_sim::SimVehicleConfig {
+                    sysid: (i + 1) as u8,
+                    bind: SocketAddr::new(localhost, port(40 + i)?),
+                    target,
+                })
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        let mut cfg = skein_sim::SimConfig::with_vehicles(vehicles);
+        cfg.seed = args.sim_seed;
+        // Vehicles start as far apart as formation slots must be, so that the first
+        // formation's transition keeps the separation too (see skein_swarm::formation).
+        cfg.spacing_m = cfg
+            .spacing_m
+            .max(1.05 * std::f64::consts::SQRT_2 * swarm_setpoint_separation);
+        let sim = skein_sim::Simulator::start(cfg)
+            .await
+            .map_err(|e| format!("simulator: {e}"))?;
+        let _ = sim_slot.set(sim.clone());
+        if let Some(addr) = args.sim_stats {
+            let listener = tokio::net::TcpListener::bind(addr)
+                .await
+                .map_err(|e| format!("--sim-stats {addr}: {e}"))?;
+            let local = listener.local_addr().map_err(|e| e.to_string())?;
+            println!("skein: simulator stats at {local}");
+            tokio::spawn(skein_sim::cli::serve_stats(sim.clone(), listener));
+        }
+        let ports: Vec<String> = swarm.endpoints[real..]
+            .iter()
+            .filter_map(|e| e.local_addr().map(|a| a.port().to_string()))
+            .collect();
+        println!(
+            "skein: {n_sim} simulated vehicles, MAVLink links on udp 127.0.0.1 ports {}",
+            ports.join(",")
+        );
+        Some(sim)
+    } else {
+        None
+    };
+
+    let http = args.http.or(file.http.listen).unwrap_or(DEFAULT_HTTP);
+    let listener = std::net::TcpListener::bind(http).map_err(|e| format!("--http {http}: {e}"))?;
+    let local = listener.local_addr().map_err(|e| e.to_string())?;
+    let state = skein_api::ApiState::new(swarm.coordinator.clone(), swarm.events.clone());
+    let service = skein_api::ApiServer::service(listener, state);
+    match swarm
+        .coordinator
+        .call(
+            |r| skein_swarm::CoordinatorMsg::AddService(service, r),
+            Some(Duration::from_secs(10)),
+        )
+        .await
+    {
+        Ok(ractor::rpc::CallResult::Success(Ok(()))) => {}
+        Ok(ractor::rpc::CallResult::Success(Err(e))) => return Err(e),
+        _ => return Err("the coordinator did not start the API".into()),
+    }
+    println!("skein: dashboard at http://{local}/");
+    spawn_process_watchdog(
+        swarm.coordinator.clone(),
+        Duration::from_millis(
+            file.swarm_config()?
+                .supervision
+                .watchdog_deadline_ms
+                .max(1000)
+                * 2,
+        ),
+    );
+    let code = tokio::select! {
+        _ = shutdown_signal() => {
+            eprintln!("skein: shutting down");
+            ExitCode::SUCCESS
+        }
+        _ = swarm.stopped() => {
+            tracing::error!("the coordinator failed: exiting for the outer supervisor to restart skein");
+            ExitCode::from(EXIT_COORDINATOR_FAILED)
+        }
+    };
+    if swarm.is_running() {
+        swarm.stop().await;
+    }
+    if let Some(sim) = sim {
+        sim.shutdown().await;
+    }
+    Ok(code)
+}
+
+/// [`SimControl`] for a simulator started after the swarm.
+struct LateSimControl(Arc<std::sync::OnceLock<skein_sim::Simulator>>);
+
+impl skein_swarm::payload::SimulatorControl for LateSimControl {
+    fn set_link_quality(&self, sysid: u8, loss_fraction: f64, latency_ms: f64) -> bool {
+        self.0.get().is_some_and(|sim| {
+            SimControl(sim.clone()).set_link_quality(sysid, loss_fraction, latency_ms)
+        })
+    }
+}

@@ -1,0 +1,90 @@
+//! `skein bench swarm` end to end, small: 20 vehicles at 50 Hz for 3 s, the simulator in
+//! its own process. Checks the report's shape and that the swarm really flew offboard;
+//! never its timing (that is what the benchmark itself is for, on a quiet machine).
+
+mod support;
+
+use serde_json::Value;
+use std::time::Duration;
+use support::Process;
+
+#[test]
+fn bench_swarm_reports_every_field_with_all_vehicles_offboard() {
+    let mut p = Process::start(&[
+        "bench",
+        "swarm",
+        "--vehicles",
+        "20",
+        "--rate-hz",
+        "50",
+        "--seconds",
+        "3",
+    ]);
+    let line = p.wait_line("\"vehicles\"", Duration::from_secs(240));
+    let code = p.wait_exit(Duration::from_secs(60));
+    assert_eq!(code, Some(0), "stderr:\n{}", p.stderr_text());
+    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+    for key in [
+        "vehicles",
+        "rate_hz",
+        "seconds",
+        "setpoints_sent",
+        "setpoints_received",
+        "late_fraction",
+        "interval_ms",
+        "coordinator_cpu_s",
+        "coordinator_peak_rss_mb",
+        "sim_cpu_s",
+        "offboard_loss_failsafes",
+        "all_offboard",
+    ] {
+        assert!(report.get(key).is_some(), "{key} missing: {report}");
+    }
+    for key in ["p50", "p99", "max"] {
+        assert!(
+            report["interval_ms"][key].is_number(),
+            "interval_ms.{key}: {report}"
+        );
+    }
+    assert_eq!(report["vehicles"], 20, "{report}");
+    assert_eq!(report["rate_hz"], 50.0, "{report}");
+    assert_eq!(report["all_offboard"], true, "{report}");
+    assert!(
+        report["setpoints_received"].as_u64().unwrap_or(0) > 0,
+        "{report}"
+    );
+    assert!(
+        report["setpoints_sent"].as_u64().unwrap_or(0) > 0,
+        "{report}"
+    );
+    let late = report["late_fraction"].as_f64().expect("late_fraction");
+    assert!((0.0..=1.0).contains(&late), "{report}");
+    // Linux: CPU and memory come from /proc.
+    if cfg!(target_os = "linux") {
+        for key in ["coordinator_cpu_s", "coordinator_peak_rss_mb", "sim_cpu_s"] {
+            assert!(report[key].is_number(), "{key}: {report}");
+        }
+    }
+}
+
+/// `skein bench formation`, 8 vehicles: every field present and, the rehearsal being
+/// deterministic, no separation or geofence violation.
+#[test]
+fn bench_formation_reports_convergence_error_and_separation() {
+    let mut p = Process::start(&["bench", "formation", "--vehicles", "8"]);
+    let line = p.wait_line("\"formation\"", Duration::from_secs(240));
+    let code = p.wait_exit(Duration::from_secs(60));
+    assert_eq!(code, Some(0), "stderr:\n{}", p.stderr_text());
+    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+    let run = &report["runs"][0];
+    assert_eq!(run["vehicles"], 8, "{report}");
+    for key in ["mean", "max"] {
+        assert!(run["rms_slot_error_moving_m"][key].is_number(), "{report}");
+    }
+    for key in ["p50", "max"] {
+        assert!(run["converge_s"][key].is_number(), "{report}");
+    }
+    assert!(run["min_separation_m"].as_f64().unwrap() >= 3.0, "{report}");
+    assert_eq!(run["separation_violations"], 0, "{report}");
+    assert_eq!(run["fence_violations"], 0, "{report}");
+}

@@ -1,0 +1,356 @@
+//! End to end, from the outside: `skein up --sim 3` as a process on free ports, driven
+//! through the HTTP API only (and its UDP link ports for the malformed-input check).
+
+mod support;
+
+use serde_json::{Value, json};
+use std::time::Duration;
+use support::{Process, Skein, eventually, free_udp_range, summary};
+
+fn alt(v: &Value) -> f64 {
+    v["position"]["relative_alt_m"].as_f64().unwrap_or(f64::NAN)
+}
+
+fn ned(v: &Value) -> (f64, f64, f64) {
+    let p = &v["position"];
+    (
+        p["north_m"].as_f64().unwrap(),
+        p["east_m"].as_f64().unwrap(),
+        p["down_m"].as_f64().unwrap(),
+    )
+}
+
+#[test]
+fn three_vehicles_take_off_fly_a_line_and_land() {
+    let skein = Skein::sim(3);
+    let vs = skein.wait_all(
+        "3 connected vehicles with positions",
+        3,
+        Duration::from_secs(30),
+        |v| v["state"] == "Landed" && v["position"].is_object() && v["link"]["connected"] == true,
+    );
+    let ids: Vec<&str> = vs.iter().map(|v| v["id"].as_str().unwrap()).collect();
+    assert_eq!(ids, ["uav-1", "uav-2", "uav-3"]);
+
+    // Arm, then take off to 10 m.
+    let (status, body) = skein.post("/api/v1/swarm/commands", json!({"command": "arm"}));
+    assert_eq!(status, 202, "{body}");
+    assert_eq!(body["accepted"].as_array().unwrap().len(), 3, "{body}");
+    skein.wait_all("all armed", 3, Duration::from_secs(20), |v| {
+        v["armed"] == true && v["state"] == "Armed"
+    });
+    let (status, body) = skein.post(
+        "/api/v1/swarm/commands",
+        json!({"command": "takeoff", "altitude_m": 10.0}),
+    );
+    assert_eq!(status, 202, "{body}");
+    assert!(body["command_id"].as_u64().unwrap() > 0);
+    skein.wait_all(
+        "all hovering at 10 ± 1 m",
+        3,
+        Duration::from_secs(60),
+        |v| v["state"] == "Hovering" && (alt(v) - 10.0).abs() < 1.0,
+    );
+
+    // A command the state forbids is refused with the state named.
+    let (status, body) = skein.post(
+        "/api/v1/vehicles/uav-1/commands",
+        json!({"command": "takeoff", "altitude_m": 10.0}),
+    );
+    assert_eq!(status, 409, "{body}");
+    assert!(
+        body["error"].as_str().unwrap().contains("Hovering"),
+        "{body}"
+    );
+
+    // Line abreast, 5 m spacing, led by uav-2.
+    let (status, body) = skein.put(
+        "/api/v1/formation",
+        json!({"shape": "line", "spacing_m": 5.0, "leader": "uav-2"}),
+    );
+    assert_eq!(status, 200, "{body}");
+    let formed = eventually(
+        "all within 1 m of their slots",
+        Duration::from_secs(60),
+        || {
+            let vs = skein.vehicles();
+            let (_, f) = skein.get("/api/v1/formation");
+            let members = f["members"].as_array().cloned().unwrap_or_default();
+            let in_formation = vs.iter().all(|v| v["state"] == "InFormation");
+            let close = members.len() == 3
+                && members
+                    .iter()
+                    .all(|m| m["error_m"].as_f64().unwrap_or(99.0) < 1.0);
+            if in_formation && close {
+                Ok((vs, f))
+            } else {
+                Err(format!("{} | formation {f}", summary(&vs)))
+            }
+        },
+    );
+    let (vs, f) = formed;
+    assert_eq!(f["leader_id"], "uav-2");
+    assert_eq!(f["shape"], "line");
+    // Independently of skein's own metric: a line across north (heading 0), 5 m apart,
+    // at one altitude, the leader in the middle.
+    let mut pos: Vec<(String, (f64, f64, f64))> = vs
+        .iter()
+        .map(|v| (v["id"].as_str().unwrap().to_string(), ned(v)))
+        .collect();
+    pos.sort_by(|a, b| a.1.1.total_cmp(&b.1.1));
+    let norths: Vec<f64> = pos.iter().map(|p| p.1.0).collect();
+    let downs: Vec<f64> = pos.iter().map(|p| p.1.2).collect();
+    let spread = |xs: &[f64]| {
+        xs.iter().cloned().fold(f64::MIN, f64::max) - xs.iter().cloned().fold(f64::MAX, f64::min)
+    };
+    assert!(spread(&norths) < 1.5, "not abreast: {pos:?}");
+    assert!(spread(&downs) < 1.5, "not level: {pos:?}");
+    for w in pos.windows(2) {
+        let gap = w[1].1.1 - w[0].1.1;
+        assert!((gap - 5.0).abs() < 1.5, "spacing {gap} m: {pos:?}");
+    }
+    assert_eq!(pos[1].0, "uav-2", "leader in the middle: {pos:?}");
+    assert!(f["min_separation_m"].as_f64().unwrap() > 3.0, "{f}");
+
+    // Land: everyone down and disarmed.
+    let (status, body) = skein.post("/api/v1/swarm/commands", json!({"command": "land"}));
+    assert_eq!(status, 202, "{body}");
+    skein.wait_all("all landed and disarmed", 3, Duration::from_secs(90), |v| {
+        v["state"] == "Landed" && v["armed"] == false
+    });
+
+    // PX4 stays in LAND after touchdown and refuses to arm there: a second takeoff must
+    // still work.
+    let (status, body) = skein.post(
+        "/api/v1/vehicles/uav-1/commands",
+        json!({"command": "takeoff", "altitude_m": 4.0}),
+    );
+    assert_eq!(status, 202, "{body}");
+    eventually("uav-1 airborne again", Duration::from_secs(60), || {
+        let (_, v) = skein.get("/api/v1/vehicles/uav-1");
+        if v["state"] == "Hovering" && (alt(&v) - 4.0).abs() < 1.0 {
+            Ok(())
+        } else {
+            Err(v.to_string())
+        }
+    });
+}
+
+#[test]
+fn bad_input_is_refused_with_the_field_and_malformed_mavlink_is_counted() {
+    let skein = Skein::sim(1);
+    skein.wait_all("vehicle connected", 1, Duration::from_secs(30), |v| {
+        v["link"]["connected"] == true
+    });
+
+    let (status, body) = skein.put(
+        "/api/v1/formation",
+        json!({"shape": "hexagon", "spacing_m": 5}),
+    );
+    assert_eq!(status, 400, "{body}");
+    assert_eq!(body["field"], "shape");
+    assert!(
+        body["error"].as_str().unwrap().contains("hexagon"),
+        "{body}"
+    );
+
+    let (status, body) = skein.put("/api/v1/formation", json!({"shape": "line"}));
+    assert_eq!(status, 400, "{body}");
+    assert_eq!(body["field"], "spacing_m");
+
+    let (status, body) = skein.put(
+        "/api/v1/formation",
+        json!({"shape": "line", "spacing_m": 5, "leader": "uav-99"}),
+    );
+    assert_eq!(status, 400, "{body}");
+    assert_eq!(body["field"], "leader");
+
+    let (status, body) = skein.post("/api/v1/swarm/commands", json!({"altitude_m": 10}));
+    assert_eq!(status, 400, "{body}");
+    assert_eq!(body["field"], "command");
+
+    let (status, body) = skein.post(
+        "/api/v1/swarm/commands",
+        json!({"command": "takeoff", "altitude_m": "high"}),
+    );
+    assert_eq!(status, 400, "{body}");
+    assert_eq!(body["field"], "altitude_m");
+
+    let (status, body) = skein.raw("POST", "/api/v1/swarm/commands", "{not json");
+    assert_eq!(status, 400, "{body}");
+    assert!(body["error"].as_str().unwrap().contains("invalid JSON"));
+
+    let (status, body) = skein.get("/api/v1/vehicles/uav-42");
+    assert_eq!(status, 404, "{body}");
+    assert!(body["error"].as_str().unwrap().contains("uav-42"));
+    let (status, _) = skein.get("/api/v1/nonsense");
+    assert_eq!(status, 404);
+
+    // A malformed datagram to the vehicle's link port: counted, dropped, link unharmed.
+    let (_, links) = skein.get("/api/v1/links");
+    let addr = links[0]["local_addr"].as_str().unwrap().to_string();
+    let before = links[0]["decode"]["rejected_datagrams"].as_u64().unwrap();
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.send_to(b"\xfd\x09\x00\x00 definitely not a MAVLink frame", &addr)
+        .unwrap();
+    eventually(
+        "the malformed datagram counted",
+        Duration::from_secs(10),
+        || {
+            let (_, links) = skein.get("/api/v1/links");
+            let n = links[0]["decode"]["rejected_datagrams"].as_u64().unwrap();
+            if n > before {
+                Ok(())
+            } else {
+                Err(links.to_string())
+            }
+        },
+    );
+    let (_, v) = skein.get("/api/v1/vehicles/uav-1");
+    assert_eq!(v["link"]["connected"], true, "{v}");
+}
+
+#[test]
+fn real_vehicles_from_a_config_file_with_a_separate_simulator_process() {
+    // `skein sim` as its own process, PX4 SITL port layout on free ports.
+    let targets = free_udp_range(2);
+    let listens = free_udp_range(2);
+    let mut sim = Process::start(&[
+        "sim",
+        "--vehicles",
+        "2",
+        "--target-base-port",
+        &targets.to_string(),
+        "--listen-base-port",
+        &listens.to_string(),
+    ]);
+    // The simulator announces its vehicles before we connect.
+    sim.wait_line("ready", Duration::from_secs(30));
+    let dir = std::env::temp_dir().join(format!("skein-e2e-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cfg = dir.join("swarm.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "[swarm]\nmin_separation_m = 2.5\n\n[[vehicles]]\nconnection = \"udpin:127.0.0.1:{}\"\nid = \"alpha\"\n\n[[vehicles]]\nconnection = \"udpin:127.0.0.1:{}\"\nid = \"bravo\"\n",
+            targets,
+            targets + 1
+        ),
+    )
+    .unwrap();
+    let skein = Skein::up(&["--config", cfg.to_str().unwrap()]);
+    let vs = skein.wait_all(
+        "alpha and bravo connected",
+        2,
+        Duration::from_secs(30),
+        |v| v["link"]["connected"] == true && v["position"].is_object(),
+    );
+    assert_eq!(vs[0]["id"], "alpha");
+    assert_eq!(vs[1]["id"], "bravo");
+    assert_eq!(vs[1]["sysid"], 2);
+}
+
+#[test]
+fn a_bad_config_file_is_refused_naming_key_and_line() {
+    let dir = std::env::temp_dir().join(format!("skein-e2e-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cfg = dir.join("bad.toml");
+    std::fs::write(
+        &cfg,
+        "[[vehicles]]\nconnection = \"udpin:0.0.0.0:14540\"\nmodle = \"generic\"\n",
+    )
+    .unwrap();
+    let mut p = Process::start(&[
+        "up",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--http",
+        "127.0.0.1:0",
+    ]);
+    let code = p.wait_exit(Duration::from_secs(30));
+    assert_ne!(code, Some(0));
+    // Give the stderr reader a moment to drain by polling for the message.
+    let err = eventually("the error on stderr", Duration::from_secs(5), || {
+        let e = p.stderr_text();
+        if e.contains("modle") { Ok(e) } else { Err(e) }
+    });
+    assert!(err.contains("line 3"), "{err}");
+    assert!(err.contains("bad.toml"), "{err}");
+}
+
+#[test]
+fn px4_parameters_through_the_api() {
+    let skein = Skein::sim(1);
+    skein.wait_all("vehicle connected", 1, Duration::from_secs(30), |v| {
+        v["link"]["connected"] == true
+    });
+    let (status, p) = skein.get("/api/v1/vehicles/uav-1/params/MIS_TAKEOFF_ALT");
+    assert_eq!(status, 200, "{p}");
+    assert_eq!(p["type"], "real32");
+    assert!((p["value"].as_f64().unwrap() - 2.5).abs() < 1e-6, "{p}");
+    // An integer parameter is written in its own type (PX4's bytewise encoding).
+    let (status, p) = skein.put(
+        "/api/v1/vehicles/uav-1/params/COM_OBL_RC_ACT",
+        json!({"value": 5}),
+    );
+    assert_eq!(status, 200, "{p}");
+    assert_eq!(
+        (p["type"].as_str(), p["value"].as_i64()),
+        (Some("int32"), Some(5))
+    );
+    let (_, p) = skein.get("/api/v1/vehicles/uav-1/params/COM_OBL_RC_ACT");
+    assert_eq!(p["value"], 5);
+    let (status, body) = skein.put(
+        "/api/v1/vehicles/uav-1/params/COM_OBL_RC_ACT",
+        json!({"value": "five"}),
+    );
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (400, Some("value")),
+        "{body}"
+    );
+    let (status, body) = skein.get("/api/v1/vehicles/uav-1/params/THIS_NAME_IS_TOO_LONG");
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (400, Some("name")),
+        "{body}"
+    );
+    let (status, _) = skein.get("/api/v1/vehicles/uav-9/params/MIS_TAKEOFF_ALT");
+    assert_eq!(status, 404);
+    // Emergency disarm needs an explicit confirmation.
+    let (status, body) = skein.post(
+        "/api/v1/vehicles/uav-1/commands",
+        json!({"command": "force_disarm"}),
+    );
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (400, Some("confirm")),
+        "{body}"
+    );
+}
+
+#[test]
+fn the_plugin_host_child_is_a_subcommand_of_the_binary() {
+    // `skein plugin-host` is what process isolation spawns; without its parent's socket
+    // it says so and exits 3 (bad arguments: 2).
+    let mut p = Process::start(&[
+        "plugin-host",
+        "--socket",
+        "/nonexistent/skein.sock",
+        "--library",
+        "/nonexistent/libx.so",
+    ]);
+    assert_eq!(p.wait_exit(Duration::from_secs(30)), Some(3));
+    assert!(
+        p.stderr_text().contains("cannot connect"),
+        "{}",
+        p.stderr_text()
+    );
+    let mut p = Process::start(&["plugin-host", "--frobnicate"]);
+    assert_eq!(p.wait_exit(Duration::from_secs(30)), Some(2));
+    assert!(
+        p.stderr_text().contains("--frobnicate"),
+        "{}",
+        p.stderr_text()
+    );
+}

@@ -1,0 +1,248 @@
+#!/usr/bin/env python3
+"""Drives the skein dashboard in real headless Chromium (Selenium 4, Debian's chromium and
+chromedriver) against a fresh `skein up --sim 3`:
+
+1. load the page, wait for the connection indicator `connected` and 3 vehicle rows;
+2. Take off (10 m): all rows `Hovering` at 10 +- 1 m;
+3. Line (5 m): all rows `InFormation`; the plan view's markers are distinct and on a line
+   along east (equal north / equal pixel y within tolerance);
+4. Land: all rows `Landed`;
+5. no errors in the browser console, and the event log has a `state_changed` entry;
+6. optional screenshot (taken in formation) with --screenshot PATH.
+
+Every wait polls with a deadline (WebDriverWait). Prints one JSON summary line; exits 0
+only on success.
+
+    python3 tests/peers/dashboard_selenium.py --url http://127.0.0.1:PORT/ [--screenshot out.png]
+"""
+
+import argparse
+import json
+import math
+import sys
+import time
+
+from selenium import webdriver
+from selenium.common.exceptions import TimeoutException, WebDriverException
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import WebDriverWait
+
+# Reads the whole table in one round trip: {id: {field: text}}.
+ROWS_JS = """
+const out = {};
+for (const tr of document.querySelectorAll('tr[data-vehicle-id]')) {
+  const row = {};
+  for (const c of tr.querySelectorAll('[data-field]')) row[c.dataset.field] = c.textContent.trim();
+  out[tr.dataset.vehicleId] = row;
+}
+return out;
+"""
+
+# The plan view's mirror of its drawn markers.
+MARKERS_JS = """
+return [...document.querySelectorAll('[data-testid="plan-markers"] [data-vehicle-id]')].map(li => ({
+  id: li.dataset.vehicleId, x: +li.dataset.x, y: +li.dataset.y,
+  north: +li.dataset.north, east: +li.dataset.east, state: li.dataset.state,
+}));
+"""
+
+
+class Failure(Exception):
+    pass
+
+
+def parse_args():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--url", required=True, help="dashboard URL, e.g. http://127.0.0.1:8080/")
+    p.add_argument("--screenshot", help="save a PNG of the dashboard in formation here")
+    p.add_argument("--vehicles", type=int, default=3, help="expected number of vehicles")
+    p.add_argument("--altitude", type=float, default=10.0, help="takeoff altitude, m")
+    p.add_argument("--spacing", type=float, default=5.0, help="line spacing, m")
+    p.add_argument("--timeout", type=float, default=45.0, help="deadline of each step, s")
+    p.add_argument("--chromium", default="/usr/bin/chromium")
+    p.add_argument("--chromedriver", default="/usr/bin/chromedriver")
+    p.add_argument("--headed", action="store_true", help="show the browser window")
+    return p.parse_args()
+
+
+def make_driver(args):
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = args.chromium
+    if not args.headed:
+        opts.add_argument("--headless=new")
+    for a in ("--no-sandbox", "--disable-dev-shm-usage", "--window-size=1440,900",
+              "--disable-gpu", "--no-first-run", "--disable-extensions"):
+        opts.add_argument(a)
+    opts.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    # An explicit driver path: Selenium Manager is not asked to download anything.
+    return webdriver.Chrome(service=Service(executable_path=args.chromedriver), options=opts)
+
+
+class Dashboard:
+    def __init__(self, driver, timeout):
+        self.d = driver
+        self.timeout = timeout
+        self.last = None  # last observed value, for failure messages
+
+    def wait(self, what, cond, timeout=None):
+        """Polls cond(driver) until it returns a truthy value; Failure on the deadline."""
+        def probe(d):
+            v = cond(d)
+            return v
+        try:
+            return WebDriverWait(self.d, timeout or self.timeout, poll_frequency=0.2).until(probe)
+        except TimeoutException:
+            raise Failure(f"timed out after {timeout or self.timeout:.0f} s waiting for {what}; "
+                          f"last seen: {json.dumps(self.last)}") from None
+
+    def rows(self):
+        self.last = self.d.execute_script(ROWS_JS)
+        return self.last
+
+    def markers(self):
+        self.last = self.d.execute_script(MARKERS_JS)
+        return self.last
+
+    def click(self, testid):
+        self.d.find_element(By.CSS_SELECTOR, f'[data-testid="{testid}"]').click()
+
+    def set_input(self, testid, value):
+        el = self.d.find_element(By.CSS_SELECTOR, f'[data-testid="{testid}"]')
+        el.clear()
+        el.send_keys(str(value))
+
+    def all_rows(self, n, pred):
+        rows = self.rows()
+        return rows if len(rows) == n and all(pred(r) for r in rows.values()) else None
+
+
+def altitude(row):
+    try:
+        return float(row.get("altitude", ""))
+    except ValueError:
+        return math.nan
+
+
+def collinear_line(markers, n, spacing):
+    """The markers if n distinct ones lie on a line along east (heading 0), else None."""
+    if len(markers) != n:
+        return None
+    for i, a in enumerate(markers):
+        for b in markers[i + 1:]:
+            if math.hypot(a["x"] - b["x"], a["y"] - b["y"]) < 10:
+                return None  # not distinct on screen
+    xs = [m["x"] for m in markers]
+    ys = [m["y"] for m in markers]
+    norths = [m["north"] for m in markers]
+    easts = sorted(m["east"] for m in markers)
+    x_span, y_span = max(xs) - min(xs), max(ys) - min(ys)
+    if y_span > max(3.0, 0.03 * x_span):
+        return None  # pixel rows differ: not a line along east
+    if max(norths) - min(norths) > 0.3:
+        return None
+    gaps = [b - a for a, b in zip(easts, easts[1:])]
+    if any(abs(g - spacing) > 0.5 for g in gaps):
+        return None
+    return {"x_span_px": round(x_span, 1), "y_span_px": round(y_span, 1),
+            "north_span_m": round(max(norths) - min(norths), 2),
+            "east_gaps_m": [round(g, 2) for g in gaps]}
+
+
+def run(args, driver, summary):
+    ui = Dashboard(driver, args.timeout)
+    n = args.vehicles
+    t0 = time.monotonic()
+    lap = lambda: round(time.monotonic() - t0, 1)  # noqa: E731
+
+    # 1. Page, stream, rows.
+    driver.get(args.url)
+    ui.wait("the connection indicator to read `connected`",
+            lambda d: d.find_element(By.CSS_SELECTOR, '[data-testid="connection"]').text.strip() == "connected")
+    ui.wait(f"{n} vehicle rows", lambda d: len(ui.rows()) == n)
+    summary["vehicles"] = sorted(ui.rows())
+    summary["timings_s"]["connected"] = lap()
+    ui.wait("all vehicles Landed before takeoff", lambda d: ui.all_rows(n, lambda r: r.get("state") == "Landed"))
+
+    # 2. Take off.
+    ui.set_input("takeoff-altitude", f"{args.altitude:g}")
+    ui.click("takeoff")
+    rows = ui.wait(f"all rows Hovering at {args.altitude:g} +- 1 m", lambda d: ui.all_rows(
+        n, lambda r: r.get("state") == "Hovering" and abs(altitude(r) - args.altitude) <= 1.0))
+    summary["timings_s"]["hovering"] = lap()
+    summary["hover_altitudes_m"] = {k: altitude(v) for k, v in sorted(rows.items())}
+
+    # 3. Line formation.
+    ui.set_input("formation-spacing", f"{args.spacing:g}")
+    ui.click("line")
+    ui.wait("all rows InFormation", lambda d: ui.all_rows(n, lambda r: r.get("state") == "InFormation"))
+    summary["timings_s"]["in_formation"] = lap()
+    line = ui.wait("the plan markers to form a line along east",
+                   lambda d: collinear_line(ui.markers(), n, args.spacing))
+    summary["timings_s"]["line_settled"] = lap()
+    summary["line"] = line
+    summary["markers"] = [{k: m[k] for k in ("id", "x", "y", "north", "east")} for m in ui.markers()]
+    if args.screenshot:
+        driver.save_screenshot(args.screenshot)
+        summary["screenshot"] = args.screenshot
+
+    # 4. Land.
+    ui.click("land")
+    ui.wait("all rows Landed", lambda d: ui.all_rows(n, lambda r: r.get("state") == "Landed"), timeout=max(args.timeout, 60))
+    summary["timings_s"]["landed"] = lap()
+
+    # 5. Event log and console.
+    kinds = driver.execute_script(
+        "return [...document.querySelectorAll('[data-testid=\"event-log\"] li')].map(li => li.dataset.type)")
+    summary["event_log_entries"] = len(kinds)
+    summary["state_changed_entries"] = kinds.count("state_changed")
+    if not kinds.count("state_changed"):
+        raise Failure("the event log shows no state_changed entry")
+    errors = [e for e in driver.get_log("browser") if e.get("level") == "SEVERE"]
+    summary["console_errors"] = [e.get("message") for e in errors]
+    if errors:
+        raise Failure(f"{len(errors)} console error(s): {summary['console_errors']}")
+
+
+def main():
+    args = parse_args()
+    summary = {"ok": False, "url": args.url, "timings_s": {}}
+    started = time.monotonic()
+    driver = None
+    code = 1
+    try:
+        driver = make_driver(args)
+        run(args, driver, summary)
+        summary["ok"] = True
+        code = 0
+    except Failure as e:
+        summary["error"] = str(e)
+    except WebDriverException as e:
+        summary["error"] = f"webdriver: {e.msg or e}"
+    except Exception as e:  # noqa: BLE001 - report anything as a failed run
+        summary["error"] = f"{type(e).__name__}: {e}"
+    finally:
+        if driver is not None:
+            if code != 0 and "console_errors" not in summary:
+                try:
+                    summary["console_errors"] = [e.get("message") for e in driver.get_log("browser")
+                                                 if e.get("level") == "SEVERE"]
+                except WebDriverException:
+                    pass
+            if code != 0 and args.screenshot:
+                try:
+                    driver.save_screenshot(args.screenshot)
+                    summary["screenshot"] = args.screenshot
+                except WebDriverException:
+                    pass
+            try:
+                driver.quit()
+            except WebDriverException:
+                pass
+    summary["elapsed_s"] = round(time.monotonic() - started, 1)
+    print(json.dumps(summary))
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

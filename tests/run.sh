@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Runs every test of skein. Installs what the tests need on a fresh machine (Rust
+# toolchain, Python 3.11 with pip and apt-get assumed), idempotently:
+#   - .venv with the independent peers (tests/peers/requirements.txt)
+#   - Debian's chromium and chromium-driver for the dashboard test
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+req=tests/peers/requirements.txt
+if [ ! -x .venv/bin/python ] || ! cmp -s "$req" .venv/.skein-requirements; then
+  echo "tests/run.sh: preparing .venv from $req" >&2
+  python3 -m venv .venv
+  .venv/bin/python -m pip install --quiet --disable-pip-version-check -r "$req"
+  cp "$req" .venv/.skein-requirements
+fi
+
+have_chromium() {
+  command -v chromedriver >/dev/null 2>&1 &&
+    { command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; }
+}
+if ! have_chromium; then
+  echo "tests/run.sh: installing chromium and chromium-driver" >&2
+  sudo=""
+  [ "$(id -u)" = 0 ] || sudo="sudo"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq chromium chromium-driver >/dev/null
+fi
+
+export SKEIN_PYTHON="$PWD/.venv/bin/python"
+# The plugin tests build the plugin libraries with this run's package selection, so that
+# shared dependencies are not compiled a second time with other features.
+export SKEIN_PLUGIN_TEST_SELECTION=workspace
+cargo test --workspace --locked "$@"

@@ -1,0 +1,491 @@
+//! Shared support for skein's end-to-end tests: run the `skein` binary as a process on
+//! free ports, talk to it over HTTP only, poll with deadlines, and find the Python peers.
+#![allow(dead_code)] // each test binary uses a different subset
+
+use serde_json::Value;
+use std::io::{BufRead, BufReader};
+use std::net::{SocketAddr, TcpListener, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::{Duration, Instant};
+
+/// The `skein` binary cargo built for this test run.
+pub fn skein_bin() -> &'static str {
+    env!("CARGO_BIN_EXE_skein")
+}
+
+/// The workspace root.
+pub fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .canonicalize()
+        .expect("workspace root")
+}
+
+/// Polls `f` every 50 ms until it returns `Some`, or panics after `timeout` with `what`
+/// and the last thing `describe` said.
+pub fn eventually<T>(what: &str, timeout: Duration, mut f: impl FnMut() -> Result<T, String>) -> T {
+    let deadline = Instant::now() + timeout;
+    loop {
+        match f() {
+            Ok(v) => return v,
+            Err(last) => {
+                if Instant::now() > deadline {
+                    panic!("timed out after {timeout:?} waiting for {what}; last: {last}");
+                }
+            }
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// A running `skein` process; killed on drop.
+pub struct Process {
+    child: Child,
+    /// Every stdout line so far.
+    pub stdout: Arc<Mutex<Vec<String>>>,
+    /// Every stderr line so far (kept for failure messages).
+    pub stderr: Arc<Mutex<Vec<String>>>,
+    lines: mpsc::Receiver<String>,
+}
+
+impl Process {
+    /// Starts `skein <args>`.
+    pub fn start(args: &[&str]) -> Process {
+        let mut child = Command::new(skein_bin())
+            .args(args)
+            .env("SKEIN_LOG", "info")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start skein");
+        let stdout = Arc::new(Mutex::new(Vec::new()));
+        let stderr = Arc::new(Mutex::new(Vec::new()));
+        let (tx, rx) = mpsc::channel();
+        let out = child.stdout.take().expect("stdout");
+        let so = stdout.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(out).lines().map_while(Result::ok) {
+                so.lock().unwrap().push(line.clone());
+                let _ = tx.send(line);
+            }
+        });
+        let err = child.stderr.take().expect("stderr");
+        let se = stderr.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(err).lines().map_while(Result::ok) {
+                se.lock().unwrap().push(line);
+            }
+        });
+        Process {
+            child,
+            stdout,
+            stderr,
+            lines: rx,
+        }
+    }
+
+    /// Waits for a stdout line containing `needle` and returns it.
+    pub fn wait_line(&mut self, needle: &str, timeout: Duration) -> String {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.lines.recv_timeout(left) {
+                Ok(l) if l.contains(needle) => return l,
+                Ok(_) => continue,
+                Err(_) => panic!(
+                    "no stdout line with `{needle}` within {timeout:?}; exit: {:?}\nstderr:\n{}",
+                    self.child.try_wait(),
+                    self.stderr_text()
+                ),
+            }
+        }
+    }
+
+    /// Waits for the process to exit and returns its status code.
+    pub fn wait_exit(&mut self, timeout: Duration) -> Option<i32> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(s) = self.child.try_wait().expect("try_wait") {
+                return s.code();
+            }
+            assert!(
+                Instant::now() < deadline,
+                "process did not exit within {timeout:?}"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Everything on stderr so far.
+    pub fn stderr_text(&self) -> String {
+        self.stderr.lock().unwrap().join("\n")
+    }
+
+    /// The process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+}
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A running `skein up` with its dashboard URL.
+pub struct Skein {
+    /// The process.
+    pub process: Process,
+    /// `http://127.0.0.1:PORT`
+    pub base: String,
+    agent: ureq::Agent,
+}
+
+impl Skein {
+    /// `skein up <args> --http 127.0.0.1:0` and waits for the dashboard line.
+    pub fn up(args: &[&str]) -> Skein {
+        let mut all = vec!["up", "--http", "127.0.0.1:0"];
+        all.extend_from_slice(args);
+        let mut process = Process::start(&all);
+        let line = process.wait_line("dashboard at", Duration::from_secs(60));
+        let url = line
+            .split_whitespace()
+            .find(|w| w.starts_with("http://"))
+            .expect("url in the dashboard line")
+            .trim_end_matches('/')
+            .to_string();
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .timeout_global(Some(Duration::from_secs(20)))
+            .build()
+            .into();
+        Skein {
+            process,
+            base: url,
+            agent,
+        }
+    }
+
+    /// `skein up --sim n` on free ports.
+    pub fn sim(n: usize) -> Skein {
+        let n = n.to_string();
+        Skein::up(&["--sim", &n, "--sim-base-port", "0"])
+    }
+
+    fn read(mut r: ureq::http::Response<ureq::Body>) -> (u16, Value) {
+        let status = r.status().as_u16();
+        let text = r.body_mut().read_to_string().unwrap_or_default();
+        let v = serde_json::from_str(&text).unwrap_or(Value::String(text));
+        (status, v)
+    }
+
+    /// `GET path` → (status, JSON). A GET is idempotent: a connection cut by an API
+    /// restart (a pooled keep-alive connection the old server closed) is retried on a
+    /// new one, as browsers do.
+    pub fn get(&self, path: &str) -> (u16, Value) {
+        let url = format!("{}{path}", self.base);
+        let mut last = None;
+        for _ in 0..3 {
+            match self.agent.get(&url).call() {
+                Ok(r) => return Self::read(r),
+                Err(e) => last = Some(e),
+            }
+        }
+        panic!("GET {url}: {last:?}")
+    }
+
+    /// `POST path` with a JSON body.
+    pub fn post(&self, path: &str, body: Value) -> (u16, Value) {
+        Self::read(
+            self.agent
+                .post(format!("{}{path}", self.base))
+                .send_json(body)
+                .expect("POST"),
+        )
+    }
+
+    /// `PUT path` with a JSON body.
+    pub fn put(&self, path: &str, body: Value) -> (u16, Value) {
+        Self::read(
+            self.agent
+                .put(format!("{}{path}", self.base))
+                .send_json(body)
+                .expect("PUT"),
+        )
+    }
+
+    /// `DELETE path`.
+    pub fn delete(&self, path: &str) -> (u16, Value) {
+        Self::read(
+            self.agent
+                .delete(format!("{}{path}", self.base))
+                .call()
+                .expect("DELETE"),
+        )
+    }
+
+    /// `method path` with a raw body.
+    pub fn raw(&self, method: &str, path: &str, body: &str) -> (u16, Value) {
+        let url = format!("{}{path}", self.base);
+        let r = match method {
+            "POST" => self
+                .agent
+                .post(url)
+                .header("content-type", "application/json")
+                .send(body),
+            "PUT" => self
+                .agent
+                .put(url)
+                .header("content-type", "application/json")
+                .send(body),
+            other => panic!("unsupported method {other}"),
+        };
+        Self::read(r.expect("request"))
+    }
+
+    /// The vehicles, sorted by id.
+    pub fn vehicles(&self) -> Vec<Value> {
+        let (status, v) = self.get("/api/v1/vehicles");
+        assert_eq!(status, 200, "{v}");
+        v.as_array().cloned().unwrap_or_default()
+    }
+
+    /// Waits until `pred` holds for every one of exactly `n` vehicles.
+    pub fn wait_all(
+        &self,
+        what: &str,
+        n: usize,
+        timeout: Duration,
+        pred: impl Fn(&Value) -> bool,
+    ) -> Vec<Value> {
+        eventually(what, timeout, || {
+            let vs = self.vehicles();
+            if vs.len() == n && vs.iter().all(&pred) {
+                Ok(vs)
+            } else {
+                Err(summary(&vs))
+            }
+        })
+    }
+}
+
+/// A one-line picture of the vehicles for failure messages.
+pub fn summary(vs: &[Value]) -> String {
+    vs.iter()
+        .map(|v| {
+            format!(
+                "{}:{}/{}/armed={}/alt={:.1}",
+                v["id"].as_str().unwrap_or("?"),
+                v["state"].as_str().unwrap_or("?"),
+                v["px4_mode"].as_str().unwrap_or("?"),
+                v["armed"],
+                v["position"]["relative_alt_m"].as_f64().unwrap_or(f64::NAN)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A free TCP port on 127.0.0.1 (released before returning: a small race is possible).
+pub fn free_tcp_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("free port")
+}
+
+/// `n` consecutive free UDP ports on 127.0.0.1 (checked by binding each).
+pub fn free_udp_range(n: u16) -> u16 {
+    for _ in 0..200 {
+        let probe = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let base = probe.local_addr().expect("addr").port();
+        drop(probe);
+        if base.checked_add(n).is_none() || base < 20_000 {
+            continue;
+        }
+        let socks: Vec<_> = (0..n)
+            .map(|i| UdpSocket::bind(SocketAddr::from(([127, 0, 0, 1], base + i))))
+            .collect();
+        if socks.iter().all(Result::is_ok) {
+            return base;
+        }
+    }
+    panic!("no {n} consecutive free UDP ports");
+}
+
+/// The Python interpreter of the test venv (`.venv` at the workspace root) with the
+/// peers' requirements installed. Creates or updates it when needed (idempotent: a marker
+/// file holds the requirements it was built from), so `cargo test` works on its own too.
+pub fn python() -> PathBuf {
+    static PYTHON: OnceLock<PathBuf> = OnceLock::new();
+    PYTHON
+        .get_or_init(|| {
+            if let Ok(p) = std::env::var("SKEIN_PYTHON") {
+                return PathBuf::from(p);
+            }
+            let root = workspace();
+            let venv = root.join(".venv");
+            let py = venv.join("bin/python");
+            let reqs = std::fs::read_to_string(root.join("tests/peers/requirements.txt"))
+                .expect("tests/peers/requirements.txt");
+            let marker = venv.join(".skein-requirements");
+            let current = std::fs::read_to_string(&marker).unwrap_or_default();
+            if !py.exists() || current != reqs {
+                let ok = Command::new("python3")
+                    .args(["-m", "venv"])
+                    .arg(&venv)
+                    .status()
+                    .expect("python3 -m venv")
+                    .success();
+                assert!(ok, "python3 -m venv failed");
+                let ok = Command::new(&py)
+                    .args(["-m", "pip", "install", "--quiet", "-r"])
+                    .arg(root.join("tests/peers/requirements.txt"))
+                    .status()
+                    .expect("pip install")
+                    .success();
+                assert!(ok, "pip install of the test requirements failed");
+                std::fs::write(&marker, reqs).expect("write marker");
+            }
+            py
+        })
+        .clone()
+}
+
+/// Runs a peer script `tests/peers/<script>` with `args`; returns (exit code, stdout,
+/// stderr). Kills it after `timeout`.
+pub fn run_peer(script: &str, args: &[&str], timeout: Duration) -> (Option<i32>, String, String) {
+    let mut child = Command::new(python())
+        .arg(workspace().join("tests/peers").join(script))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run python peer");
+    let out = child.stdout.take().expect("stdout");
+    let err = child.stderr.take().expect("stderr");
+    let out_t = std::thread::spawn(move || std::io::read_to_string(out).unwrap_or_default());
+    let err_t = std::thread::spawn(move || std::io::read_to_string(err).unwrap_or_default());
+    let deadline = Instant::now() + timeout;
+    let code = loop {
+        if let Some(s) = child.try_wait().expect("try_wait") {
+            break s.code();
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    (
+        code,
+        out_t.join().unwrap_or_default(),
+        err_t.join().unwrap_or_default(),
+    )
+}
+
+/// One command to a simulator stats socket (`stats`, `reset`, …) → its JSON answer.
+pub fn sim_stats(addr: &str, command: &str) -> Value {
+    use std::io::Write;
+    let mut s = std::net::TcpStream::connect(addr).expect("connect to the stats socket");
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    s.write_all(format!("{command}\n").as_bytes()).unwrap();
+    let mut line = String::new();
+    BufReader::new(s)
+        .read_line(&mut line)
+        .expect("stats answer");
+    serde_json::from_str(&line).expect("stats JSON")
+}
+
+impl Skein {
+    /// `POST path` that returns `None` when the connection is cut (the API server itself
+    /// may be what the request restarts).
+    pub fn try_post(&self, path: &str, body: Value) -> Option<(u16, Value)> {
+        self.agent
+            .post(format!("{}{path}", self.base))
+            .send_json(body)
+            .ok()
+            .map(Self::read)
+    }
+
+    /// The supervision record at `path` (`restarts`, `status`, `last_failure` …).
+    pub fn supervised(&self, path: &str) -> Option<Value> {
+        fn find(node: &Value, path: &str) -> Option<Value> {
+            if node["path"] == path {
+                return Some(node.clone());
+            }
+            node["children"]
+                .as_array()?
+                .iter()
+                .find_map(|c| find(c, path))
+        }
+        let (status, tree) = self.get("/api/v1/supervision");
+        assert_eq!(status, 200, "{tree}");
+        find(&tree, path)
+    }
+
+    /// The `host:port` of the simulator stats socket (`--sim-stats`), from stdout.
+    pub fn sim_stats_addr(&self) -> String {
+        let out = self.process.stdout.lock().unwrap();
+        out.iter()
+            .find_map(|l| l.strip_prefix("skein: simulator stats at "))
+            .expect("skein printed its simulator stats address (--sim-stats)")
+            .to_string()
+    }
+}
+
+/// Listens to `ws://…/api/v1/stream` in a thread and keeps every event (not the
+/// periodic `vehicles` frames).
+pub struct EventLog {
+    events: Arc<Mutex<Vec<Value>>>,
+}
+
+impl EventLog {
+    /// Connects to the stream of `base` (`http://127.0.0.1:PORT`).
+    pub fn connect(base: &str) -> EventLog {
+        let url = format!("{}/api/v1/stream", base.replacen("http://", "ws://", 1));
+        let events = Arc::new(Mutex::new(Vec::new()));
+        let store = events.clone();
+        let (ready_tx, ready_rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .unwrap();
+            rt.block_on(async move {
+                use futures_util::StreamExt;
+                let (mut ws, _) = tokio_tungstenite::connect_async(&url).await.expect("ws");
+                let _ = ready_tx.send(());
+                while let Some(Ok(msg)) = ws.next().await {
+                    if let Ok(text) = msg.to_text()
+                        && let Ok(v) = serde_json::from_str::<Value>(text)
+                        && v["type"] != "vehicles"
+                    {
+                        store.lock().unwrap().push(v);
+                    }
+                }
+            });
+        });
+        ready_rx
+            .recv_timeout(Duration::from_secs(10))
+            .expect("stream connected");
+        EventLog { events }
+    }
+
+    /// Events of `kind` so far.
+    pub fn of_type(&self, kind: &str) -> Vec<Value> {
+        self.events
+            .lock()
+            .unwrap()
+            .iter()
+            .filter(|e| e["type"] == kind)
+            .cloned()
+            .collect()
+    }
+}
