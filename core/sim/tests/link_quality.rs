@@ -110,8 +110,7 @@ async fn latency_delays_both_directions() {
 
     assert!(sim.set_link_quality(1, 0.0, 200.0));
     sim.reset_stats();
-    // Let the telemetry already in flight through, then time a command.
-    tokio::time::sleep(Duration::from_millis(300)).await;
+    // Time a command (the ACK is picked out of the telemetry still in flight).
     c.clear();
     let msg = interval(c);
     let t = Instant::now();
@@ -157,9 +156,20 @@ async fn setpoint_intervals_are_recorded_per_vehicle_and_in_total() {
         .iter()
         .map(|c| Streamer::start(c, position_setpoint(c.sysid, 0.0, 0.0, -2.0), 50.0))
         .collect();
-    tokio::time::sleep(Duration::from_millis(500)).await;
+    // Both streams arriving, then a fresh window of at least 150 intervals.
+    assert!(
+        eventually(Duration::from_secs(5), || sim
+            .stats()
+            .iter()
+            .all(|v| v.setpoint_intervals.count > 0))
+        .await
+    );
     sim.reset_stats();
-    tokio::time::sleep(Duration::from_secs(2)).await;
+    assert!(
+        eventually(Duration::from_secs(10), || sim.setpoint_intervals().count()
+            >= 150)
+        .await
+    );
     let summary = sim.summary();
     for s in streams {
         s.stop();
