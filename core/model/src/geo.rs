@@ -86,6 +86,12 @@ impl Ned {
         (self.north_m * self.north_m + self.east_m * self.east_m + self.down_m * self.down_m).sqrt()
     }
 
+    /// The same vector shortened to at most `max` (metres, or the vector's own unit).
+    pub fn clamped_norm(self, max: f64) -> Ned {
+        let n = self.norm();
+        if n > max { self * (max / n) } else { self }
+    }
+
     /// Length of the horizontal (north, east) part.
     pub fn horizontal_norm(&self) -> f64 {
         self.north_m.hypot(self.east_m)

@@ -243,6 +243,8 @@ pub struct ShapedSetpoint {
 #[derive(Debug, Clone)]
 pub struct SetpointShaper {
     limits: MotionLimits,
+    /// The geofence moved [`FENCE_TRACKING_BUFFER_M`] inwards: what setpoints are
+    /// clamped into.
     fence: Geofence,
     enforce_floor: bool,
     min_separation_m: f64,
@@ -292,7 +294,7 @@ impl SetpointShaper {
     pub fn new(start: Ned, limits: MotionLimits, fence: Geofence, min_separation_m: f64) -> Self {
         SetpointShaper {
             limits,
-            fence,
+            fence: fence.shrunk(FENCE_TRACKING_BUFFER_M),
             enforce_floor: false,
             min_separation_m,
             planned_separation_m: min_separation_m,
@@ -328,7 +330,7 @@ impl SetpointShaper {
     /// Changes the limits (vehicle model change).
     pub fn set_limits(&mut self, limits: MotionLimits, fence: Geofence, min_separation_m: f64) {
         self.limits = limits;
-        self.fence = fence;
+        self.fence = fence.shrunk(FENCE_TRACKING_BUFFER_M);
         self.min_separation_m = min_separation_m;
         self.planned_separation_m = self.planned_separation_m.min(min_separation_m);
     }
@@ -345,10 +347,9 @@ impl SetpointShaper {
         dt_s: f64,
         others: &[Obstacle],
     ) -> ShapedSetpoint {
-        // Setpoints stay a tracking buffer inside the fence, so that the vehicle's own
-        // overshoot does not take it out.
-        let inner = self.fence.shrunk(FENCE_TRACKING_BUFFER_M);
-        let (target, fence) = inner.clamp(target, self.enforce_floor);
+        // Setpoints stay a tracking buffer inside the fence (see `fence`), so that the
+        // vehicle's own overshoot does not take it out.
+        let (target, fence) = self.fence.clamp(target, self.enforce_floor);
         let to_target = target - self.carrot;
         // Approach speed: proportional near the target, and never more than can be braked
         // to zero within the acceleration limit (a linear profile from cruise speed would
@@ -365,12 +366,7 @@ impl SetpointShaper {
         desired = self.limit_speed(self.avoid(desired, others));
         // Acceleration limit on the change of the carrot's velocity.
         let dv = desired - self.velocity;
-        let max_dv = self.limits.max_accel_m_s2 * dt_s;
-        let dv = if dv.norm() > max_dv {
-            dv * (max_dv / dv.norm())
-        } else {
-            dv
-        };
+        let dv = dv.clamped_norm(self.limits.max_accel_m_s2 * dt_s);
         let mut velocity = self.limit_speed(self.velocity + dv);
         let mut next = self.carrot + velocity * dt_s;
         // Never step past the target.
@@ -378,7 +374,7 @@ impl SetpointShaper {
             next = target;
             velocity = Ned::ZERO;
         }
-        let (next, fence_step) = inner.clamp(next, self.enforce_floor);
+        let (next, fence_step) = self.fence.clamp(next, self.enforce_floor);
         if fence_step.is_some() && dt_s > 0.0 {
             // Against the fence the feed-forward is what the carrot really does, never a
             // push through it.

@@ -354,12 +354,7 @@ impl Reference {
             }
         };
         let dv = desired - self.velocity;
-        let max_dv = REFERENCE_ACCEL_M_S2 * dt_s;
-        let dv = if dv.norm() > max_dv {
-            dv * (max_dv / dv.norm())
-        } else {
-            dv
-        };
+        let dv = dv.clamped_norm(REFERENCE_ACCEL_M_S2 * dt_s);
         self.velocity = self.velocity + dv;
         self.position = self.position + self.velocity * dt_s;
         let before = self.heading_rad;
@@ -408,8 +403,11 @@ pub struct SlotCommand {
     pub slot: usize,
     /// True for the leader's slot.
     pub leader: bool,
-    /// Slot position, swarm frame.
+    /// Where the member is sent now, swarm frame: on the transition plan while a change
+    /// is flown, its slot otherwise.
     pub position: Ned,
+    /// The slot itself, swarm frame.
+    pub goal: Ned,
     /// Slot velocity (feed-forward), m/s.
     pub velocity: Ned,
     /// Heading to hold, radians clockwise from north.
@@ -926,23 +924,24 @@ impl FormationEngine {
                 self.commanded.insert(id.clone(), arm);
                 (slots[slot], anchor_velocity + spin(arm))
             };
+            // The slot itself: errors are measured to it, not to the transition's plan.
+            let goal = if is_leader_vehicle {
+                position
+            } else {
+                slots[slot]
+            };
             out.insert(
                 id.clone(),
                 SlotCommand {
                     slot,
                     leader: is_leader_vehicle,
                     position,
+                    goal,
                     velocity,
                     yaw_rad: heading,
                 },
             );
             if let Some(m) = members.get(id) {
-                // The error is measured to the slot itself, not to the transition's plan.
-                let goal = if is_leader_vehicle {
-                    position
-                } else {
-                    slots[slot]
-                };
                 self.last.push(MemberStatus {
                     id: id.clone(),
                     slot,
@@ -1027,8 +1026,10 @@ mod tests {
         let slots = e.tick(&members, 0.1, &fence());
         assert_eq!(slots["uav-2"].slot, 0);
         assert!(slots["uav-2"].leader);
-        assert!((slots["uav-1"].position - Ned::new(0.0, -5.0, -10.0)).norm() < 1e-9);
-        assert!((slots["uav-3"].position - Ned::new(0.0, 5.0, -10.0)).norm() < 1e-9);
+        assert!((slots["uav-1"].goal - Ned::new(0.0, -5.0, -10.0)).norm() < 1e-9);
+        assert!((slots["uav-3"].goal - Ned::new(0.0, 5.0, -10.0)).norm() < 1e-9);
+        // The transition to the slots starts where the members are.
+        assert!((slots["uav-1"].position - Ned::new(0.0, -3.0, -10.0)).norm() < 1e-9);
         let positions: Vec<Ned> = members.values().map(|m| m.position).collect();
         let st = e.status(&positions);
         assert_eq!(st.leader_id.as_deref(), Some("uav-2"));
@@ -1051,7 +1052,7 @@ mod tests {
         let slots = e.tick(&members, 0.1, &fence());
         assert_eq!(slots["a"].position, Ned::new(0.0, 0.0, -10.0));
         // Followers anchor on the leader's measured position, at the formation altitude.
-        assert!((slots["b"].position - Ned::new(0.0, 5.0, -10.0)).norm() < 1e-9);
+        assert!((slots["b"].goal - Ned::new(0.0, 5.0, -10.0)).norm() < 1e-9);
     }
 
     #[test]
@@ -1081,7 +1082,7 @@ mod tests {
         assert_eq!(slots.len(), 2);
         // The formation re-anchors on the new leader, not on the silent one's spot.
         assert!((slots["uav-1"].position - Ned::new(0.0, -5.0, -10.0)).norm() < 1e-9);
-        assert!((slots["uav-3"].position - Ned::new(0.0, 0.0, -10.0)).norm() < 1e-9);
+        assert!((slots["uav-3"].goal - Ned::new(0.0, 0.0, -10.0)).norm() < 1e-9);
     }
 
     #[test]
@@ -1176,7 +1177,7 @@ mod tests {
         members.insert("c".to_string(), member(30.0, 30.0, -10.0));
         let slots = e.tick(&members, 0.1, &fence());
         assert_eq!(slots.len(), 2);
-        assert_eq!(slots["b"].position, Ned::new(-5.0, 0.0, -10.0));
+        assert_eq!(slots["b"].goal, Ned::new(-5.0, 0.0, -10.0));
         assert!(
             !slots.contains_key("c"),
             "beyond capacity: the farthest waits"

@@ -91,8 +91,8 @@ struct Aircraft {
     velocity: Ned,
     velocity_sp: Ned,
     shaper: SetpointShaper,
-    /// Slot target and velocity from the last formation tick, and its age in steps.
-    slot: Option<(Ned, Ned, bool)>,
+    /// Slot target and velocity from the last formation tick (its age in `slot_age_s`).
+    slot: Option<(Ned, Ned)>,
     slot_age_s: f64,
     setpoint: (Ned, Ned),
 }
@@ -119,14 +119,13 @@ impl Rehearsal {
                     (i % cols) as f64 * config.spawn_spacing_m,
                     -config.spawn_altitude_m,
                 );
-                let shaper = SetpointShaper::new(
+                let mut shaper = SetpointShaper::new(
                     p,
                     config.limits,
                     config.fence.clone(),
                     config.min_separation_m + config.margin_m,
                 )
                 .with_planned_separation(config.min_separation_m + 0.5 * config.margin_m);
-                let mut shaper = shaper;
                 shaper.enforce_floor(true);
                 Aircraft {
                     id: format!("uav-{}", i + 1),
@@ -183,23 +182,6 @@ impl Rehearsal {
         self.engine.status(&positions)
     }
 
-    /// Positions of the vehicles, by id.
-    pub fn positions(&self) -> BTreeMap<String, Ned> {
-        self.aircraft
-            .iter()
-            .map(|a| (a.id.clone(), a.position))
-            .collect()
-    }
-
-    /// Setpoints streamed at the last step, and slot targets from the last formation
-    /// tick, by id.
-    pub fn setpoints(&self) -> BTreeMap<String, (Ned, Option<Ned>)> {
-        self.aircraft
-            .iter()
-            .map(|a| (a.id.clone(), (a.setpoint.0, a.slot.map(|s| s.0))))
-            .collect()
-    }
-
     /// Steps until `done` holds (checked after every formation tick) or `max_s` of
     /// virtual time passed; returns whether `done` held.
     pub fn run_until(&mut self, max_s: f64, mut done: impl FnMut(&Rehearsal) -> bool) -> bool {
@@ -238,7 +220,7 @@ impl Rehearsal {
             let slots = self.engine.tick(&members, period, &self.config.fence);
             for a in &mut self.aircraft {
                 if let Some(s) = slots.get(&a.id) {
-                    a.slot = Some((s.position, s.velocity, !s.leader));
+                    a.slot = Some((s.position, s.velocity));
                     a.slot_age_s = 0.0;
                 }
             }
@@ -246,7 +228,7 @@ impl Rehearsal {
         // Shape every vehicle's setpoint against the others (as of the previous step).
         let n = self.aircraft.len();
         for i in 0..n {
-            let Some((slot_p, slot_v, _)) = self.aircraft[i].slot else {
+            let Some((slot_p, slot_v)) = self.aircraft[i].slot else {
                 continue;
             };
             self.obstacles.clear();
@@ -289,17 +271,10 @@ impl Rehearsal {
                 vel_sp.east_m *= 12.0 / h;
             }
             let dv = vel_sp - a.velocity_sp;
-            let max = ACC_HOR_M_S2 * dt;
-            let dv = if dv.norm() > max {
-                dv * (max / dv.norm())
-            } else {
-                dv
-            };
+            let dv = dv.clamped_norm(ACC_HOR_M_S2 * dt);
             a.velocity_sp = a.velocity_sp + dv;
-            let mut acc = (a.velocity_sp - a.velocity) * VEL_P + dv * (1.0 / dt);
-            if acc.norm() > ACC_MAX_M_S2 {
-                acc = acc * (ACC_MAX_M_S2 / acc.norm());
-            }
+            let acc =
+                ((a.velocity_sp - a.velocity) * VEL_P + dv * (1.0 / dt)).clamped_norm(ACC_MAX_M_S2);
             a.velocity = a.velocity + acc * dt;
             a.position = a.position + a.velocity * dt;
             if !self.config.fence.contains(a.position) {

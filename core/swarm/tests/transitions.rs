@@ -11,16 +11,13 @@ use skein_model::safety::Geofence;
 use skein_swarm::formation::{FormationFrame, FormationSpec, LeaderMotion, VIRTUAL};
 use skein_swarm::rehearsal::{Rehearsal, RehearsalConfig};
 
-const SHAPES: [Shape; 8] = [
-    Shape::Line,
-    Shape::Column,
-    Shape::Wedge,
-    Shape::EchelonRight,
-    Shape::EchelonLeft,
-    Shape::Diamond,
-    Shape::Circle,
-    Shape::Grid,
-];
+/// Every shape but `custom` (all of them fly 8 vehicles).
+fn shapes() -> Vec<Shape> {
+    Shape::ALL
+        .into_iter()
+        .filter(|s| *s != Shape::Custom)
+        .collect()
+}
 
 fn settled(r: &Rehearsal) -> bool {
     let s = r.status();
@@ -53,10 +50,11 @@ fn random_changes(leader: &str, changes: usize) {
         .and_then(|s| s.parse().ok())
         .unwrap_or(0x5ce1);
     let mut rng = SmallRng::seed_from_u64(seed);
+    let shapes = shapes();
     let mut converge_s = Vec::new();
     for change in 0..changes {
         let spec = FormationSpec {
-            shape: SHAPES[rng.random_range(0..SHAPES.len())],
+            shape: shapes[rng.random_range(0..shapes.len())],
             spacing_m: rng.random_range(5.0..9.0),
             leader: Some(leader.into()),
             heading_deg: rng.random_range(0.0..360.0),
