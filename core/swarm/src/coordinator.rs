@@ -558,6 +558,7 @@ impl CoordinatorState {
                     slot: s.slot,
                     leader: s.leader,
                     position: s.position,
+                    goal: s.goal,
                     velocity: s.velocity,
                     yaw_rad: s.yaw_rad,
                 })));

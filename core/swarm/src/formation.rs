@@ -156,9 +156,22 @@ pub const LAG_SLOW_M: f64 = 0.75;
 /// … and this far stops it: the plan separates members *at one time scale*, so the
 /// time scale waits for the slowest instead of leaving it behind.
 pub const LAG_STOP_M: f64 = 1.5;
+/// A member this far from where it was sent slows the formation's motion (the
+/// reference point's speed and a `leader`-frame pattern's turn rate) down…
+pub const PACE_SLOW_M: f64 = 1.0;
+/// … and this far stops it, so that no member is left behind by a moving or turning
+/// pattern (a far-behind member cuts across the others to catch up).
+pub const PACE_STOP_M: f64 = 2.5;
 
 /// A formation change in progress: every member on a straight line in the pattern frame,
 /// all on one time scale (see the module docs).
+///
+/// When followers must pass a leader vehicle, the change has three phases on that time
+/// scale: those followers climb (or descend) to their layer while everyone else holds
+/// (`hold_s`), then every member flies its straight line with the layered followers
+/// staying at their layer, then they return to the formation's altitude at their slots
+/// (`hold_s` again). Horizontal motion happens only in the middle phase, all members on
+/// one `β`, so the assignment's separation argument holds throughout.
 #[derive(Debug, Clone)]
 struct Transition {
     /// Where each member starts, pattern frame (unrotated offsets from the anchor).
@@ -172,29 +185,52 @@ struct Transition {
     elapsed_s: f64,
     /// Rate of the time scale against real time at the last tick, 0 to 1.
     scale: f64,
-    /// Climb over a leader vehicle: peak height of a `sin(πβ)` arc, metres, by member.
-    climbs: BTreeMap<String, f64>,
+    /// Layer of the followers that pass a leader vehicle, by member.
+    climbs: BTreeMap<String, Climb>,
+    /// Length of the layering phases before and after the straight lines, seconds.
+    hold_s: f64,
 }
 
 impl Transition {
-    /// Progress `β` in [0, 1] and its rate (1/s) at `elapsed_s`: a trapezoidal speed
-    /// profile over `length_m`.
-    fn progress(&self) -> (f64, f64) {
-        let (l, v, a, t) = (
-            self.length_m,
-            TRANSIT_SPEED_M_S,
-            TRANSIT_ACCEL_M_S2,
-            self.elapsed_s,
-        );
-        if l < 1e-6 {
-            return (1.0, 0.0);
-        }
-        // Peak speed: the cruise speed, or less when the path is too short to reach it.
+    /// Duration of the straight-line phase, seconds: a trapezoidal speed profile over
+    /// `length_m` (peak speed, its acceleration time, and the cruise time).
+    fn profile(&self) -> (f64, f64, f64) {
+        let (l, v, a) = (self.length_m, TRANSIT_SPEED_M_S, TRANSIT_ACCEL_M_S2);
         let vp = v.min((a * l).sqrt());
         let ta = vp / a;
+        let tc = ((l - vp * ta) / vp).max(0.0);
+        (vp, ta, tc)
+    }
+
+    /// Total duration on the time scale, seconds.
+    fn duration_s(&self) -> f64 {
+        if self.length_m < 1e-6 {
+            return 2.0 * self.hold_s;
+        }
+        let (_, ta, tc) = self.profile();
+        2.0 * self.hold_s + 2.0 * ta + tc
+    }
+
+    /// Progress `β` in [0, 1] of the straight lines and its rate (1/s) at `elapsed_s`.
+    fn progress(&self) -> (f64, f64) {
+        let l = self.length_m;
+        if l < 1e-6 {
+            return (
+                if self.elapsed_s >= self.hold_s {
+                    1.0
+                } else {
+                    0.0
+                },
+                0.0,
+            );
+        }
+        let (vp, ta, tc) = self.profile();
+        let a = TRANSIT_ACCEL_M_S2;
         let da = 0.5 * a * ta * ta;
-        let tc = (l - 2.0 * da) / vp;
-        let (s, ds) = if t < ta {
+        let t = self.elapsed_s - self.hold_s;
+        let (s, ds) = if t <= 0.0 {
+            (0.0, 0.0)
+        } else if t < ta {
             (0.5 * a * t * t, a * t)
         } else if t < ta + tc {
             (da + vp * (t - ta), vp)
@@ -208,7 +244,26 @@ impl Transition {
     }
 
     fn done(&self) -> bool {
-        self.progress().0 >= 1.0
+        self.elapsed_s >= self.duration_s()
+    }
+
+    /// How far the layered followers are on their way to their layer (0 to 1) at
+    /// `elapsed_s`, smoothstep, and its rate (1/s).
+    fn layering(&self) -> (f64, f64) {
+        if self.hold_s <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let e = self.elapsed_s;
+        let end = self.duration_s();
+        let (x, dx) = if e < self.hold_s {
+            (e / self.hold_s, 1.0 / self.hold_s)
+        } else if e > end - self.hold_s {
+            ((end - e) / self.hold_s, -1.0 / self.hold_s)
+        } else {
+            (1.0, 0.0)
+        };
+        let x = x.clamp(0.0, 1.0);
+        (x * x * (3.0 - 2.0 * x), 6.0 * x * (1.0 - x) * dx)
     }
 
     /// Planned offset of `id` now, pattern frame, and its rate of change.
@@ -217,28 +272,58 @@ impl Transition {
         let a = *self.starts.get(id)?;
         let b = *self.goals.get(id)?;
         let rate = rate * self.scale;
-        let h = self.climbs.get(id).copied().unwrap_or(0.0);
-        let (sin, cos) = (std::f64::consts::PI * beta).sin_cos();
-        let climb = Ned::new(0.0, 0.0, -h * sin);
-        let climb_rate = Ned::new(0.0, 0.0, -h * std::f64::consts::PI * cos * rate);
+        let h = self.climbs.get(id).map_or(0.0, |c| c.height_m);
+        let (f, df) = self.layering();
+        let climb = Ned::new(0.0, 0.0, -h * f);
+        let climb_rate = Ned::new(0.0, 0.0, -h * df * self.scale);
         Some((a + (b - a) * beta + climb, (b - a) * rate + climb_rate))
     }
 }
 
-/// Smallest distance from the origin (the leader vehicle, in its own pattern frame) of
-/// the straight path `a → b` lifted by a `h·sin(πβ)` climb, sampled along `β`.
-fn clearance_from_origin(a: Ned, b: Ned, h: f64) -> f64 {
-    (0..=100)
-        .map(|k| {
-            let beta = f64::from(k) / 100.0;
-            let p = a + (b - a) * beta;
-            Ned::new(
-                p.north_m,
-                p.east_m,
-                p.down_m - h * (std::f64::consts::PI * beta).sin(),
-            )
-            .norm()
-        })
+/// The layer of a follower that passes a leader vehicle during a transition.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Climb {
+    /// Height above the straight path, metres (negative: below it).
+    height_m: f64,
+}
+
+impl Climb {
+    /// The smallest layer (over the leader rather than under it on a tie) that keeps a
+    /// follower going `a → b` at least `separation_m` from the origin (the leader
+    /// vehicle, in its own pattern frame) through all three phases, or the highest one
+    /// when none does (the shapers protect the rest). A layer below lowers the reference's
+    /// ceiling (every planned place stays inside the fence).
+    fn over_origin(a: Ned, b: Ned, separation_m: f64) -> Climb {
+        [1.0, -1.0, 1.5, -1.5, 2.0, -2.0, 3.0, -3.0]
+            .into_iter()
+            .map(|k| Climb {
+                height_m: k * separation_m,
+            })
+            .find(|c| clearance_from_origin(a, b, Some(c)) >= separation_m)
+            .unwrap_or(Climb {
+                height_m: 3.0 * separation_m,
+            })
+    }
+
+    /// Length of the layering phases for this climb, seconds (peak vertical speed
+    /// [`TRANSIT_CLIMB_M_S`]).
+    fn hold_s(&self) -> f64 {
+        1.5 * self.height_m.abs() / TRANSIT_CLIMB_M_S
+    }
+}
+
+/// Smallest distance from the origin (the leader vehicle, in its own pattern frame) of a
+/// follower going `a → b` on `climb`'s layer: up from `a`, along the lifted straight line,
+/// down onto `b`, sampled.
+fn clearance_from_origin(a: Ned, b: Ned, climb: Option<&Climb>) -> f64 {
+    let up = Ned::new(0.0, 0.0, -climb.map_or(0.0, |c| c.height_m));
+    let at = |k: u32| f64::from(k) / 100.0;
+    let rise = (0..=100).map(|k| a + up * at(k));
+    let line = (0..=100).map(|k| a + (b - a) * at(k) + up);
+    let fall = (0..=100).map(|k| b + up * at(k));
+    rise.chain(line)
+        .chain(fall)
+        .map(|p| p.norm())
         .fold(f64::INFINITY, f64::min)
 }
 
@@ -288,7 +373,14 @@ impl Reference {
     /// reference outside it (the pattern grew) flies back in at [`RETURN_SPEED_M_S`]
     /// rather than jumping.
     pub fn step(&mut self, dt_s: f64, fence: &Geofence) {
+        self.step_paced(dt_s, fence, 1.0);
+    }
+
+    /// [`Reference::step`] at `pace` (0 to 1) of the motion's speed; the return into
+    /// the fence is not slowed.
+    pub fn step_paced(&mut self, dt_s: f64, fence: &Geofence, pace: f64) {
         let (inside, outside) = fence.clamp(self.position, true);
+        let pace = pace.clamp(0.0, 1.0);
         let desired = match &mut self.motion {
             _ if outside.is_some() => approach(self.position, inside, RETURN_SPEED_M_S),
             LeaderMotion::Hold => Ned::ZERO,
@@ -352,6 +444,11 @@ impl Reference {
                 v.down_m = (centre.down_m - self.position.down_m).clamp(-2.0, 2.0);
                 v
             }
+        };
+        let desired = if outside.is_some() {
+            desired
+        } else {
+            desired * pace
         };
         let dv = desired - self.velocity;
         let dv = dv.clamped_norm(REFERENCE_ACCEL_M_S2 * dt_s);
@@ -476,6 +573,9 @@ pub struct FormationEngine {
     /// Where each member was sent at the last tick: its offset from the anchor (swarm
     /// frame axes, i.e. already turned by the heading of that tick).
     commanded: BTreeMap<String, Ned>,
+    /// Where each member was sent at the last tick and how fast that place moved, swarm
+    /// frame (metres, m/s), for the pace of the formation.
+    sent: BTreeMap<String, (Ned, Ned)>,
     /// Heading of the slot pattern at the last tick, radians.
     pattern_heading: Option<f64>,
     /// Its rate of turn, rad/s.
@@ -498,6 +598,7 @@ impl Default for FormationEngine {
             changes: Vec::new(),
             transition: None,
             commanded: BTreeMap::new(),
+            sent: BTreeMap::new(),
             pattern_heading: None,
             pattern_rate: 0.0,
             pending: None,
@@ -572,6 +673,7 @@ impl FormationEngine {
         self.last.clear();
         self.transition = None;
         self.commanded.clear();
+        self.sent.clear();
         self.pattern_heading = None;
         self.pattern_rate = 0.0;
         self.pending = None;
@@ -711,6 +813,7 @@ impl FormationEngine {
             self.assignment.clear();
             // Offsets from the old anchor mean nothing around the new one.
             self.commanded.clear();
+            self.sent.clear();
             // A new leader vehicle takes the formation from where it is: the old leader's
             // spot may still be occupied (a silent vehicle may hover on there).
             if failover
@@ -740,13 +843,28 @@ impl FormationEngine {
             }
             Reference::at(p, spec.heading_deg.to_radians())
         });
-        // The reference stays far enough inside the fence for every slot to be inside.
-        let reach_h = offsets
+        // The reference stays far enough inside the fence for every slot to be inside, and
+        // every place on a transition in flight or about to start: paths are straight
+        // between start and goal (plus a climb), so their ends bound their reach.
+        let mut extents: Vec<Ned> = offsets.clone();
+        extents.extend(self.commanded.values().copied());
+        if let Some(t) = &self.transition {
+            for (id, start) in &t.starts {
+                let up = Ned::new(0.0, 0.0, -t.climbs.get(id).map_or(0.0, |c| c.height_m));
+                extents.push(*start);
+                extents.push(*start + up);
+                if let Some(goal) = t.goals.get(id) {
+                    extents.push(*goal);
+                    extents.push(*goal + up);
+                }
+            }
+        }
+        let reach_h = extents
             .iter()
             .map(|o| o.horizontal_norm())
             .fold(0.0, f64::max);
-        let reach_up = offsets.iter().map(|o| -o.down_m).fold(0.0, f64::max);
-        let reach_down = offsets.iter().map(|o| o.down_m).fold(0.0, f64::max);
+        let reach_up = extents.iter().map(|o| -o.down_m).fold(0.0, f64::max);
+        let reach_down = extents.iter().map(|o| o.down_m).fold(0.0, f64::max);
         let inner = Geofence {
             radius_m: (fence.radius_m - reach_h - FENCE_BUFFER_M).max(0.0),
             max_altitude_m: (fence.max_altitude_m - reach_up - FENCE_BUFFER_M)
@@ -755,7 +873,15 @@ impl FormationEngine {
                 .min(fence.max_altitude_m),
             polygon: fence.polygon.clone(),
         };
-        reference.step(dt_s, &inner);
+        // The pace: how far the farthest member is from where it was sent (extrapolated
+        // to now), against PACE_SLOW_M … PACE_STOP_M.
+        let behind = self
+            .sent
+            .iter()
+            .filter_map(|(id, (p, v))| Some((live.get(id)?.position - (*p + *v * dt_s)).norm()))
+            .fold(0.0, f64::max);
+        let pace = ((PACE_STOP_M - behind) / (PACE_STOP_M - PACE_SLOW_M)).clamp(0.0, 1.0);
+        reference.step_paced(dt_s, &inner, pace);
         let reference = reference.clone();
         // Anchor and heading of the slot pattern.
         let (anchor, anchor_velocity, wanted_heading) = if virtual_leader {
@@ -784,7 +910,8 @@ impl FormationEngine {
                     .iter()
                     .map(|o| o.horizontal_norm())
                     .fold(1.0, f64::max);
-                let (max_rate, max_accel) = (TURN_SPEED_M_S / reach, TURN_ACCEL_M_S2 / reach);
+                let (max_rate, max_accel) =
+                    (pace * TURN_SPEED_M_S / reach, TURN_ACCEL_M_S2 / reach);
                 let error = wrap_pi(wanted_heading - h);
                 // Turn rate that still stops on the wanted heading, then the change of
                 // rate the angular acceleration allows.
@@ -873,6 +1000,7 @@ impl FormationEngine {
                 elapsed_s: 0.0,
                 scale: 1.0,
                 climbs: BTreeMap::new(),
+                hold_s: 0.0,
             };
             for ((id, start), slot) in candidates.iter().zip(assignment) {
                 let slot = slot + first_follower_slot;
@@ -880,19 +1008,14 @@ impl FormationEngine {
                 let goal = offsets[slot];
                 transition.length_m = transition.length_m.max(leg_length(goal - *start));
                 // The assignment's ordering argument does not cover the leader vehicle (it
-                // keeps slot 0): a follower whose straight path would pass it climbs over
-                // it instead, on an arc high enough to clear it by the separation; the
-                // arc adds no horizontal motion, so the followers' mutual bound stands.
-                if !virtual_leader && clearance_from_origin(*start, goal, 0.0) < self.separation_m {
-                    let h = [1.0, 1.5, 2.0, 3.0]
-                        .into_iter()
-                        .map(|k| k * self.separation_m)
-                        .find(|h| clearance_from_origin(*start, goal, *h) >= self.separation_m)
-                        .unwrap_or(3.0 * self.separation_m);
-                    transition.climbs.insert((*id).clone(), h);
-                    transition.length_m = transition
-                        .length_m
-                        .max(TRANSIT_SPEED_M_S * std::f64::consts::PI * h / TRANSIT_CLIMB_M_S);
+                // keeps slot 0): a follower whose straight path would pass it flies on a
+                // layer above (or below) it, reached before anyone moves horizontally and
+                // left after everyone arrived (see `Transition`).
+                if !virtual_leader && clearance_from_origin(*start, goal, None) < self.separation_m
+                {
+                    let climb = Climb::over_origin(*start, goal, self.separation_m);
+                    transition.hold_s = transition.hold_s.max(climb.hold_s());
+                    transition.climbs.insert((*id).clone(), climb);
                 }
                 transition.starts.insert((*id).clone(), *start);
                 transition.goals.insert((*id).clone(), goal);
@@ -902,6 +1025,7 @@ impl FormationEngine {
 
         self.last.clear();
         self.commanded.clear();
+        self.sent.clear();
         let spin = |arm: Ned| {
             // Rotation of the pattern: ω × r, with ω about the down axis.
             Ned::new(-heading_rate * arm.east_m, heading_rate * arm.north_m, 0.0)
@@ -930,6 +1054,7 @@ impl FormationEngine {
             } else {
                 slots[slot]
             };
+            self.sent.insert(id.clone(), (position, velocity));
             out.insert(
                 id.clone(),
                 SlotCommand {

@@ -106,9 +106,12 @@ pub struct SlotTarget {
     pub slot: usize,
     /// True for the leader.
     pub leader: bool,
-    /// Slot position, swarm-frame NED metres.
+    /// Where the member should be now, swarm-frame NED metres: the slot, or its planned
+    /// place on the way there during a formation change.
     pub position: Ned,
-    /// Slot velocity (feed-forward), NED m/s.
+    /// The slot itself (where a formation change ends), swarm-frame NED metres.
+    pub goal: Ned,
+    /// Velocity (feed-forward) of `position`, NED m/s.
     pub velocity: Ned,
     /// Heading to hold, radians clockwise from north.
     pub yaw_rad: f64,
@@ -344,8 +347,8 @@ impl VehicleShared {
             let slot = slot.map(|s| FormationSlot {
                 slot: s.slot,
                 leader: s.leader,
-                target: s.position,
-                error_m: current.map_or(f64::NAN, |c| (c - s.position).norm()),
+                target: s.goal,
+                error_m: current.map_or(f64::NAN, |c| (c - s.goal).norm()),
             });
             let vel = t
                 .local
