@@ -33,6 +33,10 @@ export const vehicleCommand = (id, body) =>
   request('POST', `/vehicles/${encodeURIComponent(id)}/commands`, body);
 export const getFormation = () => request('GET', '/formation');
 export const putFormation = (spec) => request('PUT', '/formation', spec);
+export const getShapes = () => request('GET', '/formation/shapes');
+/** Leader motion: motion is `goto`, `waypoints`, `orbit` or `hold`. */
+export const leaderMotion = (motion, body = {}) =>
+  request('POST', `/formation/leader/${motion}`, body);
 
 /** The stream URL, derived from the page's location (ws: or wss:). */
 export function streamUrl(loc = window.location) {

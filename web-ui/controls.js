@@ -6,8 +6,12 @@ import * as api from './api.js';
 import { describeFormation } from './log.js';
 import { compareIds } from './model.js';
 
-// Formation shapes the server knows (skein_model::formation::Shape); one button each.
-const SHAPES = [['line', 'Line']];
+// Button labels of the formation shapes; the list itself and how many vehicles each needs
+// come from GET /api/v1/formation/shapes (`custom` needs offsets: API only).
+const SHAPE_LABELS = {
+  line: 'Line', column: 'Column', wedge: 'Wedge', echelon_left: 'Echelon L',
+  echelon_right: 'Echelon R', diamond: 'Diamond', circle: 'Circle', grid: 'Grid',
+};
 
 export class Controls {
   constructor({ toasts, log }) {
@@ -26,26 +30,34 @@ export class Controls {
         () => api.swarmCommand({ command: 'takeoff', altitude_m: alt }), { altitude_m: 'takeoff-alt' });
     });
 
-    // Formation: one submit button per shape.
-    const shapes = document.getElementById('shape-buttons');
-    for (const [shape, label] of SHAPES) {
-      const b = document.createElement('button');
-      b.type = 'submit';
-      b.className = 'btn primary';
-      b.dataset.shape = shape;
-      b.dataset.testid = shape;
-      b.textContent = label;
-      shapes.append(b);
-    }
+    // Formation: one submit button per shape, as the server lists them.
+    this.shapeButtons = document.getElementById('shape-buttons');
+    this.vehicleCount = 0;
+    this.loadShapes();
     this.leaderSelect = document.getElementById('form-leader');
     const formForm = document.getElementById('formation-form');
     formForm.addEventListener('submit', (ev) => {
       ev.preventDefault();
-      const btn = ev.submitter || shapes.querySelector('button');
+      const btn = ev.submitter || this.shapeButtons.querySelector('button');
+      if (!btn) return;
       const spec = this.formationSpec(btn.dataset.shape);
       if (!spec) return;
       this.run(btn, `formation ${spec.shape}`, () => api.putFormation(spec), {
         spacing_m: 'form-spacing', heading_deg: 'form-heading', altitude_m: 'form-alt', leader: 'form-leader',
+        frame: 'form-frame',
+      });
+    });
+
+    // Leader motion (the virtual leader, or the leader vehicle).
+    const leaderForm = document.getElementById('leader-form');
+    leaderForm.addEventListener('submit', (ev) => {
+      ev.preventDefault();
+      const btn = ev.submitter || leaderForm.querySelector('button');
+      const motion = btn.dataset.leaderMotion;
+      const body = this.leaderMotionBody(motion);
+      if (!body) return;
+      this.run(btn, `leader ${motion}`, () => api.leaderMotion(motion, body), {
+        north_m: 'lead-north', east_m: 'lead-east', speed_m_s: 'lead-speed', radius_m: 'lead-radius',
       });
     });
 
@@ -73,6 +85,64 @@ export class Controls {
     return alt;
   }
 
+  /** Builds one button per shape from GET /api/v1/formation/shapes. */
+  async loadShapes() {
+    const res = await api.getShapes();
+    if (!res.ok || !Array.isArray(res.data)) {
+      this.toasts.show('error', 'Formation shapes', (res.data && res.data.error) || 'no answer');
+      return;
+    }
+    const buttons = [];
+    for (const { shape, min_vehicles: min } of res.data) {
+      if (!(shape in SHAPE_LABELS)) continue;
+      const b = document.createElement('button');
+      b.type = 'submit';
+      b.className = 'btn primary';
+      b.dataset.shape = shape;
+      b.dataset.testid = shape;
+      b.dataset.minVehicles = String(min);
+      b.textContent = SHAPE_LABELS[shape];
+      buttons.push(b);
+    }
+    this.shapeButtons.replaceChildren(...buttons);
+    this.updateShapeAvailability();
+  }
+
+  /** Marks the shapes that need more vehicles than the swarm has (the server refuses them). */
+  updateShapeAvailability() {
+    for (const b of this.shapeButtons.querySelectorAll('button')) {
+      const min = Number(b.dataset.minVehicles);
+      const short = this.vehicleCount < min;
+      b.classList.toggle('short', short);
+      b.title = short ? `needs at least ${min} vehicles` : `${b.textContent} formation`;
+    }
+  }
+
+  /** The body of a leader motion request from the form, or null when a field is invalid. */
+  leaderMotionBody(motion) {
+    if (motion === 'hold') return {};
+    const num = (id) => Number(document.getElementById(id).value);
+    const [north, east, speed] = [num('lead-north'), num('lead-east'), num('lead-speed')];
+    if (![north, east].every(Number.isFinite)) {
+      this.toasts.show('error', 'Leader', 'north and east must be numbers of metres');
+      return null;
+    }
+    if (!Number.isFinite(speed) || speed <= 0) {
+      this.toasts.show('error', 'Leader', 'speed must be a number of m/s above 0');
+      return null;
+    }
+    const body = { north_m: north, east_m: east, speed_m_s: speed };
+    if (motion === 'orbit') {
+      const radius = num('lead-radius');
+      if (!Number.isFinite(radius) || radius <= 0) {
+        this.toasts.show('error', 'Leader', 'radius must be a number of metres above 0');
+        return null;
+      }
+      body.radius_m = radius;
+    }
+    return body;
+  }
+
   /** The PUT /api/v1/formation body from the form, or null when a field is invalid. */
   formationSpec(shape) {
     const num = (id) => {
@@ -90,6 +160,7 @@ export class Controls {
     const alt = num('form-alt');
     if (alt !== null && Number.isFinite(alt)) spec.altitude_m = alt;
     if (this.leaderSelect.value) spec.leader = this.leaderSelect.value;
+    spec.frame = document.getElementById('form-frame').value;
     return spec;
   }
 
@@ -110,11 +181,13 @@ export class Controls {
     const key = sorted.join('\n');
     if (key === this.leaderIds) return;
     this.leaderIds = key;
+    this.vehicleCount = sorted.length;
+    this.updateShapeAvailability();
     const keep = this.leaderSelect.value;
-    const opts = [new Option('auto', '')];
+    const opts = [new Option('auto', ''), new Option('virtual', 'virtual')];
     for (const id of sorted) opts.push(new Option(id, id));
     this.leaderSelect.replaceChildren(...opts);
-    this.leaderSelect.value = sorted.includes(keep) ? keep : '';
+    this.leaderSelect.value = keep === 'virtual' || sorted.includes(keep) ? keep : '';
   }
 
   /**

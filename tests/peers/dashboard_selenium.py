@@ -6,9 +6,11 @@ chromedriver) against a fresh `skein up --sim 3`:
 2. Take off (10 m): all rows `Hovering` at 10 +- 1 m;
 3. Line (5 m): all rows `InFormation`; the plan view's markers are distinct and on a line
    along east (equal north / equal pixel y within tolerance);
-4. Land: all rows `Landed`;
-5. no errors in the browser console, and the event log has a `state_changed` entry;
-6. optional screenshot (taken in formation) with --screenshot PATH.
+4. every shape is offered; Wedge behind the `virtual` leader, then the leader's Go to 15 m
+   north: the formation status names both, and the markers follow the leader;
+5. Land: all rows `Landed`;
+6. no errors in the browser console, and the event log has a `state_changed` entry;
+7. optional screenshot (taken in formation) with --screenshot PATH.
 
 Every wait polls with a deadline (WebDriverWait). Prints one JSON summary line; exits 0
 only on success.
@@ -26,7 +28,7 @@ from selenium import webdriver
 from selenium.common.exceptions import TimeoutException, WebDriverException
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
-from selenium.webdriver.support.ui import WebDriverWait
+from selenium.webdriver.support.ui import Select, WebDriverWait
 
 # Reads the whole table in one round trip: {id: {field: text}}.
 ROWS_JS = """
@@ -186,12 +188,44 @@ def run(args, driver, summary):
         driver.save_screenshot(args.screenshot)
         summary["screenshot"] = args.screenshot
 
-    # 4. Land.
+    # 4. Every shape offered; a wedge behind the virtual leader, which the operator drives.
+    shapes = driver.execute_script(
+        "return [...document.querySelectorAll('#shape-buttons [data-shape]')].map(b => b.dataset.shape)")
+    summary["shapes_offered"] = shapes
+    expected = {"line", "column", "wedge", "echelon_left", "echelon_right", "diamond", "circle", "grid"}
+    if set(shapes) != expected:
+        raise Failure(f"shape buttons {shapes}, expected {sorted(expected)}")
+    Select(driver.find_element(By.CSS_SELECTOR, '[data-testid="formation-leader"]')).select_by_value("virtual")
+    ui.click("wedge")
+
+    def status_text(d):
+        return d.find_element(By.CSS_SELECTOR, '[data-testid="formation-status"]').text
+
+    ui.wait("the formation status to read a wedge behind the virtual leader",
+            lambda d: "wedge" in status_text(d) and "leader virtual" in status_text(d))
+    ui.wait("all rows InFormation in the wedge", lambda d: ui.all_rows(n, lambda r: r.get("state") == "InFormation"))
+    north0 = sum(m["north"] for m in ui.markers()) / n
+    ui.set_input("leader-north", f"{north0 + 15:.0f}")
+    ui.set_input("leader-east", "0")
+    ui.set_input("leader-speed", "3")
+    ui.click("leader-goto")
+
+    def followed(d):
+        ms = ui.markers()
+        if len(ms) != n:
+            return None
+        mean_north = sum(m["north"] for m in ms) / n
+        return mean_north if mean_north >= north0 + 12 else None
+
+    summary["leader_goto_north_m"] = [round(north0, 1), round(ui.wait("the markers to follow the leader north", followed), 1)]
+    summary["timings_s"]["followed_leader"] = lap()
+
+    # 5. Land.
     ui.click("land")
     ui.wait("all rows Landed", lambda d: ui.all_rows(n, lambda r: r.get("state") == "Landed"), timeout=max(args.timeout, 60))
     summary["timings_s"]["landed"] = lap()
 
-    # 5. Event log and console.
+    # 6. Event log and console.
     kinds = driver.execute_script(
         "return [...document.querySelectorAll('[data-testid=\"event-log\"] li')].map(li => li.dataset.type)")
     summary["event_log_entries"] = len(kinds)
