@@ -1,6 +1,7 @@
-//! `skein bench swarm` end to end, small: 20 vehicles at 50 Hz for 3 s, the simulator in
-//! its own process. Checks the report's shape and that the swarm really flew offboard;
-//! never its timing (that is what the benchmark itself is for, on a quiet machine).
+//! The benchmarks end to end, small: `skein bench swarm` (20 vehicles at 50 Hz for 3 s, the
+//! simulator in its own process), `skein bench formation` (8 vehicles) and `skein bench
+//! restart` (40 panics). Each checks the report's shape and that the swarm really flew;
+//! never its timing (that is what the benchmarks themselves are for, on a quiet machine).
 
 mod support;
 
@@ -87,4 +88,32 @@ fn bench_formation_reports_convergence_error_and_separation() {
     assert!(run["min_separation_m"].as_f64().unwrap() >= 3.0, "{report}");
     assert_eq!(run["separation_violations"], 0, "{report}");
     assert_eq!(run["fence_violations"], 0, "{report}");
+}
+
+/// `skein bench restart`, small: 40 panics over 2 hovering vehicles. Every panic must
+/// have been restarted and no vehicle may have left offboard; the latencies are only
+/// checked to be present and ordered (timing is for the benchmark itself).
+#[test]
+fn bench_restart_restarts_every_panic_with_vehicles_offboard() {
+    let mut p = Process::start(&["bench", "restart", "--panics", "40", "--vehicles", "2"]);
+    let line = p.wait_line("\"restart\"", Duration::from_secs(240));
+    let code = p.wait_exit(Duration::from_secs(60));
+    assert_eq!(code, Some(0), "stderr:\n{}", p.stderr_text());
+    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+    assert_eq!(report["panics"], 40, "{report}");
+    assert_eq!(report["restarts"], 40, "{report}");
+    for key in ["restart_latency_us", "inject_to_running_us"] {
+        let (p50, p99, max) = (
+            report[key]["p50"].as_u64().expect("p50"),
+            report[key]["p99"].as_u64().expect("p99"),
+            report[key]["max"].as_u64().expect("max"),
+        );
+        assert!(p50 > 0 && p50 <= p99 && p99 <= max, "{key}: {report}");
+    }
+    assert!(
+        report["largest_setpoint_gap_ms"].as_f64().unwrap_or(0.0) > 0.0,
+        "{report}"
+    );
+    assert_eq!(report["offboard_loss_failsafes"], 0, "{report}");
+    assert_eq!(report["all_offboard"], true, "{report}");
 }

@@ -38,7 +38,7 @@ export function describe(ev) {
     case 'geofence_clamp':
       return { level: 'warn', label: 'geofence', text: `${ev.id}: setpoint clamped (${ev.violation})` };
     case 'actor_restarted':
-      return { level: 'warn', label: 'restart', text: `${ev.path} restarted (${ev.restarts}×): ${ev.reason}` };
+      return { level: 'warn', label: 'restart', text: `${ev.path} restarted (${ev.restarts}×, in ${(ev.latency_us / 1000).toFixed(1)} ms): ${ev.reason}` };
     case 'events_dropped':
       return { level: 'warn', label: 'stream', text: `${ev.count} events dropped (dashboard too slow)` };
     default: {

@@ -75,6 +75,30 @@ pub enum BenchWhat {
     /// Formation flight in virtual time (the real formation engine and setpoint shapers,
     /// point-mass PX4-like vehicles): every shape behind a virtual leader at 5 m/s.
     Formation(FormationBenchArgs),
+    /// Injected panics of a payload actor under hovering vehicles: restart latency and
+    /// the largest gap in the offboard setpoint stream.
+    Restart(RestartBenchArgs),
+}
+
+/// `skein bench restart`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct RestartBenchArgs {
+    /// Panics to inject (spread round-robin over the vehicles' payloads).
+    #[arg(long, default_value_t = 1000)]
+    pub panics: usize,
+    /// Hovering vehicles, each with one payload actor (the built-in fault fixture).
+    #[arg(long, default_value_t = 4)]
+    pub vehicles: usize,
+    /// Offboard setpoint rate per vehicle, Hz.
+    #[arg(long, default_value_t = 50.0)]
+    pub rate_hz: f64,
+    /// One panic every this many milliseconds (at most: the next waits for the previous
+    /// restart), so that the setpoint streams are watched over panics × period.
+    #[arg(long, default_value_t = 10)]
+    pub period_ms: u64,
+    /// Simulator seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
 }
 
 /// `skein bench formation`.
@@ -131,6 +155,11 @@ pub async fn run(args: BenchArgs) -> Result<(), String> {
             let report = tokio::task::spawn_blocking(move || formation(&a))
                 .await
                 .map_err(|e| e.to_string())??;
+            println!("{report}");
+            Ok(())
+        }
+        BenchWhat::Restart(a) => {
+            let report = restart(a).await?;
             println!("{report}");
             Ok(())
         }
@@ -374,10 +403,9 @@ fn candidate_base(n: usize, attempt: u32) -> Option<u16> {
     u16::try_from(low + (mix as usize % (high - low))).ok()
 }
 
-/// Starts skein's stack with one `udpin` endpoint per vehicle on a free block of
-/// consecutive ports; returns the swarm and the first port.
-async fn start_swarm(args: &SwarmBenchArgs) -> Result<(Swarm, u16), String> {
-    let n = args.vehicles;
+/// The swarm configuration of the benches: setpoints at `rate_hz`, the `swarm` telemetry
+/// profile, takeoff to `args.altitude_m`.
+fn bench_config(args: &SwarmBenchArgs) -> SwarmConfig {
     let mut config = SwarmConfig {
         stream_rate_hz: args.rate_hz,
         link_setup: LinkSetup {
@@ -387,6 +415,19 @@ async fn start_swarm(args: &SwarmBenchArgs) -> Result<(Swarm, u16), String> {
         ..SwarmConfig::default()
     };
     config.default_takeoff_altitude_m = args.altitude_m;
+    config
+}
+
+/// Starts skein's stack with one `udpin` endpoint per vehicle on a free block of
+/// consecutive ports, every vehicle of `model` (`None`: generic); returns the swarm and
+/// the first port.
+async fn start_swarm(
+    args: &SwarmBenchArgs,
+    config: SwarmConfig,
+    services: SwarmServices,
+    model: Option<&str>,
+) -> Result<(Swarm, u16), String> {
+    let n = args.vehicles;
     let mut last_error = String::new();
     for attempt in 0..20 {
         let base = candidate_base(n, attempt)
@@ -400,14 +441,20 @@ async fn start_swarm(args: &SwarmBenchArgs) -> Result<(Swarm, u16), String> {
                 vehicles: vec![VehicleSpec {
                     id: Some(format!("uav-{}", i + 1)),
                     sysid: Some(skein_sim::instance_sysid(i, n)),
-                    model: None,
+                    model: model.map(str::to_string),
                 }],
                 // The simulator runs in its own process: nothing in-process to drive.
                 simulated: false,
             })
             .collect();
-        let services = SwarmServices::default();
-        match Swarm::start(config.clone(), services, Identity::default(), endpoints).await {
+        match Swarm::start(
+            config.clone(),
+            services.clone(),
+            Identity::default(),
+            endpoints,
+        )
+        .await
+        {
             Ok(swarm) => return Ok((swarm, base)),
             Err(e) => last_error = e.to_string(), // a port of the block is taken: retry
         }
@@ -672,7 +719,8 @@ pub async fn swarm(args: SwarmBenchArgs) -> Result<Value, String> {
     let started = Instant::now();
     let setup_timeout =
         Duration::from_secs_f64(args.setup_timeout_s.unwrap_or(60.0 + 0.1 * n as f64));
-    let (swarm, base) = start_swarm(&args).await?;
+    let (swarm, base) =
+        start_swarm(&args, bench_config(&args), SwarmServices::default(), None).await?;
     eprintln!(
         "bench: skein listening on udp 127.0.0.1:{base}..{}",
         usize::from(base) + n - 1
@@ -785,6 +833,198 @@ async fn measure(
         "setup_s": setup_s,
         "runtime_probe": probe_report(probe, late_threshold_ms),
         "host_other_cpu_s": other,
+    }))
+}
+
+/// Slot of the payload whose actor `skein bench restart` panics.
+const RESTART_BENCH_SLOT: &str = "fixture";
+
+/// `skein bench restart` (issue 4's benchmark):
+///
+/// 1. starts skein's stack in this process with N vehicles of a model carrying one payload
+///    (the built-in `fault-fixture`, a payload-like actor under each Vehicle actor), a
+///    payload restart policy without backoff or budget (so that every panic is restarted
+///    at once), and fault injection on; the simulator runs in its own process;
+/// 2. takes every vehicle off and waits until it hovers under offboard control at R Hz;
+/// 3. resets the simulator's counters, then injects `panics` panics one after the other
+///    through the coordinator (the path of `POST /api/v1/faults`), round-robin over the
+///    vehicles, one every `period_ms` at most, each time waiting for the
+///    `actor_restarted` event of that payload;
+/// 4. prints `restart_latency_us` (`p50`, `p99`, `max`, `mean`: the supervisor's own
+///    measure, from the failure being noticed to the replacement answering its first
+///    message), `inject_to_running_us` (the same seen from outside: from the fault request
+///    to the restart event), `restarts`, `largest_setpoint_gap_ms` (the longest interval
+///    between two setpoints of any vehicle as the simulator received them during the
+///    panics), `offboard_loss_failsafes` and `all_offboard` at the end.
+///
+/// # Errors
+/// Invalid arguments, the swarm or simulator not starting, a restart not seen within 5 s.
+pub async fn restart(args: RestartBenchArgs) -> Result<Value, String> {
+    use skein_model::supervision::RestartPolicy;
+    use skein_payload::{Isolation, PayloadSpec};
+    use skein_swarm::supervision::PolicyConfig;
+    if args.vehicles == 0 || args.panics == 0 {
+        return Err("--vehicles and --panics must be at least 1".into());
+    }
+    if !(args.rate_hz.is_finite() && args.rate_hz > 2.0) {
+        return Err(format!(
+            "--rate-hz {}: PX4 needs more than 2 Hz",
+            args.rate_hz
+        ));
+    }
+    let swarm_args = SwarmBenchArgs {
+        vehicles: args.vehicles,
+        rate_hz: args.rate_hz,
+        seconds: 0.0,
+        altitude_m: 2.0,
+        spacing_m: 5.0,
+        setup_timeout_s: None,
+        seed: args.seed,
+    };
+    let mut config = bench_config(&swarm_args);
+    let mut model = skein_swarm::VehicleModel::generic();
+    model.name = "restart-bench".into();
+    model.payloads = vec![PayloadSpec {
+        slot: RESTART_BENCH_SLOT.into(),
+        kind: skein_swarm::payload::FAULT_FIXTURE.into(),
+        plugin: None,
+        isolation: Isolation::InProcess,
+        config: json!({}),
+    }];
+    config.models.insert(model.name.clone(), model);
+    config.supervision.payload = PolicyConfig {
+        policy: RestartPolicy::OnFailure,
+        max_restarts: u32::MAX,
+        window_s: 1.0,
+        backoff_initial_ms: 0,
+        backoff_max_ms: 0,
+    };
+    config.fault_injection = true;
+    let started = Instant::now();
+    let (swarm, base) = start_swarm(
+        &swarm_args,
+        config,
+        SwarmServices::default(),
+        Some("restart-bench"),
+    )
+    .await?;
+    let mut sim = match SimProcess::start(&swarm_args, base).await {
+        Ok(s) => s,
+        Err(e) => {
+            swarm.stop().await;
+            return Err(e);
+        }
+    };
+    let setup_deadline = started + Duration::from_secs(60 + args.vehicles as u64 / 10);
+    let result = panic_payloads(&swarm, &mut sim, &args, &swarm_args, setup_deadline).await;
+    sim.stop().await;
+    swarm.stop().await;
+    result
+}
+
+/// Percentiles of microsecond samples (sorted in place).
+fn us_report(samples: &mut [u64]) -> Value {
+    samples.sort_unstable();
+    let at = |q: f64| {
+        samples
+            .get(((samples.len() as f64 * q).ceil() as usize).saturating_sub(1))
+            .copied()
+            .unwrap_or(0)
+    };
+    let mean = samples.iter().sum::<u64>() as f64 / samples.len().max(1) as f64;
+    json!({
+        "p50": at(0.5),
+        "p99": at(0.99),
+        "max": samples.last().copied().unwrap_or(0),
+        "mean": round(mean, 1),
+    })
+}
+
+async fn panic_payloads(
+    swarm: &Swarm,
+    sim: &mut SimProcess,
+    args: &RestartBenchArgs,
+    swarm_args: &SwarmBenchArgs,
+    setup_deadline: Instant,
+) -> Result<Value, String> {
+    use skein_model::supervision::FaultKind;
+    use skein_swarm::events::SwarmEvent;
+    let n = args.vehicles;
+    let hovering = take_off_all(swarm, swarm_args, setup_deadline).await?;
+    if hovering < n {
+        return Err(format!("only {hovering} of {n} vehicles hover"));
+    }
+    eprintln!(
+        "bench: {n} vehicles hovering; injecting {} panics",
+        args.panics
+    );
+    let mut events = swarm.events.subscribe();
+    sim.ask("reset").await?;
+    let mut latency_us = Vec::with_capacity(args.panics);
+    let mut outside_us = Vec::with_capacity(args.panics);
+    let t0 = Instant::now();
+    let mut next = tokio::time::Instant::now();
+    for i in 0..args.panics {
+        tokio::time::sleep_until(next).await;
+        next += Duration::from_millis(args.period_ms);
+        let path = format!("coordinator/uav-{}/payload/{RESTART_BENCH_SLOT}", i % n + 1);
+        let asked = Instant::now();
+        let target = path.clone();
+        match swarm
+            .coordinator
+            .call(
+                move |r| CoordinatorMsg::InjectFault(target, FaultKind::Panic, r),
+                Some(COORDINATOR_TIMEOUT),
+            )
+            .await
+        {
+            Ok(ractor::rpc::CallResult::Success(Ok(()))) => {}
+            Ok(ractor::rpc::CallResult::Success(Err(e))) => {
+                return Err(format!("panic {i}: {path}: {e:?}"));
+            }
+            Ok(_) => return Err(format!("panic {i}: the coordinator did not answer")),
+            Err(e) => return Err(format!("the coordinator is not running: {e}")),
+        }
+        let deadline = tokio::time::Instant::now() + Duration::from_secs(5);
+        loop {
+            match tokio::time::timeout_at(deadline, events.recv()).await {
+                Ok(Ok(SwarmEvent::ActorRestarted {
+                    path: p,
+                    latency_us: l,
+                    ..
+                })) if p == path => {
+                    outside_us.push(asked.elapsed().as_micros() as u64);
+                    latency_us.push(l);
+                    break;
+                }
+                Ok(Ok(_)) | Ok(Err(tokio::sync::broadcast::error::RecvError::Lagged(_))) => {}
+                Ok(Err(tokio::sync::broadcast::error::RecvError::Closed)) => {
+                    return Err("the swarm's event bus closed".into());
+                }
+                Err(_) => return Err(format!("panic {i}: {path} was not restarted within 5 s")),
+            }
+        }
+        if (i + 1) % 250 == 0 {
+            eprintln!("bench: {} panics restarted", i + 1);
+        }
+    }
+    let window_s = t0.elapsed().as_secs_f64();
+    let summary = sim.ask("summary").await?;
+    let in_offboard = summary["modes"]["OFFBOARD"].as_u64().unwrap_or(0);
+    Ok(json!({
+        "bench": "restart",
+        "vehicles": n,
+        "rate_hz": args.rate_hz,
+        "period_ms": args.period_ms,
+        "panics": args.panics,
+        "restarts": latency_us.len(),
+        "restart_latency_us": us_report(&mut latency_us),
+        "inject_to_running_us": us_report(&mut outside_us),
+        "largest_setpoint_gap_ms": f64_at(&summary["setpoint_intervals"], &["max_ms"]),
+        "setpoint_interval_p99_ms": f64_at(&summary["setpoint_intervals"], &["p99_ms"]),
+        "offboard_loss_failsafes": u64_at(&summary, "offboard_loss_failsafes"),
+        "all_offboard": in_offboard == n as u64,
+        "seconds": round(window_s, 2),
     }))
 }
 

@@ -114,6 +114,9 @@ pub enum SwarmEvent {
         reason: String,
         /// Restarts of this actor so far.
         restarts: u32,
+        /// From the failure being noticed by the supervisor to the replacement answering
+        /// its first message, µs.
+        latency_us: u64,
     },
     /// An event raised by a payload.
     PayloadEvent {

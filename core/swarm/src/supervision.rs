@@ -421,6 +421,7 @@ impl Supervision {
             path: path.to_string(),
             reason: reason.to_string(),
             restarts,
+            latency_us: latency.as_micros() as u64,
         });
     }
 
