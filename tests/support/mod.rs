@@ -48,6 +48,8 @@ pub struct Process {
     pub stdout: Arc<Mutex<Vec<String>>>,
     /// Every stderr line so far (kept for failure messages).
     pub stderr: Arc<Mutex<Vec<String>>>,
+    /// Set when stderr reached its end (the reader has every line).
+    stderr_closed: Arc<std::sync::atomic::AtomicBool>,
     lines: mpsc::Receiver<String>,
 }
 
@@ -74,15 +76,19 @@ impl Process {
         });
         let err = child.stderr.take().expect("stderr");
         let se = stderr.clone();
+        let stderr_closed = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let closed = stderr_closed.clone();
         std::thread::spawn(move || {
             for line in BufReader::new(err).lines().map_while(Result::ok) {
                 se.lock().unwrap().push(line);
             }
+            closed.store(true, std::sync::atomic::Ordering::Release);
         });
         Process {
             child,
             stdout,
             stderr,
+            stderr_closed,
             lines: rx,
         }
     }
@@ -104,11 +110,21 @@ impl Process {
         }
     }
 
-    /// Waits for the process to exit and returns its status code.
+    /// Waits for the process to exit and returns its status code. Its stderr is read to
+    /// the end first (up to 5 s more, in case a child of it still holds the pipe), so
+    /// that [`Process::stderr_text`] has everything it wrote.
     pub fn wait_exit(&mut self, timeout: Duration) -> Option<i32> {
         let deadline = Instant::now() + timeout;
         loop {
             if let Some(s) = self.child.try_wait().expect("try_wait") {
+                let drained = Instant::now() + Duration::from_secs(5);
+                while !self
+                    .stderr_closed
+                    .load(std::sync::atomic::Ordering::Acquire)
+                    && Instant::now() < drained
+                {
+                    std::thread::sleep(Duration::from_millis(5));
+                }
                 return s.code();
             }
             assert!(
@@ -487,5 +503,173 @@ impl EventLog {
             .filter(|e| e["type"] == kind)
             .cloned()
             .collect()
+    }
+}
+
+impl Skein {
+    /// `GET path` → (status, content type, raw body): snapshots and other binary bodies.
+    pub fn get_bytes(&self, path: &str) -> (u16, String, Vec<u8>) {
+        let url = format!("{}{path}", self.base);
+        let mut r = self.agent.get(&url).call().expect("GET");
+        let status = r.status().as_u16();
+        let ctype = r
+            .headers()
+            .get("content-type")
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or_default()
+            .to_string();
+        let body = r
+            .body_mut()
+            .with_config()
+            .limit(64 * 1024 * 1024)
+            .read_to_vec()
+            .expect("read the body");
+        (status, ctype, body)
+    }
+}
+
+/// Building the payload plugin cdylibs for end-to-end tests, the way
+/// `core/plugin-host/tests/plugins/support.rs` does: a real `cargo build` with the test's
+/// own cargo, target directory and profile, honouring `SKEIN_PLUGIN_TEST_SELECTION`
+/// (`workspace` when the run is `cargo test --workspace`, so no dependency is compiled
+/// twice with other features), then copies of the libraries.
+pub mod plugins {
+    use std::path::{Path, PathBuf};
+    use std::process::Command;
+    use std::sync::Mutex;
+    use std::time::Instant;
+
+    /// Environment variables that select plugin build variants; cleared for the default
+    /// build.
+    const VARIANT_VARS: [&str; 2] = ["SKEIN_EXAMPLE_VERSION", "SKEIN_FIXTURE_MISMATCH"];
+
+    /// Serialises builds within this process (variants overwrite the same output file).
+    static BUILD_LOCK: Mutex<()> = Mutex::new(());
+
+    struct Layout {
+        target_dir: PathBuf,
+        out_dir: PathBuf,
+        args: Vec<String>,
+    }
+
+    fn layout() -> Layout {
+        // <target>/[<triple>/]<profile>/deps/<test binary>
+        let exe = std::env::current_exe().expect("test executable path");
+        let out_dir = exe
+            .parent()
+            .and_then(Path::parent)
+            .expect("test binary under <profile>/deps")
+            .to_path_buf();
+        let profile = out_dir.file_name().unwrap().to_string_lossy().into_owned();
+        let above = out_dir.parent().unwrap().to_path_buf();
+        let (target_dir, triple) =
+            if above.join("CACHEDIR.TAG").exists() || above.join(".rustc_info.json").exists() {
+                (above, None)
+            } else {
+                let triple = above.file_name().unwrap().to_string_lossy().into_owned();
+                (above.parent().unwrap().to_path_buf(), Some(triple))
+            };
+        let mut args = match profile.as_str() {
+            "debug" => vec![],
+            "release" => vec!["--release".to_string()],
+            other => vec!["--profile".to_string(), other.to_string()],
+        };
+        if let Some(t) = triple {
+            args.extend(["--target".to_string(), t]);
+        }
+        Layout {
+            target_dir,
+            out_dir,
+            args,
+        }
+    }
+
+    /// The library file cargo produces for a package (`libskein_plugin_gimbal.so`).
+    pub fn lib_file(package: &str) -> String {
+        format!("lib{}.so", package.replace('-', "_"))
+    }
+
+    fn selection(packages: &[&str]) -> Vec<String> {
+        if std::env::var("SKEIN_PLUGIN_TEST_SELECTION").as_deref() == Ok("workspace") {
+            return vec!["--workspace".into(), "--all-targets".into()];
+        }
+        let mut args = vec!["-p".to_string(), env!("CARGO_PKG_NAME").to_string()];
+        for p in packages {
+            args.extend(["-p".to_string(), p.to_string()]);
+        }
+        args
+    }
+
+    /// Builds `packages` with `env` set (the other variant variables cleared) and copies
+    /// each library into `dest`; returns the copies.
+    pub fn build_into(packages: &[&str], env: &[(&str, &str)], dest: &Path) -> Vec<PathBuf> {
+        let _lock = BUILD_LOCK.lock().unwrap_or_else(|p| p.into_inner());
+        let l = layout();
+        // Other test processes on the same target directory (the plugin host's tests) build
+        // the same outputs: hold their file lock across build and copy.
+        let lock_file = std::fs::File::create(l.target_dir.join("skein-plugin-test-build.lock"))
+            .expect("create the build lock file");
+        lock_file.lock().expect("lock the build lock file");
+        let mut cmd = Command::new(env!("CARGO"));
+        cmd.current_dir(super::workspace())
+            .arg("build")
+            .arg("--quiet")
+            .arg("--target-dir")
+            .arg(&l.target_dir)
+            .args(&l.args)
+            .args(selection(packages));
+        for v in VARIANT_VARS {
+            cmd.env_remove(v);
+        }
+        for (k, v) in env {
+            cmd.env(k, v);
+        }
+        let started = Instant::now();
+        let out = cmd.output().expect("run cargo build");
+        assert!(
+            out.status.success(),
+            "cargo build {packages:?} {env:?} failed:\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        eprintln!(
+            "built {packages:?} {env:?} in {:.1} s",
+            started.elapsed().as_secs_f64()
+        );
+        std::fs::create_dir_all(dest).unwrap();
+        packages
+            .iter()
+            .map(|p| {
+                let src = l.out_dir.join(lib_file(p));
+                let dst = dest.join(lib_file(p));
+                // Write a new file and rename it over the old: a loaded library's file is
+                // never rewritten in place.
+                let tmp = dest.join(format!(".{}.tmp", lib_file(p)));
+                std::fs::copy(&src, &tmp).unwrap_or_else(|e| panic!("copy {}: {e}", src.display()));
+                std::fs::rename(&tmp, &dst).unwrap();
+                dst
+            })
+            .collect()
+    }
+
+    /// A fresh directory private to this test process (`name` tells what it holds);
+    /// directories of earlier runs whose process is gone are removed.
+    pub fn scratch(name: &str) -> PathBuf {
+        let prefix = "skein-e2e-plugins-";
+        if let Ok(dir) = std::fs::read_dir(std::env::temp_dir()) {
+            for e in dir.flatten() {
+                let n = e.file_name().to_string_lossy().into_owned();
+                if let Some(pid) = n
+                    .strip_prefix(prefix)
+                    .and_then(|rest| rest.split('-').next())
+                    && !Path::new(&format!("/proc/{pid}")).exists()
+                {
+                    let _ = std::fs::remove_dir_all(e.path());
+                }
+            }
+        }
+        let dir = std::env::temp_dir().join(format!("{prefix}{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
     }
 }

@@ -20,6 +20,8 @@
 //! - `GET /api/v1/vehicles/{id}/payloads`, `POST /api/v1/vehicles/{id}/payloads/{slot}`
 //!   (the payload's JSON command), `GET …/payloads/{slot}/snapshot` (JPEG),
 //!   `GET …/payloads/{slot}/stream` (MJPEG)
+//! - `GET /api/v1/plugins`, `POST /api/v1/plugins/{load,unload,reload}`: payload plugin
+//!   libraries at run time (see [`plugins`])
 //! - `GET /api/v1/supervision`: the actor tree with status, restarts, last failures
 //! - `POST /api/v1/faults`: `{"target": "<actor path>", "kind": "panic" | "hang" |
 //!   "stop" | "error"}`, only with `--enable-fault-injection` (403 otherwise)
@@ -31,6 +33,7 @@
 #![warn(missing_docs)]
 
 pub mod error;
+pub mod plugins;
 pub mod requests;
 pub mod server;
 
@@ -66,6 +69,7 @@ pub struct ApiState {
     coordinator: ActorRef<CoordinatorMsg>,
     events: broadcast::Sender<SwarmEvent>,
     telemetry: broadcast::Sender<Arc<str>>,
+    plugins: Option<Arc<plugins::PluginsApi>>,
 }
 
 impl ApiState {
@@ -81,7 +85,20 @@ impl ApiState {
             coordinator,
             events,
             telemetry,
+            plugins: None,
         }
+    }
+
+    /// Serves `/api/v1/plugins` from `manager` (without it the listing shows only the
+    /// built-in payloads and load / unload / reload answer 503). `refused` are the files
+    /// the start-up scan refused, with the reason.
+    pub fn with_plugins(
+        mut self,
+        manager: skein_plugin_host::PluginManager,
+        refused: Vec<(std::path::PathBuf, String)>,
+    ) -> Self {
+        self.plugins = Some(plugins::PluginsApi::new(manager, refused));
+        self
     }
 
     async fn ask<T: Send + 'static>(
@@ -159,6 +176,8 @@ pub fn app(state: ApiState) -> Router {
             "/api/v1/vehicles/{id}/payloads/{slot}/stream",
             get(payload_stream),
         )
+        .route("/api/v1/plugins", get(list_plugins))
+        .route("/api/v1/plugins/{op}", post(plugin_op))
         .route("/api/v1/supervision", get(supervision_tree))
         .route("/api/v1/faults", post(inject_fault))
         .route("/metrics", get(metrics))
@@ -404,6 +423,28 @@ async fn shapes() -> Response {
 async fn delete_formation(State(s): State<ApiState>) -> Result<Response, ApiError> {
     let f = s.ask(CoordinatorMsg::ClearFormation).await?;
     Ok(Json(f).into_response())
+}
+
+async fn list_plugins(State(s): State<ApiState>) -> Response {
+    Json(plugins::list(s.plugins.as_deref())).into_response()
+}
+
+async fn plugin_op(
+    State(s): State<ApiState>,
+    Path(op): Path<String>,
+    body: Bytes,
+) -> Result<Response, ApiError> {
+    let v = match op.as_str() {
+        "load" => plugins::load(s.plugins.clone(), &body).await?,
+        "unload" => plugins::unload(s.plugins.clone(), &body).await?,
+        "reload" => plugins::reload(s.plugins.clone(), &body).await?,
+        other => {
+            return Err(ApiError::not_found(format!(
+                "no such endpoint: /api/v1/plugins/{other} (load, unload, reload)"
+            )));
+        }
+    };
+    Ok(Json(v).into_response())
 }
 
 async fn supervision_tree(State(s): State<ApiState>) -> Result<Response, ApiError> {

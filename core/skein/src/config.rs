@@ -21,6 +21,10 @@
 //! [http]
 //! listen = "127.0.0.1:8080"
 //!
+//! [plugins]                    # payload plugins (cdylibs built with plugins/sdk)
+//! dir = "/var/lib/skein/plugins"  # loads every lib*.so at start; default: the directory
+//!                              # of the skein executable; `--plugin-dir` overrides it
+//!
 //! [supervision]                # restart policies (vehicle, px4link, payload, api)
 //! vehicle_escalation = "hold"  # or "land": what a vehicle whose actor keeps failing does
 //! watchdog_deadline_ms = 2000  # a child not answering a ping this long is hung
@@ -116,6 +120,14 @@ pub struct HttpSection {
     pub listen: Option<SocketAddr>,
 }
 
+/// `[plugins]`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PluginsSection {
+    /// The plugin directory (relative paths are relative to the config file's directory).
+    pub dir: Option<std::path::PathBuf>,
+}
+
 /// One `[models.NAME]` table.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -154,6 +166,9 @@ pub struct ConfigFile {
     /// `[http]`.
     #[serde(default)]
     pub http: HttpSection,
+    /// `[plugins]`.
+    #[serde(default)]
+    pub plugins: PluginsSection,
     /// `[supervision]`.
     pub supervision: Option<skein_swarm::supervision::SupervisionConfig>,
     /// `[models.NAME]`.
@@ -172,7 +187,14 @@ impl ConfigFile {
     pub fn load(path: &Path) -> Result<Self, String> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-        Self::parse(&text).map_err(|e| format!("{}: {e}", path.display()))
+        let mut cfg = Self::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+        if let Some(dir) = &cfg.plugins.dir
+            && dir.is_relative()
+            && let Some(base) = path.parent()
+        {
+            cfg.plugins.dir = Some(base.join(dir));
+        }
+        Ok(cfg)
     }
 
     /// Parses TOML text.
@@ -472,6 +494,17 @@ payloads = [{ slot = "fixture", kind = "fault-fixture" }]
             ConfigFile::parse("[[vehicles]]\nconnection = \"udpin:0.0.0.0:1\"\nmodel = \"nope\"\n")
                 .unwrap_err();
         assert!(e.contains("vehicles[0].model `nope`"), "{e}");
+    }
+
+    #[test]
+    fn plugins_section() {
+        let c = ConfigFile::parse("[plugins]\ndir = \"/opt/skein/plugins\"\n").unwrap();
+        assert_eq!(
+            c.plugins.dir.as_deref(),
+            Some(Path::new("/opt/skein/plugins"))
+        );
+        let e = ConfigFile::parse("[plugins]\ndirectory = \"x\"\n").unwrap_err();
+        assert!(e.contains("directory") && e.contains("line 2"), "{e}");
     }
 
     #[test]

@@ -80,9 +80,15 @@ struct UpArgs {
     /// With --sim: seed of the simulator's random processes.
     #[arg(long, default_value_t = 0)]
     sim_seed: u64,
-    /// With --sim: the vehicle model of the simulated vehicles (default `generic`).
+    /// With --sim: the vehicle model of every simulated vehicle (default: a mix, the
+    /// even-numbered vehicles uav-2, uav-4, … `observation`, the others `generic`).
     #[arg(long, value_name = "MODEL")]
     sim_model: Option<String>,
+    /// Payload plugin directory: every `lib*.so` in it is loaded at start (overrides
+    /// `[plugins] dir`; default: the directory holding the skein executable, where
+    /// `cargo build --release` puts the plugins).
+    #[arg(long, value_name = "DIR")]
+    plugin_dir: Option<PathBuf>,
     /// With --sim: open the simulator's stats socket here (one JSON line per command:
     /// stats, reset, silence SYSID MS, reboot SYSID); port 0 picks one, printed at start.
     #[arg(long, value_name = "ADDR:PORT")]
@@ -303,16 +309,31 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
             vehicles: vec![VehicleSpec {
                 id: None,
                 sysid: Some((i + 1) as u8),
-                model: args.sim_model.clone(),
+                model: Some(
+                    args.sim_model
+                        .clone()
+                        .unwrap_or_else(|| sim_mix_model(i + 1).to_string()),
+                ),
             }],
             simulated: true,
         });
     }
+    let plugin_dir = match args.plugin_dir.clone().or(file.plugins.dir.clone()) {
+        Some(d) => d,
+        None => default_plugin_dir()?,
+    };
+    let (plugins, refused) = start_plugins(&plugin_dir)?;
+    let factory: Arc<dyn skein_payload::PayloadFactory> =
+        Arc::new(skein_swarm::payload::Factories(vec![
+            Arc::new(plugins.clone()),
+            Arc::new(skein_swarm::payload::BuiltinPayloads),
+        ]));
+    warn_missing_kinds(&config, &endpoints, factory.as_ref(), &plugin_dir);
     // The simulator is created before the swarm so payloads can reach it; it starts
     // sending once it knows where (after the endpoints are bound).
     let sim_slot: Arc<std::sync::OnceLock<skein_sim::Simulator>> = Arc::default();
     let services = skein_swarm::SwarmServices {
-        payloads: Arc::new(skein_swarm::payload::BuiltinPayloads),
+        payloads: factory,
         simulator: if n_sim > 0 {
             Some(Arc::new(LateSimControl(sim_slot.clone())))
         } else {
@@ -322,6 +343,24 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
     let mut swarm = Swarm::start(config, services, file.identity(), endpoints)
         .await
         .map_err(|e| e.to_string())?;
+    // A reloaded plugin: the vehicles re-create its instances on the new build at once
+    // (an instance that calls first re-creates itself; either way no failure is counted).
+    let coordinator = swarm.coordinator.clone();
+    plugins.subscribe(move |event| {
+        if let skein_plugin_host::PluginEvent::Reloaded {
+            stale_instances, ..
+        } = event
+        {
+            let list = stale_instances
+                .iter()
+                .map(|i| (i.vehicle_id.clone(), i.slot.clone()))
+                .collect();
+            let _ = coordinator.cast(skein_swarm::CoordinatorMsg::RefreshPayloads(
+                list,
+                std::time::Instant::now(),
+            ));
+        }
+    });
 
     let sim = if n_sim > 0 {
         let vehicles = (0..n_sim)
@@ -371,7 +410,8 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
     let http = args.http.or(file.http.listen).unwrap_or(DEFAULT_HTTP);
     let listener = std::net::TcpListener::bind(http).map_err(|e| format!("--http {http}: {e}"))?;
     let local = listener.local_addr().map_err(|e| e.to_string())?;
-    let state = skein_api::ApiState::new(swarm.coordinator.clone(), swarm.events.clone());
+    let state = skein_api::ApiState::new(swarm.coordinator.clone(), swarm.events.clone())
+        .with_plugins(plugins, refused);
     let service = skein_api::ApiServer::service(listener, state);
     match swarm
         .coordinator
@@ -415,6 +455,104 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
     Ok(code)
 }
 
+/// The model of simulated vehicle `sysid` when `--sim-model` is not given: every other
+/// vehicle (the even sysids: uav-2, uav-4, …) is an `observation` UAV (gimbal and camera),
+/// the others `generic`, so the dashboard shows both.
+fn sim_mix_model(sysid: usize) -> &'static str {
+    if sysid.is_multiple_of(2) {
+        "observation"
+    } else {
+        "generic"
+    }
+}
+
+/// The plugin directory when none is configured: the directory of the running executable
+/// (cargo builds the plugin libraries `libskein_plugin_*.so` next to `target/*/skein`).
+///
+/// # Errors
+/// The executable's path cannot be found.
+fn default_plugin_dir() -> Result<PathBuf, String> {
+    let exe = std::env::current_exe()
+        .map_err(|e| format!("cannot find the skein executable's directory: {e}"))?;
+    exe.parent()
+        .map(std::path::Path::to_path_buf)
+        .ok_or_else(|| format!("{}: no parent directory", exe.display()))
+}
+
+/// Creates the plugin manager for `dir` and loads every library in it. The manager logs
+/// each loaded library and each refused file (naming the file and what differs); one
+/// summary line goes to stdout.
+///
+/// Returns the manager and the refused files with the reason.
+///
+/// # Errors
+/// `dir` cannot be read, or the plugin work directory cannot be created.
+fn start_plugins(
+    dir: &std::path::Path,
+) -> Result<(skein_plugin_host::PluginManager, Refused), String> {
+    let manager = skein_plugin_host::PluginManager::new(skein_plugin_host::HostConfig::new(dir))
+        .map_err(|e| format!("plugins: {e}"))?;
+    let entries = manager
+        .scan()
+        .map_err(|e| format!("--plugin-dir {}: {e}", dir.display()))?;
+    let loaded: Vec<String> = entries
+        .iter()
+        .filter_map(|e| e.result.as_ref().ok())
+        .map(|i| format!("{} {}", i.name, i.version))
+        .collect();
+    let refused: Refused = entries
+        .iter()
+        .filter_map(|e| match &e.result {
+            Err(err) => Some((e.file.clone(), err.to_string())),
+            Ok(_) => None,
+        })
+        .collect();
+    println!(
+        "skein: plugins from {}: {} loaded ({}), {} refused",
+        dir.display(),
+        loaded.len(),
+        loaded.join(", "),
+        refused.len()
+    );
+    Ok((manager, refused))
+}
+
+/// Files the plugin scan refused, with the reason.
+type Refused = Vec<(PathBuf, String)>;
+
+/// Warns once per payload kind that a vehicle's model needs and no loaded plugin (nor a
+/// built-in) provides: those payloads will fail and be disabled by their supervisor while
+/// the vehicles fly on.
+fn warn_missing_kinds(
+    config: &skein_swarm::SwarmConfig,
+    endpoints: &[EndpointSpec],
+    factory: &dyn skein_payload::PayloadFactory,
+    plugin_dir: &std::path::Path,
+) {
+    let providers = factory.providers();
+    let mut warned = std::collections::BTreeSet::new();
+    for v in endpoints.iter().flat_map(|e| &e.vehicles) {
+        let model = config.model(v.model.as_deref().unwrap_or("generic"));
+        for p in &model.payloads {
+            let provided = providers.iter().any(|pr| {
+                pr.kinds.contains(&p.kind) && p.plugin.as_ref().is_none_or(|n| *n == pr.name)
+            });
+            if !provided && warned.insert(p.kind.clone()) {
+                tracing::warn!(
+                    "no plugin in {} provides payload kind `{}` (model `{}`, slot `{}`): those \
+                     payloads will fail and be disabled while the vehicles fly on; build the \
+                     plugins with `cargo build --release` (they land next to the skein binary) \
+                     or give --plugin-dir",
+                    plugin_dir.display(),
+                    p.kind,
+                    model.name,
+                    p.slot
+                );
+            }
+        }
+    }
+}
+
 /// [`SimControl`] for a simulator started after the swarm.
 struct LateSimControl(Arc<std::sync::OnceLock<skein_sim::Simulator>>);
 
@@ -423,5 +561,25 @@ impl skein_swarm::payload::SimulatorControl for LateSimControl {
         self.0.get().is_some_and(|sim| {
             SimControl(sim.clone()).set_link_quality(sysid, loss_fraction, latency_ms)
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sim_mix_alternates_generic_and_observation() {
+        let models: Vec<&str> = (1..=5).map(sim_mix_model).collect();
+        assert_eq!(
+            models,
+            [
+                "generic",
+                "observation",
+                "generic",
+                "observation",
+                "generic"
+            ]
+        );
     }
 }

@@ -227,6 +227,9 @@ pub enum CoordinatorMsg {
         serde_json::Value,
         RpcReplyPort<Result<serde_json::Value, PayloadCommandError>>,
     ),
+    /// Payload instances (vehicle id, slot) whose plugin was reloaded at this instant: their
+    /// vehicles re-create them on the new build (those created since are left alone).
+    RefreshPayloads(Vec<(String, String)>, Instant),
     /// The supervision tree.
     GetSupervision(RpcReplyPort<TreeNode>),
     /// The metrics in Prometheus text format.
@@ -1307,6 +1310,13 @@ impl Actor for Coordinator {
                     }
                 },
             },
+            CoordinatorMsg::RefreshPayloads(instances, at) => {
+                for (id, slot) in instances {
+                    if let Some(a) = state.vehicles.get(&id).and_then(|e| e.actor.as_ref()) {
+                        let _ = a.cast(VehicleMsg::RefreshPayload(slot, at));
+                    }
+                }
+            }
             CoordinatorMsg::GetSupervision(reply) => {
                 let _ = reply.send(state.supervision.tree());
             }

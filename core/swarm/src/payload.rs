@@ -5,6 +5,9 @@
 //! operator commands and MAVLink from the vehicle's components to it, and answers the
 //! watchdog. A driver error during a tick fails the actor (a crashed process-isolated
 //! plugin shows up that way), and the supervisor restarts it, which creates a new driver.
+//! The driver lives on an OS thread of its own and every call has a deadline (see
+//! [`PayloadActor`]): a plugin never blocks a tokio worker. When its plugin is reloaded the
+//! driver is re-created on the new build ([`PayloadMsg::Refresh`]) without a failure.
 //!
 //! What outlives the actor is [`PayloadShared`]: the state and the last video frame the
 //! payload published, so the API keeps showing them across restarts.
@@ -198,6 +201,10 @@ pub struct PayloadArgs {
     pub factory: Arc<dyn PayloadFactory>,
     /// The vehicle's services.
     pub host: Arc<dyn PayloadHost>,
+    /// How long one driver call (tick, command, MAVLink) may take before the actor gives
+    /// its driver thread up and fails (the supervisor then re-creates the payload). Keep it
+    /// below the watchdog deadline, so the failure names the call rather than a hang.
+    pub call_deadline: Duration,
 }
 
 /// Messages of [`PayloadActor`].
@@ -212,16 +219,257 @@ pub enum PayloadMsg {
     Ping(RpcReplyPort<()>),
     /// Fault injection.
     Fault(FaultKind),
+    /// From the driver thread: the driver was created (its tick rate, Hz) or could not be.
+    Ready(Result<f64, String>),
+    /// The driver's plugin library was reloaded at this instant: re-create the driver on the
+    /// new build unless it was created after that (a failure to re-create fails the actor).
+    Refresh(Instant),
 }
 
 /// The payload actor (see module docs).
+///
+/// The driver never runs on a tokio worker: each instance has an OS thread of its own
+/// (`payload-<vehicle>-<slot>`) that creates the driver, runs every call and drops it. The
+/// actor sends a call and awaits its answer with [`PayloadArgs::call_deadline`]; a call
+/// that does not return in time (an in-process plugin that hangs or spins) fails the actor
+/// and the thread is abandoned (counted by [`abandoned_driver_threads`]), so a stuck plugin
+/// never holds a worker the setpoint streams and other actors need. A panic on the thread
+/// is caught and fails the actor too.
 pub struct PayloadActor;
+
+/// Driver threads given up because a call did not return in time, since the process
+/// started (each holds its stuck driver until the call returns, if ever).
+pub fn abandoned_driver_threads() -> u64 {
+    ABANDONED.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+static ABANDONED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// One call into the driver, run on its thread.
+enum DriverCall {
+    Tick(f64),
+    Handle(Value),
+    Mavlink(u8, Box<MavMessage>),
+    /// Re-create the driver if it was created before this instant.
+    Refresh(Instant),
+}
+
+impl DriverCall {
+    fn name(&self) -> &'static str {
+        match self {
+            DriverCall::Tick(_) => "tick",
+            DriverCall::Handle(_) => "command",
+            DriverCall::Mavlink(..) => "on_mavlink",
+            DriverCall::Refresh(_) => "re-creation",
+        }
+    }
+}
+
+/// What the driver thread answers: the call's result (`Err(Ok(e))` the driver's error,
+/// `Err(Err(why))` a failure that leaves no usable driver: a panic, a failed re-creation)
+/// and the driver's tick rate after the call.
+type CallReply = (Result<Value, Result<String, String>>, f64);
+
+struct Job {
+    call: DriverCall,
+    reply: tokio::sync::oneshot::Sender<CallReply>,
+}
+
+/// True when a driver error says its plugin library was reloaded and the instance must be
+/// re-created to run the new build (the plugin host's `STALE_INSTANCE_ERROR` prefix).
+fn is_stale(error: &str) -> bool {
+    error.starts_with("plugin reloaded:")
+}
+
+fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
+    p.downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| p.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "non-string panic payload".into())
+}
+
+/// The driver thread: creates the driver, answers jobs until the actor drops its sender,
+/// re-creates the driver when its library was reloaded, drops it on this thread.
+fn driver_thread(
+    args: PayloadArgs,
+    jobs: std::sync::mpsc::Receiver<Job>,
+    actor: ActorRef<PayloadMsg>,
+) {
+    use std::panic::{AssertUnwindSafe, catch_unwind};
+    let create = || {
+        catch_unwind(AssertUnwindSafe(|| {
+            args.factory.create(&args.spec, args.host.clone())
+        }))
+        .unwrap_or_else(|p| Err(format!("panicked while creating: {}", panic_text(&*p))))
+    };
+    let mut created = Instant::now();
+    let mut driver = match create() {
+        Ok(d) => d,
+        Err(e) => {
+            let _ = actor.cast(PayloadMsg::Ready(Err(e)));
+            return;
+        }
+    };
+    if actor
+        .cast(PayloadMsg::Ready(Ok(driver.tick_rate_hz())))
+        .is_err()
+    {
+        return;
+    }
+    let run = |driver: &mut Box<dyn PayloadDriver>, call: &DriverCall| match call {
+        DriverCall::Tick(dt) => driver.tick(*dt).map(|()| Value::Null),
+        DriverCall::Handle(cmd) => driver.handle(cmd.clone()),
+        DriverCall::Mavlink(compid, msg) => driver.on_mavlink(*compid, msg).map(|()| Value::Null),
+        DriverCall::Refresh(_) => Ok(Value::Null),
+    };
+    // Replaces the driver by a new one from the current build of its plugin. The old one
+    // is dropped first, so that what it restores at shutdown (the radio's link) does not
+    // undo what the new one sets up.
+    let recreate = |driver: &mut Box<dyn PayloadDriver>, created: &mut Instant| {
+        drop(std::mem::replace(driver, Box::new(Retired)));
+        let c = Instant::now();
+        let fresh = create()?;
+        *driver = fresh;
+        *created = c;
+        tracing::info!(
+            vehicle = %args.host.vehicle_id(), slot = %args.spec.slot,
+            "payload re-created on the reloaded plugin"
+        );
+        Ok::<(), String>(())
+    };
+    while let Ok(job) = jobs.recv() {
+        if let DriverCall::Refresh(reloaded_at) = job.call {
+            // Created before the reload: replace it now; created since (at its first call
+            // after the reload, below): nothing to do.
+            let result = if created < reloaded_at {
+                recreate(&mut driver, &mut created)
+                    .map(|()| Value::Null)
+                    .map_err(|e| Ok(format!("re-creating it on the reloaded plugin failed: {e}")))
+            } else {
+                Ok(Value::Null)
+            };
+            let failed = result.is_err();
+            if job.reply.send((result, driver.tick_rate_hz())).is_err() || failed {
+                break;
+            }
+            continue;
+        }
+        let mut result = catch_unwind(AssertUnwindSafe(|| run(&mut driver, &job.call)));
+        if let Ok(Err(e)) = &result
+            && is_stale(e)
+        {
+            // The library was reloaded and the reload's notice has not reached us yet:
+            // re-create on the new build and repeat the call (a fresh driver's tick is
+            // harmless).
+            if let Err(e2) = recreate(&mut driver, &mut created) {
+                // No driver left: the actor must fail (its supervisor tries again).
+                let _ = job
+                    .reply
+                    .send((Err(Err(format!("{e}; re-creating it failed: {e2}"))), 0.0));
+                break;
+            }
+            result = catch_unwind(AssertUnwindSafe(|| run(&mut driver, &job.call)));
+        }
+        let rate = driver.tick_rate_hz();
+        let panicked = result.is_err();
+        let reply = match result {
+            Ok(Ok(v)) => Ok(v),
+            Ok(Err(e)) => Err(Ok(e)),
+            Err(p) => Err(Err(format!("panicked: {}", panic_text(&*p)))),
+        };
+        if job.reply.send((reply, rate)).is_err() || panicked {
+            // The actor gave up on this call, or the driver is poisoned by a panic.
+            break;
+        }
+    }
+    // The driver is dropped here, on its own thread (a process-isolated one reaps its
+    // child; a stuck destructor blocks nobody else).
+}
+
+/// Stands in for a driver being replaced (between dropping the old and creating the new).
+struct Retired;
+
+impl PayloadDriver for Retired {
+    fn tick_rate_hz(&self) -> f64 {
+        0.0
+    }
+
+    fn tick(&mut self, _dt_s: f64) -> Result<(), String> {
+        Err("the payload is being re-created".into())
+    }
+
+    fn handle(&mut self, _command: Value) -> Result<Value, String> {
+        Err("the payload is being re-created".into())
+    }
+}
 
 /// State of [`PayloadActor`].
 pub struct PayloadActorState {
-    driver: Box<dyn PayloadDriver>,
+    jobs: std::sync::mpsc::Sender<Job>,
+    thread: String,
     slot: String,
+    vehicle: String,
     last_tick: Instant,
+    tick_rate_hz: f64,
+    ticker: Option<tokio::task::JoinHandle<()>>,
+    call_deadline: Duration,
+    /// The driver exists (its thread said so); before, MAVLink is dropped and commands are
+    /// refused rather than queued behind a creation that may take seconds.
+    ready: bool,
+}
+
+impl PayloadActorState {
+    /// Runs `call` on the driver thread within the call deadline.
+    async fn call(&mut self, call: DriverCall) -> Result<Result<Value, String>, String> {
+        let what = call.name();
+        let (tx, rx) = tokio::sync::oneshot::channel();
+        if self.jobs.send(Job { call, reply: tx }).is_err() {
+            return Err(format!(
+                "payload `{}`: its driver thread has ended",
+                self.slot
+            ));
+        }
+        match tokio::time::timeout(self.call_deadline, rx).await {
+            Ok(Ok((result, rate))) => {
+                self.tick_rate_hz = rate;
+                match result {
+                    Ok(v) => Ok(Ok(v)),
+                    Err(Ok(e)) => Ok(Err(e)),
+                    Err(Err(why)) => Err(format!("payload `{}` {what}: {why}", self.slot)),
+                }
+            }
+            Ok(Err(_)) => Err(format!(
+                "payload `{}`: its driver thread ended during {what}",
+                self.slot
+            )),
+            Err(_) => {
+                ABANDONED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let why = format!(
+                    "payload `{}` {what} did not return within {} ms: driver thread `{}` \
+                     abandoned (a plugin that can hang belongs in process isolation)",
+                    self.slot,
+                    self.call_deadline.as_millis(),
+                    self.thread
+                );
+                tracing::error!(vehicle = %self.vehicle, "{why}");
+                Err(why)
+            }
+        }
+    }
+
+    fn schedule_ticks(&mut self, myself: &ActorRef<PayloadMsg>) {
+        if let Some(t) = self.ticker.take() {
+            t.abort();
+        }
+        let rate = self.tick_rate_hz;
+        if rate > 0.0 && rate.is_finite() {
+            self.ticker = Some(
+                myself.send_interval(Duration::from_secs_f64(1.0 / rate.min(1000.0)), || {
+                    PayloadMsg::Tick
+                }),
+            );
+        }
+    }
 }
 
 impl Actor for PayloadActor {
@@ -234,19 +482,40 @@ impl Actor for PayloadActor {
         myself: ActorRef<Self::Msg>,
         args: PayloadArgs,
     ) -> Result<Self::State, ActorProcessingErr> {
-        let driver = args
-            .factory
-            .create(&args.spec, args.host)
-            .map_err(|e| format!("payload `{}`: {e}", args.spec.slot))?;
-        let rate = driver.tick_rate_hz();
-        if rate > 0.0 {
-            myself.send_interval(Duration::from_secs_f64(1.0 / rate), || PayloadMsg::Tick);
-        }
+        let (jobs, rx) = std::sync::mpsc::channel();
+        let slot = args.spec.slot.clone();
+        let vehicle = args.host.vehicle_id().to_string();
+        let call_deadline = args.call_deadline;
+        let thread = format!("payload-{vehicle}-{slot}");
+        let me = myself.clone();
+        // The driver is created on its thread too: creating a process-isolated one starts a
+        // child and waits for it, which must not hold a tokio worker.
+        std::thread::Builder::new()
+            .name(thread.clone())
+            .spawn(move || driver_thread(args, rx, me))
+            .map_err(|e| format!("payload `{slot}`: cannot start its thread: {e}"))?;
         Ok(PayloadActorState {
-            driver,
-            slot: args.spec.slot,
+            jobs,
+            thread,
+            slot,
+            vehicle,
             last_tick: Instant::now(),
+            tick_rate_hz: 0.0,
+            ticker: None,
+            call_deadline,
+            ready: false,
         })
+    }
+
+    async fn post_stop(
+        &self,
+        _myself: ActorRef<Self::Msg>,
+        state: &mut Self::State,
+    ) -> Result<(), ActorProcessingErr> {
+        if let Some(t) = state.ticker.take() {
+            t.abort();
+        }
+        Ok(())
     }
 
     async fn handle(
@@ -256,23 +525,66 @@ impl Actor for PayloadActor {
         state: &mut Self::State,
     ) -> Result<(), ActorProcessingErr> {
         match msg {
+            PayloadMsg::Ready(Ok(rate)) => {
+                state.ready = true;
+                state.tick_rate_hz = rate;
+                state.last_tick = Instant::now();
+                state.schedule_ticks(&myself);
+            }
+            PayloadMsg::Ready(Err(e)) => {
+                return Err(format!("payload `{}`: {e}", state.slot).into());
+            }
             PayloadMsg::Tick => {
                 let now = Instant::now();
                 let dt = now.duration_since(state.last_tick).as_secs_f64();
+                // Ticks queued while a slow call ran are coalesced.
+                if state.tick_rate_hz > 0.0 && dt < 0.5 / state.tick_rate_hz {
+                    return Ok(());
+                }
                 state.last_tick = now;
+                let before = state.tick_rate_hz;
                 state
-                    .driver
-                    .tick(dt)
+                    .call(DriverCall::Tick(dt))
+                    .await?
                     .map_err(|e| format!("payload `{}` tick failed: {e}", state.slot))?;
+                if state.tick_rate_hz != before {
+                    state.schedule_ticks(&myself);
+                }
             }
+            PayloadMsg::Command(_, reply) if !state.ready => {
+                let _ = reply.send(Err(format!(
+                    "payload `{}` is still starting: try again",
+                    state.slot
+                )));
+            }
+            // Before the driver exists: MAVLink is dropped, and a reload is left to the
+            // new driver's first call (the host fails it if it came from the old build).
+            PayloadMsg::Mavlink(..) | PayloadMsg::Refresh(_) if !state.ready => {}
             PayloadMsg::Command(cmd, reply) => {
-                let _ = reply.send(state.driver.handle(cmd));
+                let before = state.tick_rate_hz;
+                // On a panic or a missed deadline the reply is dropped (the caller sees the
+                // payload fail) and the actor fails.
+                let answer = state.call(DriverCall::Handle(cmd)).await?;
+                let _ = reply.send(answer);
+                if state.tick_rate_hz != before {
+                    state.schedule_ticks(&myself);
+                }
             }
             PayloadMsg::Mavlink(compid, msg) => {
                 state
-                    .driver
-                    .on_mavlink(compid, &msg)
+                    .call(DriverCall::Mavlink(compid, msg))
+                    .await?
                     .map_err(|e| format!("payload `{}`: {e}", state.slot))?;
+            }
+            PayloadMsg::Refresh(at) => {
+                let before = state.tick_rate_hz;
+                state
+                    .call(DriverCall::Refresh(at))
+                    .await?
+                    .map_err(|e| format!("payload `{}`: {e}", state.slot))?;
+                if state.tick_rate_hz != before {
+                    state.schedule_ticks(&myself);
+                }
             }
             PayloadMsg::Ping(reply) => {
                 let _ = reply.send(());

@@ -484,6 +484,9 @@ pub enum VehicleMsg {
         serde_json::Value,
         RpcReplyPort<Result<serde_json::Value, crate::payload::PayloadCommandError>>,
     ),
+    /// The plugin of the payload in this slot was reloaded at this instant: re-create the
+    /// payload's driver on the new build (see [`PayloadMsg::Refresh`]).
+    RefreshPayload(String, Instant),
     /// Watchdog probe.
     Ping(RpcReplyPort<()>),
     /// Time to ping the children.
@@ -1134,6 +1137,9 @@ impl VehicleActorState {
                         spec,
                         factory: self.view.services.payloads.clone(),
                         host,
+                        // Half the watchdog's deadline: a stuck driver call fails the
+                        // payload naming the call before the watchdog calls it hung.
+                        call_deadline: self.supervision.config.watchdog_deadline() / 2,
                     },
                     myself.get_cell(),
                 )
@@ -1407,6 +1413,12 @@ impl Actor for Vehicle {
                     let _ = reply.send(Err(why));
                 }
             },
+            VehicleMsg::RefreshPayload(slot, at) => {
+                // A payload not running now is created from the new build when it starts.
+                if let Some(actor) = state.payload_actors.get(&slot) {
+                    let _ = actor.cast(PayloadMsg::Refresh(at));
+                }
+            }
             VehicleMsg::Ping(reply) => {
                 let _ = reply.send(());
             }

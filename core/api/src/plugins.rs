@@ -1,0 +1,288 @@
+//! `/api/v1/plugins`: the payload plugin libraries, their instances, and load / unload /
+//! reload at run time.
+//!
+//! - `GET /api/v1/plugins` → `{"plugin_dir", "libraries": [...], "providers": [...],
+//!   "refused": [{"file", "reason"}]}`. Each library: `name`, `version`, `kinds`, `file`,
+//!   `generation`, `status` (`loaded` | `superseded`), `instances` (`vehicle_id`, `slot`,
+//!   `kind`, `isolation`, `pid`, `generation`, `status`: `running` or `stale` when it still
+//!   runs a replaced build), `abi_version`, `build_stamp`, `loaded_at_unix_ms`. `providers`
+//!   lists every payload provider the vehicles use, plugins and the built-in one.
+//! - `POST /api/v1/plugins/load` `{"file": "libx.so"}` (relative to the plugin directory;
+//!   a file outside it is refused with 403) → the library.
+//! - `POST /api/v1/plugins/unload` `{"name": "x"}` → the library (409 while instances live,
+//!   naming them).
+//! - `POST /api/v1/plugins/reload` `{"name": "x"}` → `{"library", "previous_version",
+//!   "previous_generation", "stale_instances"}`; the vehicles re-create the stale
+//!   instances on the new build.
+//!
+//! Errors: 400 for a bad body (naming the field), 404 unknown plugin, 409 conflicts, 403
+//! outside the plugin directory, 422 a file that is not a loadable plugin (the message
+//! names the file and, for an ABI mismatch, what differs), 503 without a plugin host.
+
+use crate::error::ApiError;
+use crate::requests;
+use axum::http::StatusCode;
+use serde_json::{Value, json};
+use skein_payload::PayloadFactory;
+use skein_plugin_host::{HostError, LibraryInfo, PluginManager};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, PoisonError};
+
+/// Most refused files remembered for the listing.
+const MAX_REFUSED: usize = 64;
+
+/// The plugin host as the API sees it: the manager and the files it refused.
+pub struct PluginsApi {
+    manager: PluginManager,
+    refused: Mutex<Vec<(PathBuf, String)>>,
+}
+
+impl PluginsApi {
+    /// Wraps `manager`; `refused` are the files its start-up scan refused (file, reason).
+    pub fn new(manager: PluginManager, refused: Vec<(PathBuf, String)>) -> Arc<Self> {
+        Arc::new(PluginsApi {
+            manager,
+            refused: Mutex::new(refused),
+        })
+    }
+
+    fn remember_refused(&self, file: &Path, reason: String) {
+        let mut r = self.refused.lock().unwrap_or_else(PoisonError::into_inner);
+        r.retain(|(f, _)| f != file);
+        r.push((file.to_path_buf(), reason));
+        if r.len() > MAX_REFUSED {
+            r.remove(0);
+        }
+    }
+
+    fn forget_refused(&self, file: &Path) {
+        self.refused
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .retain(|(f, _)| f != file);
+    }
+}
+
+fn library_json(info: &LibraryInfo, current_generation: Option<u64>) -> Value {
+    let mut v = serde_json::to_value(info).unwrap_or(Value::Null);
+    if let Some(list) = v.get_mut("instances").and_then(Value::as_array_mut) {
+        for i in list {
+            let stale = match (current_generation, i["generation"].as_u64()) {
+                (Some(cur), Some(g)) => g < cur,
+                _ => true,
+            };
+            i["status"] = json!(if stale { "stale" } else { "running" });
+        }
+    }
+    v
+}
+
+/// The listing of `GET /api/v1/plugins`.
+pub fn list(plugins: Option<&PluginsApi>) -> Value {
+    let builtin = skein_swarm::payload::BuiltinPayloads.providers();
+    let provider = |p: &skein_payload::ProviderInfo, source: &str| json!({"name": p.name, "version": p.version, "kinds": p.kinds, "source": source});
+    let Some(pl) = plugins else {
+        return json!({
+            "plugin_dir": null,
+            "libraries": [],
+            "providers": builtin.iter().map(|p| provider(p, "builtin")).collect::<Vec<_>>(),
+            "refused": [],
+        });
+    };
+    let m = &pl.manager;
+    let libraries: Vec<Value> = m
+        .libraries()
+        .iter()
+        .map(|l| library_json(l, m.generation(&l.name)))
+        .collect();
+    let mut providers: Vec<Value> = m
+        .providers()
+        .iter()
+        .map(|p| provider(p, "plugin"))
+        .collect();
+    providers.extend(builtin.iter().map(|p| provider(p, "builtin")));
+    let refused: Vec<Value> = pl
+        .refused
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .iter()
+        .map(|(f, r)| json!({"file": f, "reason": r}))
+        .collect();
+    json!({
+        "plugin_dir": m.config().plugin_dir,
+        "libraries": libraries,
+        "providers": providers,
+        "refused": refused,
+    })
+}
+
+fn host_error(e: &HostError) -> ApiError {
+    let field = match e {
+        HostError::NotFound { .. } | HostError::InUse { .. } => "name",
+        HostError::Load { .. }
+        | HostError::NotAPlugin { .. }
+        | HostError::Incompatible { .. }
+        | HostError::Forbidden { .. }
+        | HostError::AlreadyLoaded { .. } => "file",
+    };
+    ApiError {
+        status: StatusCode::from_u16(e.http_status()).unwrap_or(StatusCode::BAD_REQUEST),
+        error: e.to_string(),
+        field: Some(field.to_string()),
+    }
+}
+
+/// A required non-empty string field of a body that has no other field.
+fn only_string(body: &[u8], field: &str) -> Result<String, ApiError> {
+    let m = requests::object(body)?;
+    if let Some(k) = m.keys().find(|k| k.as_str() != field) {
+        return Err(ApiError::field(
+            k,
+            format!("unknown field `{k}` (expected `{field}`)"),
+        ));
+    }
+    match m.get(field) {
+        Some(Value::String(s)) if !s.trim().is_empty() => Ok(s.clone()),
+        Some(Value::String(_)) => Err(ApiError::field(field, format!("{field} is empty"))),
+        Some(other) => Err(ApiError::field(
+            field,
+            format!("{field} must be a string, got {other}"),
+        )),
+        None => Err(ApiError::field(field, format!("missing field `{field}`"))),
+    }
+}
+
+fn no_host() -> ApiError {
+    ApiError::unavailable("this skein runs without a plugin host")
+}
+
+/// Runs a manager operation off the async workers (it copies and maps files).
+async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> Result<T, HostError> + Send + 'static,
+) -> Result<Result<T, HostError>, ApiError> {
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| ApiError::status(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))
+}
+
+/// `POST /api/v1/plugins/load`.
+///
+/// # Errors
+/// See the module docs.
+pub async fn load(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value, ApiError> {
+    let file = only_string(body, "file")?;
+    let pl = plugins.ok_or_else(no_host)?;
+    let m = pl.manager.clone();
+    let f = PathBuf::from(&file);
+    match blocking(move || m.load(&f)).await? {
+        Ok(info) => {
+            pl.forget_refused(&info.file);
+            let current = pl.manager.generation(&info.name);
+            Ok(library_json(&info, current))
+        }
+        Err(e) => {
+            if let HostError::Load { file, .. }
+            | HostError::NotAPlugin { file, .. }
+            | HostError::Incompatible { file, .. } = &e
+            {
+                pl.remember_refused(file, e.to_string());
+            }
+            Err(host_error(&e))
+        }
+    }
+}
+
+/// `POST /api/v1/plugins/unload`.
+///
+/// # Errors
+/// See the module docs.
+pub async fn unload(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value, ApiError> {
+    let name = only_string(body, "name")?;
+    let pl = plugins.ok_or_else(no_host)?;
+    let m = pl.manager.clone();
+    match blocking(move || m.unload(&name)).await? {
+        Ok(info) => Ok(library_json(&info, None)),
+        Err(e) => Err(host_error(&e)),
+    }
+}
+
+/// `POST /api/v1/plugins/reload`.
+///
+/// # Errors
+/// See the module docs.
+pub async fn reload(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value, ApiError> {
+    let name = only_string(body, "name")?;
+    let pl = plugins.ok_or_else(no_host)?;
+    let m = pl.manager.clone();
+    match blocking(move || m.reload(&name)).await? {
+        Ok(report) => Ok(json!({
+            "library": library_json(&report.library, Some(report.library.generation)),
+            "previous_version": report.previous_version,
+            "previous_generation": report.previous_generation,
+            "stale_instances": report.stale_instances,
+        })),
+        Err(e) => {
+            if let HostError::Load { file, .. }
+            | HostError::NotAPlugin { file, .. }
+            | HostError::Incompatible { file, .. } = &e
+            {
+                pl.remember_refused(file, e.to_string());
+            }
+            Err(host_error(&e))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bodies_name_the_field() {
+        assert_eq!(
+            only_string(br#"{"file": "libx.so"}"#, "file").unwrap(),
+            "libx.so"
+        );
+        let e = only_string(br#"{"fil": "libx.so"}"#, "file").unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("fil"), "{e:?}");
+        let e = only_string(br#"{"file": 3}"#, "file").unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("file"), "{e:?}");
+        let e = only_string(br#"{"file": " "}"#, "file").unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("file"), "{e:?}");
+        let e = only_string(b"{}", "name").unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("name"), "{e:?}");
+        assert_eq!(e.status, StatusCode::BAD_REQUEST);
+    }
+
+    #[test]
+    fn host_errors_map_to_statuses_and_fields() {
+        let e = host_error(&HostError::InUse {
+            name: "gimbal".into(),
+            instances: vec!["uav-2/gimbal".into()],
+        });
+        assert_eq!(e.status, StatusCode::CONFLICT);
+        assert_eq!(e.field.as_deref(), Some("name"));
+        assert!(e.error.contains("uav-2/gimbal"), "{}", e.error);
+        let e = host_error(&HostError::Incompatible {
+            file: "/p/libx.so".into(),
+            difference: "ABI version mismatch: 999 vs 1".into(),
+        });
+        assert_eq!(e.status, StatusCode::UNPROCESSABLE_ENTITY);
+        assert_eq!(e.field.as_deref(), Some("file"));
+        assert!(e.error.contains("/p/libx.so") && e.error.contains("ABI"));
+        let e = host_error(&HostError::Forbidden {
+            file: "/etc/x.so".into(),
+            reason: "outside".into(),
+        });
+        assert_eq!(e.status, StatusCode::FORBIDDEN);
+        assert_eq!(e.field.as_deref(), Some("file"));
+    }
+
+    #[test]
+    fn without_a_host_only_the_builtin_provider_is_listed() {
+        let v = list(None);
+        assert_eq!(v["libraries"], json!([]));
+        assert_eq!(v["providers"][0]["source"], "builtin");
+        assert_eq!(v["providers"][0]["kinds"][0], "fault-fixture");
+    }
+}
