@@ -117,3 +117,50 @@ fn bench_restart_restarts_every_panic_with_vehicles_offboard() {
     assert_eq!(report["offboard_loss_failsafes"], 0, "{report}");
     assert_eq!(report["all_offboard"], true, "{report}");
 }
+
+/// `skein bench plugins` on freshly built example and fault plugins, small counts: every
+/// figure present, and a socket round trip to a plugin-host child costs more than a call.
+#[test]
+fn bench_plugins_reports_round_trips_loads_and_restarts() {
+    let dir = support::plugins::scratch("bench-plugins");
+    support::plugins::build_into(&["skein-plugin-example", "skein-plugin-fault"], &[], &dir);
+    let dir_arg = dir.display().to_string();
+    let mut p = Process::start(&[
+        "bench",
+        "plugins",
+        "--plugin-dir",
+        &dir_arg,
+        "--round-trips",
+        "500",
+        "--isolated-round-trips",
+        "100",
+        "--loads",
+        "3",
+        "--restarts",
+        "5",
+    ]);
+    let line = p.wait_line("\"plugins\"", Duration::from_secs(240));
+    let code = p.wait_exit(Duration::from_secs(60));
+    assert_eq!(code, Some(0), "stderr:\n{}", p.stderr_text());
+    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+    let p50 = |path: &[&str]| {
+        let mut v = &report;
+        for k in path {
+            v = &v[*k];
+        }
+        v["p50"]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{path:?} missing in {report}"))
+    };
+    let local = p50(&["round_trip_us", "in_process"]);
+    let remote = p50(&["round_trip_us", "process"]);
+    assert!(local > 0.0 && remote > local, "{report}");
+    for key in [
+        "load_us",
+        "reload_us",
+        "restart_after_panic_us",
+        "restart_after_abort_us",
+    ] {
+        assert!(p50(&[key]) > 0.0, "{key}: {report}");
+    }
+}

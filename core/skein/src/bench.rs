@@ -78,6 +78,31 @@ pub enum BenchWhat {
     /// Injected panics of a payload actor under hovering vehicles: restart latency and
     /// the largest gap in the offboard setpoint stream.
     Restart(RestartBenchArgs),
+    /// Payload plugins: message round trips in-process and process-isolated, load and
+    /// reload times, restart times after a panic and after an abort.
+    Plugins(PluginsBenchArgs),
+}
+
+/// `skein bench plugins`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct PluginsBenchArgs {
+    /// Directory holding `libskein_plugin_example.so` and, for the restart figures,
+    /// `libskein_plugin_fault.so` (default: the directory of this executable, where
+    /// `cargo build --release` puts them).
+    #[arg(long, value_name = "DIR")]
+    pub plugin_dir: Option<std::path::PathBuf>,
+    /// In-process round trips measured.
+    #[arg(long, default_value_t = 20_000)]
+    pub round_trips: usize,
+    /// Process-isolated round trips measured.
+    #[arg(long, default_value_t = 2_000)]
+    pub isolated_round_trips: usize,
+    /// Loads and reloads measured.
+    #[arg(long, default_value_t = 30)]
+    pub loads: usize,
+    /// Restarts after a panic measured (and a fifth as many after an abort).
+    #[arg(long, default_value_t = 50)]
+    pub restarts: usize,
 }
 
 /// `skein bench restart`.
@@ -160,6 +185,13 @@ pub async fn run(args: BenchArgs) -> Result<(), String> {
         }
         BenchWhat::Restart(a) => {
             let report = restart(a).await?;
+            println!("{report}");
+            Ok(())
+        }
+        BenchWhat::Plugins(a) => {
+            let report = tokio::task::spawn_blocking(move || plugins(&a))
+                .await
+                .map_err(|e| e.to_string())??;
             println!("{report}");
             Ok(())
         }
@@ -834,6 +866,34 @@ async fn measure(
         "runtime_probe": probe_report(probe, late_threshold_ms),
         "host_other_cpu_s": other,
     }))
+}
+
+/// `skein bench plugins`: [`skein_plugin_host::bench_plugins`] on the plugin directory,
+/// the isolated instances in `skein plugin-host` children of this executable. JSON:
+/// `round_trip_us` (`in_process`, `process`: `n`, `p50`, `p99`, `max`), `load_us`,
+/// `reload_us`, `restart_after_panic_us`, `restart_after_abort_us`, and the plugin measured.
+///
+/// # Errors
+/// No example plugin in the directory, or a measurement failed.
+pub fn plugins(args: &PluginsBenchArgs) -> Result<Value, String> {
+    let dir = match &args.plugin_dir {
+        Some(d) => d.clone(),
+        None => std::env::current_exe()
+            .ok()
+            .and_then(|e| e.parent().map(std::path::Path::to_path_buf))
+            .ok_or("cannot find the skein executable's directory: give --plugin-dir")?,
+    };
+    let child = skein_plugin_host::ChildCommand::skein_subcommand()
+        .map_err(|e| format!("cannot find the skein executable: {e}"))?;
+    let mut cfg = skein_plugin_host::BenchConfig::new(&dir, child);
+    cfg.round_trips = args.round_trips.max(1);
+    cfg.isolated_round_trips = args.isolated_round_trips.max(1);
+    cfg.loads = args.loads.max(1);
+    cfg.restarts = args.restarts.max(1);
+    let mut report = skein_plugin_host::bench_plugins(&cfg)?;
+    report["bench"] = json!("plugins");
+    report["plugin_dir"] = json!(dir.display().to_string());
+    Ok(report)
 }
 
 /// Slot of the payload whose actor `skein bench restart` panics.
