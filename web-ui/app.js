@@ -31,7 +31,8 @@ let formation = null;
 const setFormation = (f) => {
   formation = f;
   plan.setFormation(f);
-  $('sum-formation-desc').textContent = f && f.shape ? (f.active ? `${f.shape} ${f.spacing_m} m` : `${f.shape} (inactive)`) : 'none';
+  const lead = f && f.leader_id ? ` · leader ${f.leader_id}` : '';
+  $('sum-formation-desc').textContent = f && f.shape ? (f.active ? `${f.shape} ${f.spacing_m} m${lead}` : `${f.shape} (inactive)`) : 'none';
   $('sum-formation-desc').title = describeFormation(f);
 };
 controls.onFormation = setFormation;

@@ -542,6 +542,10 @@ impl CoordinatorState {
         let slots = self
             .formation
             .tick(&members, dt, &self.view.config.geofence);
+        if self.formation.take_pending_applied() {
+            let status = serde_json::to_value(self.formation_status()).unwrap_or_default();
+            self.emit(SwarmEvent::FormationChanged { formation: status });
+        }
         for change in self.formation.take_leader_changes() {
             tracing::info!(
                 "formation leader {} -> {} ({})",

@@ -582,6 +582,8 @@ pub struct FormationEngine {
     pattern_rate: f64,
     /// A formation requested during a transition, applied when it ends.
     pending: Option<FormationSpec>,
+    /// The last tick put `pending` in force.
+    pending_applied: bool,
     /// Distance followers keep from a leader vehicle on their transition paths, metres.
     separation_m: f64,
 }
@@ -602,6 +604,7 @@ impl Default for FormationEngine {
             pattern_heading: None,
             pattern_rate: 0.0,
             pending: None,
+            pending_applied: false,
             separation_m: DEFAULT_SEPARATION_M,
         }
     }
@@ -698,6 +701,12 @@ impl FormationEngine {
         std::mem::take(&mut self.changes)
     }
 
+    /// True once after a tick that put a pending formation (requested during a
+    /// transition) in force (for the event stream).
+    pub fn take_pending_applied(&mut self) -> bool {
+        std::mem::take(&mut self.pending_applied)
+    }
+
     /// The member nearest to `to`, by id.
     fn nearest(members: &BTreeMap<String, Member>, to: Ned) -> Option<String> {
         members
@@ -788,6 +797,7 @@ impl FormationEngine {
             && let Some(next) = self.pending.take()
         {
             self.apply(next);
+            self.pending_applied = true;
         }
         let Some(spec) = self.spec.clone().filter(|_| self.active) else {
             return out;
@@ -1228,9 +1238,20 @@ mod tests {
             speed_m_s: 5.0,
         })
         .unwrap();
+        // The members track what they are sent perfectly (the pace would stop a
+        // formation whose members stay behind).
+        let mut fly = |e: &mut FormationEngine| {
+            let slots = e.tick(&members, 0.1, &fence());
+            for (id, s) in &slots {
+                let m = members.get_mut(id).unwrap();
+                m.position = s.position + s.velocity * 0.1;
+                m.velocity = s.velocity;
+            }
+            slots
+        };
         let mut slots = BTreeMap::new();
         for _ in 0..100 {
-            slots = e.tick(&members, 0.1, &fence());
+            slots = fly(&mut e);
         }
         // After 10 s at up to 5 m/s (accelerating at 2 m/s²): moving north at 5 m/s.
         let r = e.status(&[]).reference.unwrap();
@@ -1248,11 +1269,40 @@ mod tests {
         }
         assert_eq!(e.leader(), Some(VIRTUAL));
         for _ in 0..300 {
-            e.tick(&members, 0.1, &fence());
+            fly(&mut e);
         }
         let r = e.status(&[]).reference.unwrap();
         assert!(
             (r.position - Ned::new(100.0, 0.0, -10.0)).norm() < 0.1,
+            "{r:?}"
+        );
+    }
+
+    #[test]
+    fn a_member_left_behind_stops_the_virtual_leader() {
+        let mut e = FormationEngine::default();
+        e.set(FormationSpec {
+            leader: Some(VIRTUAL.into()),
+            altitude_m: Some(10.0),
+            ..spec()
+        });
+        let mut members = BTreeMap::new();
+        members.insert("a".to_string(), member(0.0, -5.0, -10.0));
+        members.insert("b".to_string(), member(0.0, 5.0, -10.0));
+        e.tick(&members, 0.1, &fence());
+        e.set_motion(LeaderMotion::GoTo {
+            target: Ned::new(100.0, 0.0, -10.0),
+            speed_m_s: 5.0,
+        })
+        .unwrap();
+        // The members never move: the reference sets off, then waits for them.
+        for _ in 0..200 {
+            e.tick(&members, 0.1, &fence());
+        }
+        let r = e.status(&[]).reference.unwrap();
+        assert!(r.velocity.norm() < 1e-6, "{r:?}");
+        assert!(
+            r.position.north_m > 0.5 && r.position.north_m < PACE_STOP_M + 1.0,
             "{r:?}"
         );
     }
