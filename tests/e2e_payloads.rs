@@ -441,6 +441,17 @@ fn payload_plugins_reach_the_running_swarm() {
         reason.contains("did not return within") && reason.contains("abandoned"),
         "{rec}"
     );
+    // The abandoned thread is counted at /metrics.
+    let (status, _, text) = skein.get_bytes("/metrics");
+    let text = String::from_utf8_lossy(&text);
+    let abandoned = text
+        .lines()
+        .find_map(|l| l.strip_prefix("skein_payload_driver_threads_abandoned "))
+        .and_then(|v| v.trim().parse::<u64>().ok());
+    assert!(
+        status == 200 && abandoned.is_some_and(|n| n >= 1),
+        "{status}: {text}"
+    );
 
     // (f) A process-isolated plugin that aborts: only its child dies, the payload restarts
     // with a new child.

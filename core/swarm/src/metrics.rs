@@ -34,6 +34,9 @@ pub struct Metrics {
     pub mavlink_malformed: Family<Labels, Gauge>,
     /// Setpoints sent, per vehicle (`vehicle` label).
     pub setpoints_sent: Family<Labels, Gauge>,
+    /// Payload driver threads given up because a call did not return in time (set from
+    /// [`crate::payload::abandoned_driver_threads`] at every render).
+    payload_threads_abandoned: Gauge,
 }
 
 impl std::fmt::Debug for Metrics {
@@ -67,6 +70,7 @@ impl Metrics {
         let slot_error_m = Family::<Labels, Gauge<f64, AtomicU64>>::default();
         let mavlink_malformed = Family::<Labels, Gauge>::default();
         let setpoints_sent = Family::<Labels, Gauge>::default();
+        let payload_threads_abandoned = Gauge::default();
         registry.register(
             "actor_failures",
             "Supervised actor failures (panic, error, hang), by actor kind",
@@ -118,6 +122,12 @@ impl Metrics {
             "Offboard setpoints sent, per vehicle",
             setpoints_sent.clone(),
         );
+        registry.register(
+            "payload_driver_threads_abandoned",
+            "Payload driver threads given up because a plugin call did not return within its \
+             deadline (each still holds its stuck driver)",
+            payload_threads_abandoned.clone(),
+        );
         Metrics {
             registry,
             failures,
@@ -131,6 +141,7 @@ impl Metrics {
             slot_error_m,
             mavlink_malformed,
             setpoints_sent,
+            payload_threads_abandoned,
         }
     }
 
@@ -161,6 +172,8 @@ impl Metrics {
 
     /// The OpenMetrics text exposition.
     pub fn render(&self) -> String {
+        self.payload_threads_abandoned
+            .set(i64::try_from(crate::payload::abandoned_driver_threads()).unwrap_or(i64::MAX));
         let mut out = String::new();
         encode(&mut out, &self.registry).expect("writing to a String cannot fail");
         out

@@ -242,17 +242,18 @@ impl SwarmView {
             .positions
             .write()
             .unwrap_or_else(PoisonError::into_inner);
+        let occupied = Occupied {
+            measured,
+            setpoint,
+            planned,
+        };
         if measured.is_none() && setpoint.is_none() {
             positions.remove(id);
+        } else if let Some(o) = positions.get_mut(id) {
+            // The usual case, every control tick: no allocation for the key.
+            *o = occupied;
         } else {
-            positions.insert(
-                id.to_string(),
-                Occupied {
-                    measured,
-                    setpoint,
-                    planned,
-                },
-            );
+            positions.insert(id.to_string(), occupied);
         }
     }
 
