@@ -53,20 +53,6 @@ fn up(n: usize, extra: &[&str]) -> Skein {
     Skein::up(&args)
 }
 
-fn take_off(skein: &Skein, ids: usize, altitude_m: f64) {
-    skein.wait_all("connected", ids, Duration::from_secs(30), |v| {
-        v["link"]["connected"] == true && v["position"].is_object()
-    });
-    let (status, body) = skein.post(
-        "/api/v1/swarm/commands",
-        json!({"command": "takeoff", "altitude_m": altitude_m}),
-    );
-    assert_eq!(status, 202, "{body}");
-    skein.wait_all("hovering", ids, Duration::from_secs(60), |v| {
-        v["state"] == "Hovering"
-    });
-}
-
 fn formation(skein: &Skein) -> Value {
     skein.get("/api/v1/formation").1
 }
@@ -92,7 +78,7 @@ fn settled(skein: &Skein, n: usize, tol: f64, within: Duration) {
 fn every_shape_behind_a_virtual_leader_at_5_m_s() {
     let skein = up(8, &[]);
     let stats = skein.sim_stats_addr();
-    take_off(&skein, 8, 10.0);
+    skein.take_off(8, 10.0);
     let mut min_sep = f64::INFINITY;
     let mut report = Vec::new();
     let mut north = 0.0;
@@ -188,7 +174,7 @@ fn every_shape_behind_a_virtual_leader_at_5_m_s() {
 fn the_leader_dies_and_the_nearest_member_takes_over_within_3_s() {
     let skein = up(5, &[]);
     let stats = skein.sim_stats_addr();
-    take_off(&skein, 5, 10.0);
+    skein.take_off(5, 10.0);
     let (status, body) = skein.put(
         "/api/v1/formation",
         json!({"shape": "wedge", "spacing_m": 6.0, "leader": "uav-3"}),
@@ -267,7 +253,7 @@ fn a_vehicle_that_joins_in_flight_gets_a_slot() {
     )
     .unwrap();
     let skein = up(4, &["--config", cfg.to_str().unwrap()]);
-    take_off(&skein, 4, 10.0);
+    skein.take_off(4, 10.0);
     let (status, body) = skein.put(
         "/api/v1/formation",
         json!({"shape": "line", "spacing_m": 5.0, "leader": "uav-1"}),
@@ -309,7 +295,7 @@ fn a_vehicle_that_joins_in_flight_gets_a_slot() {
 #[test]
 fn formation_requests_are_validated_field_by_field() {
     let skein = up(2, &[]);
-    take_off(&skein, 2, 8.0);
+    skein.take_off(2, 8.0);
     for (body, field) in [
         (json!({"shape": "diamond", "spacing_m": 5}), "shape"),
         (json!({"shape": "line", "spacing_m": 2}), "spacing_m"),

@@ -16,16 +16,9 @@ use serde_json::{Value, json};
 use std::path::Path;
 use std::time::{Duration, Instant};
 use support::plugins::{build_into, scratch};
-use support::{Skein, eventually, sim_stats, summary};
-
-/// The tests measure setpoint gaps on a 2-core machine: one swarm at a time.
-static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
-    ONE_AT_A_TIME
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-}
+use support::{
+    Skein, assert_no_failsafe_and_no_gap, eventually, one_at_a_time, sim_stats, summary,
+};
 
 const PACKAGES: [&str; 6] = [
     "skein-plugin-example",
@@ -66,23 +59,6 @@ fn write_config(dir: &Path, text: &str) -> String {
     let path = dir.join("skein.toml");
     std::fs::write(&path, text).unwrap();
     path.to_str().unwrap().to_string()
-}
-
-fn take_off(skein: &Skein, n: usize, altitude_m: f64) {
-    skein.wait_all(
-        "connected with positions",
-        n,
-        Duration::from_secs(60),
-        |v| v["link"]["connected"] == true && v["position"].is_object(),
-    );
-    let (status, body) = skein.post(
-        "/api/v1/swarm/commands",
-        json!({"command": "takeoff", "altitude_m": altitude_m}),
-    );
-    assert_eq!(status, 202, "{body}");
-    skein.wait_all("hovering", n, Duration::from_secs(90), |v| {
-        v["state"] == "Hovering"
-    });
 }
 
 fn try_payload(skein: &Skein, vehicle: &str, slot: &str) -> Result<Value, String> {
@@ -130,14 +106,6 @@ fn library(listing: &Value, name: &str) -> Option<Value> {
         .cloned()
 }
 
-fn restarts(skein: &Skein, path: &str) -> u64 {
-    skein
-        .supervised(path)
-        .unwrap_or_else(|| panic!("{path} not in the supervision tree"))["restarts"]
-        .as_u64()
-        .unwrap_or(0)
-}
-
 /// Waits until the payload at `path` has been restarted past `before` and runs again.
 fn restarted(skein: &Skein, path: &str, before: u64, what: &str) -> Value {
     eventually(what, Duration::from_secs(20), || {
@@ -146,24 +114,6 @@ fn restarted(skein: &Skein, path: &str, before: u64, what: &str) -> Value {
             other => Err(format!("{other:?}")),
         }
     })
-}
-
-/// No offboard-loss failsafe and no setpoint gap of 100 ms in OFFBOARD since the last
-/// reset; returns the worst gap, ms.
-fn assert_no_failsafe_and_no_gap(stats_addr: &str) -> f64 {
-    let stats = sim_stats(stats_addr, "stats");
-    let mut worst = 0.0f64;
-    for v in stats["vehicles"].as_array().unwrap() {
-        let sysid = &v["sysid"];
-        assert_eq!(
-            v["offboard_loss_failsafes"], 0,
-            "sysid {sysid} failed safe: {v}"
-        );
-        let gap = v["setpoint_max_gap_offboard_ms"].as_f64().unwrap();
-        assert!(gap < 100.0, "sysid {sysid}: setpoint gap {gap} ms");
-        worst = worst.max(gap);
-    }
-    worst
 }
 
 /// Checks the SOI and EOI markers, decodes the whole image with `jpeg-decoder` and returns
@@ -196,14 +146,23 @@ fn datagrams(skein: &Skein, port: &str) -> u64 {
         .unwrap()
 }
 
-/// Datagrams per second on `port` over `window`.
-fn datagram_rate(skein: &Skein, port: &str, window: Duration) -> f64 {
+/// Datagrams per second on `port`, over the time it takes to receive `count` of them
+/// (polled, with a deadline of 30 s).
+fn datagram_rate(skein: &Skein, port: &str, count: u64) -> f64 {
     let t0 = Instant::now();
     let d0 = datagrams(skein, port);
-    // A measurement window, not a wait for a condition.
-    std::thread::sleep(window);
-    let d1 = datagrams(skein, port);
-    (d1 - d0) as f64 / t0.elapsed().as_secs_f64()
+    eventually(
+        &format!("{count} datagrams on port {port}"),
+        Duration::from_secs(30),
+        || {
+            let d = datagrams(skein, port) - d0;
+            if d >= count {
+                Ok(d as f64 / t0.elapsed().as_secs_f64())
+            } else {
+                Err(format!("{d} so far"))
+            }
+        },
+    )
 }
 
 #[test]
@@ -242,7 +201,7 @@ fn payload_plugins_reach_the_running_swarm() {
         .collect();
     assert_eq!(ports.len(), 3, "{ports_line}");
     let stats = skein.sim_stats_addr();
-    take_off(&skein, 3, 8.0);
+    skein.take_off(3, 8.0);
     let t_flying = t_start.elapsed();
 
     // The default mix: every other vehicle is an observation UAV.
@@ -406,7 +365,7 @@ fn payload_plugins_reach_the_running_swarm() {
     // (e) An in-process plugin that panics: its payload is restarted, nothing else moves.
     assert_eq!(sim_stats(&stats, "reset")["ok"], true);
     let path = "coordinator/uav-1/payload/fault";
-    let before = restarts(&skein, path);
+    let before = skein.restarts(path);
     let (status, body) = skein.post(
         "/api/v1/vehicles/uav-1/payloads/fault",
         json!({"command": "panic"}),
@@ -429,7 +388,7 @@ fn payload_plugins_reach_the_running_swarm() {
     // An in-process plugin that hangs: the call deadline gives its thread up, the payload
     // is restarted, and no tokio worker was held (the setpoint streams never paused).
     let path3 = "coordinator/uav-3/payload/fault";
-    let before = restarts(&skein, path3);
+    let before = skein.restarts(path3);
     let (status, body) = skein.post(
         "/api/v1/vehicles/uav-3/payloads/fault",
         json!({"command": "hang"}),
@@ -464,7 +423,7 @@ fn payload_plugins_reach_the_running_swarm() {
     };
     let old_pid = pid_of(&plugins(&skein)).expect("a child pid for uav-1/fault_proc");
     let path = "coordinator/uav-1/payload/fault_proc";
-    let before = restarts(&skein, path);
+    let before = skein.restarts(path);
     let (status, body) = skein.post(
         "/api/v1/vehicles/uav-1/payloads/fault_proc",
         json!({"command": "abort"}),
@@ -565,7 +524,7 @@ fn payload_plugins_reach_the_running_swarm() {
     let worst_reload = assert_no_failsafe_and_no_gap(&stats);
 
     // (c) Radio: a poor link commanded on uav-2 really drops its MAVLink traffic.
-    let before_rate = datagram_rate(&skein, &ports[1], Duration::from_secs(2));
+    let before_rate = datagram_rate(&skein, &ports[1], 200);
     let (status, body) = skein.post(
         "/api/v1/vehicles/uav-2/payloads/radio",
         json!({"command": "override", "loss_fraction": 0.6, "latency_ms": 50.0}),
@@ -605,7 +564,7 @@ fn payload_plugins_reach_the_running_swarm() {
             }
         },
     );
-    let after_rate = datagram_rate(&skein, &ports[1], Duration::from_secs(2));
+    let after_rate = datagram_rate(&skein, &ports[1], 100);
     assert!(
         after_rate < 0.7 * before_rate,
         "uav-2's telemetry rate fell from {before_rate:.0}/s to {after_rate:.0}/s only"
@@ -678,7 +637,7 @@ fn missing_plugins_disable_the_payloads_and_the_vehicles_fly_on() {
             Err(format!("{p} {c}"))
         }
     });
-    take_off(&skein, 2, 6.0);
+    skein.take_off(2, 6.0);
     let (status, body) = skein.post(
         "/api/v1/vehicles/uav-2/payloads/gimbal",
         json!({"command": "neutral"}),

@@ -9,17 +9,10 @@ mod support;
 
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
-use support::{EventLog, Process, Skein, eventually, sim_stats, skein_bin, summary};
-
-/// These tests measure the setpoint stream's largest gap (< 100 ms) on a 2-core machine:
-/// they run one at a time, so that four swarms do not compete for the cores at once.
-static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
-    ONE_AT_A_TIME
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-}
+use support::{
+    EventLog, Process, Skein, assert_no_failsafe_and_no_gap, eventually, one_at_a_time, sim_stats,
+    skein_bin, summary,
+};
 
 const CONFIG: &str = r#"
 [supervision]
@@ -71,23 +64,6 @@ fn start(n: usize, config: &str, name: &str) -> Skein {
     ])
 }
 
-fn take_off(skein: &Skein, n: usize, altitude_m: f64) {
-    skein.wait_all(
-        "connected with positions",
-        n,
-        Duration::from_secs(30),
-        |v| v["link"]["connected"] == true && v["position"].is_object(),
-    );
-    let (status, body) = skein.post(
-        "/api/v1/swarm/commands",
-        json!({"command": "takeoff", "altitude_m": altitude_m}),
-    );
-    assert_eq!(status, 202, "{body}");
-    skein.wait_all("hovering", n, Duration::from_secs(60), |v| {
-        v["state"] == "Hovering"
-    });
-}
-
 /// Waits until every member is within 1 m of its slot; returns how long it took.
 fn formation_settled(skein: &Skein, n: usize, within: Duration) -> Duration {
     let t0 = Instant::now();
@@ -107,36 +83,12 @@ fn formation_settled(skein: &Skein, n: usize, within: Duration) -> Duration {
     t0.elapsed()
 }
 
-fn restarts(skein: &Skein, path: &str) -> u64 {
-    skein
-        .supervised(path)
-        .unwrap_or_else(|| panic!("{path} not in the supervision tree"))["restarts"]
-        .as_u64()
-        .unwrap()
-}
-
-fn assert_no_failsafe_and_no_gap(stats_addr: &str) -> f64 {
-    let stats = sim_stats(stats_addr, "stats");
-    let mut worst = 0.0f64;
-    for v in stats["vehicles"].as_array().unwrap() {
-        let sysid = &v["sysid"];
-        assert_eq!(
-            v["offboard_loss_failsafes"], 0,
-            "sysid {sysid} failed safe: {v}"
-        );
-        let gap = v["setpoint_max_gap_offboard_ms"].as_f64().unwrap();
-        assert!(gap < 100.0, "sysid {sysid}: setpoint gap {gap} ms");
-        worst = worst.max(gap);
-    }
-    worst
-}
-
 #[test]
 fn every_kind_of_actor_recovers_from_panics_and_hangs_while_the_swarm_flies() {
     let _serial = one_at_a_time();
     let skein = start(4, CONFIG, "recover");
     let stats = skein.sim_stats_addr();
-    take_off(&skein, 4, 10.0);
+    skein.take_off(4, 10.0);
     let (status, body) = skein.put(
         "/api/v1/formation",
         json!({"shape": "line", "spacing_m": 5.0, "leader": "uav-1"}),
@@ -156,7 +108,7 @@ fn every_kind_of_actor_recovers_from_panics_and_hangs_while_the_swarm_flies() {
     let mut report = Vec::new();
     for target in targets {
         for kind in ["panic", "hang"] {
-            let before = restarts(&skein, target);
+            let before = skein.restarts(target);
             let t0 = Instant::now();
             // The API restarting may cut this very request: the tree says what happened.
             if let Some((status, body)) =
@@ -253,7 +205,7 @@ fn spent_budgets_escalate_a_payload_is_disabled_and_a_vehicle_is_held() {
     let _serial = one_at_a_time();
     let skein = start(2, TIGHT_BUDGETS, "escalate");
     let stats = skein.sim_stats_addr();
-    take_off(&skein, 2, 8.0);
+    skein.take_off(2, 8.0);
     assert_eq!(sim_stats(&stats, "reset")["ok"], true);
 
     // A payload failing faster than its budget (1 restart): disabled, the vehicle flies on.

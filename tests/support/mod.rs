@@ -2,7 +2,7 @@
 //! free ports, talk to it over HTTP only, poll with deadlines, and find the Python peers.
 #![allow(dead_code)] // each test binary uses a different subset
 
-use serde_json::Value;
+use serde_json::{Value, json};
 use std::io::{BufRead, BufReader};
 use std::net::{SocketAddr, TcpListener, UdpSocket};
 use std::path::{Path, PathBuf};
@@ -10,6 +10,8 @@ use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
+
+mod plugin_build;
 
 /// The `skein` binary cargo built for this test run.
 pub fn skein_bin() -> &'static str {
@@ -22,6 +24,34 @@ pub fn workspace() -> PathBuf {
         .join("../..")
         .canonicalize()
         .expect("workspace root")
+}
+
+/// The flying tests measure setpoint gaps on a 2-core machine: one swarm at a time within
+/// a test binary (hold the guard for the whole test).
+pub fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+    ONE_AT_A_TIME
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Asserts that no simulated vehicle took the offboard-loss failsafe and that no setpoint
+/// gap in OFFBOARD reached 100 ms since the simulator's last reset (stats socket at
+/// `stats_addr`); returns the worst gap, ms.
+pub fn assert_no_failsafe_and_no_gap(stats_addr: &str) -> f64 {
+    let stats = sim_stats(stats_addr, "stats");
+    let mut worst = 0.0f64;
+    for v in stats["vehicles"].as_array().unwrap() {
+        let sysid = &v["sysid"];
+        assert_eq!(
+            v["offboard_loss_failsafes"], 0,
+            "sysid {sysid} failed safe: {v}"
+        );
+        let gap = v["setpoint_max_gap_offboard_ms"].as_f64().unwrap();
+        assert!(gap < 100.0, "sysid {sysid}: setpoint gap {gap} ms");
+        worst = worst.max(gap);
+    }
+    worst
 }
 
 /// Polls `f` every 50 ms until it returns `Some`, or panics after `timeout` with `what`
@@ -507,6 +537,33 @@ impl EventLog {
 }
 
 impl Skein {
+    /// Waits until `n` vehicles are connected with a position, takes the swarm off to
+    /// `altitude_m` and waits until all `n` hover.
+    pub fn take_off(&self, n: usize, altitude_m: f64) {
+        self.wait_all(
+            "connected with positions",
+            n,
+            Duration::from_secs(60),
+            |v| v["link"]["connected"] == true && v["position"].is_object(),
+        );
+        let (status, body) = self.post(
+            "/api/v1/swarm/commands",
+            json!({"command": "takeoff", "altitude_m": altitude_m}),
+        );
+        assert_eq!(status, 202, "{body}");
+        self.wait_all("hovering", n, Duration::from_secs(90), |v| {
+            v["state"] == "Hovering"
+        });
+    }
+
+    /// Restarts of the supervised actor at `path` so far.
+    pub fn restarts(&self, path: &str) -> u64 {
+        self.supervised(path)
+            .unwrap_or_else(|| panic!("{path} not in the supervision tree"))["restarts"]
+            .as_u64()
+            .unwrap_or_else(|| panic!("{path}: no restart count"))
+    }
+
     /// `GET path` → (status, content type, raw body): snapshots and other binary bodies.
     pub fn get_bytes(&self, path: &str) -> (u16, String, Vec<u8>) {
         let url = format!("{}{path}", self.base);
@@ -534,122 +591,9 @@ impl Skein {
 /// (`workspace` when the run is `cargo test --workspace`, so no dependency is compiled
 /// twice with other features), then copies of the libraries.
 pub mod plugins {
+    #[allow(unused_imports)] // each test binary uses a different subset
+    pub use super::plugin_build::{build_into, lib_file};
     use std::path::{Path, PathBuf};
-    use std::process::Command;
-    use std::sync::Mutex;
-    use std::time::Instant;
-
-    /// Environment variables that select plugin build variants; cleared for the default
-    /// build.
-    const VARIANT_VARS: [&str; 2] = ["SKEIN_EXAMPLE_VERSION", "SKEIN_FIXTURE_MISMATCH"];
-
-    /// Serialises builds within this process (variants overwrite the same output file).
-    static BUILD_LOCK: Mutex<()> = Mutex::new(());
-
-    struct Layout {
-        target_dir: PathBuf,
-        out_dir: PathBuf,
-        args: Vec<String>,
-    }
-
-    fn layout() -> Layout {
-        // <target>/[<triple>/]<profile>/deps/<test binary>
-        let exe = std::env::current_exe().expect("test executable path");
-        let out_dir = exe
-            .parent()
-            .and_then(Path::parent)
-            .expect("test binary under <profile>/deps")
-            .to_path_buf();
-        let profile = out_dir.file_name().unwrap().to_string_lossy().into_owned();
-        let above = out_dir.parent().unwrap().to_path_buf();
-        let (target_dir, triple) =
-            if above.join("CACHEDIR.TAG").exists() || above.join(".rustc_info.json").exists() {
-                (above, None)
-            } else {
-                let triple = above.file_name().unwrap().to_string_lossy().into_owned();
-                (above.parent().unwrap().to_path_buf(), Some(triple))
-            };
-        let mut args = match profile.as_str() {
-            "debug" => vec![],
-            "release" => vec!["--release".to_string()],
-            other => vec!["--profile".to_string(), other.to_string()],
-        };
-        if let Some(t) = triple {
-            args.extend(["--target".to_string(), t]);
-        }
-        Layout {
-            target_dir,
-            out_dir,
-            args,
-        }
-    }
-
-    /// The library file cargo produces for a package (`libskein_plugin_gimbal.so`).
-    pub fn lib_file(package: &str) -> String {
-        format!("lib{}.so", package.replace('-', "_"))
-    }
-
-    fn selection(packages: &[&str]) -> Vec<String> {
-        if std::env::var("SKEIN_PLUGIN_TEST_SELECTION").as_deref() == Ok("workspace") {
-            return vec!["--workspace".into(), "--all-targets".into()];
-        }
-        let mut args = vec!["-p".to_string(), env!("CARGO_PKG_NAME").to_string()];
-        for p in packages {
-            args.extend(["-p".to_string(), p.to_string()]);
-        }
-        args
-    }
-
-    /// Builds `packages` with `env` set (the other variant variables cleared) and copies
-    /// each library into `dest`; returns the copies.
-    pub fn build_into(packages: &[&str], env: &[(&str, &str)], dest: &Path) -> Vec<PathBuf> {
-        let _lock = BUILD_LOCK.lock().unwrap_or_else(|p| p.into_inner());
-        let l = layout();
-        // Other test processes on the same target directory (the plugin host's tests) build
-        // the same outputs: hold their file lock across build and copy.
-        let lock_file = std::fs::File::create(l.target_dir.join("skein-plugin-test-build.lock"))
-            .expect("create the build lock file");
-        lock_file.lock().expect("lock the build lock file");
-        let mut cmd = Command::new(env!("CARGO"));
-        cmd.current_dir(super::workspace())
-            .arg("build")
-            .arg("--quiet")
-            .arg("--target-dir")
-            .arg(&l.target_dir)
-            .args(&l.args)
-            .args(selection(packages));
-        for v in VARIANT_VARS {
-            cmd.env_remove(v);
-        }
-        for (k, v) in env {
-            cmd.env(k, v);
-        }
-        let started = Instant::now();
-        let out = cmd.output().expect("run cargo build");
-        assert!(
-            out.status.success(),
-            "cargo build {packages:?} {env:?} failed:\n{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        eprintln!(
-            "built {packages:?} {env:?} in {:.1} s",
-            started.elapsed().as_secs_f64()
-        );
-        std::fs::create_dir_all(dest).unwrap();
-        packages
-            .iter()
-            .map(|p| {
-                let src = l.out_dir.join(lib_file(p));
-                let dst = dest.join(lib_file(p));
-                // Write a new file and rename it over the old: a loaded library's file is
-                // never rewritten in place.
-                let tmp = dest.join(format!(".{}.tmp", lib_file(p)));
-                std::fs::copy(&src, &tmp).unwrap_or_else(|e| panic!("copy {}: {e}", src.display()));
-                std::fs::rename(&tmp, &dst).unwrap();
-                dst
-            })
-            .collect()
-    }
 
     /// A fresh directory private to this test process (`name` tells what it holds);
     /// directories of earlier runs whose process is gone are removed.

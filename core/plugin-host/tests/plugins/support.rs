@@ -10,7 +10,6 @@ use skein_model::vehicle::{LinkStatus, Position, VehicleSnapshot, Velocity};
 use skein_plugin_host::{ChildCommand, HostConfig, PayloadHost, PluginManager};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
@@ -24,132 +23,10 @@ pub const PLUGIN_PACKAGES: [&str; 6] = [
     "skein-plugin-abi-mismatch",
 ];
 
-/// Environment variables that select plugin build variants; cleared for the default build.
-const VARIANT_VARS: [&str; 2] = ["SKEIN_EXAMPLE_VERSION", "SKEIN_FIXTURE_MISMATCH"];
-
-/// Serialises builds: variants of one crate overwrite the same output file, so a build and
-/// the copy of its output must not interleave with another build.
-static BUILD_LOCK: Mutex<()> = Mutex::new(());
-
-/// Where the running test binary was built: the target directory, the profile's output
-/// directory, and the cargo arguments that select the same profile and target.
-struct Layout {
-    target_dir: PathBuf,
-    out_dir: PathBuf,
-    args: Vec<String>,
-}
-
-fn layout() -> Layout {
-    // <target>/[<triple>/]<profile>/deps/<test binary>
-    let exe = std::env::current_exe().expect("test executable path");
-    let out_dir = exe
-        .parent()
-        .and_then(Path::parent)
-        .expect("test binary under <profile>/deps")
-        .to_path_buf();
-    let profile = out_dir.file_name().unwrap().to_string_lossy().into_owned();
-    let above = out_dir.parent().unwrap().to_path_buf();
-    let (target_dir, triple) =
-        if above.join("CACHEDIR.TAG").exists() || above.join(".rustc_info.json").exists() {
-            (above, None)
-        } else {
-            let triple = above.file_name().unwrap().to_string_lossy().into_owned();
-            (above.parent().unwrap().to_path_buf(), Some(triple))
-        };
-    let mut args = match profile.as_str() {
-        "debug" => vec![],
-        "release" => vec!["--release".to_string()],
-        other => vec!["--profile".to_string(), other.to_string()],
-    };
-    if let Some(t) = triple {
-        args.extend(["--target".to_string(), t]);
-    }
-    Layout {
-        target_dir,
-        out_dir,
-        args,
-    }
-}
-
-fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .canonicalize()
-        .expect("workspace root")
-}
-
-/// The library file cargo produces for a package.
-pub fn lib_file(package: &str) -> String {
-    format!("lib{}.so", package.replace('-', "_"))
-}
-
-/// The package selection of the plugin build. Cargo unifies dependency features over the
-/// packages a command selects, so building the plugins alone would compile their shared
-/// dependencies (the MAVLink dialect above all) a second time with other features. The
-/// selection therefore mirrors the test run's own:
-/// - default (`cargo test -p skein-plugin-host`): this crate plus the plugins;
-/// - `SKEIN_PLUGIN_TEST_SELECTION=workspace` (set it when the run is
-///   `cargo test --workspace`): the whole workspace with all targets, which after the test
-///   build only adds the plugin libraries.
-fn selection(packages: &[&str]) -> Vec<String> {
-    if std::env::var("SKEIN_PLUGIN_TEST_SELECTION").as_deref() == Ok("workspace") {
-        return vec!["--workspace".into(), "--all-targets".into()];
-    }
-    let mut args = vec!["-p".to_string(), env!("CARGO_PKG_NAME").to_string()];
-    for p in packages {
-        args.extend(["-p".to_string(), p.to_string()]);
-    }
-    args
-}
-
-/// Builds `packages` with the test's own cargo, target directory and profile (so the
-/// dependencies the test build compiled are reused, see [`selection`]), with `env` set and
-/// the other variant variables cleared; copies each library into `dest`. Returns the
-/// copies.
-fn build_into(packages: &[&str], env: &[(&str, &str)], dest: &Path) -> Vec<PathBuf> {
-    let _lock = BUILD_LOCK.lock().unwrap_or_else(|p| p.into_inner());
-    let l = layout();
-    // Another test process on the same target directory would overwrite the outputs
-    // between our build and our copy: hold a file lock across both.
-    let lock_file = std::fs::File::create(l.target_dir.join("skein-plugin-test-build.lock"))
-        .expect("create the build lock file");
-    lock_file.lock().expect("lock the build lock file");
-    let mut cmd = Command::new(env!("CARGO"));
-    cmd.current_dir(workspace_root())
-        .arg("build")
-        .arg("--quiet")
-        .arg("--target-dir")
-        .arg(&l.target_dir)
-        .args(&l.args)
-        .args(selection(packages));
-    for v in VARIANT_VARS {
-        cmd.env_remove(v);
-    }
-    for (k, v) in env {
-        cmd.env(k, v);
-    }
-    let started = Instant::now();
-    let out = cmd.output().expect("run cargo build");
-    assert!(
-        out.status.success(),
-        "cargo build {packages:?} {env:?} failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    eprintln!(
-        "built {packages:?} {env:?} in {:.1} s",
-        started.elapsed().as_secs_f64()
-    );
-    std::fs::create_dir_all(dest).unwrap();
-    packages
-        .iter()
-        .map(|p| {
-            let src = l.out_dir.join(lib_file(p));
-            let dst = dest.join(lib_file(p));
-            std::fs::copy(&src, &dst).unwrap_or_else(|e| panic!("copy {}: {e}", src.display()));
-            dst
-        })
-        .collect()
-}
+/// The plugin build, shared with skein's end-to-end tests.
+#[path = "../../../../tests/support/plugin_build.rs"]
+mod plugin_build;
+pub use plugin_build::{build_into, lib_file};
 
 /// A directory private to this test process.
 pub fn scratch(name: &str) -> PathBuf {
