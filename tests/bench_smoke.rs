@@ -104,11 +104,11 @@ fn bench_restart_restarts_every_panic_with_vehicles_offboard() {
     assert_eq!(report["restarts"], 40, "{report}");
     for key in ["restart_latency_us", "inject_to_running_us"] {
         let (p50, p99, max) = (
-            report[key]["p50"].as_u64().expect("p50"),
-            report[key]["p99"].as_u64().expect("p99"),
-            report[key]["max"].as_u64().expect("max"),
+            report[key]["p50"].as_f64().expect("p50"),
+            report[key]["p99"].as_f64().expect("p99"),
+            report[key]["max"].as_f64().expect("max"),
         );
-        assert!(p50 > 0 && p50 <= p99 && p99 <= max, "{key}: {report}");
+        assert!(p50 > 0.0 && p50 <= p99 && p99 <= max, "{key}: {report}");
     }
     assert!(
         report["largest_setpoint_gap_ms"].as_f64().unwrap_or(0.0) > 0.0,

@@ -110,8 +110,10 @@ impl PayloadHost for BenchHost {
     }
 }
 
-/// p50 / p99 / mean / max of durations in microseconds.
-fn summary(mut us: Vec<f64>) -> Value {
+/// `{"n", "p50", "p99", "mean", "max"}` of durations in microseconds (nearest-rank
+/// percentiles, rounded to 0.1 µs); `null` for no samples. Also used by `skein bench
+/// restart`.
+pub fn summary(mut us: Vec<f64>) -> Value {
     if us.is_empty() {
         return Value::Null;
     }

@@ -41,7 +41,7 @@ pub mod protocol;
 mod registry;
 mod services;
 
-pub use bench::{BenchConfig, bench_plugins};
+pub use bench::{BenchConfig, bench_plugins, summary as latency_summary_us};
 pub use child::{PluginHostArgs, plugin_host_main};
 pub use error::HostError;
 pub use isolated::ChildCommand;

@@ -910,7 +910,7 @@ const RESTART_BENCH_SLOT: &str = "fixture";
 ///    through the coordinator (the path of `POST /api/v1/faults`), round-robin over the
 ///    vehicles, one every `period_ms` at most, each time waiting for the
 ///    `actor_restarted` event of that payload;
-/// 4. prints `restart_latency_us` (`p50`, `p99`, `max`, `mean`: the supervisor's own
+/// 4. prints `restart_latency_us` (`n`, `p50`, `p99`, `max`, `mean`: the supervisor's own
 ///    measure, from the failure being noticed to the replacement answering its first
 ///    message), `inject_to_running_us` (the same seen from outside: from the fault request
 ///    to the restart event), `restarts`, `largest_setpoint_gap_ms` (the longest interval
@@ -982,24 +982,6 @@ pub async fn restart(args: RestartBenchArgs) -> Result<Value, String> {
     result
 }
 
-/// Percentiles of microsecond samples (sorted in place).
-fn us_report(samples: &mut [u64]) -> Value {
-    samples.sort_unstable();
-    let at = |q: f64| {
-        samples
-            .get(((samples.len() as f64 * q).ceil() as usize).saturating_sub(1))
-            .copied()
-            .unwrap_or(0)
-    };
-    let mean = samples.iter().sum::<u64>() as f64 / samples.len().max(1) as f64;
-    json!({
-        "p50": at(0.5),
-        "p99": at(0.99),
-        "max": samples.last().copied().unwrap_or(0),
-        "mean": round(mean, 1),
-    })
-}
-
 async fn panic_payloads(
     swarm: &Swarm,
     sim: &mut SimProcess,
@@ -1020,8 +1002,8 @@ async fn panic_payloads(
     );
     let mut events = swarm.events.subscribe();
     sim.ask("reset").await?;
-    let mut latency_us = Vec::with_capacity(args.panics);
-    let mut outside_us = Vec::with_capacity(args.panics);
+    let mut latency_us: Vec<f64> = Vec::with_capacity(args.panics);
+    let mut outside_us: Vec<f64> = Vec::with_capacity(args.panics);
     let t0 = Instant::now();
     let mut next = tokio::time::Instant::now();
     for i in 0..args.panics {
@@ -1053,8 +1035,8 @@ async fn panic_payloads(
                     latency_us: l,
                     ..
                 })) if p == path => {
-                    outside_us.push(asked.elapsed().as_micros() as u64);
-                    latency_us.push(l);
+                    outside_us.push(asked.elapsed().as_secs_f64() * 1e6);
+                    latency_us.push(l as f64);
                     break;
                 }
                 Ok(Ok(_)) | Ok(Err(tokio::sync::broadcast::error::RecvError::Lagged(_))) => {}
@@ -1078,8 +1060,8 @@ async fn panic_payloads(
         "period_ms": args.period_ms,
         "panics": args.panics,
         "restarts": latency_us.len(),
-        "restart_latency_us": us_report(&mut latency_us),
-        "inject_to_running_us": us_report(&mut outside_us),
+        "restart_latency_us": skein_plugin_host::latency_summary_us(latency_us),
+        "inject_to_running_us": skein_plugin_host::latency_summary_us(outside_us),
         "largest_setpoint_gap_ms": f64_at(&summary["setpoint_intervals"], &["max_ms"]),
         "setpoint_interval_p99_ms": f64_at(&summary["setpoint_intervals"], &["p99_ms"]),
         "offboard_loss_failsafes": u64_at(&summary, "offboard_loss_failsafes"),
