@@ -1,0 +1,412 @@
+//! The formation engine's state between ticks ([`FormationEngine`]): setting and
+//! stopping a formation, the tick that turns the members' state into slot commands
+//! (leader, reference point, pattern, assignment, transition), and the status it shows.
+
+use super::assignment::assign;
+use super::leader::{LeaderChange, healthy, resolve_leader};
+use super::pattern::{spin, turn};
+use super::reference::{Reference, inner_fence, pace};
+use super::spec::{FormationFrame, FormationSpec, LeaderMotion, VIRTUAL};
+use super::status::{FormationStatus, Member, MemberStatus, SlotCommand};
+use super::transition::Transition;
+use skein_model::formation::slot_positions;
+use skein_model::geo::Ned;
+use skein_model::safety::Geofence;
+use std::collections::BTreeMap;
+
+/// Separation of [`FormationEngine::default`] (3 m plus the default 0.5 m margin), metres.
+pub const DEFAULT_SEPARATION_M: f64 = 3.5;
+
+/// Formation state between ticks.
+#[derive(Debug)]
+pub struct FormationEngine {
+    spec: Option<FormationSpec>,
+    active: bool,
+    leader: Option<String>,
+    reference: Option<Reference>,
+    assignment: BTreeMap<String, usize>,
+    last: Vec<MemberStatus>,
+    changes: Vec<LeaderChange>,
+    transition: Option<Transition>,
+    /// Where each member was sent at the last tick: its offset from the anchor (swarm
+    /// frame axes, i.e. already turned by the heading of that tick).
+    commanded: BTreeMap<String, Ned>,
+    /// Where each member was sent at the last tick and how fast that place moved, swarm
+    /// frame (metres, m/s), for the pace of the formation.
+    sent: BTreeMap<String, (Ned, Ned)>,
+    /// Heading of the slot pattern at the last tick, radians.
+    pattern_heading: Option<f64>,
+    /// Its rate of turn, rad/s.
+    pattern_rate: f64,
+    /// A formation requested during a transition, applied when it ends.
+    pending: Option<FormationSpec>,
+    /// The last tick put `pending` in force.
+    pending_applied: bool,
+    /// Distance followers keep from a leader vehicle on their transition paths, metres.
+    separation_m: f64,
+}
+
+impl Default for FormationEngine {
+    fn default() -> Self {
+        FormationEngine {
+            spec: None,
+            active: false,
+            leader: None,
+            reference: None,
+            assignment: BTreeMap::new(),
+            last: Vec::new(),
+            changes: Vec::new(),
+            transition: None,
+            commanded: BTreeMap::new(),
+            sent: BTreeMap::new(),
+            pattern_heading: None,
+            pattern_rate: 0.0,
+            pending: None,
+            pending_applied: false,
+            separation_m: DEFAULT_SEPARATION_M,
+        }
+    }
+}
+
+impl FormationEngine {
+    /// An engine whose transitions keep followers `separation_m` from a leader vehicle
+    /// (the swarm's setpoint separation).
+    pub fn new(separation_m: f64) -> Self {
+        FormationEngine {
+            separation_m,
+            ..FormationEngine::default()
+        }
+    }
+
+    /// The spec in force.
+    pub fn spec(&self) -> Option<&FormationSpec> {
+        self.spec.as_ref()
+    }
+
+    /// True while the formation is flown.
+    pub fn is_active(&self) -> bool {
+        self.active && self.spec.is_some()
+    }
+
+    /// The leader in force (vehicle id or `"virtual"`).
+    pub fn leader(&self) -> Option<&str> {
+        self.leader.as_deref()
+    }
+
+    /// Sets a new formation. The reference point stays where it is (a shape change in
+    /// flight reshapes around the same point) unless there is none yet. While a change is
+    /// being flown, the new one waits for it to end (the latest request wins): the
+    /// separation the transition keeps holds between settled formations.
+    pub fn set(&mut self, spec: FormationSpec) {
+        if self.active && self.transition.is_some() {
+            self.pending = Some(spec);
+            return;
+        }
+        self.apply(spec);
+    }
+
+    fn apply(&mut self, spec: FormationSpec) {
+        let leader_changes = self
+            .spec
+            .as_ref()
+            .is_none_or(|old| old.leader != spec.leader);
+        if leader_changes {
+            self.leader = None;
+            self.reference = None;
+        }
+        self.spec = Some(spec);
+        self.active = true;
+        self.pending = None;
+        self.assignment.clear();
+    }
+
+    /// The formation waiting for the change in flight to end, if any.
+    pub fn pending(&self) -> Option<&FormationSpec> {
+        self.pending.as_ref()
+    }
+
+    /// Stops flying the formation (the spec is kept for the next `set`).
+    pub fn deactivate(&mut self) {
+        self.active = false;
+        self.leader = None;
+        self.reference = None;
+        self.assignment.clear();
+        self.last.clear();
+        self.transition = None;
+        self.commanded.clear();
+        self.sent.clear();
+        self.pattern_heading = None;
+        self.pattern_rate = 0.0;
+        self.pending = None;
+    }
+
+    /// Gives the reference point a new motion (leader go-to, waypoints, orbit).
+    ///
+    /// # Errors
+    /// When no formation is flown yet.
+    pub fn set_motion(&mut self, motion: LeaderMotion) -> Result<(), String> {
+        match self.reference.as_mut().filter(|_| self.active) {
+            Some(r) => {
+                r.motion = motion;
+                Ok(())
+            }
+            None => Err("no formation is being flown: PUT /api/v1/formation first".into()),
+        }
+    }
+
+    /// Leader changes since the last call (for the event stream).
+    pub fn take_leader_changes(&mut self) -> Vec<LeaderChange> {
+        std::mem::take(&mut self.changes)
+    }
+
+    /// True once after a tick that put a pending formation (requested during a
+    /// transition) in force (for the event stream).
+    pub fn take_pending_applied(&mut self) -> bool {
+        std::mem::take(&mut self.pending_applied)
+    }
+
+    /// Computes this tick's slot for every member. `members` are the vehicles flying the
+    /// formation (healthy or not); `dt_s` is the time since the last tick, seconds;
+    /// `fence` bounds the reference point.
+    pub fn tick(
+        &mut self,
+        members: &BTreeMap<String, Member>,
+        dt_s: f64,
+        fence: &Geofence,
+    ) -> BTreeMap<String, SlotCommand> {
+        let mut out = BTreeMap::new();
+        if self.transition.is_none()
+            && let Some(next) = self.pending.take()
+        {
+            self.apply(next);
+            self.pending_applied = true;
+        }
+        let Some(spec) = self.spec.clone().filter(|_| self.active) else {
+            return out;
+        };
+        // Silent members keep no slot (they would hold the others' assignment hostage).
+        let live = healthy(members);
+        if live.is_empty() {
+            self.last.clear();
+            return out;
+        }
+        let (leader, change) = resolve_leader(
+            self.leader.as_deref(),
+            self.reference.as_ref().map(|r| r.position),
+            &spec,
+            members,
+        );
+        self.changes.extend(change);
+        let Some(leader) = leader else {
+            self.last.clear();
+            return out;
+        };
+        if self.leader.as_ref() != Some(&leader) {
+            let failover = self.leader.as_ref().is_some_and(|l| l != VIRTUAL);
+            self.leader = Some(leader.clone());
+            self.assignment.clear();
+            // Offsets from the old anchor mean nothing around the new one.
+            self.commanded.clear();
+            self.sent.clear();
+            // A new leader vehicle takes the formation from where it is: the old leader's
+            // spot may still be occupied (a silent vehicle may hover on there).
+            if failover
+                && leader != VIRTUAL
+                && let (Some(r), Some(m)) = (self.reference.as_mut(), live.get(&leader))
+            {
+                let mut p = m.target.unwrap_or(m.position);
+                p.down_m = r.position.down_m;
+                r.position = p;
+            }
+        }
+        let virtual_leader = leader == VIRTUAL;
+        let capacity = spec.capacity(live.len());
+        let offsets = spec.offsets(capacity);
+        // The reference point: created where the leader is held (or the members' centroid
+        // for a virtual leader), at the formation altitude.
+        let reference = self.reference.get_or_insert_with(|| {
+            let mut p = if virtual_leader {
+                let n = live.len() as f64;
+                live.values().fold(Ned::ZERO, |a, m| a + m.position) * (1.0 / n)
+            } else {
+                let m = &live[&leader];
+                m.target.unwrap_or(m.position)
+            };
+            if let Some(alt) = spec.altitude_m {
+                p.down_m = -alt;
+            }
+            Reference::at(p, spec.heading_deg.to_radians())
+        });
+        // The reference stays far enough inside the fence for every slot to be inside, and
+        // every place on a transition in flight or about to start: paths are straight
+        // between start and goal (plus a climb), so their ends bound their reach.
+        let mut extents: Vec<Ned> = offsets.clone();
+        extents.extend(self.commanded.values().copied());
+        if let Some(t) = &self.transition {
+            extents.extend(t.extents());
+        }
+        let inner = inner_fence(fence, &extents);
+        // The pace: how far the farthest member is from where it was sent (extrapolated
+        // to now), against PACE_SLOW_M … PACE_STOP_M.
+        let behind = self
+            .sent
+            .iter()
+            .filter_map(|(id, (p, v))| Some((live.get(id)?.position - (*p + *v * dt_s)).norm()))
+            .fold(0.0, f64::max);
+        let pace = pace(behind);
+        reference.step_paced(dt_s, &inner, pace);
+        let reference = reference.clone();
+        // Anchor and heading of the slot pattern.
+        let (anchor, anchor_velocity, wanted_heading) = if virtual_leader {
+            let h = match spec.frame {
+                FormationFrame::World => spec.heading_deg.to_radians(),
+                FormationFrame::Leader => reference.heading_rad,
+            };
+            (reference.position, reference.velocity, h)
+        } else {
+            let m = &live[&leader];
+            let h = match spec.frame {
+                FormationFrame::World => spec.heading_deg.to_radians(),
+                FormationFrame::Leader => m.heading_rad,
+            };
+            let mut a = m.position;
+            // Followers keep the formation altitude, not the leader's transient one.
+            a.down_m = reference.position.down_m;
+            (a, m.velocity, h)
+        };
+        // A `leader`-frame pattern turns as a rigid body, its outermost slot at no more
+        // than TURN_SPEED_M_S (the leader's heading may jump, e.g. when it sets off); a
+        // `world` heading changes only with the spec, and the transition covers that.
+        let (heading, heading_rate) = match (spec.frame, self.pattern_heading) {
+            (FormationFrame::Leader, Some(h)) if dt_s > 0.0 => {
+                turn(h, self.pattern_rate, wanted_heading, &offsets, pace, dt_s)
+            }
+            _ => (wanted_heading, 0.0),
+        };
+        self.pattern_rate = heading_rate;
+        self.pattern_heading = Some(heading);
+        let slots = slot_positions(&offsets, anchor, heading);
+        if let Some(t) = self.transition.as_mut() {
+            // How far the slowest member is behind its place on the plan.
+            let lag = t
+                .starts
+                .keys()
+                .filter_map(|id| {
+                    let (offset, _) = t.planned(id)?;
+                    Some((live.get(id)?.position - (anchor + offset.rotated_yaw(heading))).norm())
+                })
+                .fold(0.0, f64::max);
+            t.advance(dt_s, lag);
+        }
+
+        // Assignment when the shape, leader or membership changed, then a transition.
+        let membership_changed = self.assignment.len() != capacity
+            || self.assignment.keys().any(|k| !live.contains_key(k));
+        if membership_changed {
+            // Where each member starts, pattern frame: where it was being sent (its slot,
+            // or its place on the plan in flight: the plan is what keeps the separation),
+            // relative to the anchor so that a moving formation does not jump; a newcomer
+            // from where it is.
+            let starts: BTreeMap<String, Ned> = live
+                .iter()
+                .map(|(id, m)| {
+                    let arm = self
+                        .commanded
+                        .get(id)
+                        .copied()
+                        .unwrap_or(m.position - anchor);
+                    (id.clone(), arm.rotated_yaw(-heading))
+                })
+                .collect();
+            let leader_vehicle = (!virtual_leader).then_some(leader.as_str());
+            let (assignment, transition) =
+                assign(&starts, &offsets, leader_vehicle, self.separation_m);
+            self.assignment = assignment;
+            self.transition = Some(transition);
+        }
+
+        self.last.clear();
+        self.commanded.clear();
+        self.sent.clear();
+        for (id, &slot) in &self.assignment {
+            let is_leader_vehicle = !virtual_leader && *id == leader;
+            let planned = self.transition.as_ref().and_then(|t| t.planned(id));
+            let (position, velocity) = if is_leader_vehicle {
+                // The leader vehicle flies the reference point itself.
+                (reference.position, reference.velocity)
+            } else if let Some((offset, rate)) = planned {
+                let arm = offset.rotated_yaw(heading);
+                self.commanded.insert(id.clone(), arm);
+                (
+                    anchor + arm,
+                    anchor_velocity + rate.rotated_yaw(heading) + spin(heading_rate, arm),
+                )
+            } else {
+                let arm = slots[slot] - anchor;
+                self.commanded.insert(id.clone(), arm);
+                (slots[slot], anchor_velocity + spin(heading_rate, arm))
+            };
+            // The slot itself: errors are measured to it, not to the transition's plan.
+            let goal = if is_leader_vehicle {
+                position
+            } else {
+                slots[slot]
+            };
+            self.sent.insert(id.clone(), (position, velocity));
+            out.insert(
+                id.clone(),
+                SlotCommand {
+                    slot,
+                    leader: is_leader_vehicle,
+                    position,
+                    goal,
+                    velocity,
+                    yaw_rad: heading,
+                },
+            );
+            if let Some(m) = members.get(id) {
+                self.last.push(MemberStatus {
+                    id: id.clone(),
+                    slot,
+                    target: goal,
+                    error_m: (m.position - goal).norm(),
+                });
+            }
+        }
+        if self.transition.as_ref().is_some_and(Transition::done) {
+            self.transition = None;
+        }
+        self.last.sort_by_key(|m| m.slot);
+        out
+    }
+
+    /// The status of the last tick. `airborne` are the positions of all airborne vehicles
+    /// (swarm-frame NED, for the separation metric).
+    pub fn status(&self, airborne: &[Ned]) -> FormationStatus {
+        let rms = (!self.last.is_empty()).then(|| {
+            (self.last.iter().map(|m| m.error_m * m.error_m).sum::<f64>() / self.last.len() as f64)
+                .sqrt()
+        });
+        let mut min_sep: Option<f64> = None;
+        for (i, a) in airborne.iter().enumerate() {
+            for b in &airborne[i + 1..] {
+                let d = (*a - *b).norm();
+                min_sep = Some(min_sep.map_or(d, |m| m.min(d)));
+            }
+        }
+        FormationStatus {
+            spec: self.spec.clone(),
+            active: self.is_active(),
+            leader_id: self.leader.clone(),
+            reference: self.reference.clone().filter(|_| self.is_active()),
+            members: self.last.clone(),
+            rms_error_m: rms,
+            min_separation_m: min_sep,
+            transition_progress: self.transition.as_ref().map(|t| t.progress().0),
+            pending: self.pending.clone(),
+        }
+    }
+}
+
+#[cfg(test)]
+pub(super) mod tests;

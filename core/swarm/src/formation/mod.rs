@@ -1,0 +1,67 @@
+//! The formation engine at run time (the paper's CoordinatorUAVModel): who leads, where
+//! the formation's reference point is and how it moves, which slot each member flies, and
+//! how well they fly it.
+//!
+//! - **Reference point** `P(t)`: where slot 0 is. It holds, goes to a point at a speed,
+//!   follows waypoints or orbits a point ([`LeaderMotion`]), with speed and acceleration
+//!   limits, clamped into the geofence.
+//! - **Leader**: a vehicle (it flies `P`; the followers fly their offsets from the
+//!   leader's *measured* position and velocity, true leader-follower) or the virtual
+//!   leader (everyone flies their offsets from `P`).
+//! - **Failover**: a leader vehicle that leaves the formation or falls silent for
+//!   [`LEADER_SILENCE`] is replaced by the member nearest to it; the others are re-slotted
+//!   around it; the event says who and why.
+//! - **Frame**: offsets turn with the formation heading — `world`: the spec's
+//!   `heading_deg`; `leader`: the leader's heading (the virtual leader's direction of
+//!   travel).
+//! - **Assignment**: minimum total squared distance (Kuhn–Munkres) whenever the shape,
+//!   the leader or the membership changes; a vehicle leader keeps slot 0.
+//! - **Transitions** (separation by construction, CAPT: Turpin, Michael & Kumar,
+//!   "Concurrent assignment and planning of trajectories for multiple robots", IJRR 2014):
+//!   after every assignment each member flies the straight line from where it starts to
+//!   its new slot, *all members on one shared time scale* `β(t)` (a trapezoidal profile
+//!   of the longest path, [`TRANSIT_SPEED_M_S`], [`TRANSIT_ACCEL_M_S2`]), in the pattern
+//!   frame that moves and turns with the reference. Because the assignment minimises the
+//!   total squared distance, swapping any two members' goals cannot lower it, so
+//!   `(a_i − a_j)·(b_i − b_j) ≥ 0` for starts `a` and goals `b`; the squared distance
+//!   of two members at `β` is then at least `(1−β)²|a_i−a_j|² + β²|b_i−b_j|² ≥ δ²/2`,
+//!   where `δ` is the smallest distance among the starts and among the goals. Every pair
+//!   therefore stays at least `δ/√2` apart throughout; the API refuses a formation whose
+//!   slots are closer than `√2 ×` the setpoint separation. A change requested during a
+//!   transition waits for it to end (latest request wins); a member joining or leaving
+//!   during one re-plans from the planned positions. The members' shapers
+//!   protect what the plan does not cover (a vehicle leader, vehicles outside the
+//!   formation, a member far off its plan, see [`skein_model::safety::SetpointShaper`]).
+//!
+//! Geometry and assignment come from [`skein_model::formation`].
+//!
+//! One concept per file:
+//! - `spec`: the formation as asked for and how its reference point moves.
+//! - `reference`: the moving reference point, its limits, fence and pace.
+//! - `pattern`: the slot pattern's heading and turn.
+//! - `leader`: leader resolution and failover.
+//! - `assignment`: which slot each member flies.
+//! - `transition`: a formation change in flight on one time scale.
+//! - `climb`: the layers of followers whose path would pass a leader vehicle.
+//! - `status`: what goes into and comes out of a tick.
+//! - `engine`: the engine's state, its tick and its status.
+
+mod assignment;
+mod climb;
+mod engine;
+mod leader;
+mod pattern;
+mod reference;
+mod spec;
+mod status;
+mod transition;
+
+pub use engine::{DEFAULT_SEPARATION_M, FormationEngine};
+pub use leader::{LEADER_SILENCE, LeaderChange};
+pub use pattern::{TURN_ACCEL_M_S2, TURN_SPEED_M_S};
+pub use reference::{FENCE_BUFFER_M, PACE_SLOW_M, PACE_STOP_M, RETURN_SPEED_M_S, Reference};
+pub use spec::{FormationFrame, FormationSpec, LeaderMotion, VIRTUAL};
+pub use status::{FormationStatus, Member, MemberStatus, SlotCommand};
+pub use transition::{
+    LAG_SLOW_M, LAG_STOP_M, TRANSIT_ACCEL_M_S2, TRANSIT_CLIMB_M_S, TRANSIT_SPEED_M_S,
+};
