@@ -268,18 +268,12 @@ const PARAM_TIMEOUT: Duration = Duration::from_secs(15);
 
 async fn link_of(s: &ApiState, id: &str) -> Result<ActorRef<skein_link::Px4LinkMsg>, ApiError> {
     let id2 = id.to_string();
-    let vehicle = s
-        .ask(move |r| CoordinatorMsg::GetVehicleActor(id2, r))
-        .await?
-        .ok_or_else(|| ApiError::not_found(format!("no vehicle `{id}`")))?;
-    match vehicle
-        .call(skein_swarm::VehicleMsg::GetLink, Some(COORDINATOR_TIMEOUT))
-        .await
-    {
-        Ok(ractor::rpc::CallResult::Success(Some(link))) => Ok(link),
-        _ => Err(ApiError::unavailable(format!(
-            "the link of `{id}` is not running"
-        ))),
+    match s.ask(move |r| CoordinatorMsg::GetLink(id2, r)).await? {
+        Ok(link) => Ok(link),
+        Err(PayloadCommandError::NotFound(why)) => Err(ApiError::not_found(why)),
+        Err(PayloadCommandError::Unavailable(why) | PayloadCommandError::Refused(why)) => {
+            Err(ApiError::unavailable(why))
+        }
     }
 }
 

@@ -9,6 +9,8 @@
 //!  └─ Vehicle uav-2 …
 //! ```
 //!
+//! - [`protocol`]: the swarm protocol between coordinator and vehicles (serde types).
+//! - [`carrier`]: the in-process carrier of the protocol.
 //! - [`coordinator`]: the root actor, vehicle discovery, commands, formation loop.
 //! - [`vehicle`]: the per-vehicle actor, its control loop and procedures.
 //! - [`formation`]: the formation engine's state between ticks.
@@ -23,11 +25,13 @@
 //! messages; queries use `call` with a timeout.
 #![warn(missing_docs)]
 
+pub mod carrier;
 pub mod coordinator;
 pub mod events;
 pub mod formation;
 pub mod metrics;
 pub mod payload;
+pub mod protocol;
 pub mod rehearsal;
 pub mod supervision;
 pub mod vehicle;
@@ -39,5 +43,6 @@ pub use coordinator::{
 };
 pub use events::SwarmEvent;
 pub use formation::{FormationSpec, FormationStatus};
-pub use vehicle::{VehicleCommand, VehicleMsg};
+pub use protocol::VehicleCommand;
+pub use vehicle::VehicleMsg;
 pub use view::{SwarmConfig, SwarmServices, VehicleModel};

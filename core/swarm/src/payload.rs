@@ -28,16 +28,7 @@ use std::sync::{Arc, PoisonError, RwLock};
 use std::time::{Duration, Instant};
 use tokio::sync::{broadcast, watch};
 
-/// Why a payload command got no answer from the payload.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub enum PayloadCommandError {
-    /// No such vehicle or slot (HTTP 404).
-    NotFound(String),
-    /// The payload is not running: failed, disabled or restarting (HTTP 503).
-    Unavailable(String),
-    /// The payload refused the command; its message (HTTP 400).
-    Refused(String),
-}
+pub use crate::protocol::PayloadCommandError;
 
 /// What a payload published, kept across restarts of its actor.
 pub struct PayloadShared {

@@ -1,0 +1,188 @@
+//! What the coordinator is told: its message enum (the API reaches the swarm only
+//! through it), the service actors it supervises, and the shapes of its answers.
+
+use super::children::Node;
+use super::commands::CommandOutcome;
+use crate::formation::{FormationSpec, FormationStatus, LeaderMotion};
+use crate::payload::PayloadShared;
+use crate::protocol::{FromVehicle, PayloadCommandError, VehicleCommand};
+use crate::supervision::TreeNode;
+use ractor::{ActorCell, ActorId, ActorProcessingErr, ActorRef, RpcReplyPort};
+use serde::Serialize;
+use skein_link::Px4LinkMsg;
+use skein_link::endpoint::Discovery;
+use skein_mavlink::DecodeCounts;
+use skein_model::supervision::{ChildKind, FaultKind};
+use skein_model::vehicle::VehicleSnapshot;
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Per-endpoint link statistics.
+#[derive(Debug, Clone, Serialize)]
+pub struct EndpointStats {
+    /// Connection string.
+    pub connection: String,
+    /// Bound local address (UDP).
+    pub local_addr: Option<String>,
+    /// Decoder counters (malformed input).
+    pub decode: DecodeCounts,
+    /// Send counters.
+    pub send: skein_link::endpoint::SendCounts,
+}
+
+/// Swarm health for `GET /api/v1/health`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Health {
+    /// Always `"ok"` while the coordinator answers.
+    pub status: &'static str,
+    /// Vehicles known.
+    pub vehicles: usize,
+    /// Vehicles with a live link.
+    pub connected: usize,
+    /// Seconds since the coordinator started.
+    pub uptime_s: f64,
+    /// The swarm origin, once anchored.
+    pub swarm_origin: Option<skein_model::geo::GeoPoint>,
+    /// True when `POST /api/v1/faults` is enabled.
+    pub fault_injection: bool,
+}
+
+/// Why a formation request was refused: the field and the reason.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FieldError {
+    /// The offending field (`"spacing_m"`).
+    pub field: String,
+    /// What is wrong with it.
+    pub error: String,
+}
+
+/// Why a fault could not be injected.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum FaultError {
+    /// Fault injection is off (`--enable-fault-injection` absent).
+    Disabled,
+    /// No actor at that path; the message names it and lists the known paths.
+    UnknownTarget(String),
+    /// The target exists but could not be reached.
+    Unreachable(String),
+}
+
+/// Messages of a supervised service actor (the HTTP API): what the coordinator needs to
+/// supervise something it does not otherwise know.
+pub enum ServiceMsg {
+    /// Watchdog probe.
+    Ping(RpcReplyPort<()>),
+    /// Fault injection.
+    Fault(FaultKind),
+}
+
+/// Starts a service actor linked under the given supervisor.
+pub type ServiceSpawner = Arc<
+    dyn Fn(
+            ActorCell,
+        )
+            -> Pin<Box<dyn Future<Output = Result<ActorRef<ServiceMsg>, ActorProcessingErr>> + Send>>
+        + Send
+        + Sync,
+>;
+
+/// A service for the coordinator to start and supervise.
+#[derive(Clone)]
+pub struct ServiceSpec {
+    /// Name in the tree (`"api"`).
+    pub name: String,
+    /// Its kind (its restart policy).
+    pub kind: ChildKind,
+    /// How to (re)start it.
+    pub spawn: ServiceSpawner,
+}
+
+/// Messages of [`Coordinator`].
+pub enum CoordinatorMsg {
+    /// An endpoint heard an autopilot it has no route for.
+    Discovered {
+        /// Index of the endpoint.
+        endpoint: usize,
+        /// What it heard.
+        discovery: Discovery,
+    },
+    /// A vehicle's protocol message (acks, state changes, payload answers).
+    FromVehicle(FromVehicle),
+    /// A command for every vehicle.
+    SwarmCommand(VehicleCommand, RpcReplyPort<CommandOutcome>),
+    /// A command for one vehicle; `Err(None)` when the vehicle does not exist.
+    VehicleCommand(
+        String,
+        VehicleCommand,
+        RpcReplyPort<Result<CommandOutcome, Option<String>>>,
+    ),
+    /// All vehicles, sorted by id.
+    ListVehicles(RpcReplyPort<Vec<VehicleSnapshot>>),
+    /// One vehicle.
+    GetVehicle(String, RpcReplyPort<Option<VehicleSnapshot>>),
+    /// The formation.
+    GetFormation(RpcReplyPort<FormationStatus>),
+    /// Set the formation.
+    SetFormation(
+        FormationSpec,
+        RpcReplyPort<Result<FormationStatus, FieldError>>,
+    ),
+    /// Stop flying the formation (vehicles hold where they are).
+    ClearFormation(RpcReplyPort<FormationStatus>),
+    /// Move the formation's reference point (leader go-to, waypoints, orbit).
+    LeaderMotion(
+        LeaderMotion,
+        RpcReplyPort<Result<FormationStatus, FieldError>>,
+    ),
+    /// Health.
+    Health(RpcReplyPort<Health>),
+    /// Link statistics per endpoint.
+    LinkStats(RpcReplyPort<Vec<EndpointStats>>),
+    /// A local vehicle's `Px4Link` actor (parameters); `Err` says why there is none.
+    GetLink(
+        String,
+        RpcReplyPort<Result<ActorRef<Px4LinkMsg>, PayloadCommandError>>,
+    ),
+    /// A vehicle's payload (state, frames); `Err` names what is missing.
+    GetPayload(
+        String,
+        String,
+        RpcReplyPort<Result<Arc<PayloadShared>, String>>,
+    ),
+    /// A command for a vehicle's payload; the payload's answer or why there is none.
+    PayloadCommand(
+        String,
+        String,
+        serde_json::Value,
+        RpcReplyPort<Result<serde_json::Value, PayloadCommandError>>,
+    ),
+    /// Payload instances (vehicle id, slot) whose plugin was reloaded at this instant: their
+    /// vehicles re-create them on the new build (those created since are left alone).
+    RefreshPayloads(Vec<(String, String)>, Instant),
+    /// The supervision tree.
+    GetSupervision(RpcReplyPort<TreeNode>),
+    /// The metrics in Prometheus text format.
+    RenderMetrics(RpcReplyPort<String>),
+    /// Start and supervise a service (the HTTP API).
+    AddService(ServiceSpec, RpcReplyPort<Result<(), String>>),
+    /// Inject a fault at an actor path (`"coordinator/uav-1/px4link"`).
+    InjectFault(String, FaultKind, RpcReplyPort<Result<(), FaultError>>),
+    /// Watchdog probe (the process watchdog pings the coordinator).
+    Ping(RpcReplyPort<()>),
+    /// Fault injection into the coordinator itself.
+    Fault(FaultKind),
+    /// Formation loop tick.
+    FormationTick,
+    /// Time to ping the children.
+    WatchTick,
+    /// A child did not answer the watchdog.
+    ChildHung(Node, ActorId),
+    /// A child's backoff has passed.
+    RestartChild(Node, Instant, String),
+    /// A command's vehicles had their time to answer: the silent ones are refused.
+    CommandTimeout(u64),
+    /// A payload command's vehicle had its time to answer.
+    PayloadTimeout(u64),
+}

@@ -1,0 +1,460 @@
+//! The `Coordinator` actor: root of the actor tree, registry of the swarm, formation
+//! engine (the paper's CoordinatorUAVModel), and, in `skein up`, supervisor of the
+//! Vehicle actors of this process and of services such as the HTTP API.
+//!
+//! It reaches vehicles only through the swarm protocol ([`crate::protocol`]): each
+//! vehicle is a [`VehicleProxy`] (a port for [`ToVehicle`](crate::protocol::ToVehicle)
+//! messages and the vehicle's latest report). Commands fan out to every target at once
+//! and are answered from the acknowledgements as they come ([`commands`]); nothing in
+//! `handle` waits for a vehicle.
+//!
+//! A failed Vehicle actor is restarted by policy on the same persistent part, so its FSM
+//! state, target and stream carry on; when its budget is spent the vehicle is commanded
+//! to HOLD (or LAND) through a separate safe-mode link ([`escalation`]). A service (the
+//! API) that keeps failing fails the coordinator itself: the process exits non-zero and
+//! its outer supervisor (systemd, Docker) restarts it.
+//!
+//! - [`messages`]: what the API and vehicles tell the coordinator;
+//! - [`discovery`]: vehicles joining from their first heartbeat;
+//! - [`proxy`]: the coordinator's view of a vehicle;
+//! - [`commands`]: fan-out of commands and payload requests;
+//! - [`formation_loop`]: the formation tick;
+//! - [`validation`]: formation and leader-motion requests, checked;
+//! - [`children`]: supervision of vehicles and services, fault routing;
+//! - [`escalation`]: what happens to a vehicle whose actor keeps failing;
+//! - [`swarm`]: starting and stopping it all.
+
+pub mod children;
+pub mod commands;
+pub mod discovery;
+pub mod escalation;
+pub mod formation_loop;
+pub mod messages;
+pub mod proxy;
+pub mod swarm;
+pub mod validation;
+
+pub use children::Node;
+pub use commands::{CommandOutcome, Refused};
+pub use discovery::{EndpointSpec, VehicleSpec};
+pub use messages::{
+    CoordinatorMsg, EndpointStats, FaultError, FieldError, Health, ServiceMsg, ServiceSpawner,
+    ServiceSpec,
+};
+pub use proxy::VehicleProxy;
+pub use swarm::{StartError, Swarm};
+
+use crate::events::SwarmEvent;
+use crate::formation::{FormationEngine, LeaderMotion};
+use crate::metrics::Metrics;
+use crate::protocol::{FromVehicle, PayloadCommandError, VehicleCommand};
+use crate::supervision::{self, Children, Supervision};
+use crate::view::{SwarmConfig, SwarmServices, SwarmView};
+use commands::{CommandReply, InFlight};
+use ractor::{Actor, ActorProcessingErr, ActorRef, SupervisionEvent};
+use skein_link::{Endpoint, Px4LinkMsg};
+use skein_model::fsm::VehicleState;
+use skein_model::geo::Ned;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::sync::broadcast;
+
+/// Arguments of [`Coordinator`].
+pub struct CoordinatorArgs {
+    /// Swarm configuration.
+    pub config: SwarmConfig,
+    /// Payload factory, simulator hooks.
+    pub services: SwarmServices,
+    /// Opened endpoints with their specs.
+    pub endpoints: Vec<(Arc<Endpoint>, EndpointSpec)>,
+    /// Event bus.
+    pub events: broadcast::Sender<SwarmEvent>,
+    /// Metrics registry.
+    pub metrics: Arc<Metrics>,
+}
+
+/// State of [`Coordinator`].
+pub struct CoordinatorState {
+    view: Arc<SwarmView>,
+    endpoints: Vec<(Arc<Endpoint>, EndpointSpec)>,
+    vehicles: BTreeMap<String, VehicleProxy>,
+    services: BTreeMap<String, ServiceSpec>,
+    children: Children<Node>,
+    formation: FormationEngine,
+    events: broadcast::Sender<SwarmEvent>,
+    metrics: Arc<Metrics>,
+    supervision: Arc<Supervision>,
+    in_flight: InFlight,
+    started: Instant,
+    last_formation_tick: Instant,
+}
+
+/// The `Coordinator` actor (see module docs).
+pub struct Coordinator;
+
+impl CoordinatorState {
+    fn emit(&self, ev: SwarmEvent) {
+        let _ = self.events.send(ev);
+    }
+
+    fn formation_changed(&self) {
+        let status = serde_json::to_value(self.formation_status()).unwrap_or_default();
+        self.emit(SwarmEvent::FormationChanged { formation: status });
+    }
+
+    fn on_from_vehicle(&mut self, msg: FromVehicle) {
+        match msg {
+            FromVehicle::CommandAck {
+                id,
+                command_id,
+                result,
+            } => self.on_ack(id, command_id, result),
+            FromVehicle::StateChanged { id, to, .. } => self.on_state_changed(&id, to),
+            FromVehicle::PayloadResult {
+                request_id, result, ..
+            } => self.on_payload_result(request_id, Some(result)),
+        }
+    }
+
+    fn health(&self) -> Health {
+        let connected = self
+            .vehicles
+            .values()
+            .filter(|v| v.state().is_connected())
+            .count();
+        self.metrics.vehicles_connected.set(connected as i64);
+        Health {
+            status: "ok",
+            vehicles: self.vehicles.len(),
+            connected,
+            uptime_s: self.started.elapsed().as_secs_f64(),
+            swarm_origin: self.view.frame().map(|f| f.origin),
+            fault_injection: self.view.config.fault_injection,
+        }
+    }
+
+    fn render_metrics(&self) -> String {
+        for (e, _) in &self.endpoints {
+            self.metrics
+                .mavlink_malformed
+                .get_or_create(&Metrics::label("connection", &e.address().to_string()))
+                .set(e.decode_counts().errors() as i64);
+        }
+        for (id, v) in &self.vehicles {
+            if let Some(local) = &v.local {
+                self.metrics
+                    .setpoints_sent
+                    .get_or_create(&Metrics::label("vehicle", id))
+                    .set(local.shared.link.stream().counts().sent as i64);
+            }
+        }
+        self.metrics.render()
+    }
+
+    fn no_slot(&self, id: &str, slot: &str) -> String {
+        let slots = self
+            .vehicles
+            .get(id)
+            .and_then(|v| v.local.as_ref())
+            .map(|l| l.shared.payloads.keys().cloned().collect::<Vec<_>>())
+            .unwrap_or_default();
+        format!(
+            "vehicle {id} has no payload slot `{slot}` (slots: {})",
+            slots.join(", ")
+        )
+    }
+
+    /// The `Px4Link` of a vehicle of this process, asked from a task.
+    fn get_link(
+        &self,
+        id: String,
+        reply: ractor::RpcReplyPort<Result<ActorRef<Px4LinkMsg>, PayloadCommandError>>,
+    ) {
+        let Some(v) = self.vehicles.get(&id) else {
+            let _ = reply.send(Err(PayloadCommandError::NotFound(format!(
+                "no vehicle `{id}`"
+            ))));
+            return;
+        };
+        let actor = v.local.as_ref().and_then(|l| l.port.actor());
+        tokio::spawn(async move {
+            let link = match actor {
+                Some(a) => match a
+                    .call(
+                        crate::vehicle::VehicleMsg::GetLink,
+                        Some(Duration::from_secs(2)),
+                    )
+                    .await
+                {
+                    Ok(ractor::rpc::CallResult::Success(Some(link))) => Some(link),
+                    _ => None,
+                },
+                None => None,
+            };
+            let _ = reply.send(link.ok_or_else(|| {
+                PayloadCommandError::Unavailable(format!("the link of `{id}` is not running"))
+            }));
+        });
+    }
+}
+
+impl Actor for Coordinator {
+    type Msg = CoordinatorMsg;
+    type State = CoordinatorState;
+    type Arguments = CoordinatorArgs;
+
+    async fn pre_start(
+        &self,
+        myself: ActorRef<Self::Msg>,
+        args: CoordinatorArgs,
+    ) -> Result<Self::State, ActorProcessingErr> {
+        for (i, (endpoint, _)) in args.endpoints.iter().enumerate() {
+            let me = myself.clone();
+            endpoint.set_discovery(Arc::new(move |d| {
+                let _ = me.cast(CoordinatorMsg::Discovered {
+                    endpoint: i,
+                    discovery: d,
+                });
+            }));
+        }
+        let period = Duration::from_secs_f64(1.0 / args.config.formation_rate_hz.max(1.0));
+        myself.send_interval(period, || CoordinatorMsg::FormationTick);
+        let supervision = Supervision::new(
+            args.config.supervision.clone(),
+            args.metrics.clone(),
+            args.events.clone(),
+        );
+        myself.send_interval(supervision.config.watchdog_period(), || {
+            CoordinatorMsg::WatchTick
+        });
+        let separation_m = args.config.setpoint_separation_m();
+        Ok(CoordinatorState {
+            view: Arc::new(SwarmView::new(args.config, args.services)),
+            endpoints: args.endpoints,
+            vehicles: BTreeMap::new(),
+            services: BTreeMap::new(),
+            children: Children::new(supervision::ROOT, supervision.clone()),
+            formation: FormationEngine::new(separation_m),
+            events: args.events,
+            metrics: args.metrics,
+            supervision,
+            in_flight: InFlight::default(),
+            started: Instant::now(),
+            last_formation_tick: Instant::now(),
+        })
+    }
+
+    async fn handle(
+        &self,
+        myself: ActorRef<Self::Msg>,
+        msg: Self::Msg,
+        state: &mut Self::State,
+    ) -> Result<(), ActorProcessingErr> {
+        match msg {
+            CoordinatorMsg::Discovered {
+                endpoint,
+                discovery,
+            } => state.on_discovered(&myself, endpoint, discovery).await?,
+            CoordinatorMsg::FromVehicle(msg) => state.on_from_vehicle(msg),
+            CoordinatorMsg::SwarmCommand(cmd, reply) => {
+                if matches!(cmd, VehicleCommand::Land | VehicleCommand::Rtl)
+                    && state.formation.is_active()
+                {
+                    state.formation.deactivate();
+                    state.formation_changed();
+                }
+                let targets = state.vehicles.keys().cloned().collect();
+                state.run_command(&myself, targets, cmd, CommandReply::Swarm(reply));
+            }
+            CoordinatorMsg::VehicleCommand(id, cmd, reply) => {
+                if !state.vehicles.contains_key(&id) {
+                    let _ = reply.send(Err(None));
+                } else {
+                    state.run_command(&myself, vec![id], cmd, CommandReply::Vehicle(reply));
+                }
+            }
+            CoordinatorMsg::ListVehicles(reply) => {
+                let list = state.vehicles.values().map(|v| v.snapshot()).collect();
+                let _ = reply.send(list);
+            }
+            CoordinatorMsg::GetVehicle(id, reply) => {
+                let _ = reply.send(state.vehicles.get(&id).map(|v| v.snapshot()));
+            }
+            CoordinatorMsg::GetFormation(reply) => {
+                let _ = reply.send(state.formation_status());
+            }
+            CoordinatorMsg::SetFormation(spec, reply) => {
+                let vehicles: Vec<(&str, VehicleState, bool)> = state
+                    .vehicles
+                    .iter()
+                    .map(|(id, v)| (id.as_str(), v.state(), v.failed))
+                    .collect();
+                match validation::validate_formation(&state.view.config, &spec, &vehicles) {
+                    Err(e) => {
+                        let _ = reply.send(Err(e));
+                    }
+                    Ok(()) => {
+                        state.formation.set(spec);
+                        state.join_hovering();
+                        state.formation_tick();
+                        let status = state.formation_status();
+                        state.emit(SwarmEvent::FormationChanged {
+                            formation: serde_json::to_value(&status).unwrap_or_default(),
+                        });
+                        let _ = reply.send(Ok(status));
+                    }
+                }
+            }
+            CoordinatorMsg::LeaderMotion(mut motion, reply) => {
+                // A point without an altitude keeps the formation's.
+                if let Some(down) = state
+                    .formation
+                    .status(&[])
+                    .reference
+                    .map(|r| r.position.down_m)
+                {
+                    fill_altitude(&mut motion, down);
+                }
+                let r = validation::validate_motion(&state.view.config, &motion).and_then(|()| {
+                    state.formation.set_motion(motion).map_err(|e| FieldError {
+                        field: "formation".into(),
+                        error: e,
+                    })
+                });
+                let _ = reply.send(r.map(|()| state.formation_status()));
+            }
+            CoordinatorMsg::ClearFormation(reply) => {
+                state.formation.deactivate();
+                let members: Vec<String> = state
+                    .vehicles
+                    .iter()
+                    .filter(|(_, v)| v.state() == VehicleState::InFormation)
+                    .map(|(id, _)| id.clone())
+                    .collect();
+                for id in members {
+                    state.internal_command(&id, VehicleCommand::LeaveFormation);
+                }
+                let status = state.formation_status();
+                state.emit(SwarmEvent::FormationChanged {
+                    formation: serde_json::to_value(&status).unwrap_or_default(),
+                });
+                let _ = reply.send(status);
+            }
+            CoordinatorMsg::Health(reply) => {
+                let _ = reply.send(state.health());
+            }
+            CoordinatorMsg::LinkStats(reply) => {
+                let stats = state
+                    .endpoints
+                    .iter()
+                    .map(|(e, _)| EndpointStats {
+                        connection: e.address().to_string(),
+                        local_addr: e.local_addr().map(|a| a.to_string()),
+                        decode: e.decode_counts(),
+                        send: e.send_counts(),
+                    })
+                    .collect();
+                let _ = reply.send(stats);
+            }
+            CoordinatorMsg::GetLink(id, reply) => state.get_link(id, reply),
+            CoordinatorMsg::GetPayload(id, slot, reply) => {
+                let r = match state.vehicles.get(&id) {
+                    None => Err(format!("no vehicle `{id}`")),
+                    Some(v) => v
+                        .local
+                        .as_ref()
+                        .and_then(|l| l.shared.payloads.get(&slot).cloned())
+                        .ok_or_else(|| state.no_slot(&id, &slot)),
+                };
+                let _ = reply.send(r);
+            }
+            CoordinatorMsg::PayloadCommand(id, slot, cmd, reply) => {
+                state.payload_command(&myself, id, slot, cmd, reply);
+            }
+            CoordinatorMsg::RefreshPayloads(instances, at) => {
+                for (id, slot) in instances {
+                    let actor = state
+                        .vehicles
+                        .get(&id)
+                        .and_then(|v| v.local.as_ref())
+                        .and_then(|l| l.port.actor());
+                    if let Some(a) = actor {
+                        let _ = a.cast(crate::vehicle::VehicleMsg::RefreshPayload(slot, at));
+                    }
+                }
+            }
+            CoordinatorMsg::GetSupervision(reply) => {
+                let _ = reply.send(state.supervision.tree());
+            }
+            CoordinatorMsg::RenderMetrics(reply) => {
+                let _ = reply.send(state.render_metrics());
+            }
+            CoordinatorMsg::AddService(spec, reply) => {
+                let name = spec.name.clone();
+                let node = Node::Service(name.clone(), spec.kind);
+                state.services.insert(name.clone(), spec);
+                let r = state
+                    .start_child(&myself, node)
+                    .await
+                    .map_err(|e| format!("service `{name}` did not start: {e}"));
+                let _ = reply.send(r);
+            }
+            CoordinatorMsg::InjectFault(path, kind, reply) => {
+                state.inject(&myself, &path, kind, reply);
+            }
+            CoordinatorMsg::Fault(kind) => {
+                skein_link::fault::inject(kind, &myself, supervision::ROOT).await?;
+            }
+            CoordinatorMsg::Ping(reply) => {
+                let _ = reply.send(());
+            }
+            CoordinatorMsg::FormationTick => state.formation_tick(),
+            CoordinatorMsg::WatchTick => {
+                let me = myself.clone();
+                state.children.watch(move |node, id| {
+                    let _ = me.cast(CoordinatorMsg::ChildHung(node, id));
+                });
+            }
+            CoordinatorMsg::ChildHung(node, id) => state.children.kill_hung(&node, id),
+            CoordinatorMsg::RestartChild(node, noticed, reason) => {
+                let failed = state.vehicles.get(node.name()).is_some_and(|v| v.failed);
+                if state.children.get(&node).is_none() && !failed {
+                    state.restart_child(&myself, node, noticed, reason).await?;
+                }
+            }
+            CoordinatorMsg::CommandTimeout(command_id) => state.on_command_timeout(command_id),
+            CoordinatorMsg::PayloadTimeout(request_id) => {
+                state.on_payload_result(request_id, None);
+            }
+        }
+        Ok(())
+    }
+
+    async fn handle_supervisor_evt(
+        &self,
+        myself: ActorRef<Self::Msg>,
+        evt: SupervisionEvent,
+        state: &mut Self::State,
+    ) -> Result<(), ActorProcessingErr> {
+        if let Some((node, exit)) = state.children.ended(&evt) {
+            state.child_ended(&myself, node, exit).await?;
+        }
+        Ok(())
+    }
+}
+
+/// Gives the points of `motion` that have no altitude (NaN) the altitude `down_m`.
+fn fill_altitude(motion: &mut LeaderMotion, down_m: f64) {
+    let fill = |p: &mut Ned| {
+        if p.down_m.is_nan() {
+            p.down_m = down_m;
+        }
+    };
+    match motion {
+        LeaderMotion::Hold => {}
+        LeaderMotion::GoTo { target, .. } => fill(target),
+        LeaderMotion::Waypoints { points, .. } => points.iter_mut().for_each(fill),
+        LeaderMotion::Orbit { centre, .. } => fill(centre),
+    }
+}

@@ -1,0 +1,84 @@
+//! The coordinator's view of one vehicle: where to send [`ToVehicle`] messages, its
+//! latest snapshot and [`VehicleReport`], and (for a vehicle of this process) the local
+//! part the coordinator supervises.
+
+use crate::carrier::LocalPort;
+use crate::protocol::{ToVehicle, VehiclePort, VehicleReport};
+use crate::vehicle::VehicleShared;
+use ractor::ActorRef;
+use skein_link::Px4LinkMsg;
+use skein_model::fsm::VehicleState;
+use skein_model::geo::Ned;
+use skein_model::vehicle::VehicleSnapshot;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::watch;
+
+/// Longest a report's position is moved on by its age (it is published at the control
+/// rate; a vehicle at 5 m/s covers 1 m in this time).
+pub const REPORT_EXTRAPOLATION: Duration = Duration::from_millis(200);
+
+/// A vehicle run by this process: what its supervisor (the coordinator, in `skein up`)
+/// holds.
+pub struct LocalVehicle {
+    /// Its persistent part.
+    pub shared: Arc<VehicleShared>,
+    /// The port to its current actor.
+    pub port: Arc<LocalPort>,
+    /// The link actor that carried an escalation, kept for the vehicle's telemetry.
+    pub safe_link: Option<ActorRef<Px4LinkMsg>>,
+}
+
+/// One vehicle as the coordinator sees it.
+pub struct VehicleProxy {
+    port: Arc<dyn VehiclePort>,
+    snapshots: watch::Receiver<VehicleSnapshot>,
+    reports: watch::Receiver<VehicleReport>,
+    /// Its actor kept failing and it was commanded to HOLD/LAND: it gets no commands.
+    pub failed: bool,
+    /// The local part, for a vehicle of this process.
+    pub local: Option<LocalVehicle>,
+}
+
+impl VehicleProxy {
+    /// A proxy for a vehicle of this process.
+    pub fn local(shared: Arc<VehicleShared>) -> Self {
+        let port = LocalPort::new();
+        VehicleProxy {
+            port: port.clone(),
+            snapshots: shared.subscribe_snapshots(),
+            reports: shared.subscribe_reports(),
+            failed: false,
+            local: Some(LocalVehicle {
+                shared,
+                port,
+                safe_link: None,
+            }),
+        }
+    }
+
+    /// Sends a protocol message; `Err` says why the vehicle cannot be reached.
+    pub fn send(&self, msg: ToVehicle) -> Result<(), String> {
+        self.port.send(msg)
+    }
+
+    /// The latest snapshot (`GET /api/v1/vehicles/{id}`).
+    pub fn snapshot(&self) -> VehicleSnapshot {
+        self.snapshots.borrow().clone()
+    }
+
+    /// The latest report.
+    pub fn report(&self) -> VehicleReport {
+        *self.reports.borrow()
+    }
+
+    /// FSM state as last reported.
+    pub fn state(&self) -> VehicleState {
+        self.reports.borrow().state
+    }
+
+    /// Swarm-frame position now (the report's, moved on by its age).
+    pub fn position(&self) -> Option<Ned> {
+        self.reports.borrow().position_now(REPORT_EXTRAPOLATION)
+    }
+}

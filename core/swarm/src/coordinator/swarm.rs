@@ -1,0 +1,95 @@
+//! Starting and stopping a swarm: the endpoints, the coordinator, the event bus and the
+//! metrics.
+
+use super::discovery::EndpointSpec;
+use super::messages::CoordinatorMsg;
+use super::{Coordinator, CoordinatorArgs};
+use crate::events::SwarmEvent;
+use crate::metrics::Metrics;
+use crate::view::{SwarmConfig, SwarmServices};
+use ractor::{Actor, ActorRef};
+use skein_link::{Endpoint, Identity};
+use std::sync::Arc;
+use tokio::sync::broadcast;
+
+/// A running swarm: the coordinator, its endpoints, the event bus and the metrics.
+pub struct Swarm {
+    /// The coordinator actor.
+    pub coordinator: ActorRef<CoordinatorMsg>,
+    /// The event bus (subscribe for the stream).
+    pub events: broadcast::Sender<SwarmEvent>,
+    /// The opened endpoints, in configuration order.
+    pub endpoints: Vec<Arc<Endpoint>>,
+    handle: ractor::concurrency::JoinHandle<()>,
+}
+
+/// Why the swarm could not start.
+#[derive(Debug)]
+pub struct StartError(pub String);
+
+impl std::fmt::Display for StartError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for StartError {}
+
+impl Swarm {
+    /// Opens every endpoint and starts the coordinator.
+    ///
+    /// # Errors
+    /// An endpoint that cannot be opened (named with its connection string), or the
+    /// coordinator failing to start.
+    pub async fn start(
+        config: SwarmConfig,
+        services: SwarmServices,
+        identity: Identity,
+        endpoints: Vec<EndpointSpec>,
+    ) -> Result<Swarm, StartError> {
+        let mut opened = Vec::new();
+        for spec in endpoints {
+            let ep = Endpoint::open(spec.connection.clone(), identity)
+                .await
+                .map_err(|e| StartError(format!("{}: {e}", spec.connection)))?;
+            opened.push((ep, spec));
+        }
+        let (events, _) = broadcast::channel(4096);
+        let endpoints = opened.iter().map(|(e, _)| e.clone()).collect();
+        let (coordinator, handle) = Actor::spawn(
+            None,
+            Coordinator,
+            CoordinatorArgs {
+                config,
+                services,
+                endpoints: opened,
+                events: events.clone(),
+                metrics: Arc::new(Metrics::new()),
+            },
+        )
+        .await
+        .map_err(|e| StartError(format!("coordinator did not start: {e}")))?;
+        Ok(Swarm {
+            coordinator,
+            events,
+            endpoints,
+            handle,
+        })
+    }
+
+    /// Resolves when the coordinator has stopped or failed (for the process to exit).
+    pub async fn stopped(&mut self) {
+        let _ = (&mut self.handle).await;
+    }
+
+    /// True when the coordinator is still running.
+    pub fn is_running(&self) -> bool {
+        !self.handle.is_finished()
+    }
+
+    /// Stops the coordinator (and with it every actor under it) and waits for it.
+    pub async fn stop(self) {
+        self.coordinator.stop(None);
+        let _ = self.handle.await;
+    }
+}

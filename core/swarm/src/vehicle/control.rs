@@ -1,0 +1,220 @@
+//! The control loop: every tick ([`crate::SwarmConfig::control_rate_hz`]) the current
+//! target is shaped by the [`SetpointShaper`] (speed and acceleration limits, geofence,
+//! separation from the neighbours), converted from the swarm frame to the vehicle's own
+//! local NED frame through geodetic coordinates, and handed to the setpoint stream.
+//! Formation slot targets arrive stamped and move on by their age.
+
+use super::VehicleActorState;
+use crate::events::SwarmEvent;
+use crate::protocol::{SlotTarget, age_of};
+use skein_link::LocalSetpoint;
+use skein_model::fsm::{Event, VehicleState};
+use skein_model::geo::Ned;
+use skein_model::px4::Px4Mode;
+use skein_model::safety::SetpointShaper;
+use std::time::{Duration, Instant};
+
+/// Distance to a takeoff altitude or go-to point that counts as arrived, metres.
+pub const ARRIVAL_TOLERANCE_M: f64 = 0.5;
+
+/// What the streamed setpoint is aiming at.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Target {
+    /// Hold a point.
+    Hold(Ned),
+    /// Track a moving point (formation slot), known at `at`: between the formation's
+    /// updates it moves on at its velocity.
+    Track {
+        position: Ned,
+        velocity: Ned,
+        at: Instant,
+    },
+}
+
+/// Longest a moving target is extrapolated from its last update (the formation loop
+/// updates it ten times a second; after this, hold where it would be).
+const TRACK_EXTRAPOLATION: Duration = Duration::from_millis(500);
+
+impl Target {
+    pub(super) fn position(&self) -> Ned {
+        match self {
+            Target::Hold(p) => *p,
+            Target::Track { position, .. } => *position,
+        }
+    }
+
+    /// Position and velocity feed-forward now.
+    fn now(&self, now: Instant) -> (Ned, Ned) {
+        match *self {
+            Target::Hold(p) => (p, Ned::ZERO),
+            Target::Track {
+                position,
+                velocity,
+                at,
+            } => {
+                let age = now.saturating_duration_since(at);
+                if age > TRACK_EXTRAPOLATION {
+                    (
+                        position + velocity * TRACK_EXTRAPOLATION.as_secs_f64(),
+                        Ned::ZERO,
+                    )
+                } else {
+                    (position + velocity * age.as_secs_f64(), velocity)
+                }
+            }
+        }
+    }
+}
+
+impl VehicleActorState {
+    pub(super) fn on_slot(&self, slot: Option<SlotTarget>) {
+        let mut mem = self.shared.memory();
+        if mem.state != VehicleState::InFormation {
+            return;
+        }
+        mem.slot = slot;
+        if let Some(s) = slot {
+            let current = self
+                .swarm_frame()
+                .and_then(|f| self.shared.position(&f))
+                .unwrap_or(s.position);
+            mem.yaw_rad = s.yaw_rad;
+            self.set_target(
+                &mut mem,
+                Target::Track {
+                    position: s.position,
+                    velocity: s.velocity,
+                    at: Instant::now()
+                        .checked_sub(age_of(s.stamp_us))
+                        .unwrap_or_else(Instant::now),
+                },
+                current,
+            );
+        }
+    }
+
+    /// The control loop.
+    pub(super) fn tick(&mut self) {
+        let now = Instant::now();
+        let dt = now
+            .duration_since(self.last_tick)
+            .as_secs_f64()
+            .clamp(0.0, 0.2);
+        self.last_tick = now;
+        self.ticks += 1;
+        let Some(frame) = self.swarm_frame() else {
+            self.shared.publish(None, None, self.children.supervision());
+            self.shared.publish_report(None);
+            return;
+        };
+        let current = self.shared.position(&frame);
+        let local_frame = self.shared.link.with_telemetry(|t| t.local_frame());
+        let stream = self.shared.link.stream();
+        let mut mem = self.shared.memory();
+        let state = mem.state;
+        // Where this vehicle is, for the others' separation (the setpoint is added below
+        // when skein steers it; a Lost vehicle stays where it was last seen).
+        let measured = current.map(|p| (p, self.shared.velocity().unwrap_or(Ned::ZERO)));
+        // A member flying its slot (the leader vehicle included) is on the formation's
+        // transition plan.
+        let planned = state == VehicleState::InFormation && mem.slot.is_some();
+        self.view
+            .set_position(&self.shared.id, measured, None, planned);
+        match state {
+            VehicleState::TakingOff
+            | VehicleState::Hovering
+            | VehicleState::InFormation
+            | VehicleState::GoTo => {
+                if let (Some(target), Some(local), Some(cur)) = (mem.target, local_frame, current) {
+                    let (tp, tv) = target.now(now);
+                    self.view.others(&self.shared.id, planned, &mut self.others);
+                    let yaw = mem.yaw_rad;
+                    let limits = self.shared.model.limits;
+                    let config = &self.view.config;
+                    let shaper = mem.shaper.get_or_insert_with(|| {
+                        SetpointShaper::new(
+                            cur,
+                            limits,
+                            config.geofence.clone(),
+                            config.setpoint_separation_m(),
+                        )
+                        .with_planned_separation(config.planned_separation_m())
+                    });
+                    // The floor binds where the vehicle is meant to fly, not on the way up.
+                    shaper.enforce_floor(state != VehicleState::TakingOff);
+                    let sp = shaper.step(tp, tv, yaw, dt, &self.others);
+                    self.view.set_position(
+                        &self.shared.id,
+                        measured,
+                        Some((sp.position, sp.velocity)),
+                        planned,
+                    );
+                    if let Some(v) = sp.fence
+                        && mem.last_fence != sp.fence
+                    {
+                        self.emit(SwarmEvent::GeofenceClamp {
+                            id: self.shared.id.clone(),
+                            violation: v.name().into(),
+                        });
+                    }
+                    mem.last_fence = sp.fence;
+                    let local_pos = frame.convert_to(&local, sp.position);
+                    stream.set(Some(LocalSetpoint::position_velocity(
+                        local_pos,
+                        sp.velocity,
+                        sp.yaw_rad,
+                    )));
+                    // Progress of the running procedure.
+                    let mode = self.observed().map(|o| o.mode);
+                    if state == VehicleState::TakingOff && mem.offboard_engaged {
+                        if mode.is_some_and(|m| m != Px4Mode::Offboard) {
+                            if let Some(o) = self.observed() {
+                                let _ = self.apply(&mut mem, Event::ProcedureFailed(o));
+                            }
+                        } else if (cur.down_m - tp.down_m).abs() < ARRIVAL_TOLERANCE_M {
+                            let _ = self.apply(&mut mem, Event::TakeoffComplete);
+                        }
+                    }
+                    if state == VehicleState::GoTo
+                        && mem
+                            .goto_target
+                            .is_some_and(|g| (cur - g).norm() < ARRIVAL_TOLERANCE_M)
+                    {
+                        let _ = self.apply(&mut mem, Event::GoToReached);
+                    }
+                }
+            }
+            VehicleState::Landing | VehicleState::ReturnToLaunch | VehicleState::Failsafe => {
+                // PX4 flies; keep a hold at the current position in the stream so that
+                // a switch back to OFFBOARD holds where the vehicle is.
+                if let (Some(local), Some(cur)) = (local_frame, current) {
+                    if let Some(s) = mem.shaper.as_mut() {
+                        s.reset(cur);
+                    }
+                    if stream.current().is_some() {
+                        stream.set(Some(LocalSetpoint::position(
+                            frame.convert_to(&local, cur),
+                            mem.yaw_rad,
+                        )));
+                    }
+                }
+            }
+            VehicleState::Lost => {} // keep streaming the last setpoint
+            VehicleState::Landed | VehicleState::Armed | VehicleState::Disconnected => {
+                if stream.current().is_some() {
+                    stream.set(None);
+                }
+                mem.shaper = None;
+                mem.target = None;
+            }
+        }
+        let slot = mem.slot;
+        drop(mem);
+        let publish_every = (self.config().control_rate_hz / 10.0).round().max(1.0) as u64;
+        self.shared.publish_report(Some(frame));
+        if self.ticks.is_multiple_of(publish_every) {
+            self.shared
+                .publish(Some(frame), slot, self.children.supervision());
+        }
+    }
+}

@@ -1,0 +1,258 @@
+//! The `Vehicle` actor: one per UAV, owner of its FSM and of what its setpoint stream
+//! carries.
+//!
+//! It speaks the swarm protocol ([`crate::protocol`]): it obeys [`ToVehicle`] messages
+//! and says what happened through its [`Uplink`](crate::protocol::Uplink) closure and its
+//! published [`VehicleReport`](crate::protocol::VehicleReport); it holds no reference to
+//! the coordinator, so the same actor runs under the single-process coordinator or under
+//! an agent whose coordinator is across DDS.
+//!
+//! - [`messages`]: arguments, messages, children's names;
+//! - [`shared`]: what outlives the actor ([`VehicleShared`]): FSM memory, snapshot,
+//!   report;
+//! - [`commands`]: operator commands and link events into the FSM;
+//! - [`procedures`]: multi-step operations (arm, enter OFFBOARD, land) as tasks;
+//! - [`control`]: the control loop feeding the setpoint stream;
+//! - [`children`]: supervision of its `Px4Link` and payloads.
+
+mod children;
+pub mod commands;
+pub mod control;
+pub mod messages;
+pub mod procedures;
+pub mod shared;
+
+pub use control::ARRIVAL_TOLERANCE_M;
+pub use messages::{Child, ProcedureStep, VehicleArgs, VehicleMsg};
+pub use procedures::OFFBOARD_PRESTREAM;
+pub use shared::VehicleShared;
+
+use crate::events::SwarmEvent;
+use crate::payload::PayloadMsg;
+use crate::protocol::{FromVehicle, PayloadCommandError, ToVehicle, Uplink};
+use crate::supervision::Children;
+use crate::view::SwarmView;
+use ractor::{Actor, ActorProcessingErr, ActorRef, SupervisionEvent};
+use skein_link::Px4LinkMsg;
+use skein_model::supervision::ChildStatus;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::sync::broadcast;
+
+/// The `Vehicle` actor (see module docs).
+pub struct Vehicle;
+
+/// State of [`Vehicle`].
+pub struct VehicleActorState {
+    shared: Arc<VehicleShared>,
+    view: Arc<SwarmView>,
+    events: broadcast::Sender<SwarmEvent>,
+    uplink: Uplink,
+    children: Children<Child>,
+    others: Vec<skein_model::safety::Obstacle>,
+    last_tick: Instant,
+    ticks: u64,
+}
+
+impl VehicleActorState {
+    /// Carries out a protocol message from the coordinator.
+    fn on_protocol(&mut self, myself: &ActorRef<VehicleMsg>, msg: ToVehicle) {
+        match msg {
+            ToVehicle::Command {
+                command_id,
+                command,
+            } => {
+                let result = self.command(myself, command, command_id);
+                (self.uplink)(FromVehicle::CommandAck {
+                    id: self.shared.id.clone(),
+                    command_id,
+                    result,
+                });
+            }
+            ToVehicle::Slot { target } => self.on_slot(target),
+            ToVehicle::PayloadCommand {
+                request_id,
+                slot,
+                command,
+            } => self.payload_command(request_id, slot, command),
+        }
+    }
+
+    /// Hands a payload command to the payload's actor and answers through the uplink
+    /// from a task (the payload may take its time).
+    fn payload_command(&self, request_id: u64, slot: String, command: serde_json::Value) {
+        let id = self.shared.id.clone();
+        let uplink = self.uplink.clone();
+        let actor = self
+            .payload_actors()
+            .find(|(s, _)| *s == slot)
+            .map(|(_, a)| a);
+        let Some(actor) = actor else {
+            let why = if self.shared.payloads.contains_key(&slot) {
+                PayloadCommandError::Unavailable(format!(
+                    "payload `{slot}` is not running (failed, disabled or restarting)"
+                ))
+            } else {
+                PayloadCommandError::NotFound(format!(
+                    "vehicle {id} has no payload slot `{slot}` (slots: {})",
+                    self.shared
+                        .payloads
+                        .keys()
+                        .cloned()
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ))
+            };
+            uplink(FromVehicle::PayloadResult {
+                id,
+                request_id,
+                result: Err(why),
+            });
+            return;
+        };
+        let deadline = Some(self.children.supervision().config.watchdog_deadline());
+        tokio::spawn(async move {
+            use PayloadCommandError as E;
+            let result = match actor
+                .call(|r| PayloadMsg::Command(command, r), deadline)
+                .await
+            {
+                Ok(ractor::rpc::CallResult::Success(r)) => r.map_err(E::Refused),
+                Ok(ractor::rpc::CallResult::Timeout) => Err(E::Unavailable(format!(
+                    "payload `{slot}` did not answer in time"
+                ))),
+                _ => Err(E::Unavailable(format!(
+                    "payload `{slot}` failed while handling the command"
+                ))),
+            };
+            uplink(FromVehicle::PayloadResult {
+                id,
+                request_id,
+                result,
+            });
+        });
+    }
+}
+
+impl Actor for Vehicle {
+    type Msg = VehicleMsg;
+    type State = VehicleActorState;
+    type Arguments = VehicleArgs;
+
+    async fn pre_start(
+        &self,
+        myself: ActorRef<Self::Msg>,
+        args: VehicleArgs,
+    ) -> Result<Self::State, ActorProcessingErr> {
+        let period = Duration::from_secs_f64(1.0 / args.view.config.control_rate_hz.max(1.0));
+        myself.send_interval(period, || VehicleMsg::Tick);
+        myself.send_interval(args.supervision.config.watchdog_period(), || {
+            VehicleMsg::WatchTick
+        });
+        let path = format!("{}/{}", crate::supervision::ROOT, args.shared.id);
+        let mut state = VehicleActorState {
+            shared: args.shared,
+            view: args.view,
+            events: args.events,
+            uplink: args.uplink,
+            children: Children::new(path, args.supervision),
+            others: Vec::new(),
+            last_tick: Instant::now(),
+            ticks: 0,
+        };
+        state.start_child(&myself, Child::Link).await?;
+        let slots: Vec<String> = state.shared.payloads.keys().cloned().collect();
+        for slot in slots {
+            let child = Child::Payload(slot);
+            // A payload disabled by an escalation stays disabled across vehicle restarts.
+            let failed = state
+                .children
+                .supervision()
+                .record(&state.children.path(&child))
+                .is_some_and(|r| r.status == ChildStatus::Failed);
+            if !failed && let Err(e) = state.start_child(&myself, child.clone()).await {
+                let exit = crate::supervision::Exit::Failed(format!("start failed: {e}"));
+                state.child_ended(&myself, child, exit).await?;
+            }
+        }
+        Ok(state)
+    }
+
+    async fn handle(
+        &self,
+        myself: ActorRef<Self::Msg>,
+        msg: Self::Msg,
+        state: &mut Self::State,
+    ) -> Result<(), ActorProcessingErr> {
+        match msg {
+            VehicleMsg::Protocol(msg) => state.on_protocol(&myself, msg),
+            VehicleMsg::Link(ev) => state.on_link_event(ev),
+            VehicleMsg::Tick => state.tick(),
+            VehicleMsg::ProcedureDone {
+                generation,
+                command_id,
+                command,
+                result,
+            } => state.procedure_done(generation, command_id, command, result),
+            VehicleMsg::GetLink(reply) => {
+                let _ = reply.send(state.children.actor::<Px4LinkMsg>(&Child::Link));
+            }
+            VehicleMsg::Component(frame) => {
+                for (_, actor) in state.payload_actors() {
+                    let _ = actor.cast(PayloadMsg::Mavlink(
+                        frame.compid,
+                        Box::new(frame.msg.clone()),
+                    ));
+                }
+            }
+            VehicleMsg::RefreshPayload(slot, at) => {
+                // A payload not running now is created from the new build when it starts.
+                if let Some(actor) = state.children.actor::<PayloadMsg>(&Child::Payload(slot)) {
+                    let _ = actor.cast(PayloadMsg::Refresh(at));
+                }
+            }
+            VehicleMsg::Ping(reply) => {
+                let _ = reply.send(());
+            }
+            VehicleMsg::WatchTick => {
+                let me = myself.clone();
+                state.children.watch(move |child, id| {
+                    let _ = me.cast(VehicleMsg::ChildHung(child, id));
+                });
+            }
+            VehicleMsg::ChildHung(child, id) => state.children.kill_hung(&child, id),
+            VehicleMsg::RestartChild(child, noticed, reason) => {
+                if state.children.get(&child).is_none() {
+                    state.restart_child(&myself, child, noticed, reason).await?;
+                }
+            }
+            VehicleMsg::InjectFault(sub, kind, reply) => {
+                if sub.is_empty() {
+                    let _ = reply.send(Ok(()));
+                    let who = state.path();
+                    skein_link::fault::inject(kind, &myself, &who).await?;
+                } else {
+                    let _ = reply.send(state.inject(&sub, kind));
+                }
+            }
+            VehicleMsg::Fault(kind) => {
+                let who = state.path();
+                skein_link::fault::inject(kind, &myself, &who).await?;
+            }
+        }
+        Ok(())
+    }
+
+    async fn handle_supervisor_evt(
+        &self,
+        myself: ActorRef<Self::Msg>,
+        evt: SupervisionEvent,
+        state: &mut Self::State,
+    ) -> Result<(), ActorProcessingErr> {
+        // Ends of children already replaced (or never ours) are not news.
+        if let Some((child, exit)) = state.children.ended(&evt) {
+            state.child_ended(&myself, child, exit).await?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,292 @@
+//! The part of a vehicle that outlives its actor: identity, link, FSM memory, and what it
+//! publishes (the snapshot the API shows and the [`VehicleReport`] the coordinator flies
+//! the formation with).
+
+use super::control::Target;
+use super::messages::Child;
+use crate::payload::PayloadShared;
+use crate::protocol::{SlotTarget, VehicleReport, wall_us};
+use crate::supervision::{self, ChildKey, Supervision};
+use crate::view::VehicleModel;
+use skein_link::VehicleLink;
+use skein_model::fsm::{self, VehicleState};
+use skein_model::geo::{Ned, NedFrame, wrap_deg_360};
+use skein_model::safety::{FenceViolation, SetpointShaper};
+use skein_model::vehicle::{
+    Battery, FormationSlot, LinkStatus, Position, VehicleSnapshot, Velocity,
+};
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use tokio::sync::watch;
+
+#[derive(Debug)]
+pub(super) struct Memory {
+    pub(super) state: VehicleState,
+    pub(super) target: Option<Target>,
+    pub(super) shaper: Option<SetpointShaper>,
+    pub(super) slot: Option<SlotTarget>,
+    pub(super) yaw_rad: f64,
+    /// Generation of the running procedure; results of older ones are ignored.
+    pub(super) procedure: u64,
+    /// The takeoff procedure has PX4 in OFFBOARD and the climb target is set.
+    pub(super) offboard_engaged: bool,
+    pub(super) takeoff_altitude_m: f64,
+    pub(super) goto_target: Option<Ned>,
+    pub(super) last_fence: Option<FenceViolation>,
+}
+
+/// The part of a vehicle that outlives its actor: identity, link, FSM memory and the
+/// published snapshot.
+pub struct VehicleShared {
+    /// User-facing id (`uav-<sysid>` by default).
+    pub id: String,
+    /// Vehicle model.
+    pub model: VehicleModel,
+    /// The link state (endpoint route, telemetry, setpoint stream).
+    pub link: Arc<VehicleLink>,
+    /// True for a vehicle of the in-process simulator.
+    pub simulated: bool,
+    /// The payload slots of its model, with what each published.
+    pub payloads: Arc<BTreeMap<String, Arc<PayloadShared>>>,
+    memory: Mutex<Memory>,
+    snapshot: watch::Sender<VehicleSnapshot>,
+    report: watch::Sender<VehicleReport>,
+}
+
+impl std::fmt::Debug for VehicleShared {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("VehicleShared")
+            .field("id", &self.id)
+            .finish_non_exhaustive()
+    }
+}
+
+impl VehicleShared {
+    /// A vehicle never heard from, in [`VehicleState::Disconnected`].
+    pub fn new(
+        id: String,
+        model: VehicleModel,
+        link: Arc<VehicleLink>,
+        simulated: bool,
+    ) -> Arc<Self> {
+        let payloads = Arc::new(
+            model
+                .payloads
+                .iter()
+                .map(|p| (p.slot.clone(), PayloadShared::new(p.clone())))
+                .collect(),
+        );
+        let snapshot = VehicleSnapshot {
+            id: id.clone(),
+            sysid: link.sysid,
+            model: model.name.clone(),
+            state: VehicleState::Disconnected,
+            armed: false,
+            px4_mode: "UNKNOWN".into(),
+            landed_state: Default::default(),
+            position: None,
+            velocity: Velocity::default(),
+            heading_deg: 0.0,
+            battery: None,
+            link: LinkStatus {
+                connected: false,
+                last_seen_ms: 0,
+            },
+            formation: None,
+            payloads: vec![],
+        };
+        Arc::new(VehicleShared {
+            id,
+            model,
+            link,
+            simulated,
+            payloads,
+            memory: Mutex::new(Memory {
+                state: VehicleState::Disconnected,
+                target: None,
+                shaper: None,
+                slot: None,
+                yaw_rad: 0.0,
+                procedure: 0,
+                offboard_engaged: false,
+                takeoff_altitude_m: 0.0,
+                goto_target: None,
+                last_fence: None,
+            }),
+            snapshot: watch::channel(snapshot).0,
+            report: watch::channel(VehicleReport::disconnected()).0,
+        })
+    }
+
+    /// The FSM memory, recovered if a panic poisoned its lock (the state it guards is
+    /// what a restarted actor must resume from).
+    pub(super) fn memory(&self) -> MutexGuard<'_, Memory> {
+        self.memory.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The latest published snapshot.
+    pub fn snapshot(&self) -> VehicleSnapshot {
+        self.snapshot.borrow().clone()
+    }
+
+    /// The published snapshots (the in-process carrier of the vehicle's state topic).
+    pub fn subscribe_snapshots(&self) -> watch::Receiver<VehicleSnapshot> {
+        self.snapshot.subscribe()
+    }
+
+    /// The published reports (the in-process carrier of what the formation engine needs).
+    pub fn subscribe_reports(&self) -> watch::Receiver<VehicleReport> {
+        self.report.subscribe()
+    }
+
+    /// Publishes a [`VehicleReport`] from the telemetry and the FSM memory, positions in
+    /// the swarm `frame` (none without a frame).
+    pub fn publish_report(&self, frame: Option<NedFrame>) {
+        let (state, target) = {
+            let mem = self.memory();
+            (mem.state, mem.target.map(|t| t.position()))
+        };
+        let report = VehicleReport {
+            state,
+            position: frame.and_then(|f| self.position(&f)),
+            velocity: self.velocity().unwrap_or(Ned::ZERO),
+            heading_rad: self.heading_rad(),
+            link_silence_s: self.link.silence().map(|s| s.as_secs_f64()),
+            target,
+            stamp_us: wall_us(),
+        };
+        self.report.send_replace(report);
+    }
+
+    /// The FSM state.
+    pub fn state(&self) -> VehicleState {
+        self.memory().state
+    }
+
+    /// Current swarm-frame position (from the vehicle's local position through its origin
+    /// and the swarm frame), if known, moved on by its velocity for the age of the sample
+    /// (at most 200 ms: PX4 streams it at 10–30 Hz, and a vehicle at 5 m/s covers 17 cm
+    /// between two samples).
+    pub fn position(&self, swarm: &NedFrame) -> Option<Ned> {
+        self.link
+            .with_telemetry(|t| match (t.local, t.local_frame()) {
+                (Some(l), Some(local)) => {
+                    let age = t
+                        .local_received
+                        .map_or(0.0, |at| at.elapsed().as_secs_f64().min(0.2));
+                    Some(local.convert_to(swarm, l.position + l.velocity_m_s * age))
+                }
+                _ => t.global.map(|g| swarm.to_ned(&g.geo)),
+            })
+    }
+
+    /// Heading, radians clockwise from north (`ATTITUDE.yaw`).
+    pub fn heading_rad(&self) -> f64 {
+        self.link
+            .with_telemetry(|t| t.attitude.map(|a| a.yaw_rad))
+            .unwrap_or(0.0)
+    }
+
+    /// Publishes a fresh snapshot from the telemetry, the FSM state, the formation slot
+    /// and the payloads' supervision status and state.
+    pub fn publish(
+        &self,
+        frame: Option<NedFrame>,
+        slot: Option<SlotTarget>,
+        supervision: &Supervision,
+    ) {
+        let state = self.state();
+        let current = frame.and_then(|f| self.position(&f));
+        let link = &self.link;
+        let silence = link.silence();
+        let vehicle_path = format!("{}/{}", supervision::ROOT, self.id);
+        let payloads = self
+            .payloads
+            .iter()
+            .map(|(slot, p)| {
+                let path = Child::Payload(slot.clone()).path(&vehicle_path);
+                let status = supervision.record(&path).map(|r| r.status);
+                serde_json::json!({
+                    "slot": slot,
+                    "kind": p.spec.kind,
+                    "plugin": p.spec.plugin,
+                    "status": status,
+                    "state": p.state(),
+                    "frames": p.frames_published(),
+                })
+            })
+            .collect();
+        let snap = link.with_telemetry(|t| {
+            let position = frame.and_then(|frame| {
+                t.global.map(|g| {
+                    let mut p = Position::from_geo(g.geo, g.relative_alt_m, &frame);
+                    if let Some(c) = current {
+                        p.north_m = c.north_m;
+                        p.east_m = c.east_m;
+                        p.down_m = c.down_m;
+                    }
+                    p
+                })
+            });
+            let slot = slot.map(|s| FormationSlot {
+                slot: s.slot,
+                leader: s.leader,
+                target: s.goal,
+                error_m: current.map_or(f64::NAN, |c| (c - s.goal).norm()),
+            });
+            let vel = t
+                .local
+                .map(|l| l.velocity_m_s)
+                .or(t.global.map(|g| g.velocity_m_s))
+                .unwrap_or(Ned::ZERO);
+            VehicleSnapshot {
+                id: self.id.clone(),
+                sysid: link.sysid,
+                model: self.model.name.clone(),
+                state,
+                armed: t.heartbeat.is_some_and(|h| h.armed),
+                px4_mode: t.heartbeat.map_or("UNKNOWN", |h| h.mode.name()).to_string(),
+                landed_state: t.landed_state,
+                position,
+                velocity: Velocity {
+                    north_m_s: vel.north_m,
+                    east_m_s: vel.east_m,
+                    down_m_s: vel.down_m,
+                },
+                heading_deg: t.heading_deg().map_or(0.0, wrap_deg_360),
+                battery: t.battery.map(|b| Battery {
+                    percent: b.percent.unwrap_or(f64::NAN),
+                    voltage_v: b.voltage_v.unwrap_or(f64::NAN),
+                }),
+                link: LinkStatus {
+                    connected: t.heartbeat.is_some() && !link.is_lost(),
+                    last_seen_ms: silence.map_or(0, |s| s.as_millis() as u64),
+                },
+                formation: slot,
+                payloads,
+            }
+        });
+        self.snapshot.send_replace(snap);
+    }
+
+    /// With no Vehicle actor (escalated), the FSM state follows telemetry alone.
+    pub fn settle_from_telemetry(&self) {
+        if let Some(o) = self.link.with_telemetry(|t| t.observed()) {
+            self.memory().state = fsm::settle(o);
+        }
+    }
+
+    /// Where the vehicle is being held or sent (swarm frame), if skein is steering it.
+    pub fn target_position(&self) -> Option<Ned> {
+        self.memory().target.map(|t| t.position())
+    }
+
+    /// Current velocity, NED m/s.
+    pub fn velocity(&self) -> Option<Ned> {
+        self.link.with_telemetry(|t| {
+            t.local
+                .map(|l| l.velocity_m_s)
+                .or(t.global.map(|g| g.velocity_m_s))
+        })
+    }
+}
