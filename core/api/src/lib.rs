@@ -232,6 +232,14 @@ async fn vehicle_command(
     Path(id): Path<String>,
     body: Bytes,
 ) -> Result<Response, ApiError> {
+    if requests::is_clear_hazard(&body)? {
+        let id2 = id.clone();
+        return match s.ask(move |r| CoordinatorMsg::ClearHazard(id2, r)).await? {
+            Ok(()) => Ok(Json(serde_json::json!({"cleared": id})).into_response()),
+            Err(None) => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
+            Err(Some(reason)) => Err(ApiError::conflict(reason, Some("command"))),
+        };
+    }
     let cmd = requests::command(&body)?;
     let id2 = id.clone();
     match s

@@ -82,6 +82,20 @@ pub const COMMANDS: [&str; 10] = [
     "leave_formation",
 ];
 
+/// True for `{"command": "clear_hazard"}`: the operator says a lost vehicle is no
+/// longer a hazard (a formation-level command, not one for the vehicle's FSM).
+///
+/// # Errors
+/// A body that is not a JSON object, or `clear_hazard` with other fields.
+pub fn is_clear_hazard(body: &[u8]) -> Result<bool, ApiError> {
+    let m = object(body)?;
+    if string(&m, "command")? != Some("clear_hazard") {
+        return Ok(false);
+    }
+    reject_unknown(&m, &["command"])?;
+    Ok(true)
+}
+
 /// Parses `{"command": "takeoff", "altitude_m": 10}` and friends.
 pub fn command(body: &[u8]) -> Result<VehicleCommand, ApiError> {
     let m = object(body)?;

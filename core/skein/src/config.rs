@@ -31,6 +31,12 @@
 //! payload = { policy = "on-failure", max_restarts = 5, window_s = 60.0,
 //!             backoff_initial_ms = 100, backoff_max_ms = 5000 }
 //!
+//! [hazards]                    # vehicles lost in the air, planned around
+//! drift_m_s = 1.0              # assumed drift of an unseen vehicle; its radius grows so
+//! max_radius_m = 10.0          # … up to this
+//! max_unseen_s = 300.0         # unseen this long: no longer a hazard
+//! replan_after_s = 10.0        # a formation change held this long is planned again
+//!
 //! [models.observation]         # vehicle models: limits and payload slots
 //! payloads = [{ slot = "gimbal", kind = "gimbal" }, { slot = "camera", kind = "camera" }]
 //! limits = { max_speed_m_s = 8.0, max_climb_m_s = 3.0, max_descent_m_s = 1.5, max_accel_m_s2 = 3.0 }
@@ -171,6 +177,8 @@ pub struct ConfigFile {
     pub plugins: PluginsSection,
     /// `[supervision]`.
     pub supervision: Option<skein_swarm::supervision::SupervisionConfig>,
+    /// `[hazards]`.
+    pub hazards: Option<skein_swarm::formation::HazardConfig>,
     /// `[models.NAME]`.
     #[serde(default)]
     pub models: BTreeMap<String, ModelEntry>,
@@ -329,6 +337,9 @@ impl ConfigFile {
         };
         if let Some(sup) = &self.supervision {
             c.supervision = sup.clone();
+        }
+        if let Some(h) = self.hazards {
+            c.hazards = h;
         }
         for (name, m) in &self.models {
             c.models.insert(

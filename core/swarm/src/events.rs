@@ -129,4 +129,36 @@ pub enum SwarmEvent {
         /// Event data.
         data: serde_json::Value,
     },
+    /// A vehicle that no longer follows its setpoints (lost, or in PX4's failsafe) became
+    /// an obstacle the formation plans around.
+    HazardAdded {
+        /// Vehicle id.
+        id: String,
+        /// Its last known position, swarm-frame NED metres.
+        position: skein_model::geo::Ned,
+        /// Why (`"Lost"`, `"Failsafe"`).
+        reason: String,
+    },
+    /// A hazard ended.
+    HazardCleared {
+        /// Vehicle id.
+        id: String,
+        /// Why: heard again and following, seen on the ground, unseen too long, or
+        /// cleared by an operator.
+        reason: String,
+    },
+    /// A formation change whose pacing held members too long was planned again from
+    /// where the members are.
+    FormationReplanned {
+        /// The members that were held.
+        stuck: Vec<String>,
+        /// Who was held how far, for how long.
+        reason: String,
+    },
+    /// The formation cannot be flown clear of the hazards and holds (`reason`), or can
+    /// again (`reason` null).
+    FormationBlocked {
+        /// Why, or `None` when it is no longer blocked.
+        reason: Option<String>,
+    },
 }

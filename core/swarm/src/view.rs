@@ -81,6 +81,8 @@ pub struct SwarmConfig {
     pub supervision: SupervisionConfig,
     /// `POST /api/v1/faults` works only when this is set (`--enable-fault-injection`).
     pub fault_injection: bool,
+    /// How lost vehicles are planned around (drift, radius cap, age-out, replan time).
+    pub hazards: crate::formation::HazardConfig,
 }
 
 impl Default for SwarmConfig {
@@ -101,6 +103,7 @@ impl Default for SwarmConfig {
             link_setup: skein_link::LinkSetup::default(),
             supervision: SupervisionConfig::default(),
             fault_injection: false,
+            hazards: crate::formation::HazardConfig::default(),
         }
     }
 }

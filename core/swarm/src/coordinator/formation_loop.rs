@@ -95,9 +95,24 @@ impl CoordinatorState {
                 ))
             })
             .collect();
+        let hazards = self.update_hazards();
+        self.formation.set_hazards(hazards);
         let slots = self
             .formation
             .tick(&members, dt, &self.view.config.geofence);
+        for replan in self.formation.take_replans() {
+            tracing::warn!("formation planned again: {}", replan.reason);
+            self.emit(SwarmEvent::FormationReplanned {
+                stuck: replan.stuck,
+                reason: replan.reason,
+            });
+        }
+        if let Some(reason) = self.formation.take_blocked_change() {
+            if let Some(why) = &reason {
+                tracing::warn!("formation blocked: {why}");
+            }
+            self.emit(SwarmEvent::FormationBlocked { reason });
+        }
         if self.formation.take_pending_applied() {
             let status = serde_json::to_value(self.formation_status()).unwrap_or_default();
             self.emit(SwarmEvent::FormationChanged { formation: status });

@@ -129,6 +129,9 @@ pub enum CoordinatorMsg {
         FormationSpec,
         RpcReplyPort<Result<FormationStatus, FieldError>>,
     ),
+    /// The operator says vehicle `id` is no longer a hazard; `Err(None)` when there is no
+    /// such vehicle, `Err(Some(why))` when it is not a hazard.
+    ClearHazard(String, RpcReplyPort<Result<(), Option<String>>>),
     /// Stop flying the formation (vehicles hold where they are).
     ClearFormation(RpcReplyPort<FormationStatus>),
     /// Move the formation's reference point (leader go-to, waypoints, orbit).

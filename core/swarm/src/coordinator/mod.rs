@@ -19,6 +19,7 @@
 //! - [`proxy`]: the coordinator's view of a vehicle;
 //! - [`commands`]: fan-out of commands and payload requests;
 //! - [`formation_loop`]: the formation tick;
+//! - [`hazards`]: lost vehicles the formation plans around;
 //! - [`validation`]: formation and leader-motion requests, checked;
 //! - [`children`]: supervision of vehicles and services, fault routing;
 //! - [`escalation`]: what happens to a vehicle whose actor keeps failing;
@@ -29,6 +30,7 @@ pub mod commands;
 pub mod discovery;
 pub mod escalation;
 pub mod formation_loop;
+pub mod hazards;
 pub mod messages;
 pub mod proxy;
 pub mod swarm;
@@ -86,6 +88,7 @@ pub struct CoordinatorState {
     metrics: Arc<Metrics>,
     supervision: Arc<Supervision>,
     in_flight: InFlight,
+    hazards: hazards::Hazards,
     started: Instant,
     last_formation_tick: Instant,
 }
@@ -229,17 +232,20 @@ impl Actor for Coordinator {
             CoordinatorMsg::WatchTick
         });
         let separation_m = args.config.setpoint_separation_m();
+        let mut formation = FormationEngine::new(separation_m);
+        formation.set_replan_after_s(args.config.hazards.replan_after_s);
         Ok(CoordinatorState {
             view: Arc::new(SwarmView::new(args.config, args.services)),
             endpoints: args.endpoints,
             vehicles: BTreeMap::new(),
             services: BTreeMap::new(),
             children: Children::new(supervision::ROOT, supervision.clone()),
-            formation: FormationEngine::new(separation_m),
+            formation,
             events: args.events,
             metrics: args.metrics,
             supervision,
             in_flight: InFlight::default(),
+            hazards: hazards::Hazards::default(),
             started: Instant::now(),
             last_formation_tick: Instant::now(),
         })
@@ -323,6 +329,9 @@ impl Actor for Coordinator {
                     })
                 });
                 let _ = reply.send(r.map(|()| state.formation_status()));
+            }
+            CoordinatorMsg::ClearHazard(id, reply) => {
+                let _ = reply.send(state.clear_hazard(&id));
             }
             CoordinatorMsg::ClearFormation(reply) => {
                 state.formation.deactivate();

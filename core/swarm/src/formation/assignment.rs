@@ -1,23 +1,32 @@
 //! Which slot each member flies: minimum total squared distance (Kuhn–Munkres, see
-//! [`skein_model::formation::assign_slots`]) from where the members start to the free
+//! [`skein_model::formation::assign_slots_by`]) from where the members start to the free
 //! slots, a leader vehicle keeping slot 0, the members farthest from every slot waiting
-//! when a custom shape has too few; and the [`Transition`] that takes them there.
+//! when a custom shape has too few; and the [`Transition`] that takes them there. A
+//! straight path through a hazard costs [`HAZARD_PENALTY_M2`] on top, so it is flown
+//! only when no assignment avoids it (the members' shapers then keep the separation).
 
+use super::hazard::{Hazard, path_blocked};
 use super::transition::Transition;
-use skein_model::formation::assign_slots;
+use skein_model::formation::assign_slots_by;
 use skein_model::geo::Ned;
 use std::collections::BTreeMap;
+
+/// Extra cost of a straight path through a hazard, square metres (more than any
+/// formation's total squared distance).
+pub const HAZARD_PENALTY_M2: f64 = 1.0e6;
 
 /// Assigns members to slots and plans the transition to them. `starts` are where the
 /// members start, pattern frame (metres from the anchor, unturned); `offsets` are the
 /// slots, pattern frame, slot 0 the leader's; `leader` is the leader vehicle (slot 0,
 /// not on the plan; followers pass it at least `separation_m` metres away), `None` for
 /// the virtual leader (every slot free). Members beyond the free slots get none.
+/// `hazards` are in the pattern frame too.
 pub(super) fn assign(
     starts: &BTreeMap<String, Ned>,
     offsets: &[Ned],
     leader: Option<&str>,
     separation_m: f64,
+    hazards: &[Hazard],
 ) -> (BTreeMap<String, usize>, Transition) {
     let mut assignment = BTreeMap::new();
     let first_follower_slot = match leader {
@@ -44,7 +53,13 @@ pub(super) fn assign(
         candidates.truncate(free.len());
     }
     let positions: Vec<Ned> = candidates.iter().map(|(_, p)| *p).collect();
-    let slots = assign_slots(&positions, free);
+    let slots = assign_slots_by(&positions, free, |i, j| {
+        let blocked = hazards
+            .iter()
+            .filter(|h| path_blocked(positions[i], free[j], h, separation_m))
+            .count();
+        blocked as f64 * HAZARD_PENALTY_M2
+    });
     let mut transition = Transition::new();
     let layer = leader.map(|_| separation_m);
     for ((id, start), slot) in candidates.into_iter().zip(slots) {
@@ -75,7 +90,7 @@ mod tests {
             ("b", Ned::new(0.0, 0.0, 0.0)),
             ("c", Ned::new(-1.0, 3.0, 0.0)),
         ]);
-        let (assignment, t) = assign(&s, &line(), Some("b"), 3.5);
+        let (assignment, t) = assign(&s, &line(), Some("b"), 3.5, &[]);
         assert_eq!(assignment, starts_to_slots(&[("a", 2), ("b", 0), ("c", 1)]));
         // The leader vehicle is not on the plan; the others start where they are.
         assert!(t.planned("b").is_none());
@@ -91,7 +106,7 @@ mod tests {
             ("b", Ned::new(0.0, -6.0, 0.0)),
             ("c", Ned::new(0.5, 0.5, 0.0)),
         ]);
-        let (assignment, t) = assign(&s, &line(), None, 3.5);
+        let (assignment, t) = assign(&s, &line(), None, 3.5, &[]);
         assert_eq!(assignment, starts_to_slots(&[("a", 1), ("b", 2), ("c", 0)]));
         // Nobody passes a leader vehicle: no layers, so the extents are the ends only.
         let up = t.extents().iter().filter(|p| p.down_m != 0.0).count();
@@ -106,7 +121,7 @@ mod tests {
             ("b", Ned::new(-4.0, 0.0, 0.0)),
             ("c", Ned::new(30.0, 30.0, 0.0)),
         ]);
-        let (assignment, t) = assign(&s, &offsets, Some("a"), 3.5);
+        let (assignment, t) = assign(&s, &offsets, Some("a"), 3.5, &[]);
         assert_eq!(assignment, starts_to_slots(&[("a", 0), ("b", 1)]));
         assert!(t.planned("c").is_none());
     }
@@ -120,16 +135,41 @@ mod tests {
             ("c", Ned::new(0.0, 5.0, 0.0)),
         ]);
         let offsets = vec![Ned::ZERO, Ned::new(0.0, 5.0, 0.0), Ned::new(-5.0, 0.0, 0.0)];
-        let (assignment, t) = assign(&s, &offsets, Some("a"), 3.5);
+        let (assignment, t) = assign(&s, &offsets, Some("a"), 3.5, &[]);
         // c keeps its slot; b goes behind the leader, its straight path clear of it.
         assert_eq!(assignment, starts_to_slots(&[("a", 0), ("b", 2), ("c", 1)]));
         assert!(t.extents().iter().all(|p| p.down_m == 0.0));
         // With c forced out of the way, b must pass the leader: a layer 3.5 m up.
         let s = starts(&[("a", Ned::ZERO), ("b", Ned::new(0.0, -5.0, 0.0))]);
-        let (_, t) = assign(&s, &offsets[..2], Some("a"), 3.5);
+        let (_, t) = assign(&s, &offsets[..2], Some("a"), 3.5, &[]);
         let extents = t.extents();
         assert!(extents.contains(&Ned::new(0.0, -5.0, -3.5)), "{extents:?}");
         assert!(extents.contains(&Ned::new(0.0, 5.0, -3.5)), "{extents:?}");
+    }
+
+    #[test]
+    fn no_member_is_sent_through_a_hazard_when_another_slot_avoids_it() {
+        // Slots 6 m west and east; each member starts 12 m north of its nearest one, and
+        // a hazard sits on the western member's straight path.
+        let offsets = vec![Ned::new(0.0, -6.0, 0.0), Ned::new(0.0, 6.0, 0.0)];
+        let s = starts(&[
+            ("e", Ned::new(12.0, 8.0, 0.0)),
+            ("w", Ned::new(12.0, -8.0, 0.0)),
+        ]);
+        let (plain, _) = assign(&s, &offsets, None, 3.5, &[]);
+        assert_eq!(plain, starts_to_slots(&[("e", 1), ("w", 0)]));
+        let hazard = Hazard {
+            id: "x".into(),
+            position: Ned::new(6.0, -7.0, 0.0),
+            radius_m: 0.0,
+            unseen_s: 0.0,
+            reason: "Lost".into(),
+        };
+        let (avoiding, t) = assign(&s, &offsets, None, 3.5, std::slice::from_ref(&hazard));
+        assert_eq!(avoiding, starts_to_slots(&[("e", 0), ("w", 1)]));
+        for (id, start) in &t.starts {
+            assert!(!path_blocked(*start, t.goals[id], &hazard, 3.5), "{id}");
+        }
     }
 
     fn starts_to_slots(list: &[(&str, usize)]) -> BTreeMap<String, usize> {

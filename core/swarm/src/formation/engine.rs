@@ -3,12 +3,13 @@
 //! (leader, reference point, pattern, assignment, transition), and the status it shows.
 
 use super::assignment::assign;
+use super::hazard::{Hazard, HazardConfig, clearing_shift};
 use super::leader::{LeaderChange, healthy, resolve_leader};
 use super::pattern::{spin, turn};
 use super::reference::{Reference, inner_fence, pace};
 use super::spec::{FormationFrame, FormationSpec, LeaderMotion, VIRTUAL};
-use super::status::{FormationStatus, Member, MemberStatus, SlotCommand};
-use super::transition::Transition;
+use super::status::{FormationStatus, Member, MemberStatus, Replan, SlotCommand};
+use super::transition::{LAG_SLOW_M, LAG_STOP_M, Transition};
 use skein_model::formation::slot_positions;
 use skein_model::geo::Ned;
 use skein_model::safety::Geofence;
@@ -16,6 +17,9 @@ use std::collections::BTreeMap;
 
 /// Separation of [`FormationEngine::default`] (3 m plus the default 0.5 m margin), metres.
 pub const DEFAULT_SEPARATION_M: f64 = 3.5;
+/// Largest shift of the slot pattern that clears it of hazards, metres; beyond it the
+/// formation holds and says it is blocked.
+pub const MAX_HAZARD_SHIFT_M: f64 = 100.0;
 
 /// Formation state between ticks.
 #[derive(Debug)]
@@ -44,6 +48,18 @@ pub struct FormationEngine {
     pending_applied: bool,
     /// Distance followers keep from a leader vehicle on their transition paths, metres.
     separation_m: f64,
+    /// Vehicles that may still fly where the formation is not steering them.
+    hazards: Vec<Hazard>,
+    /// How long pacing may hold a member before the change is planned again.
+    replan_after_s: f64,
+    /// How long pacing has been holding a member, seconds.
+    stalled_s: f64,
+    /// Changes planned again since the last call of `take_replans`.
+    replans: Vec<Replan>,
+    /// Why the formation cannot be flown clear of the hazards, if it cannot.
+    blocked: Option<String>,
+    /// `blocked` changed since the last call of `take_blocked_change`.
+    blocked_changed: bool,
 }
 
 impl Default for FormationEngine {
@@ -64,6 +80,12 @@ impl Default for FormationEngine {
             pending: None,
             pending_applied: false,
             separation_m: DEFAULT_SEPARATION_M,
+            hazards: Vec::new(),
+            replan_after_s: HazardConfig::default().replan_after_s,
+            stalled_s: 0.0,
+            replans: Vec::new(),
+            blocked: None,
+            blocked_changed: false,
         }
     }
 }
@@ -75,6 +97,41 @@ impl FormationEngine {
         FormationEngine {
             separation_m,
             ..FormationEngine::default()
+        }
+    }
+
+    /// How long pacing may hold a member before a change is planned again from where
+    /// the members are, seconds.
+    pub fn set_replan_after_s(&mut self, seconds: f64) {
+        self.replan_after_s = seconds.max(0.0);
+    }
+
+    /// The hazards to plan around from the next tick on (swarm frame).
+    pub fn set_hazards(&mut self, hazards: Vec<Hazard>) {
+        self.hazards = hazards;
+    }
+
+    /// The hazards planned around.
+    pub fn hazards(&self) -> &[Hazard] {
+        &self.hazards
+    }
+
+    /// Changes planned again because pacing held a member too long, since the last call
+    /// (for the event stream).
+    pub fn take_replans(&mut self) -> Vec<Replan> {
+        std::mem::take(&mut self.replans)
+    }
+
+    /// `Some(why)` when the formation became blocked by hazards, `Some(None)` when it no
+    /// longer is, once per change (for the event stream).
+    pub fn take_blocked_change(&mut self) -> Option<Option<String>> {
+        std::mem::take(&mut self.blocked_changed).then(|| self.blocked.clone())
+    }
+
+    fn set_blocked(&mut self, why: Option<String>) {
+        if self.blocked != why {
+            self.blocked = why;
+            self.blocked_changed = true;
         }
     }
 
@@ -138,6 +195,8 @@ impl FormationEngine {
         self.pattern_heading = None;
         self.pattern_rate = 0.0;
         self.pending = None;
+        self.stalled_s = 0.0;
+        self.set_blocked(None);
     }
 
     /// Gives the reference point a new motion (leader go-to, waypoints, orbit).
@@ -255,7 +314,32 @@ impl FormationEngine {
             .fold(0.0, f64::max);
         let pace = pace(behind);
         reference.step_paced(dt_s, &inner, pace);
+        // Hazards: the slots, laid around where the leader is sent, keep clear of them by
+        // the smallest horizontal shift of the reference; failing that, it holds.
+        let mut blocked = None;
+        if !self.hazards.is_empty() {
+            let plan_heading = match spec.frame {
+                FormationFrame::World => spec.heading_deg.to_radians(),
+                FormationFrame::Leader => self.pattern_heading.unwrap_or(reference.heading_rad),
+            };
+            let plan = slot_positions(&offsets, reference.position, plan_heading);
+            let shift = clearing_shift(&plan, &self.hazards, self.separation_m, MAX_HAZARD_SHIFT_M)
+                .filter(|s| inner.contains(reference.position + *s));
+            match shift {
+                Some(s) => reference.position = reference.position + s,
+                None => {
+                    reference.motion = LeaderMotion::Hold;
+                    let ids: Vec<&str> = self.hazards.iter().map(|h| h.id.as_str()).collect();
+                    blocked = Some(format!(
+                        "no shift of up to {MAX_HAZARD_SHIFT_M} m inside the geofence keeps every slot {} m plus their radius from the hazards ({}): holding",
+                        self.separation_m,
+                        ids.join(", ")
+                    ));
+                }
+            }
+        }
         let reference = reference.clone();
+        self.set_blocked(blocked);
         // Anchor and heading of the slot pattern.
         let (anchor, anchor_velocity, wanted_heading) = if virtual_leader {
             let h = match spec.frame {
@@ -286,17 +370,49 @@ impl FormationEngine {
         self.pattern_rate = heading_rate;
         self.pattern_heading = Some(heading);
         let slots = slot_positions(&offsets, anchor, heading);
+        // Members that hold the transition's time scale (nearly) still: behind their place
+        // on the plan by more than this.
+        const HELD_M: f64 = LAG_STOP_M - 0.1 * (LAG_STOP_M - LAG_SLOW_M);
+        let mut held: Vec<(String, f64)> = Vec::new();
         if let Some(t) = self.transition.as_mut() {
             // How far the slowest member is behind its place on the plan.
-            let lag = t
+            let lags: Vec<(String, f64)> = t
                 .starts
                 .keys()
                 .filter_map(|id| {
                     let (offset, _) = t.planned(id)?;
-                    Some((live.get(id)?.position - (anchor + offset.rotated_yaw(heading))).norm())
+                    let d =
+                        (live.get(id)?.position - (anchor + offset.rotated_yaw(heading))).norm();
+                    Some((id.clone(), d))
                 })
-                .fold(0.0, f64::max);
+                .collect();
+            let lag = lags.iter().map(|(_, d)| *d).fold(0.0, f64::max);
             t.advance(dt_s, lag);
+            held.extend(lags.into_iter().filter(|(_, d)| *d >= HELD_M));
+        }
+        self.stalled_s = if held.is_empty() {
+            0.0
+        } else {
+            self.stalled_s + dt_s
+        };
+        if self.stalled_s >= self.replan_after_s && !self.assignment.is_empty() {
+            // No deadlock: plan the change again from where the members are.
+            let reason = held
+                .iter()
+                .map(|(id, d)| format!("{id} held {d:.1} m from its place"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            self.replans.push(Replan {
+                stuck: held.into_iter().map(|(id, _)| id).collect(),
+                reason: format!(
+                    "{reason} for {:.0} s: planned again from where the members are",
+                    self.stalled_s
+                ),
+            });
+            self.stalled_s = 0.0;
+            self.assignment.clear();
+            self.commanded.clear();
+            self.transition = None;
         }
 
         // Assignment when the shape, leader or membership changed, then a transition.
@@ -319,8 +435,22 @@ impl FormationEngine {
                 })
                 .collect();
             let leader_vehicle = (!virtual_leader).then_some(leader.as_str());
-            let (assignment, transition) =
-                assign(&starts, &offsets, leader_vehicle, self.separation_m);
+            // Hazards in the pattern frame, like the starts and the slots.
+            let hazards: Vec<Hazard> = self
+                .hazards
+                .iter()
+                .map(|h| Hazard {
+                    position: (h.position - anchor).rotated_yaw(-heading),
+                    ..h.clone()
+                })
+                .collect();
+            let (assignment, transition) = assign(
+                &starts,
+                &offsets,
+                leader_vehicle,
+                self.separation_m,
+                &hazards,
+            );
             self.assignment = assignment;
             self.transition = Some(transition);
         }
@@ -404,6 +534,8 @@ impl FormationEngine {
             min_separation_m: min_sep,
             transition_progress: self.transition.as_ref().map(|t| t.progress().0),
             pending: self.pending.clone(),
+            hazards: self.hazards.clone(),
+            blocked: self.blocked.clone(),
         }
     }
 }

@@ -33,6 +33,15 @@
 //!   protect what the plan does not cover (a vehicle leader, vehicles outside the
 //!   formation, a member far off its plan, see [`skein_model::safety::SetpointShaper`]).
 //!
+//! - **Hazards**: a member lost (or in PX4's failsafe) is an obstacle at its last known
+//!   position, its radius growing with the time unseen. The reference moves by the
+//!   smallest horizontal shift that puts every slot the separation plus that radius away
+//!   ([`clearing_shift`]); assignments avoid straight paths through a hazard; a formation
+//!   that cannot be cleared within [`MAX_HAZARD_SHIFT_M`] inside the fence holds and says
+//!   so (`blocked`).
+//! - **No deadlock**: a change whose pacing has held a member for the replan time
+//!   (default 10 s) is planned again from where the members are ([`Replan`]).
+//!
 //! Geometry and assignment come from [`skein_model::formation`].
 //!
 //! One concept per file:
@@ -43,12 +52,15 @@
 //! - `assignment`: which slot each member flies.
 //! - `transition`: a formation change in flight on one time scale.
 //! - `climb`: the layers of followers whose path would pass a leader vehicle.
+//! - `hazard`: vehicles that may still fly where the formation is not steering them, and
+//!   how slots and paths keep clear of them.
 //! - `status`: what goes into and comes out of a tick.
 //! - `engine`: the engine's state, its tick and its status.
 
 mod assignment;
 mod climb;
 mod engine;
+mod hazard;
 mod leader;
 mod pattern;
 mod reference;
@@ -56,12 +68,13 @@ mod spec;
 mod status;
 mod transition;
 
-pub use engine::{DEFAULT_SEPARATION_M, FormationEngine};
+pub use engine::{DEFAULT_SEPARATION_M, FormationEngine, MAX_HAZARD_SHIFT_M};
+pub use hazard::{Hazard, HazardConfig, clearing_shift, path_blocked};
 pub use leader::{LEADER_SILENCE, LeaderChange};
 pub use pattern::{TURN_ACCEL_M_S2, TURN_SPEED_M_S};
 pub use reference::{FENCE_BUFFER_M, PACE_SLOW_M, PACE_STOP_M, RETURN_SPEED_M_S, Reference};
 pub use spec::{FormationFrame, FormationSpec, LeaderMotion, VIRTUAL};
-pub use status::{FormationStatus, Member, MemberStatus, SlotCommand};
+pub use status::{FormationStatus, Member, MemberStatus, Replan, SlotCommand};
 pub use transition::{
     LAG_SLOW_M, LAG_STOP_M, TRANSIT_ACCEL_M_S2, TRANSIT_CLIMB_M_S, TRANSIT_SPEED_M_S,
 };

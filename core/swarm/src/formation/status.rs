@@ -2,6 +2,7 @@
 //! reads ([`Member`]), the slot command each member is sent ([`SlotCommand`]), and the
 //! formation's status as the API shows it ([`FormationStatus`], [`MemberStatus`]).
 
+use super::hazard::Hazard;
 use super::reference::Reference;
 use super::spec::FormationSpec;
 use serde::Serialize;
@@ -78,4 +79,17 @@ pub struct FormationStatus {
     pub transition_progress: Option<f64>,
     /// The formation requested during the change in flight, applied when it ends.
     pub pending: Option<FormationSpec>,
+    /// Vehicles planned around as hazards (last known position, radius).
+    pub hazards: Vec<Hazard>,
+    /// Why the formation cannot be flown clear of the hazards (it holds), if so.
+    pub blocked: Option<String>,
+}
+
+/// A formation change planned again because pacing held members too long.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Replan {
+    /// The members that were held.
+    pub stuck: Vec<String>,
+    /// Who was held how far, for how long.
+    pub reason: String,
 }

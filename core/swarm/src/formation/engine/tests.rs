@@ -151,8 +151,9 @@ fn a_member_left_behind_stops_the_virtual_leader() {
         speed_m_s: 5.0,
     })
     .unwrap();
-    // The members never move: the reference sets off, then waits for them.
-    for _ in 0..200 {
+    // The members never move: the reference sets off, then waits for them (for less
+    // than the replan time: a replan starts the change again from where they are).
+    for _ in 0..95 {
         e.tick(&members, 0.1, &fence());
     }
     let r = e.status(&[]).reference.unwrap();
@@ -297,4 +298,105 @@ fn deactivating_keeps_the_spec_for_later() {
     e.set(line());
     assert!(e.is_active());
     assert_eq!(e.tick(&members, 0.1, &fence()).len(), 1);
+}
+
+fn lost(id: &str, n: f64, e: f64, radius_m: f64) -> crate::formation::Hazard {
+    crate::formation::Hazard {
+        id: id.into(),
+        position: Ned::new(n, e, -10.0),
+        radius_m,
+        unseen_s: radius_m,
+        reason: "Lost".into(),
+    }
+}
+
+#[test]
+fn slots_move_the_least_needed_to_clear_a_hazard() {
+    // A line of three behind a virtual leader; a lost vehicle hovers on the east slot.
+    let mut e = FormationEngine::default();
+    e.set(FormationSpec {
+        leader: Some(VIRTUAL.into()),
+        ..line()
+    });
+    let mut members = BTreeMap::new();
+    members.insert("a".to_string(), member(0.0, -5.0, -10.0));
+    members.insert("b".to_string(), member(0.0, 0.0, -10.0));
+    members.insert("c".to_string(), member(0.0, 5.0, -10.0));
+    fly(&mut e, &mut members);
+    e.set_hazards(vec![lost("uav-9", 0.0, 6.0, 2.0)]);
+    let slots = fly(&mut e, &mut members);
+    let h = &e.hazards()[0];
+    for (id, s) in &slots {
+        let d = (s.goal - h.position).norm();
+        assert!(d >= h.clearance_m(DEFAULT_SEPARATION_M) - 1e-6, "{id} {d}");
+    }
+    // The line slides west along itself: 5.5 m of clearance needed, 1 m there.
+    let shift = slots["a"].goal.east_m + 5.0;
+    assert!((-4.6..-4.4).contains(&shift), "{shift}");
+    assert!(e.status(&[]).blocked.is_none());
+    assert_eq!(e.status(&[]).hazards.len(), 1);
+}
+
+#[test]
+fn a_formation_that_cannot_clear_the_hazards_holds_and_says_so() {
+    let mut e = FormationEngine::default();
+    e.set(FormationSpec {
+        leader: Some(VIRTUAL.into()),
+        ..line()
+    });
+    let mut members = BTreeMap::new();
+    members.insert("a".to_string(), member(0.0, -5.0, -10.0));
+    members.insert("b".to_string(), member(0.0, 0.0, -10.0));
+    members.insert("c".to_string(), member(0.0, 5.0, -10.0));
+    fly(&mut e, &mut members);
+    // A ring of huge hazards around the formation.
+    let ring: Vec<_> = (0..12)
+        .map(|k| {
+            let a = k as f64 * std::f64::consts::TAU / 12.0;
+            lost(&format!("h{k}"), 60.0 * a.cos(), 60.0 * a.sin(), 50.0)
+        })
+        .chain(std::iter::once(lost("centre", 0.0, 0.0, 1.0)))
+        .collect();
+    e.set_hazards(ring);
+    fly(&mut e, &mut members);
+    let why = e.status(&[]).blocked.expect("blocked");
+    assert!(why.contains("centre"), "{why}");
+    assert_eq!(e.take_blocked_change(), Some(Some(why)));
+    assert_eq!(e.take_blocked_change(), None);
+}
+
+#[test]
+fn a_member_held_too_long_makes_the_change_planned_again() {
+    let mut e = FormationEngine::default();
+    e.set_replan_after_s(2.0);
+    e.set(FormationSpec {
+        leader: Some(VIRTUAL.into()),
+        ..line()
+    });
+    let mut members = BTreeMap::new();
+    members.insert("a".to_string(), member(0.0, -20.0, -10.0));
+    members.insert("b".to_string(), member(0.0, 0.0, -10.0));
+    members.insert("c".to_string(), member(0.0, 20.0, -10.0));
+    // "c" never moves (something stops it); the others fly as sent.
+    let mut replans = Vec::new();
+    for _ in 0..60 {
+        let slots = e.tick(&members, 0.1, &fence());
+        for (id, s) in &slots {
+            if id != "c" {
+                let m = members.get_mut(id).unwrap();
+                m.position = s.position;
+            }
+        }
+        replans.extend(e.take_replans());
+    }
+    assert!(!replans.is_empty(), "no replan in 6 s");
+    assert_eq!(replans[0].stuck, vec!["c".to_string()]);
+    assert!(
+        replans[0].reason.contains("c held"),
+        "{}",
+        replans[0].reason
+    );
+    // Planned again from where they are: c's plan starts where c is.
+    let slots = e.tick(&members, 0.1, &fence());
+    assert!((slots["c"].position - members["c"].position).norm() < 1.0);
 }
