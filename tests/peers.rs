@@ -54,6 +54,18 @@ fn mavsdk_flies_a_simulated_vehicle_offboard() {
     );
 }
 
+/// MAVSDK's documented offboard start (arm, ONE setpoint, `offboard.start()`, fly) works
+/// because the simulator, like PX4 v1.16, accepts OFFBOARD on one fresh setpoint.
+#[test]
+fn mavsdk_documented_offboard_start() {
+    let (_sim, port) = sim(1);
+    assert_peer(
+        "sim_mavsdk.py",
+        &["--port", &port.to_string(), "--documented-start"],
+        Duration::from_secs(180),
+    );
+}
+
 #[test]
 fn the_dashboard_flies_three_vehicles_in_chromium() {
     let skein = support::Skein::sim(3);

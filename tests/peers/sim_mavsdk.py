@@ -8,6 +8,10 @@ home position and armable are OK, arms, takes off, starts OFFBOARD with
 ``set_position_ned`` (after sending the initial setpoint MAVSDK requires), reaches the
 target within 0.5 m, lands and waits for ``armed == False``.
 
+With ``--documented-start`` it flies MAVSDK's documented offboard start instead: arm on
+the ground, set ONE setpoint, ``offboard.start()``, then fly to the target (PX4 v1.16
+accepts OFFBOARD as soon as one setpoint younger than COM_OF_LOSS_T has arrived).
+
 Every step has a deadline inside the global ``--timeout``. Exit code 0 only on success;
 the last line printed is a JSON summary.
 """
@@ -71,7 +75,7 @@ async def first(gen, pred):
     raise Failure("subscription ended")
 
 
-async def fly(port, run):
+async def fly(port, run, documented_start=False):
     config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
     async with Mavsdk(config) as mavsdk:
         await run.step("connect", mavsdk.add_any_connection(f"udpin://0.0.0.0:{port}"), 10)
@@ -93,6 +97,19 @@ async def fly(port, run):
         home = await run.step("home position", telemetry.home(), 10)
 
         await run.step("arm", action.arm(), 10)
+        n, e, d = TARGET_NED
+        if documented_start:
+            # MAVSDK's documented start: one setpoint, then start offboard right away.
+            await run.step(
+                "one setpoint", offboard.set_position_ned(PositionNedYaw(0.0, 0.0, 0.0, 0.0)), 5
+            )
+            await run.step("offboard start", offboard.start(), 10)
+            await run.step(
+                "flight mode OFFBOARD",
+                first(telemetry.subscribe_flight_mode(), lambda m: m.name == "OFFBOARD"),
+                5,
+            )
+            return await fly_to_target_and_land(run, action, offboard, telemetry, health, home)
         await run.step("takeoff", action.takeoff(), 10)
         await run.step("in air", first(telemetry.subscribe_in_air(), lambda a: a), 15)
         takeoff_alt = await run.step("takeoff altitude", action.get_takeoff_altitude(), 10)
@@ -108,7 +125,6 @@ async def fly(port, run):
         # MAVSDK requires a setpoint before starting offboard and streams at 20 Hz once
         # started; PX4 wants the stream running for > 1 s before it accepts OFFBOARD, so
         # send the hold setpoint at 20 Hz for 1.3 s first.
-        n, e, d = TARGET_NED
         hold = PositionNedYaw(0.0, 0.0, -takeoff_alt, 0.0)
         prestream_until = time.monotonic() + 1.3
         while time.monotonic() < prestream_until:
@@ -120,46 +136,56 @@ async def fly(port, run):
             first(telemetry.subscribe_flight_mode(), lambda m: m.name == "OFFBOARD"),
             5,
         )
-        await run.step("set_position_ned", offboard.set_position_ned(PositionNedYaw(n, e, d, 90.0)), 5)
-        reached = await run.step(
-            "target reached within 0.5 m",
-            first(
-                telemetry.subscribe_position_velocity_ned(),
-                lambda pv: math.dist(
-                    (pv.position.north_m, pv.position.east_m, pv.position.down_m), TARGET_NED
-                )
-                < 0.5,
-            ),
-            30,
-        )
+        return await fly_to_target_and_land(run, action, offboard, telemetry, health, home)
 
-        await run.step("land", action.land(), 10)
-        await run.step("disarmed", first(telemetry.subscribe_armed(), lambda a: not a), 60)
-        return {
-            "health": {
-                "global_position_ok": health.is_global_position_ok,
-                "home_position_ok": health.is_home_position_ok,
-                "armable": health.is_armable,
-            },
-            "home": [home.latitude_deg, home.longitude_deg, home.absolute_altitude_m],
-            "reached_ned": [
-                round(reached.position.north_m, 2),
-                round(reached.position.east_m, 2),
-                round(reached.position.down_m, 2),
-            ],
-        }
+
+async def fly_to_target_and_land(run, action, offboard, telemetry, health, home):
+    n, e, d = TARGET_NED
+    await run.step("set_position_ned", offboard.set_position_ned(PositionNedYaw(n, e, d, 90.0)), 5)
+    reached = await run.step(
+        "target reached within 0.5 m",
+        first(
+            telemetry.subscribe_position_velocity_ned(),
+            lambda pv: math.dist(
+                (pv.position.north_m, pv.position.east_m, pv.position.down_m), TARGET_NED
+            )
+            < 0.5,
+        ),
+        30,
+    )
+
+    await run.step("land", action.land(), 10)
+    await run.step("disarmed", first(telemetry.subscribe_armed(), lambda a: not a), 60)
+    return {
+        "health": {
+            "global_position_ok": health.is_global_position_ok,
+            "home_position_ok": health.is_home_position_ok,
+            "armable": health.is_armable,
+        },
+        "home": [home.latitude_deg, home.longitude_deg, home.absolute_altitude_m],
+        "reached_ned": [
+            round(reached.position.north_m, 2),
+            round(reached.position.east_m, 2),
+            round(reached.position.down_m, 2),
+        ],
+    }
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--port", type=int, required=True, help="UDP port the vehicle sends to (listen here)")
     ap.add_argument("--timeout", type=float, default=180.0, help="overall deadline, seconds")
+    ap.add_argument(
+        "--documented-start",
+        action="store_true",
+        help="arm, one setpoint, offboard.start() (MAVSDK's documented sequence)",
+    )
     args = ap.parse_args()
 
     run = Run(args.timeout)
     ok, error, details = True, None, {}
     try:
-        details = asyncio.run(asyncio.wait_for(fly(args.port, run), args.timeout + 5))
+        details = asyncio.run(asyncio.wait_for(fly(args.port, run, args.documented_start), args.timeout + 5))
     except Failure as e:
         ok, error = False, str(e)
     except asyncio.TimeoutError:

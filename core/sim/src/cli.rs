@@ -75,10 +75,15 @@ pub struct SimArgs {
     /// Telemetry profile: `px4` (PX4's onboard rates) or `swarm` (reduced, for big swarms).
     #[arg(long, value_parser = parse_profile, default_value = "px4")]
     pub profile: TelemetryProfile,
-    /// Minimum setpoint-stream age before OFFBOARD is accepted, s (1 = the "> 1 s at > 2 Hz"
-    /// rule of PX4's documentation, the default; 0 = a single fresh setpoint is enough).
-    #[arg(long, default_value_t = 1.0)]
+    /// Minimum setpoint-stream age before OFFBOARD is accepted, s (0 = PX4 v1.16: a single
+    /// setpoint younger than COM_OF_LOSS_T is enough, the default; 1 = the stricter
+    /// "> 1 s at > 2 Hz" advice of PX4's documentation).
+    #[arg(long, default_value_t = 0.0)]
     pub offboard_min_stream_s: f64,
+    /// Seeded estimator noise (PX4 SIH's hover wander, about 0.2 m / 0.2 m/s; seed from
+    /// --seed). Off by default.
+    #[arg(long)]
+    pub estimator_noise: bool,
     /// Parameter override for every vehicle, NAME=VALUE (repeatable).
     #[arg(long = "param", value_parser = parse_param)]
     pub params: Vec<(String, f64)>,
@@ -158,6 +163,7 @@ impl SimArgs {
         cfg.ekf_fix_delay_s = self.ekf_fix_delay_s;
         cfg.telemetry = self.profile;
         cfg.offboard_min_stream_s = self.offboard_min_stream_s;
+        cfg.estimator_noise = self.estimator_noise;
         cfg.params = self.params.clone();
         Ok(cfg)
     }

@@ -26,6 +26,7 @@ pub mod params;
 mod runtime;
 mod telemetry;
 mod vehicle;
+pub mod virtual_vehicle;
 
 pub use config::{
     MAX_SHARED_SYSIDS, PX4_LISTEN_BASE_PORT, PX4_SITL_HOME, PX4_TARGET_BASE_PORT, SimConfig,
@@ -33,6 +34,7 @@ pub use config::{
 };
 pub use histogram::{IntervalBucket, IntervalHistogram, IntervalSummary};
 pub use telemetry::PX4_FLIGHT_SW_VERSION;
+pub use virtual_vehicle::VirtualVehicle;
 
 use impairment::Impairment;
 use runtime::{Cell, SHARD_SIZE, Silence, Slot};
@@ -378,6 +380,7 @@ impl Simulator {
             seed: cfg.seed,
             profile: cfg.telemetry,
             offboard_min_stream: Duration::from_secs_f64(cfg.offboard_min_stream_s.max(0.0)),
+            estimator_noise: cfg.estimator_noise,
         };
         let now = Instant::now();
         let n = cfg.vehicles.len();

@@ -61,8 +61,10 @@ async fn offboard_refused_without_setpoints_then_tracks_position_velocity_and_fe
         [1.5, 0.0, 0.0],
         0.0,
     ));
+    // PX4's velocity loop does not know SIH's drag: its slow integrator (MPC_XY_VEL_I_ACC
+    // 0.4) closes the last few tenths of a m/s over some 15 s, as on PX4.
     let steady = c
-        .wait_local(SECS(10), |p| (p.vx - 1.5).abs() < 0.05 && p.vy.abs() < 0.05)
+        .wait_local(SECS(40), |p| (p.vx - 1.5).abs() < 0.05 && p.vy.abs() < 0.05)
         .await
         .expect("never reached 1.5 m/s");
     let later = c
@@ -118,8 +120,8 @@ async fn offboard_refused_without_setpoints_then_tracks_position_velocity_and_fe
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn offboard_needs_one_second_of_stream_or_with_the_relaxed_rule_a_fresh_setpoint() {
     use MavResult::*;
-    // The relaxed rule (PX4 v1.16's offboardCheck): a setpoint younger than COM_OF_LOSS_T.
-    let (sim, mut clients) = start(1, |cfg| cfg.offboard_min_stream_s = 0.0).await;
+    // PX4 v1.16's offboardCheck (the default): a setpoint younger than COM_OF_LOSS_T.
+    let (sim, mut clients) = start(1, |_| {}).await;
     let c = &mut clients[0];
     c.wait_home().await;
     let streamer = Streamer::start(c, position_setpoint(c.sysid, 0.0, 0.0, -3.0), 20.0);
@@ -144,8 +146,8 @@ async fn offboard_needs_one_second_of_stream_or_with_the_relaxed_rule_a_fresh_se
     assert!(c.wait_mode(Px4Mode::Offboard, SECS(2)).await);
     sim.shutdown().await;
 
-    // The documented "> 1 s at > 2 Hz" rule: the default.
-    let (sim, mut clients) = start(1, |_| {}).await;
+    // The documented "> 1 s at > 2 Hz" rule: the stricter option.
+    let (sim, mut clients) = start(1, |cfg| cfg.offboard_min_stream_s = 1.0).await;
     let c = &mut clients[0];
     c.wait_home().await;
     let streamer = Streamer::start(c, position_setpoint(c.sysid, 0.0, 0.0, -3.0), 20.0);

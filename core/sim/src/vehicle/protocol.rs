@@ -1,0 +1,536 @@
+//! MAVLink message handling (PX4 `mavlink_receiver`): heartbeats per MAV_TYPE, the command
+//! protocol (COMMAND_LONG / COMMAND_INT, two ACKs for DO_SET_MODE, retransmission dedup),
+//! parameters (PARAM_* with PX4's bytewise integer encoding) and offboard setpoints
+//! (SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT with PX4's `type_mask` semantics).
+
+#![allow(deprecated)]
+
+use super::*;
+
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Command {
+    pub(super) command: MavCmd,
+    pub(super) params: [f32; 7],
+    /// COMMAND_INT's frame and integer x/y (degE7 for global frames).
+    pub(super) int_xy: Option<(MavFrame, i32, i32)>,
+    pub(super) confirmation: u8,
+    pub(super) src_sysid: u8,
+    pub(super) src_compid: u8,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(super) struct LastCommand {
+    command: MavCmd,
+    src: (u8, u8),
+    at: Instant,
+    acks: [Option<MavResult>; 2],
+}
+
+/// What a command asks for after its ACK(s).
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Followup {
+    Message(u32),
+    MessageInterval(u32),
+}
+
+impl Vehicle {
+    pub(super) fn statustext(
+        &mut self,
+        now: Instant,
+        severity: MavSeverity,
+        text: &str,
+        out: &mut Outbox,
+    ) {
+        if !self.gcs_recent(now) {
+            self.counters.statustexts_suppressed += 1;
+            return;
+        }
+        self.counters.statustexts_sent += 1;
+        out.push(&MavMessage::STATUSTEXT(STATUSTEXT_DATA {
+            severity,
+            text: text.into(),
+            id: 0,
+            chunk_seq: 0,
+        }));
+    }
+
+    pub(super) fn ack(&self, cmd: &Command, result: MavResult, out: &mut Outbox) {
+        out.push(&MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: cmd.command,
+            result,
+            progress: 0,
+            result_param2: 0,
+            target_system: cmd.src_sysid,
+            target_component: cmd.src_compid,
+        }));
+    }
+
+    pub(super) fn param_value(&self, index: usize, out: &mut Outbox) {
+        let (Some(name), Some(value)) = (Params::name_at(index), self.params.value_at(index))
+        else {
+            return;
+        };
+        let (param_value, param_type) = value.to_wire();
+        out.push(&MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
+            param_value,
+            param_count: PARAM_COUNT as u16,
+            param_index: index as u16,
+            param_id: name.into(),
+            param_type,
+        }));
+    }
+
+    pub(super) fn targets_me(&self, target_system: u8, target_component: u8) -> bool {
+        (target_system == 0 || target_system == self.sysid)
+            && (target_component == 0 || target_component == 1)
+    }
+
+    /// Handles one received frame.
+    pub fn handle_frame(&mut self, now: Instant, frame: &Frame, out: &mut Outbox) {
+        self.counters.frames_received += 1;
+        self.link.rx_frames += 1;
+        if frame.sysid == self.sysid && frame.compid == 1 {
+            return; // our own frames echoed back
+        }
+        match &frame.msg {
+            MavMessage::HEARTBEAT(hb) => self.on_heartbeat(now, hb),
+            MavMessage::COMMAND_LONG(c) if self.targets_me(c.target_system, c.target_component) => {
+                let cmd = Command {
+                    command: c.command,
+                    params: [
+                        c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
+                    ],
+                    int_xy: None,
+                    confirmation: c.confirmation,
+                    src_sysid: frame.sysid,
+                    src_compid: frame.compid,
+                };
+                self.on_command(now, cmd, out);
+            }
+            MavMessage::COMMAND_INT(c) if self.targets_me(c.target_system, c.target_component) => {
+                let cmd = Command {
+                    command: c.command,
+                    params: [
+                        c.param1, c.param2, c.param3, c.param4, c.x as f32, c.y as f32, c.z,
+                    ],
+                    int_xy: Some((c.frame, c.x, c.y)),
+                    confirmation: 0,
+                    src_sysid: frame.sysid,
+                    src_compid: frame.compid,
+                };
+                self.on_command(now, cmd, out);
+            }
+            MavMessage::SET_POSITION_TARGET_LOCAL_NED(sp) => self.on_setpoint_local(now, sp),
+            MavMessage::SET_POSITION_TARGET_GLOBAL_INT(sp) => self.on_setpoint_global(now, sp),
+            MavMessage::PARAM_REQUEST_READ(r)
+                if self.targets_me(r.target_system, r.target_component) =>
+            {
+                let index = if r.param_index >= 0 {
+                    Some(r.param_index as usize).filter(|&i| i < PARAM_COUNT)
+                } else {
+                    r.param_id.to_str().ok().and_then(Params::index_of)
+                };
+                if let Some(i) = index {
+                    self.param_value(i, out);
+                }
+            }
+            MavMessage::PARAM_REQUEST_LIST(r)
+                if self.targets_me(r.target_system, r.target_component) =>
+            {
+                for i in 0..PARAM_COUNT {
+                    self.param_value(i, out);
+                }
+            }
+            MavMessage::PARAM_SET(s) if self.targets_me(s.target_system, s.target_component) => {
+                self.on_param_set(now, s, out);
+            }
+            MavMessage::PING(p) if p.target_system == 0 && p.target_component == 0 => {
+                // A ping request: answer it, addressed to the requester.
+                out.push(&MavMessage::PING(PING_DATA {
+                    time_usec: p.time_usec,
+                    seq: p.seq,
+                    target_system: frame.sysid,
+                    target_component: frame.compid,
+                }));
+            }
+            MavMessage::TIMESYNC(t) if t.tc1 == 0 => {
+                // A timesync request: tc1 = our time (ns), ts1 echoed.
+                out.push(&MavMessage::TIMESYNC(TIMESYNC_DATA {
+                    tc1: self.time_boot_us(now) as i64 * 1000,
+                    ts1: t.ts1,
+                    target_system: frame.sysid,
+                    target_component: frame.compid,
+                }));
+            }
+            MavMessage::SET_MODE(m)
+                if m.target_system == self.sysid
+                    && m.base_mode
+                        .contains(MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED) =>
+            {
+                let mode = Px4Mode::from_custom_mode(m.custom_mode);
+                if let Err(reason) = self.request_mode(now, mode) {
+                    self.statustext(now, MavSeverity::MAV_SEVERITY_CRITICAL, reason, out);
+                }
+            }
+            MavMessage::MISSION_REQUEST_LIST(m)
+                if self.targets_me(m.target_system, m.target_component) =>
+            {
+                // No mission: an empty list, so ground stations finish their download.
+                out.push(&MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+                    count: 0,
+                    target_system: frame.sysid,
+                    target_component: frame.compid,
+                    mission_type: m.mission_type,
+                    opaque_id: 0,
+                }));
+            }
+            _ => {}
+        }
+    }
+
+    pub(super) fn on_heartbeat(&mut self, now: Instant, hb: &HEARTBEAT_DATA) {
+        match hb.mavtype {
+            MavType::MAV_TYPE_GCS => {
+                self.heartbeats.gcs = Some(now);
+                self.gcs_lost = false;
+            }
+            MavType::MAV_TYPE_ONBOARD_CONTROLLER => {
+                self.heartbeats.onboard_controller = Some(now);
+            }
+            MavType::MAV_TYPE_GIMBAL => self.heartbeats.gimbal = Some(now),
+            MavType::MAV_TYPE_CAMERA => self.heartbeats.camera = Some(now),
+            _ => {}
+        }
+    }
+
+    pub(super) fn on_param_set(&mut self, now: Instant, s: &PARAM_SET_DATA, out: &mut Outbox) {
+        let Some(index) = s.param_id.to_str().ok().and_then(Params::index_of) else {
+            return; // PX4 ignores unknown parameters
+        };
+        let Some(current) = self.params.value_at(index) else {
+            return;
+        };
+        let new = current.with_wire_value(s.param_value);
+        let valid = match new {
+            ParamValue::Real32(f) => f.is_finite(),
+            ParamValue::Int32(_) => true,
+        };
+        if valid {
+            self.params.set_at(index, new);
+            // PX4 answers a PARAM_SET right away and again when the change notification
+            // goes round: two PARAM_VALUEs.
+            self.param_value(index, out);
+            self.param_value(index, out);
+        } else {
+            self.statustext(
+                now,
+                MavSeverity::MAV_SEVERITY_WARNING,
+                "Parameter value rejected",
+                out,
+            );
+            self.param_value(index, out);
+        }
+    }
+
+    pub(super) fn record_setpoint(&mut self, now: Instant, sp: Setpoint) {
+        self.counters.setpoints_received += 1;
+        match self.setpoint_last {
+            Some(last) => {
+                let gap = now.saturating_duration_since(last);
+                self.setpoint_intervals.record(gap);
+                self.counters.setpoint_max_gap = self.counters.setpoint_max_gap.max(gap);
+                if self.mode == Px4Mode::Offboard {
+                    self.counters.setpoint_max_gap_offboard =
+                        self.counters.setpoint_max_gap_offboard.max(gap);
+                }
+                if gap > OFFBOARD_MAX_GAP {
+                    self.setpoint_stream_start = Some(now);
+                }
+            }
+            None => self.setpoint_stream_start = Some(now),
+        }
+        self.setpoint_last = Some(now);
+        self.setpoint = Some(sp);
+    }
+
+    pub(super) fn on_setpoint_local(
+        &mut self,
+        now: Instant,
+        sp: &SET_POSITION_TARGET_LOCAL_NED_DATA,
+    ) {
+        if !self.targets_me(sp.target_system, sp.target_component) {
+            return;
+        }
+        let mask = sp.type_mask.bits();
+        let field = |bit: u16, v: f32| (mask & bit == 0 && v.is_finite()).then_some(f64::from(v));
+        let mut pos = [
+            field(type_mask::IGNORE_PX, sp.x),
+            field(type_mask::IGNORE_PY, sp.y),
+            field(type_mask::IGNORE_PZ, sp.z),
+        ];
+        let mut vel = [
+            field(type_mask::IGNORE_VX, sp.vx),
+            field(type_mask::IGNORE_VY, sp.vy),
+            field(type_mask::IGNORE_VZ, sp.vz),
+        ];
+        match sp.coordinate_frame {
+            MavFrame::MAV_FRAME_LOCAL_NED => {}
+            MavFrame::MAV_FRAME_LOCAL_OFFSET_NED => {
+                for (i, p) in pos.iter_mut().enumerate() {
+                    *p = p.map(|d| d + axis(&self.pos, i));
+                }
+            }
+            MavFrame::MAV_FRAME_BODY_NED | MavFrame::MAV_FRAME_BODY_OFFSET_NED => {
+                let rot = |v: [Option<f64>; 3]| -> [Option<f64>; 3] {
+                    let r = Ned::new(v[0].unwrap_or(0.0), v[1].unwrap_or(0.0), 0.0)
+                        .rotated_yaw(self.yaw_rad);
+                    let both = v[0].is_some() || v[1].is_some();
+                    [both.then_some(r.north_m), both.then_some(r.east_m), v[2]]
+                };
+                vel = rot(vel);
+                pos = rot(pos);
+                for (i, p) in pos.iter_mut().enumerate() {
+                    *p = p.map(|d| d + axis(&self.pos, i));
+                }
+            }
+            _ => return, // PX4 ignores other frames for multicopters
+        }
+        let setpoint = Setpoint {
+            pos,
+            vel,
+            yaw_rad: field(type_mask::IGNORE_YAW, sp.yaw),
+            yaw_rate_rad_s: field(type_mask::IGNORE_YAW_RATE, sp.yaw_rate),
+        };
+        self.record_setpoint(now, setpoint);
+    }
+
+    pub(super) fn on_setpoint_global(
+        &mut self,
+        now: Instant,
+        sp: &SET_POSITION_TARGET_GLOBAL_INT_DATA,
+    ) {
+        if !self.targets_me(sp.target_system, sp.target_component) {
+            return;
+        }
+        let mask = sp.type_mask.bits();
+        let ignore_pos = mask & type_mask::IGNORE_POSITION == type_mask::IGNORE_POSITION;
+        let alt_amsl = match sp.coordinate_frame {
+            MavFrame::MAV_FRAME_GLOBAL_INT | MavFrame::MAV_FRAME_GLOBAL => f64::from(sp.alt),
+            MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+            | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT
+            | MavFrame::MAV_FRAME_GLOBAL_TERRAIN_ALT_INT
+            | MavFrame::MAV_FRAME_GLOBAL_TERRAIN_ALT => self.home.alt_amsl_m + f64::from(sp.alt),
+            _ => return,
+        };
+        let local = if ignore_pos {
+            Ned::ZERO
+        } else {
+            self.origin.to_ned(&GeoPoint::new(
+                f64::from(sp.lat_int) * 1e-7,
+                f64::from(sp.lon_int) * 1e-7,
+                alt_amsl,
+            ))
+        };
+        let field = |bit: u16, v: f64| (mask & bit == 0 && v.is_finite()).then_some(v);
+        let setpoint = Setpoint {
+            pos: [
+                field(type_mask::IGNORE_PX, local.north_m),
+                field(type_mask::IGNORE_PY, local.east_m),
+                field(type_mask::IGNORE_PZ, local.down_m),
+            ],
+            vel: [
+                field(type_mask::IGNORE_VX, f64::from(sp.vx)),
+                field(type_mask::IGNORE_VY, f64::from(sp.vy)),
+                field(type_mask::IGNORE_VZ, f64::from(sp.vz)),
+            ],
+            yaw_rad: field(type_mask::IGNORE_YAW, f64::from(sp.yaw)),
+            yaw_rate_rad_s: field(type_mask::IGNORE_YAW_RATE, f64::from(sp.yaw_rate)),
+        };
+        self.record_setpoint(now, setpoint);
+    }
+
+    pub(super) fn on_command(&mut self, now: Instant, cmd: Command, out: &mut Outbox) {
+        self.counters.commands_received += 1;
+        if cmd.confirmation > 0
+            && let Some(last) = self.last_command
+            && last.command == cmd.command
+            && last.src == (cmd.src_sysid, cmd.src_compid)
+            && now.saturating_duration_since(last.at) <= COMMAND_DEDUP_WINDOW
+        {
+            // A retransmission of a command already executed: answer again, do not
+            // execute twice.
+            for result in last.acks.into_iter().flatten() {
+                self.ack(&cmd, result, out);
+            }
+            return;
+        }
+        let (first, second, followup) = self.execute(now, &cmd, out);
+        self.ack(&cmd, first, out);
+        if let Some(second) = second {
+            self.ack(&cmd, second, out);
+        }
+        self.last_command = Some(LastCommand {
+            command: cmd.command,
+            src: (cmd.src_sysid, cmd.src_compid),
+            at: now,
+            acks: [Some(first), second],
+        });
+        match followup {
+            Some(Followup::Message(id)) => {
+                self.send_message_now(now, id, out);
+            }
+            Some(Followup::MessageInterval(id)) => {
+                let interval_us = self.streams.interval_report_us(id);
+                out.push(&MavMessage::MESSAGE_INTERVAL(MESSAGE_INTERVAL_DATA {
+                    interval_us,
+                    message_id: id as u16,
+                }));
+            }
+            None => {}
+        }
+    }
+
+    pub(super) fn execute(
+        &mut self,
+        now: Instant,
+        cmd: &Command,
+        out: &mut Outbox,
+    ) -> (MavResult, Option<MavResult>, Option<Followup>) {
+        use MavResult::*;
+        let p = cmd.params;
+        match cmd.command {
+            MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => {
+                let force = (p[1] - FORCE_ARM_DISARM_MAGIC).abs() < 0.5;
+                (self.arm_disarm(now, p[0] > 0.5, force, out), None, None)
+            }
+            MavCmd::MAV_CMD_DO_SET_MODE => {
+                // PX4 acknowledges twice: ACCEPTED first, then the real result.
+                let second = if (p[0] as u32) & 1 == 0 {
+                    MAV_RESULT_DENIED
+                } else {
+                    match Px4Mode::from_main_sub(p[1] as u8, p[2] as u8) {
+                        None => MAV_RESULT_DENIED,
+                        Some(mode) => match self.request_mode(now, mode) {
+                            Ok(()) => MAV_RESULT_ACCEPTED,
+                            Err(reason) => {
+                                self.statustext(
+                                    now,
+                                    MavSeverity::MAV_SEVERITY_CRITICAL,
+                                    reason,
+                                    out,
+                                );
+                                MAV_RESULT_TEMPORARILY_REJECTED
+                            }
+                        },
+                    }
+                };
+                (MAV_RESULT_ACCEPTED, Some(second), None)
+            }
+            MavCmd::MAV_CMD_NAV_TAKEOFF => (self.takeoff(now, p[6], out), None, None),
+            MavCmd::MAV_CMD_NAV_LAND => (self.mode_command(now, Px4Mode::Land, out), None, None),
+            MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => {
+                (self.mode_command(now, Px4Mode::Rtl, out), None, None)
+            }
+            MavCmd::MAV_CMD_NAV_LOITER_UNLIM => {
+                (self.mode_command(now, Px4Mode::Hold, out), None, None)
+            }
+            MavCmd::MAV_CMD_DO_REPOSITION => (self.reposition(now, cmd, out), None, None),
+            MavCmd::MAV_CMD_DO_CHANGE_SPEED => {
+                if p[1] > 0.0 && p[1].is_finite() {
+                    self.auto_speed_m_s = Some(f64::from(p[1]));
+                }
+                (MAV_RESULT_ACCEPTED, None, None)
+            }
+            MavCmd::MAV_CMD_DO_SET_HOME => {
+                if p[0] > 0.5 {
+                    self.set_home_here(now, out);
+                } else if p[4].is_finite() && p[5].is_finite() && p[6].is_finite() {
+                    let (lat, lon) = match cmd.int_xy {
+                        Some((_, x, y)) => (f64::from(x) * 1e-7, f64::from(y) * 1e-7),
+                        None => (f64::from(p[4]), f64::from(p[5])),
+                    };
+                    self.home = GeoPoint::new(lat, lon, f64::from(p[6]));
+                    self.home_local = self.origin.to_ned(&self.home);
+                    self.streams
+                        .force(crate::telemetry::Stream::HomePosition, now);
+                } else {
+                    return (MAV_RESULT_DENIED, None, None);
+                }
+                (MAV_RESULT_ACCEPTED, None, None)
+            }
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => {
+                let id = p[0] as u32;
+                let result = if self.streams.set_interval(id, p[1], now) {
+                    MAV_RESULT_ACCEPTED
+                } else {
+                    MAV_RESULT_DENIED
+                };
+                (result, None, None)
+            }
+            MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL => (
+                MAV_RESULT_ACCEPTED,
+                None,
+                Some(Followup::MessageInterval(p[0] as u32)),
+            ),
+            MavCmd::MAV_CMD_REQUEST_MESSAGE => {
+                let id = p[0] as u32;
+                if self.can_send_message(now, id) {
+                    (MAV_RESULT_ACCEPTED, None, Some(Followup::Message(id)))
+                } else if crate::telemetry::is_known_message(id) {
+                    (MAV_RESULT_TEMPORARILY_REJECTED, None, None)
+                } else {
+                    (MAV_RESULT_UNSUPPORTED, None, None)
+                }
+            }
+            MavCmd::MAV_CMD_GET_HOME_POSITION => {
+                if self.has_fix {
+                    (
+                        MAV_RESULT_ACCEPTED,
+                        None,
+                        Some(Followup::Message(crate::telemetry::HOME_POSITION_ID)),
+                    )
+                } else {
+                    (MAV_RESULT_TEMPORARILY_REJECTED, None, None)
+                }
+            }
+            MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => (
+                MAV_RESULT_ACCEPTED,
+                None,
+                Some(Followup::Message(crate::telemetry::AUTOPILOT_VERSION_ID)),
+            ),
+            MavCmd::MAV_CMD_REQUEST_PROTOCOL_VERSION => (
+                MAV_RESULT_ACCEPTED,
+                None,
+                Some(Followup::Message(crate::telemetry::PROTOCOL_VERSION_ID)),
+            ),
+            MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN => {
+                if p[0].round() as i32 == 1 {
+                    if self.armed {
+                        (MAV_RESULT_DENIED, None, None)
+                    } else {
+                        self.reboot_requested = true;
+                        (MAV_RESULT_ACCEPTED, None, None)
+                    }
+                } else {
+                    (MAV_RESULT_UNSUPPORTED, None, None)
+                }
+            }
+            MavCmd::MAV_CMD_DO_FLIGHTTERMINATION => {
+                if p[0] > 0.5 {
+                    self.disarm(now, "Flight termination", out);
+                }
+                (MAV_RESULT_ACCEPTED, None, None)
+            }
+            MavCmd::MAV_CMD_MISSION_START => {
+                self.statustext(
+                    now,
+                    MavSeverity::MAV_SEVERITY_CRITICAL,
+                    "Mission start denied: no valid mission",
+                    out,
+                );
+                (MAV_RESULT_DENIED, None, None)
+            }
+            _ => (MAV_RESULT_UNSUPPORTED, None, None),
+        }
+    }
+}

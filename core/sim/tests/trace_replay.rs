@@ -1,0 +1,547 @@
+//! Trace replay: every PX4 v1.16 SITL (SIH) recording in `tests/data/px4-traces/` is
+//! replayed into a simulated vehicle on the same time axis (virtual clock, real MAVLink
+//! messages through the vehicle's own message handling: SET_POSITION_TARGET_LOCAL_NED with
+//! the recorded type_mask, COMMAND_LONG NAV_LAND), starting from a hover at (0, 0, -10) with
+//! yaw 0 in OFFBOARD. The same metric code runs on PX4's LOCAL_POSITION_NED / ATTITUDE /
+//! HEARTBEAT rows and on the simulator's; the test prints the comparison table and fails
+//! when a metric is out of tolerance.
+#![allow(deprecated)]
+
+use skein_mavlink::MavMessage;
+use skein_mavlink::dialect::*;
+use skein_sim::{SimConfig, VirtualVehicle};
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// One row of a trace (PX4's CSV or the simulator's output).
+#[derive(Debug, Clone, Copy)]
+enum Row {
+    /// Setpoint sent: type_mask, position, velocity, yaw.
+    Sp {
+        t: f64,
+        mask: u16,
+        p: [f64; 3],
+        v: [f64; 3],
+        yaw: f64,
+    },
+    /// LOCAL_POSITION_NED.
+    Pos { t: f64, p: [f64; 3], v: [f64; 3] },
+    /// ATTITUDE (yaw only is used).
+    Att { t: f64, yaw: f64 },
+    /// HEARTBEAT state change.
+    Mode { t: f64, armed: bool },
+}
+
+/// A setpoint row: time, type_mask, position, velocity, yaw.
+type SpRow = (f64, u16, [f64; 3], [f64; 3], f64);
+/// A LOCAL_POSITION_NED row: time, (position, velocity).
+type PosRow = (f64, ([f64; 3], [f64; 3]));
+
+#[derive(Debug, Default)]
+struct Trace {
+    sp: Vec<SpRow>,
+    pos: Vec<PosRow>,
+    att: Vec<(f64, f64)>,
+    modes: Vec<(f64, bool)>,
+}
+
+impl Trace {
+    fn push(&mut self, r: Row) {
+        match r {
+            Row::Sp { t, mask, p, v, yaw } => self.sp.push((t, mask, p, v, yaw)),
+            Row::Pos { t, p, v } => self.pos.push((t, (p, v))),
+            Row::Att { t, yaw } => self.att.push((t, yaw)),
+            Row::Mode { t, armed } => self.modes.push((t, armed)),
+        }
+    }
+}
+
+fn data_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/px4-traces")
+}
+
+fn load(name: &str) -> Trace {
+    let text = std::fs::read_to_string(data_dir().join(format!("{name}.csv"))).unwrap();
+    let mut tr = Trace::default();
+    for line in text.lines().skip(1) {
+        let c: Vec<&str> = line.split(',').collect();
+        let f = |i: usize| c.get(i).and_then(|s| s.parse::<f64>().ok()).unwrap_or(0.0);
+        let t = f(0);
+        match c[1] {
+            "sp" => tr.push(Row::Sp {
+                t,
+                mask: c[3].parse().unwrap_or(0),
+                p: [f(4), f(5), f(6)],
+                v: [f(7), f(8), f(9)],
+                yaw: f(12),
+            }),
+            "pos" => tr.push(Row::Pos {
+                t,
+                p: [f(4), f(5), f(6)],
+                v: [f(7), f(8), f(9)],
+            }),
+            "att" => tr.push(Row::Att { t, yaw: f(12) }),
+            "mode" => tr.push(Row::Mode {
+                t,
+                armed: f(14) > 0.5,
+            }),
+            _ => {}
+        }
+    }
+    tr
+}
+
+// ------------------------------------------------------------------ simulator side
+
+fn setpoint(mask: u16, p: [f64; 3], v: [f64; 3], yaw: f64) -> MavMessage {
+    MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+        time_boot_ms: 0,
+        x: p[0] as f32,
+        y: p[1] as f32,
+        z: p[2] as f32,
+        vx: v[0] as f32,
+        vy: v[1] as f32,
+        vz: v[2] as f32,
+        afx: 0.0,
+        afy: 0.0,
+        afz: 0.0,
+        yaw: yaw as f32,
+        yaw_rate: 0.0,
+        type_mask: PositionTargetTypemask::from_bits_retain(mask),
+        target_system: 1,
+        target_component: 1,
+        coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+    })
+}
+
+fn command(cmd: MavCmd, p: [f32; 7]) -> MavMessage {
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        param1: p[0],
+        param2: p[1],
+        param3: p[2],
+        param4: p[3],
+        param5: p[4],
+        param6: p[5],
+        param7: p[6],
+        command: cmd,
+        target_system: 1,
+        target_component: 1,
+        confirmation: 0,
+    })
+}
+
+fn gcs_heartbeat() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_GCS,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    })
+}
+
+/// Records the vehicle's output into `tr` with times relative to `t0`.
+fn record(tr: &mut Trace, last_armed: &mut Option<bool>, t0: f64, msgs: Vec<(f64, MavMessage)>) {
+    for (t, m) in msgs {
+        let t = t - t0;
+        match m {
+            MavMessage::LOCAL_POSITION_NED(p) => tr.push(Row::Pos {
+                t,
+                p: [p.x.into(), p.y.into(), p.z.into()],
+                v: [p.vx.into(), p.vy.into(), p.vz.into()],
+            }),
+            MavMessage::ATTITUDE(a) => tr.push(Row::Att {
+                t,
+                yaw: a.yaw.into(),
+            }),
+            MavMessage::HEARTBEAT(h) => {
+                let armed = h
+                    .base_mode
+                    .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
+                if *last_armed != Some(armed) {
+                    *last_armed = Some(armed);
+                    tr.push(Row::Mode { t, armed });
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Replays PX4's setpoints (and, for the landing, NAV_LAND at t = 0) into a simulated
+/// vehicle hovering at (0, 0, -10), yaw 0, in OFFBOARD; returns its response.
+fn replay(px4: &Trace, landing: bool, cfg: &SimConfig) -> Trace {
+    let mut vv = VirtualVehicle::new(cfg);
+    let hover = |vv: &mut VirtualVehicle| {
+        vv.send(&setpoint(2552, [0.0, 0.0, -10.0], [0.0; 3], 0.0));
+    };
+    // Boot, GPS fix, a setpoint, arm, OFFBOARD, climb, settle (setpoints at 50 Hz).
+    vv.send(&gcs_heartbeat());
+    vv.run_until(1.5);
+    hover(&mut vv);
+    vv.send(&command(
+        MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    ));
+    vv.send(&command(
+        MavCmd::MAV_CMD_DO_SET_MODE,
+        [1.0, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    ));
+    let settle_until = vv.time_s() + 30.0;
+    let mut next_sp = vv.time_s();
+    let mut next_hb = vv.time_s() + 1.0;
+    while vv.time_s() < settle_until {
+        if vv.time_s() >= next_sp {
+            hover(&mut vv);
+            next_sp += 0.02;
+        }
+        if vv.time_s() >= next_hb {
+            vv.send(&gcs_heartbeat());
+            next_hb += 1.0;
+        }
+        vv.step();
+    }
+    assert!(vv.armed(), "the vehicle did not take off");
+    // The maneuver: PX4's setpoints at their times; t0 = maneuver start.
+    let first_t = px4.sp.first().map_or(-1.0, |s| s.0).min(-1.0);
+    let t0 = vv.time_s() - first_t;
+    let end = px4.pos.last().map_or(0.0, |p| p.0);
+    let mut out = Trace::default();
+    let mut last_armed = None;
+    let mut sps = px4.sp.iter().peekable();
+    let mut land_sent = !landing;
+    while vv.time_s() - t0 < end {
+        let now = vv.time_s() - t0;
+        while let Some(&&(t, mask, p, v, yaw)) = sps.peek() {
+            if t > now + 1e-9 {
+                break;
+            }
+            let answer = vv.send(&setpoint(mask, p, v, yaw));
+            record(&mut out, &mut last_armed, t0, answer);
+            sps.next();
+        }
+        if !land_sent && now >= 0.0 {
+            let nan = f32::NAN;
+            let answer = vv.send(&command(
+                MavCmd::MAV_CMD_NAV_LAND,
+                [0.0, 0.0, 0.0, nan, nan, nan, nan],
+            ));
+            record(&mut out, &mut last_armed, t0, answer);
+            land_sent = true;
+        }
+        if vv.time_s() >= next_hb {
+            vv.send(&gcs_heartbeat());
+            next_hb += 1.0;
+        }
+        let sent = vv.step();
+        record(&mut out, &mut last_armed, t0, sent);
+    }
+    out.sp = px4.sp.clone();
+    out
+}
+
+// ------------------------------------------------------------------ metrics
+
+/// Value of `series` at time `t` (nearest sample).
+fn at<T: Copy>(series: &[(f64, T)], t: f64) -> T {
+    let i = series.partition_point(|s| s.0 < t);
+    let i = if i == series.len() || (i > 0 && (t - series[i - 1].0) < (series[i].0 - t)) {
+        i - 1
+    } else {
+        i
+    };
+    series[i].1
+}
+
+fn window<T: Copy>(series: &[(f64, T)], a: f64, b: f64) -> Vec<(f64, T)> {
+    series
+        .iter()
+        .copied()
+        .filter(|s| s.0 >= a && s.0 < b)
+        .collect()
+}
+
+fn mean(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    if n == 0 { f64::NAN } else { s / n as f64 }
+}
+
+/// Step response of a scalar series on [a, b): time to 90 % (from a), overshoot past the
+/// target (>= 0, in the direction of the step), steady-state error (mean over the last
+/// `tail` s, absolute).
+fn step_metrics(series: &[(f64, f64)], a: f64, b: f64, target: f64, tail: f64) -> (f64, f64, f64) {
+    let start = at(series, a);
+    let dir = (target - start).signum();
+    let w = window(series, a, b);
+    let t90 = w
+        .iter()
+        .find(|s| dir * (s.1 - start) >= 0.9 * dir * (target - start))
+        .map_or(f64::NAN, |s| s.0 - a);
+    let overshoot = w
+        .iter()
+        .map(|s| dir * (s.1 - target))
+        .fold(0.0_f64, f64::max);
+    let steady = (mean(window(series, b - tail, b).iter().map(|s| s.1)) - target).abs();
+    (t90, overshoot, steady)
+}
+
+fn axis(tr: &Trace, i: usize) -> Vec<(f64, f64)> {
+    tr.pos.iter().map(|p| (p.0, p.1.0[i])).collect()
+}
+
+/// The setpoint in force at time t (the last one sent at or before t).
+fn sp_at(tr: &Trace, t: f64) -> ([f64; 3], [f64; 3]) {
+    let i = tr.sp.partition_point(|s| s.0 <= t);
+    let s = tr.sp[i.saturating_sub(1)];
+    (s.2, s.3)
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Tol {
+    /// Relative, fraction of PX4's value.
+    Rel(f64),
+    /// Absolute, in the metric's unit.
+    Abs(f64),
+    /// Reported, not checked.
+    Report,
+}
+
+struct Metric {
+    maneuver: &'static str,
+    name: &'static str,
+    unit: &'static str,
+    tol: Tol,
+    f: fn(&Trace) -> f64,
+}
+
+fn yaw_deg(tr: &Trace) -> Vec<(f64, f64)> {
+    tr.att.iter().map(|a| (a.0, a.1.to_degrees())).collect()
+}
+
+fn metrics() -> Vec<Metric> {
+    vec![
+        Metric {
+            maneuver: "step_north_10m",
+            name: "t90",
+            unit: "s",
+            tol: Tol::Rel(0.15),
+            f: |t| step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).0,
+        },
+        Metric {
+            maneuver: "step_north_10m",
+            name: "overshoot",
+            unit: "m",
+            tol: Tol::Abs(0.3),
+            f: |t| step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).1,
+        },
+        Metric {
+            maneuver: "step_north_10m",
+            name: "steady-state",
+            unit: "m",
+            tol: Tol::Abs(0.15),
+            f: |t| step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).2,
+        },
+        Metric {
+            maneuver: "step_up_5m",
+            name: "t90 up",
+            unit: "s",
+            tol: Tol::Rel(0.15),
+            f: |t| step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).0,
+        },
+        Metric {
+            maneuver: "step_up_5m",
+            name: "overshoot up",
+            unit: "m",
+            tol: Tol::Abs(0.3),
+            f: |t| step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).1,
+        },
+        Metric {
+            maneuver: "step_up_5m",
+            name: "steady-state up",
+            unit: "m",
+            tol: Tol::Report,
+            f: |t| step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).2,
+        },
+        Metric {
+            maneuver: "step_up_5m",
+            name: "t90 down",
+            unit: "s",
+            tol: Tol::Report,
+            f: |t| step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).0,
+        },
+        Metric {
+            maneuver: "step_up_5m",
+            name: "overshoot down",
+            unit: "m",
+            tol: Tol::Abs(0.3),
+            f: |t| step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).1,
+        },
+        Metric {
+            maneuver: "step_up_5m",
+            name: "steady-state down",
+            unit: "m",
+            tol: Tol::Report,
+            f: |t| step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).2,
+        },
+        Metric {
+            maneuver: "ramp_5ms_posvel",
+            name: "lag t=4..12",
+            unit: "m",
+            tol: Tol::Abs(0.25),
+            f: |t| ramp_lag(t),
+        },
+        Metric {
+            maneuver: "ramp_5ms_posvel",
+            name: "overshoot at stop",
+            unit: "m",
+            tol: Tol::Report,
+            f: |t| {
+                window(&axis(t, 0), 12.0, 18.0)
+                    .iter()
+                    .map(|s| s.1 - 60.0)
+                    .fold(0.0, f64::max)
+            },
+        },
+        Metric {
+            maneuver: "ramp_5ms_pos_only",
+            name: "lag t=4..12",
+            unit: "m",
+            tol: Tol::Abs(0.25),
+            f: |t| ramp_lag(t),
+        },
+        Metric {
+            maneuver: "velocity_steps",
+            name: "vy at 5 s",
+            unit: "m/s",
+            tol: Tol::Report,
+            f: |t| mean(window(&t.pos, 4.5, 5.0).iter().map(|p| p.1.1[1])),
+        },
+        Metric {
+            maneuver: "velocity_steps",
+            name: "creep t=7..10",
+            unit: "m/s",
+            tol: Tol::Report,
+            f: |t| {
+                mean(
+                    window(&t.pos, 7.0, 10.0)
+                        .iter()
+                        .map(|p| p.1.1[0].hypot(p.1.1[1])),
+                )
+            },
+        },
+        Metric {
+            maneuver: "turn_circle",
+            name: "mean error",
+            unit: "m",
+            tol: Tol::Abs(0.5),
+            f: |t| circle(t).0,
+        },
+        Metric {
+            maneuver: "turn_circle",
+            name: "radial offset",
+            unit: "m",
+            tol: Tol::Report,
+            f: |t| circle(t).1,
+        },
+        Metric {
+            maneuver: "yaw_step",
+            name: "t90",
+            unit: "s",
+            tol: Tol::Rel(0.15),
+            f: |t| step_metrics(&yaw_deg(t), 0.0, 6.0, 90.0, 1.0).0,
+        },
+        Metric {
+            maneuver: "yaw_step",
+            name: "overshoot",
+            unit: "deg",
+            tol: Tol::Abs(5.0),
+            f: |t| step_metrics(&yaw_deg(t), 0.0, 6.0, 90.0, 1.0).1,
+        },
+        Metric {
+            maneuver: "landing",
+            name: "NAV_LAND to disarm",
+            unit: "s",
+            tol: Tol::Abs(3.0),
+            f: |t| {
+                t.modes
+                    .iter()
+                    .find(|m| m.0 >= 0.0 && !m.1)
+                    .map_or(f64::NAN, |m| m.0)
+            },
+        },
+    ]
+}
+
+/// Mean of (setpoint x - x) over t = 4..12 s of a ramp.
+fn ramp_lag(tr: &Trace) -> f64 {
+    mean(
+        window(&tr.pos, 4.0, 12.0)
+            .iter()
+            .map(|p| sp_at(tr, p.0).0[0] - p.1.0[0]),
+    )
+}
+
+/// Circle: mean distance to the setpoint over the turn, and mean radius minus 20 m.
+fn circle(tr: &Trace) -> (f64, f64) {
+    let turn = 8.0 * std::f64::consts::PI;
+    let w = window(&tr.pos, 0.0, turn);
+    let err = mean(w.iter().map(|p| {
+        let (s, _) = sp_at(tr, p.0);
+        (s[0] - p.1.0[0]).hypot(s[1] - p.1.0[1])
+    }));
+    let radial = mean(w.iter().map(|p| p.1.0[0].hypot(p.1.0[1] - 20.0) - 20.0));
+    (err, radial)
+}
+
+#[test]
+fn simulator_responds_like_px4_to_every_recorded_trace() {
+    let cfg = SimConfig::default();
+    let mut table = String::new();
+    let mut failures = Vec::new();
+    writeln!(
+        table,
+        "| maneuver | metric | simulator | PX4 | tolerance | ok |\n|---|---|---|---|---|---|"
+    )
+    .unwrap();
+    let mut cache: Vec<(&str, Trace, Trace)> = Vec::new();
+    for m in metrics() {
+        if !cache.iter().any(|c| c.0 == m.maneuver) {
+            let px4 = load(m.maneuver);
+            let sim = replay(&px4, m.maneuver == "landing", &cfg);
+            cache.push((m.maneuver, px4, sim));
+        }
+        let (_, px4, sim) = cache.iter().find(|c| c.0 == m.maneuver).unwrap();
+        let (a, b) = ((m.f)(sim), (m.f)(px4));
+        let (ok, tol) = match m.tol {
+            Tol::Rel(r) => ((a - b).abs() <= r * b.abs(), format!("±{:.0} %", r * 100.0)),
+            Tol::Abs(d) => ((a - b).abs() <= d, format!("±{d} {}", m.unit)),
+            Tol::Report => (true, "reported".into()),
+        };
+        let ok = ok && a.is_finite() == b.is_finite();
+        writeln!(
+            table,
+            "| {} | {} ({}) | {:.2} | {:.2} | {} | {} |",
+            m.maneuver,
+            m.name,
+            m.unit,
+            a,
+            b,
+            tol,
+            if ok { "yes" } else { "NO" }
+        )
+        .unwrap();
+        if !ok {
+            failures.push(format!(
+                "{} {}: sim {a:.2} vs PX4 {b:.2}",
+                m.maneuver, m.name
+            ));
+        }
+    }
+    println!("{table}");
+    assert!(
+        failures.is_empty(),
+        "out of tolerance:\n{}\n{table}",
+        failures.join("\n")
+    );
+}
