@@ -5,6 +5,7 @@
 import * as api from './api.js';
 import { describeFormation } from './log.js';
 import { compareIds } from './model.js';
+import { confirmAction } from './confirm.js';
 
 // Button labels of the formation shapes; the list itself and how many vehicles each needs
 // come from GET /api/v1/formation/shapes (`custom` needs offsets: API only).
@@ -67,11 +68,23 @@ export class Controls {
     }
 
     for (const b of document.querySelectorAll('[data-swarm-command]')) {
-      b.addEventListener('click', () => {
-        const command = b.dataset.swarmCommand;
-        this.run(b, command, () => api.swarmCommand({ command }));
-      });
+      b.addEventListener('click', () => this.swarmCommand(b.dataset.swarmCommand, b));
     }
+  }
+
+  /** A swarm command; landing every vehicle asks first. */
+  async swarmCommand(command, button) {
+    if (command === 'land') {
+      const ok = await confirmAction('Land every vehicle?', 'All vehicles descend where they are and the formation ends.', 'Land all');
+      if (!ok) return;
+    }
+    if (command === 'takeoff') {
+      const alt = this.takeoffAltitude();
+      if (alt === null) return;
+      this.run(button, 'takeoff', () => api.swarmCommand({ command, altitude_m: alt }), { altitude_m: 'takeoff-alt' });
+      return;
+    }
+    this.run(button, command, () => api.swarmCommand({ command }));
   }
 
   /** The takeoff altitude input as a number, or null (and a toast) when invalid. */

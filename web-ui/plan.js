@@ -1,5 +1,7 @@
 // Plan view: a top-down canvas map of the swarm frame (north up, east right).
-// The view fits all vehicles and formation slots with a margin and eases towards that fit;
+// The view fits all vehicles and formation slots with a margin and eases towards that fit
+// (the wheel zooms around it, `follow` centres it on one vehicle, `fit` goes back);
+// `pickPoint` turns the next click into a point of the swarm frame (go-to, gimbal ROI);
 // vehicle markers ease towards each new 10 Hz fix, so motion looks continuous. Drawing runs
 // on requestAnimationFrame only while something changes.
 //
@@ -15,6 +17,7 @@ const PAD_PX = 48;            // room for labels around the fitted area
 const TAU_MARKER_MS = 90;     // easing time constant of markers
 const TAU_VIEW_MS = 350;      // easing time constant of the view
 const TRAIL_POINTS = 240;     // per vehicle
+const TRAIL_S = 60;           // trails show the last minute
 const MIRROR_PERIOD_MS = 100;
 
 const ease = (dt, tau) => 1 - Math.exp(-dt / tau);
@@ -43,10 +46,24 @@ export class PlanView {
     this.raf = 0;
     this.lastT = 0;
     this.lastMirror = 0;
+    this.zoom = 1;           // wheel zoom relative to the fit
+    this.follow = null;      // id of the vehicle the view is centred on
+    this.picking = null;     // {resolve} while a click is awaited as a point
+    this.marks = new Map();  // key → {n, e, label}: go-to targets, gimbal ROIs …
+    this.banner = document.createElement('div');
+    this.banner.className = 'plan-banner';
+    this.banner.dataset.testid = 'plan-banner';
+    this.banner.hidden = true;
+    canvas.parentElement.append(this.banner);
+    canvas.addEventListener('wheel', (ev) => {
+      ev.preventDefault();
+      this.zoom = Math.min(50, Math.max(0.02, this.zoom * Math.exp(-ev.deltaY * 0.0015)));
+      this.kick();
+    }, { passive: false });
 
     new ResizeObserver(() => this.resize()).observe(canvas.parentElement);
     this.resize();
-    canvas.addEventListener('click', (ev) => this.pick(ev));
+    canvas.addEventListener('click', (ev) => (this.picking ? this.pickedPoint(ev) : this.pick(ev)));
     canvas.addEventListener('mousemove', (ev) => {
       const r = canvas.getBoundingClientRect();
       this.cursor = { x: ev.clientX - r.left, y: ev.clientY - r.top };
@@ -72,10 +89,12 @@ export class PlanView {
           t.n = p.north_m; t.e = p.east_m; t.hdg = v.heading_deg || 0; t.has = true;
         }
         const last = t.trail[t.trail.length - 1];
+        const now = performance.now();
         if (!last || Math.hypot(last[0] - p.north_m, last[1] - p.east_m) > 0.25) {
-          t.trail.push([p.north_m, p.east_m]);
+          t.trail.push([p.north_m, p.east_m, now]);
           if (t.trail.length > TRAIL_POINTS) t.trail.shift();
         }
+        while (t.trail.length > 1 && now - t.trail[0][2] > TRAIL_S * 1000) t.trail.shift();
       }
     }
     for (const [id, t] of this.tracks) {
@@ -96,6 +115,62 @@ export class PlanView {
   setSelected(id) {
     this.selected = id;
     this.kick();
+  }
+
+  /** Centres the view on a vehicle (null: back to the whole swarm). */
+  setFollow(id) {
+    this.follow = id;
+    this.kick();
+  }
+
+  /** Back to the view that fits the whole swarm. */
+  fit() {
+    this.zoom = 1;
+    this.follow = null;
+    this.kick();
+  }
+
+  /** A labelled cross on the plan (key replaces an earlier mark of the same key). */
+  setMark(key, n, e, label) {
+    this.marks.set(key, { n, e, label });
+    this.kick();
+  }
+
+  clearMark(key) {
+    if (this.marks.delete(key)) this.kick();
+  }
+
+  /** Resolves to the swarm-frame point of the next click on the plan ({north_m, east_m}), or null. */
+  pickPoint(label) {
+    this.cancelPick();
+    this.banner.textContent = label;
+    this.banner.hidden = false;
+    this.canvas.classList.add('picking');
+    return new Promise((resolve) => { this.picking = { resolve }; });
+  }
+
+  /** Ends a pending pickPoint with null; true when one was pending. */
+  cancelPick() {
+    if (!this.picking) return false;
+    this.endPick(null);
+    return true;
+  }
+
+  endPick(point) {
+    const { resolve } = this.picking;
+    this.picking = null;
+    this.banner.hidden = true;
+    this.canvas.classList.remove('picking');
+    resolve(point);
+  }
+
+  pickedPoint(ev) {
+    if (!this.view) return;
+    const r = this.canvas.getBoundingClientRect();
+    const x = ev.clientX - r.left, y = ev.clientY - r.top;
+    const { w, h } = this.size;
+    const v = this.view;
+    this.endPick({ north_m: v.cn - (y - h / 2) / v.s, east_m: v.ce + (x - w / 2) / v.s });
   }
 
   resize() {
@@ -157,8 +232,10 @@ export class PlanView {
     const spanN = Math.max(MIN_SPAN_M, (maxN - minN) * 1.15);
     const spanE = Math.max(MIN_SPAN_M, (maxE - minE) * 1.15);
     const { w, h } = this.size;
-    const s = Math.min((w - 2 * PAD_PX) / spanE, (h - 2 * PAD_PX) / spanN);
-    return { cn, ce, s: Math.max(1e-3, s) };
+    const s = Math.max(1e-3, Math.min((w - 2 * PAD_PX) / spanE, (h - 2 * PAD_PX) / spanN)) * this.zoom;
+    const f = this.follow && this.tracks.get(this.follow);
+    if (f && f.has && f.v.position) return { cn: f.v.position.north_m, ce: f.v.position.east_m, s };
+    return { cn, ce, s };
   }
 
   frame(t) {
@@ -299,6 +376,20 @@ export class PlanView {
       ctx.stroke();
     }
 
+    // Marks: go-to targets and gimbal points, as labelled crosses.
+    ctx.font = '10px system-ui, -apple-system, "Segoe UI", sans-serif';
+    for (const m of this.marks.values()) {
+      const [x, y] = this.toPx(m.n, m.e);
+      ctx.strokeStyle = '#ff8a5b';
+      ctx.lineWidth = 1.5;
+      ctx.beginPath();
+      ctx.moveTo(x - 7, y - 7); ctx.lineTo(x + 7, y + 7); ctx.moveTo(x + 7, y - 7); ctx.lineTo(x - 7, y + 7);
+      ctx.stroke();
+      ctx.fillStyle = '#ff8a5b';
+      ctx.textAlign = 'left';
+      ctx.fillText(m.label, x + 9, y - 6);
+    }
+
     // Vehicles: heading arrows, selection ring, leader ring, labels.
     const leader = this.leaderId();
     const many = drawn.length > 24;
@@ -421,6 +512,13 @@ export class PlanView {
 
   /** Mirrors every drawn marker into the hidden list (ids, pixel and metric positions). */
   updateMirror() {
+    if (this.view) {
+      // The view itself: the canvas centre in the swarm frame and the scale (px per m).
+      const md = this.mirror.dataset;
+      md.cn = this.view.cn.toFixed(2);
+      md.ce = this.view.ce.toFixed(2);
+      md.scale = this.view.s.toFixed(4);
+    }
     const ids = [...this.tracks.keys()].sort(compareIds);
     let prev = null;
     for (const id of ids) {
