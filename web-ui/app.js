@@ -173,6 +173,10 @@ function onStatus(status, delay) {
     wasConnected = true;
     // The formation is not repeated on the stream: fetch it on every (re)connection.
     api.getFormation().then((res) => { if (res.ok) setFormation(res.data); });
+    api.getGeofence().then((res) => {
+      if (res.ok) plan.setGeofence(res.data);
+      else if (res.status !== 404) toasts.show('error', 'Geofence', res.data.error);
+    });
   } else if (status === 'reconnecting' && conn.dataset.logged !== 'down') {
     log.note('stream', 'warn', 'stream', 'stream closed; reconnecting');
   }

@@ -78,7 +78,8 @@ export function drawChart(canvas, series, opts = {}) {
     const t = now - k * tStep;
     const x = X(t);
     if (x < L + 10) break;
-    ctx.fillText(k ? `-${Math.round((k * tStep) / 1000)}s` : 'now', x, h - B + 2);
+    ctx.textAlign = k ? 'center' : 'right';
+    ctx.fillText(k ? `-${Math.round((k * tStep) / 1000)}s` : 'now', k ? x : x + 2, h - B + 2);
   }
   if (opts.title) {
     ctx.textAlign = 'left';

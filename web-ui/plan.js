@@ -50,6 +50,7 @@ export class PlanView {
     this.follow = null;      // id of the vehicle the view is centred on
     this.picking = null;     // {resolve} while a click is awaited as a point
     this.marks = new Map();  // key → {n, e, label}: go-to targets, gimbal ROIs …
+    this.geofence = null;    // GET /api/v1/geofence
     this.banner = document.createElement('div');
     this.banner.className = 'plan-banner';
     this.banner.dataset.testid = 'plan-banner';
@@ -120,6 +121,12 @@ export class PlanView {
   /** Centres the view on a vehicle (null: back to the whole swarm). */
   setFollow(id) {
     this.follow = id;
+    this.kick();
+  }
+
+  /** The geofence (radius around the swarm origin, optional polygon), drawn dashed red. */
+  setGeofence(fence) {
+    this.geofence = fence || null;
     this.kick();
   }
 
@@ -331,6 +338,8 @@ export class PlanView {
     ctx.moveTo(0, Math.round(oy) + 0.5); ctx.lineTo(w, Math.round(oy) + 0.5);
     ctx.stroke();
 
+    this.drawGeofence();
+
     // Trails.
     ctx.lineWidth = 1.5;
     ctx.lineJoin = 'round';
@@ -457,6 +466,36 @@ export class PlanView {
     this.drawScale(step);
     this.drawNorth();
     this.drawCursor();
+  }
+
+  drawGeofence() {
+    const g = this.geofence;
+    if (!g) return;
+    const { ctx } = this;
+    ctx.save();
+    ctx.strokeStyle = 'rgba(255,85,102,0.7)';
+    ctx.fillStyle = 'rgba(255,85,102,0.85)';
+    ctx.lineWidth = 1.5;
+    ctx.setLineDash([8, 6]);
+    ctx.font = '10px system-ui, -apple-system, "Segoe UI", sans-serif';
+    if (Number.isFinite(g.radius_m) && g.radius_m > 0) {
+      const [ox, oy] = this.toPx(0, 0);
+      const r = g.radius_m * this.view.s;
+      ctx.beginPath(); ctx.arc(ox, oy, r, 0, Math.PI * 2); ctx.stroke();
+      ctx.textAlign = 'center';
+      ctx.fillText(`geofence ${g.radius_m} m · ceiling ${g.max_altitude_m} m`, ox, oy - r - 4);
+    }
+    if (Array.isArray(g.polygon) && g.polygon.length >= 3) {
+      ctx.beginPath();
+      g.polygon.forEach(([n, e], i) => {
+        const [x, y] = this.toPx(n, e);
+        if (i) ctx.lineTo(x, y); else ctx.moveTo(x, y);
+      });
+      ctx.closePath();
+      ctx.stroke();
+    }
+    ctx.restore();
+    ctx.textAlign = 'start';
   }
 
   /** Scale bar: one grid cell, bottom left. */
