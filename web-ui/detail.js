@@ -46,7 +46,9 @@ export class VehicleDetail {
         <h4>Status texts</h4>
         <ol class="mini-log" data-testid="status-texts"></ol>
         <h4>Link counters <span class="hint" data-field="conn"></span></h4>
-        <table class="kv-table" data-testid="link-counters"><tbody></tbody></table>
+        <table class="links" data-testid="link-counters"><thead><tr><th>endpoint</th><th title="frames decoded">ok</th>
+          <th title="bad CRC">crc</th><th title="unknown message ids">unkn.</th><th title="parse errors, truncated, bad flags, garbage bytes">malf.</th>
+          <th title="rejected datagrams (other sources)">rej.</th><th title="frames sent">sent</th><th title="send errors, no route">s.err</th></tr></thead><tbody></tbody></table>
         <h4>Parameters</h4>
         <div data-testid="params"></div>
       </div>`;
@@ -99,6 +101,7 @@ export class VehicleDetail {
     if (!p || !this.v || this.v.id !== id) return;
     const down = this.v.position && Number.isFinite(this.v.position.down_m) ? this.v.position.down_m : -10;
     this.plan.setMark(`goto-${id}`, p.north_m, p.east_m, `${id} go-to`);
+    this.gotoAt = { id, t: Date.now() };
     const body = { command: 'goto', north_m: round1(p.north_m), east_m: round1(p.east_m), down_m: round1(down) };
     this.controls.run(this.q('[data-testid="detail-goto"]'), `${id} goto N ${body.north_m} E ${body.east_m}`,
       () => api.vehicleCommand(id, body));
@@ -110,6 +113,12 @@ export class VehicleDetail {
     const v = vehicles.find((x) => x.id === this.id);
     if (!v) return;
     this.v = v;
+    // The go-to cross goes once the vehicle has left GoTo (arrived, or was commanded otherwise).
+    const g = this.gotoAt;
+    if (g && g.id === v.id && v.state !== 'GoTo' && Date.now() - g.t > 3000) {
+      this.plan.clearMark(`goto-${v.id}`);
+      this.gotoAt = null;
+    }
     if (!this.tabs.isOpen('vehicle')) return;
     const p = v.position || {};
     const vel = v.velocity || {};
@@ -174,31 +183,34 @@ export class VehicleDetail {
     this.q('[data-testid="status-texts"]').replaceChildren(...texts);
   }
 
+  /**
+   * One row per MAVLink endpoint; the selected vehicle's own endpoint (known from its
+   * vehicle_joined event) is highlighted. Counters of malformed input are shown in red
+   * when not zero.
+   */
   async pollLinks() {
     const res = await api.getLinks();
     if (!res.ok) return res;
     const conn = this.connectionOf(this.id);
     const list = Array.isArray(res.data) ? res.data : [];
-    const mine = list.filter((e) => conn && e.connection === conn);
-    const shown = mine.length ? mine : list;
-    this.q('[data-field="conn"]').textContent = mine.length ? conn : conn ? `${conn} (not listed; all endpoints)` : 'all endpoints';
-    const rows = [];
-    for (const e of shown) {
-      const add = (k, val) => {
-        const tr = document.createElement('tr');
-        const th = document.createElement('th');
-        th.textContent = k;
+    const known = list.some((e) => e.connection === conn);
+    this.q('[data-field="conn"]').textContent = known ? conn : 'every endpoint (this vehicle\'s joined before the page opened)';
+    const rows = list.map((e) => {
+      const d = e.decode || {}, sd = e.send || {};
+      const malformed = (d.parse_errors || 0) + (d.truncated || 0) + (d.bad_flags || 0) + (d.garbage_bytes || 0);
+      const cells = [e.connection, d.frames_ok, d.bad_crc, d.unknown_message, malformed, d.rejected_datagrams,
+        sd.frames_sent, (sd.send_errors || 0) + (sd.no_route || 0)];
+      const tr = document.createElement('tr');
+      tr.classList.toggle('mine', known && e.connection === conn);
+      cells.forEach((c, i) => {
         const td = document.createElement('td');
-        td.textContent = val;
-        tr.append(th, td);
-        rows.push(tr);
-      };
-      if (shown.length > 1) add('endpoint', `${e.connection} ${e.local_addr || ''}`);
-      for (const group of ['decode', 'send']) {
-        const c = e[group] || {};
-        add(group, Object.entries(c).map(([k, val]) => `${k} ${val}`).join(' · ') || '–');
-      }
-    }
+        td.textContent = c ?? '–';
+        if (i >= 2 && i !== 1 && i !== 6 && Number(c) > 0) td.className = 'bad';
+        tr.append(td);
+      });
+      tr.title = `${e.connection} (local ${e.local_addr || '–'})`;
+      return tr;
+    });
     this.q('[data-testid="link-counters"] tbody').replaceChildren(...rows);
     return res;
   }

@@ -59,7 +59,7 @@ export class PluginsView {
     } else {
       const d = res.data || {};
       const text = op === 'reload'
-        ? `generation ${d.previous_generation} → ${d.library ? d.library.generation : '?'}; ${d.stale_instances ?? 0} stale instance(s)`
+        ? `generation ${d.previous_generation} → ${d.library ? d.library.generation : '?'}; ${staleCount(d.stale_instances)} instance(s) moved to the new build`
         : `${d.name || what} ${d.version || ''}`;
       this.toasts.show('ok', `${op} ${what}`, text);
       this.log.note('api', 'ok', 'plugin', `${op} ${what}: ${text}`);
@@ -130,3 +130,5 @@ export class PluginsView {
     return res;
   }
 }
+
+const staleCount = (x) => (Array.isArray(x) ? x.length : Number.isFinite(x) ? x : 0);

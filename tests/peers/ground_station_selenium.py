@@ -203,6 +203,7 @@ def run(args, driver, summary):
     ui.wait(f"{args.param} to read {new}", lambda d: abs(number(ui.text(f'{row} td[data-field="value"]')) - new) < 1e-3)
     summary["param"] = {"name": args.param, "from": old, "to": new}
     times["param_written"] = lap()
+    ui.js("document.querySelector('[data-view=\"vehicle\"]').scrollTop = 0")
     ui.shot("vehicle")
 
     # 3. Go-to by clicking the plan, 8 m north-east of the vehicle.
@@ -218,7 +219,8 @@ def run(args, driver, summary):
 
     def arrived(d):
         m = ui.markers().get(cam)
-        return m if m and math.hypot(m["north"] - target[0], m["east"] - target[1]) < 1.5 else None
+        near = m and math.hypot(m["north"] - target[0], m["east"] - target[1]) < 1.0
+        return m if near and m["state"] == "Hovering" else None
 
     end = ui.wait(f"{cam} to fly to the clicked point {target}", arrived, timeout=40)
     summary["goto"] = {"from": [start["north"], start["east"]], "target": [round(target[0], 2), round(target[1], 2)],
@@ -247,6 +249,7 @@ def run(args, driver, summary):
                          "digests": [first_pic["digest"], pic["digest"]]}
     summary["gimbal_pitch_deg"] = [p0, number(ui.text(pitch_sel))]
     times["gimbal_at_-45"] = lap()
+    ui.js("document.querySelector('[data-view=\"payloads\"]').scrollTop = 0")
     ui.shot("payloads")
 
     # 5. Supervision: panic into the px4link of uav-1.
