@@ -2,7 +2,8 @@
 // it reconnects with backoff when the stream ends, e.g. a skein restart) with what the
 // camera reports seeing (`visible`: other aircraft in pixels) drawn over it, the pointing
 // and optics, and zoom / capture controls.
-// Test hooks: img[data-testid=camera-video], [data-field=frames], canvas.overlay.
+// Test hooks: img[data-testid=camera-video], [data-field=frames] (data-frames), the
+// widget's data-visible (ids of the aircraft in view), canvas.overlay.
 
 import * as api from './api.js';
 import { fmt } from './model.js';
@@ -75,6 +76,8 @@ export class CameraCard {
     const zoom = this.el.querySelector('[data-field="zoom"]');
     if (document.activeElement !== zoom && Number.isFinite(s.zoom)) zoom.value = String(s.zoom);
     if (s.last_error) this.status.textContent = `camera: ${s.last_error}`;
+    const seen = (s.visible || []).map((o) => o.id).join(',');
+    if (this.el.dataset.visible !== seen) this.el.dataset.visible = seen;
     this.drawOverlay();
   }
 

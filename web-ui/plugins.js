@@ -71,6 +71,10 @@ export class PluginsView {
     const res = await api.getPlugins();
     if (!res.ok) return res;
     const d = res.data || {};
+    // Re-rendered only when something changed, so a button is never replaced under the pointer.
+    const key = JSON.stringify(d);
+    if (key === this.lastKey) return res;
+    this.lastKey = key;
     this.root.querySelector('[data-field="dir"]').textContent = `plugin directory: ${d.plugin_dir || '(none)'}`;
     const rows = [];
     for (const lib of d.libraries || []) {

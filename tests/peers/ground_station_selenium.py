@@ -10,7 +10,7 @@ Debian's chromium and chromedriver), through the page only, against
    uav-2's marker arrives there;
 4. payloads: uav-2's camera video shows frames (the frame counter moves and the picture
    decodes); its gimbal to -45 deg pitch: the shown attitude gets there and the picture
-   changes;
+   changes; the gimbal tracks another vehicle: the camera reports it in view;
 5. supervision: panic injected into coordinator/uav-1/px4link from its row: the tree
    shows one more restart, the actor runs again and a toast names it;
 6. plugins: reload the gimbal plugin: generation 2 is shown;
@@ -31,11 +31,11 @@ import sys
 import time
 
 from selenium import webdriver
-from selenium.common.exceptions import TimeoutException, WebDriverException
+from selenium.common.exceptions import StaleElementReferenceException, TimeoutException, WebDriverException
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
-from selenium.webdriver.support.ui import WebDriverWait
+from selenium.webdriver.support.ui import Select, WebDriverWait
 
 ROWS_JS = """
 const out = {};
@@ -116,7 +116,8 @@ class Page:
     def wait(self, what, cond, timeout=None):
         t = timeout or self.args.timeout
         try:
-            return WebDriverWait(self.d, t, poll_frequency=0.2).until(lambda d: cond(d))
+            return WebDriverWait(self.d, t, poll_frequency=0.2,
+                                 ignored_exceptions=[StaleElementReferenceException]).until(lambda d: cond(d))
         except TimeoutException:
             raise Failure(f"timed out after {t:.0f} s waiting for {what}; last seen: {json.dumps(self.last)}") from None
 
@@ -127,15 +128,22 @@ class Page:
         return self.d.find_element(By.CSS_SELECTOR, sel)
 
     def click(self, sel):
-        self.css(sel).click()
+        # Views re-render parts of themselves from polls: retry a click that lost its element.
+        def attempt(d):
+            try:
+                self.css(sel).click()
+                return True
+            except StaleElementReferenceException:
+                return False
+        self.wait(f"a click on {sel}", attempt, timeout=5)
 
     def tab(self, name):
         self.click(f'[data-tab="{name}"]')
         self.wait(f"the {name} view", lambda d: self.css(f'[data-view="{name}"]').is_displayed())
 
     def text(self, sel):
-        els = self.d.find_elements(By.CSS_SELECTOR, sel)
-        self.last = els[0].text.strip() if els else None
+        # In one script: no stale element between finding and reading.
+        self.last = self.js("const e = document.querySelector(arguments[0]); return e ? e.textContent.trim() : null;", sel)
         return self.last
 
     def rows(self):
@@ -249,6 +257,12 @@ def run(args, driver, summary):
                          "digests": [first_pic["digest"], pic["digest"]]}
     summary["gimbal_pitch_deg"] = [p0, number(ui.text(pitch_sel))]
     times["gimbal_at_-45"] = lap()
+    # Track another vehicle: the camera reports it in view, and the page draws it.
+    other = next(v for v in summary["vehicles"] if v != cam)
+    Select(ui.css('[data-testid="gimbal-track"]')).select_by_value(other)
+    seen = f'{card}[data-kind="camera"] .widget'
+    ui.wait(f"{other} in the camera's view", lambda d: other in (ui.css(seen).get_attribute("data-visible") or "").split(","))
+    summary["camera"]["tracked_in_view"] = other
     ui.js("document.querySelector('[data-view=\"payloads\"]').scrollTop = 0")
     ui.shot("payloads")
 
