@@ -168,7 +168,10 @@ function onStatus(status, delay) {
   }
   document.body.classList.toggle('offline', status !== 'connected');
   if (status === 'connected') {
-    if (wasConnected) log.note('stream', 'ok', 'stream', 'reconnected to skein');
+    if (wasConnected) {
+      log.note('stream', 'ok', 'stream', 'reconnected to skein');
+      payloads.reconnected();
+    }
     else log.note('stream', 'ok', 'stream', 'connected to skein');
     wasConnected = true;
     // The formation is not repeated on the stream: fetch it on every (re)connection.

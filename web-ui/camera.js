@@ -32,6 +32,13 @@ export class CameraCard {
     this.status = el.querySelector('.video-status');
     this.img.addEventListener('load', () => { this.retry = 0; this.status.textContent = ''; });
     this.img.addEventListener('error', () => this.onError());
+    // A broken stream does not always fire `error` (a multipart response cut short): a
+    // watchdog reconnects an image that is complete but empty.
+    this.watchdog = setInterval(() => {
+      if (this.active && !this.retryTimer && this.img.getAttribute('src') && this.img.complete && !this.img.naturalWidth) {
+        this.onError();
+      }
+    }, 2000);
     el.querySelector('[data-field="zoom"]').addEventListener('change', (ev) =>
       this.send('set_zoom', { command: 'set_zoom', zoom: Number(ev.target.value) }));
     el.querySelector('[data-act="capture"]').addEventListener('click', (ev) =>
@@ -44,11 +51,22 @@ export class CameraCard {
     if (on === this.active) return;
     this.active = on;
     clearTimeout(this.retryTimer);
+    this.retryTimer = 0;
     if (on) this.connect();
     else this.img.removeAttribute('src');
   }
 
+  /** Opens a new stream now (after the dashboard reconnected to a restarted skein). */
+  reconnect() {
+    if (!this.active) return;
+    clearTimeout(this.retryTimer);
+    this.retryTimer = 0;
+    this.retry = 0;
+    this.connect();
+  }
+
   connect() {
+    this.retryTimer = 0;
     if (!this.active) return;
     this.status.textContent = 'connecting…';
     // A fresh URL each time, so the browser opens a new stream instead of reusing a dead one.
@@ -76,6 +94,7 @@ export class CameraCard {
     const zoom = this.el.querySelector('[data-field="zoom"]');
     if (document.activeElement !== zoom && Number.isFinite(s.zoom)) zoom.value = String(s.zoom);
     if (s.last_error) this.status.textContent = `camera: ${s.last_error}`;
+    else if (this.status.textContent.startsWith('camera:')) this.status.textContent = '';
     const seen = (s.visible || []).map((o) => o.id).join(',');
     if (this.el.dataset.visible !== seen) this.el.dataset.visible = seen;
     this.drawOverlay();
@@ -118,5 +137,6 @@ export class CameraCard {
 
   destroy() {
     this.setActive(false);
+    clearInterval(this.watchdog);
   }
 }

@@ -48,6 +48,11 @@ export class PayloadsView {
     this.key = '';
   }
 
+  /** The stream came back (skein may have restarted): reopen the video streams. */
+  reconnected() {
+    for (const c of this.cards.values()) if (c.widget && c.widget.reconnect) c.widget.reconnect();
+  }
+
   activate() {
     const on = this.tabs.isOpen('payloads');
     for (const c of this.cards.values()) if (c.widget && c.widget.setActive) c.widget.setActive(on);
