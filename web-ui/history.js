@@ -8,6 +8,7 @@ import { AIRBORNE, groundSpeed } from './model.js';
 export const WINDOW_S = 300;
 const SAMPLE_MS = 500; // at most two samples a second per series
 const CAP_EVENTS = 60;
+const MISMATCH_MS = 1200;
 
 /** A time series of [t_ms, value] trimmed to the window. */
 export class Series {
@@ -35,6 +36,7 @@ class VehicleHistory {
     this.states = [];             // [{t, from, to}] newest last
     this.texts = [];              // [{t, severity, text}]
     this.lastState = null;
+    this.mismatchSince = 0;
     this.lastSample = 0;
   }
 }
@@ -59,10 +61,16 @@ export class History {
     let sq = 0, nErr = 0;
     for (const v of list) {
       const h = this.of(v.id);
-      // A state seen in a frame that the events did not announce (first frame, or a
-      // transition whose event was dropped) still makes the history.
-      if (h.lastState !== v.state) {
-        this.addState(h, now, h.lastState, v.state);
+      // The history comes from the state_changed events. Frames and events travel on
+      // separate channels, so a frame may lag an event: a frame only adds the first state
+      // seen, or a state it has shown for over a second without an event (one dropped).
+      if (h.lastState === null) {
+        this.addState(h, now, null, v.state);
+      } else if (h.lastState !== v.state) {
+        if (!h.mismatchSince) h.mismatchSince = now;
+        else if (now - h.mismatchSince > MISMATCH_MS) this.addState(h, now, h.lastState, v.state);
+      } else {
+        h.mismatchSince = 0;
       }
       if (now - h.lastSample >= SAMPLE_MS) {
         h.lastSample = now;
@@ -100,6 +108,7 @@ export class History {
 
   addState(h, t, from, to) {
     h.lastState = to;
+    h.mismatchSince = 0;
     h.states.push({ t, from, to });
     if (h.states.length > CAP_EVENTS) h.states.shift();
   }

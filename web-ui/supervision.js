@@ -102,19 +102,23 @@ export class SupervisionView {
       li.dataset.testid = 'actor';
       li.innerHTML = `<div class="actor-row"><span class="actor-name"></span><span class="actor-kind"></span>
           <span class="actor-status" data-field="status"></span><span class="actor-num" data-field="restarts" title="restarts"></span>
-          <span class="actor-faults">${FAULTS.map((f) => `<button type="button" class="btn tiny fault" data-fault="${f}" title="inject ${f}">${f}</button>`).join('')}</span>
-          <div class="actor-detail" data-field="detail"></div></div><ul></ul>`;
+          <span class="actor-faults">${FAULTS.map((f) => `<button type="button" class="btn tiny fault" data-fault="${f}" title="inject ${f}">${f}</button>`).join('')}</span></div>
+          <div class="actor-detail" data-field="detail"></div><ul></ul>`;
       li.querySelector('.actor-name').textContent = n.name;
       this.rows.set(n.path, li);
     }
     const status = String(n.status);
     li.dataset.status = status;
     li.dataset.restarts = String(n.restarts ?? 0);
-    li.querySelector('.actor-kind').textContent = typeof n.kind === 'string' ? n.kind : JSON.stringify(n.kind);
-    const st = li.querySelector('[data-field="status"]');
+    // The kind only where the name does not already say it (payload/camera is a payload).
+    const kind = typeof n.kind === 'string' ? n.kind : JSON.stringify(n.kind);
+    const norm = (x) => String(x).toLowerCase().replace(/[^a-z0-9]/g, '');
+    li.querySelector(':scope > .actor-row .actor-kind').textContent = norm(n.name).startsWith(norm(kind)) ? '' : kind;
+    li.querySelector(':scope > .actor-row .actor-name').title = `${n.path} (${kind})`;
+    const st = li.querySelector(':scope > .actor-row [data-field="status"]');
     st.textContent = status;
     st.className = `actor-status st-${status.split(/[^a-z]/)[0]}`;
-    li.querySelector('[data-field="restarts"]').textContent = `↻ ${n.restarts ?? 0}`;
+    li.querySelector(':scope > .actor-row [data-field="restarts"]').textContent = `↻ ${n.restarts ?? 0}`;
     const parts = [];
     if (n.failures) parts.push(`${n.failures} failure${n.failures === 1 ? '' : 's'}`);
     if (n.last_restart_latency_us != null) parts.push(`restart ${(n.last_restart_latency_us / 1000).toFixed(1)} ms`);
@@ -123,7 +127,7 @@ export class SupervisionView {
       const f = n.last_failure;
       parts.push(`last: ${f.at_unix_ms ? fmtTime(new Date(f.at_unix_ms)) : ''} ${f.reason}`);
     }
-    const detail = li.querySelector('[data-field="detail"]');
+    const detail = li.querySelector(':scope > [data-field="detail"]');
     const text = parts.join(' · ');
     if (detail.textContent !== text) detail.textContent = text;
     detail.hidden = !text;
