@@ -67,7 +67,8 @@ fn the_dashboard_flies_three_vehicles_in_chromium() {
 }
 
 /// Vehicle models of the ground station test: the observation model with a small camera
-/// (so that frames are cheap), a gimbal and a radio.
+/// (so that frames are cheap), a gimbal and a radio; the generic one with the example
+/// plugin in its own process (a kind the dashboard has no widget for).
 const GROUND_STATION_CONFIG: &str = r#"
 [models.observation]
 payloads = [
@@ -75,6 +76,9 @@ payloads = [
     { slot = "camera", kind = "camera", config = { width_px = 320, height_px = 240, frame_rate_hz = 5.0 } },
     { slot = "radio", kind = "radio" },
 ]
+
+[models.generic]
+payloads = [{ slot = "example", kind = "example", isolation = "process" }]
 "#;
 
 #[test]
@@ -85,6 +89,7 @@ fn the_ground_station_drives_payloads_supervision_and_plugins_in_chromium() {
             "skein-plugin-gimbal",
             "skein-plugin-camera",
             "skein-plugin-radio",
+            "skein-plugin-example",
         ],
         &[],
         &dir,

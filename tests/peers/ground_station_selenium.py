@@ -10,11 +10,14 @@ Debian's chromium and chromedriver), through the page only, against
    uav-2's marker arrives there;
 4. payloads: uav-2's camera video shows frames (the frame counter moves and the picture
    decodes); its gimbal to -45 deg pitch: the shown attitude gets there and the picture
-   changes; the gimbal tracks another vehicle: the camera reports it in view;
+   changes; the gimbal tracks another vehicle: the camera reports it in view; uav-1's
+   example payload (no widget for its kind) shows its published state;
 5. supervision: panic injected into coordinator/uav-1/px4link from its row: the tree
    shows one more restart, the actor runs again and a toast names it;
-6. plugins: reload the gimbal plugin: generation 2 is shown;
-7. no errors in the browser console.
+6. plugins: reload the gimbal plugin: generation 2 is shown; the process-isolated example
+   instances show their pid;
+7. keyboard: `l` (land all) asks first, and Cancel leaves the swarm flying;
+8. no errors in the browser console.
 
 A screenshot of each view is saved into --screenshots DIR (overview, vehicle, goto,
 payloads, supervision, plugins, charts). Every wait polls with a deadline (WebDriverWait).
@@ -265,6 +268,12 @@ def run(args, driver, summary):
     summary["camera"]["tracked_in_view"] = other
     ui.js("document.querySelector('[data-view=\"payloads\"]').scrollTop = 0")
     ui.shot("payloads")
+    # A kind without a widget: its published state, generically.
+    generic = summary["vehicles"][0]
+    Select(ui.css('[data-testid="payload-vehicle"]')).select_by_value(generic)
+    state = f'{card}[data-kind="example"] .state-json'
+    ui.wait(f"{generic}'s example payload state", lambda d: '"vehicle_state": "Hovering"' in (ui.text(state) or ""))
+    summary["generic_payload"] = {"vehicle": generic, "state": json.loads(ui.text(state))}
 
     # 5. Supervision: panic into the px4link of uav-1.
     ui.tab("supervision")
@@ -277,7 +286,7 @@ def run(args, driver, summary):
             and ui.css(actor).get_attribute("data-status") == "running")
     ui.wait("a toast naming the restarted actor", lambda d: any(args.fault_target in t and "restarted" in t for t in ui.toasts()))
     summary["fault"] = {"target": args.fault_target, "restarts": [r0, r0 + 1],
-                        "detail": ui.text(f'{actor} > .actor-row [data-field="detail"]')}
+                        "detail": ui.text(f'{actor} > [data-field="detail"]')}
     times["actor_restarted"] = lap()
     ui.shot("supervision")
 
@@ -288,8 +297,19 @@ def run(args, driver, summary):
     ui.click('tr[data-plugin="gimbal"] button[data-plugin-op="reload"]')
     ui.wait("the gimbal plugin at generation 2", lambda d: ui.text(gen) == "2")
     summary["gimbal_generation"] = [g0, "2"]
+    pids = ui.wait("the example plugin's process-isolated instances with a pid", lambda d: (lambda t: t if t and "process pid" in t else None)(
+        ui.text('tr[data-plugin="example"] + tr.instances td')))
+    summary["example_instances"] = pids
     times["plugin_reloaded"] = lap()
     ui.shot("plugins")
+
+    # Keyboard: land all asks first; Cancel changes nothing.
+    ui.css("body").send_keys("l")
+    ui.wait("the land-all confirmation", lambda d: ui.css('[data-testid="confirm-dialog"]').is_displayed())
+    ui.click('[data-testid="confirm-cancel"]')
+    ui.wait("the dialog closed", lambda d: not ui.css('[data-testid="confirm-dialog"]').is_displayed())
+    if any(r["state"] not in ("Hovering", "GoTo") for r in ui.rows().values()):
+        raise Failure(f"cancelled land-all changed states: {ui.last}")
 
     # Charts (screenshot only: they draw what the stream brought).
     ui.tab("charts")
