@@ -107,6 +107,10 @@ fn the_ground_station_drives_payloads_supervision_and_plugins_in_chromium() {
         "--config",
         cfg.to_str().unwrap(),
     ]);
+    // The geofence the plan view draws (the default fence: 500 m around the origin).
+    let (status, fence) = skein.get("/api/v1/geofence");
+    assert_eq!(status, 200, "{fence}");
+    assert_eq!(fence["radius_m"], 500.0, "{fence}");
     let url = format!("{}/", skein.base);
     let shots = support::workspace().join("target").join("screenshots");
     println!("ground station screenshots: {}", shots.display());

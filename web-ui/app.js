@@ -108,6 +108,7 @@ function onVehicles(vehicles) {
   table.update(vehicles);
   plan.setVehicles(vehicles);
   controls.setVehicleIds(vehicles.map((v) => v.id));
+  controls.setVehicles(vehicles);
   summarise(vehicles);
   if (selected && !vehicles.some((v) => v.id === selected)) select(null);
 }

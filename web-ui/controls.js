@@ -43,10 +43,7 @@ export class Controls {
       if (!btn) return;
       const spec = this.formationSpec(btn.dataset.shape);
       if (!spec) return;
-      this.run(btn, `formation ${spec.shape}`, () => api.putFormation(spec), {
-        spacing_m: 'form-spacing', heading_deg: 'form-heading', altitude_m: 'form-alt', leader: 'form-leader',
-        frame: 'form-frame',
-      });
+      this.requestFormation(btn, spec);
     });
 
     // Leader motion (the virtual leader, or the leader vehicle).
@@ -188,6 +185,45 @@ export class Controls {
     this.run(button, `${id} ${command}`, () => api.vehicleCommand(id, body), { altitude_m: 'takeoff-alt' });
   }
 
+  /**
+   * PUT /api/v1/formation. Refused while vehicles are still climbing (the server counts
+   * only those at altitude), it is asked again once none is taking off, for up to a minute.
+   */
+  async requestFormation(button, spec, retry = false) {
+    const label = `formation ${spec.shape}${retry ? ' (retried)' : ''}`;
+    const res = await this.run(button, label, () => api.putFormation(spec), {
+      spacing_m: 'form-spacing', heading_deg: 'form-heading', altitude_m: 'form-alt', leader: 'form-leader',
+      frame: 'form-frame',
+    });
+    const climbing = this.takingOff();
+    if (!retry && res && res.status === 400 && climbing.length) {
+      this.pendingFormation = { spec, until: Date.now() + 60000 };
+      const text = `asked again when ${climbing.join(', ')} reach${climbing.length === 1 ? 'es' : ''} their altitude`;
+      this.toasts.show('info', `formation ${spec.shape} waits for the takeoff`, text);
+      this.log.note('api', 'info', 'formation', `formation ${spec.shape}: ${text}`);
+    }
+  }
+
+  takingOff() {
+    return (this.vehicles || []).filter((v) => v.state === 'TakingOff').map((v) => v.id);
+  }
+
+  /** The stream's vehicles: states for a formation waiting on a takeoff. */
+  setVehicles(vehicles) {
+    this.vehicles = vehicles;
+    const p = this.pendingFormation;
+    if (!p) return;
+    if (Date.now() > p.until) {
+      this.pendingFormation = null;
+      this.toasts.show('warn', `formation ${p.spec.shape} not retried`, 'the takeoff did not end within a minute');
+      return;
+    }
+    if (!this.takingOff().length) {
+      this.pendingFormation = null;
+      this.requestFormation(null, p.spec, true);
+    }
+  }
+
   /** Keeps the leader choices in step with the swarm (and the current choice). */
   setVehicleIds(ids) {
     const sorted = [...ids].sort(compareIds);
@@ -214,6 +250,7 @@ export class Controls {
       this.report(label, res);
       const bad = res.data && res.data.field && fields[res.data.field];
       if (!res.ok && bad) document.getElementById(bad).setAttribute('aria-invalid', 'true');
+      return res;
     } finally {
       if (button) button.disabled = false;
     }

@@ -557,6 +557,7 @@ export class PlanView {
       md.cn = this.view.cn.toFixed(2);
       md.ce = this.view.ce.toFixed(2);
       md.scale = this.view.s.toFixed(4);
+      md.geofenceRadius = this.geofence ? String(this.geofence.radius_m) : '';
     }
     const ids = [...this.tracks.keys()].sort(compareIds);
     let prev = null;

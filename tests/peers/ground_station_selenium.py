@@ -187,6 +187,9 @@ def run(args, driver, summary):
     ui.wait("the connection indicator to read `connected`", lambda d: ui.text('[data-testid="connection"]') == "connected")
     ui.wait(f"{n} vehicles Landed", lambda d: len(ui.rows()) == n and all(r["state"] == "Landed" for r in ui.rows().values()))
     summary["vehicles"] = sorted(ui.rows())
+    fence = ui.wait("the plan to know the geofence", lambda d: ui.js(
+        "return document.querySelector('[data-testid=\"plan-markers\"]').dataset.geofenceRadius"))
+    summary["geofence_radius_m"] = float(fence)
     ui.shot("overview")
     ui.click('[data-testid="takeoff"]')
     ui.wait("all vehicles Hovering near 10 m", lambda d: all(
