@@ -11,6 +11,7 @@
 // the picture settles.
 
 import { stateClass, CLASS_COLOUR, compareIds, fmt } from './model.js';
+import { drawGeofence, drawMarks, drawScale, drawNorth, drawCursor } from './plan-overlays.js';
 
 const MIN_SPAN_M = 16;        // never zoom in further than this many metres across
 const PAD_PX = 48;            // room for labels around the fitted area
@@ -338,7 +339,7 @@ export class PlanView {
     ctx.moveTo(0, Math.round(oy) + 0.5); ctx.lineTo(w, Math.round(oy) + 0.5);
     ctx.stroke();
 
-    this.drawGeofence();
+    drawGeofence(this);
 
     // Trails.
     ctx.lineWidth = 1.5;
@@ -385,19 +386,7 @@ export class PlanView {
       ctx.stroke();
     }
 
-    // Marks: go-to targets and gimbal points, as labelled crosses.
-    ctx.font = '10px system-ui, -apple-system, "Segoe UI", sans-serif';
-    for (const m of this.marks.values()) {
-      const [x, y] = this.toPx(m.n, m.e);
-      ctx.strokeStyle = '#ff8a5b';
-      ctx.lineWidth = 1.5;
-      ctx.beginPath();
-      ctx.moveTo(x - 7, y - 7); ctx.lineTo(x + 7, y + 7); ctx.moveTo(x + 7, y - 7); ctx.lineTo(x - 7, y + 7);
-      ctx.stroke();
-      ctx.fillStyle = '#ff8a5b';
-      ctx.textAlign = 'left';
-      ctx.fillText(m.label, x + 9, y - 6);
-    }
+    drawMarks(this);
 
     // Vehicles: heading arrows, selection ring, leader ring, labels.
     const leader = this.leaderId();
@@ -463,90 +452,9 @@ export class PlanView {
     }
     ctx.textAlign = 'start';
 
-    this.drawScale(step);
-    this.drawNorth();
-    this.drawCursor();
-  }
-
-  drawGeofence() {
-    const g = this.geofence;
-    if (!g) return;
-    const { ctx } = this;
-    ctx.save();
-    ctx.strokeStyle = 'rgba(255,85,102,0.7)';
-    ctx.fillStyle = 'rgba(255,85,102,0.85)';
-    ctx.lineWidth = 1.5;
-    ctx.setLineDash([8, 6]);
-    ctx.font = '10px system-ui, -apple-system, "Segoe UI", sans-serif';
-    if (Number.isFinite(g.radius_m) && g.radius_m > 0) {
-      const [ox, oy] = this.toPx(0, 0);
-      const r = g.radius_m * this.view.s;
-      ctx.beginPath(); ctx.arc(ox, oy, r, 0, Math.PI * 2); ctx.stroke();
-      ctx.textAlign = 'center';
-      ctx.fillText(`geofence ${g.radius_m} m · ceiling ${g.max_altitude_m} m`, ox, oy - r - 4);
-    }
-    if (Array.isArray(g.polygon) && g.polygon.length >= 3) {
-      ctx.beginPath();
-      g.polygon.forEach(([n, e], i) => {
-        const [x, y] = this.toPx(n, e);
-        if (i) ctx.lineTo(x, y); else ctx.moveTo(x, y);
-      });
-      ctx.closePath();
-      ctx.stroke();
-    }
-    ctx.restore();
-    ctx.textAlign = 'start';
-  }
-
-  /** Scale bar: one grid cell, bottom left. */
-  drawScale(step) {
-    const { ctx } = this;
-    const { h } = this.size;
-    const px = step * this.view.s;
-    const x0 = 16, y0 = h - 18;
-    ctx.fillStyle = 'rgba(8,11,16,0.6)';
-    ctx.fillRect(x0 - 6, y0 - 24, px + 12, 30);
-    ctx.strokeStyle = '#c9d3e0';
-    ctx.lineWidth = 2;
-    ctx.beginPath();
-    ctx.moveTo(x0, y0 - 5); ctx.lineTo(x0, y0); ctx.lineTo(x0 + px, y0); ctx.lineTo(x0 + px, y0 - 5);
-    ctx.stroke();
-    ctx.fillStyle = '#c9d3e0';
-    ctx.font = '11px system-ui, -apple-system, "Segoe UI", sans-serif';
-    ctx.textBaseline = 'bottom';
-    ctx.fillText(step >= 1000 ? `${+(step / 1000).toPrecision(3)} km` : `${+step.toPrecision(3)} m`, x0, y0 - 7);
-    ctx.textBaseline = 'middle';
-  }
-
-  drawNorth() {
-    const { ctx } = this;
-    const { w } = this.size;
-    const x = w - 24, y = 30;
-    ctx.fillStyle = '#c9d3e0';
-    ctx.beginPath();
-    ctx.moveTo(x, y - 14); ctx.lineTo(x + 6, y + 2); ctx.lineTo(x, y - 2); ctx.lineTo(x - 6, y + 2);
-    ctx.closePath(); ctx.fill();
-    ctx.font = 'bold 11px system-ui, -apple-system, "Segoe UI", sans-serif';
-    ctx.textAlign = 'center';
-    ctx.fillText('N', x, y + 12);
-    ctx.textAlign = 'start';
-  }
-
-  drawCursor() {
-    if (!this.cursor || !this.view) return;
-    const { ctx } = this;
-    const { w, h } = this.size;
-    const v = this.view;
-    const e = v.ce + (this.cursor.x - w / 2) / v.s;
-    const n = v.cn - (this.cursor.y - h / 2) / v.s;
-    const txt = `N ${fmt(n, 1)}  E ${fmt(e, 1)} m`;
-    ctx.font = '11px ui-monospace, "SF Mono", Menlo, Consolas, monospace';
-    ctx.fillStyle = '#8d97a8';
-    ctx.textAlign = 'right';
-    ctx.textBaseline = 'bottom';
-    ctx.fillText(txt, w - 12, h - 10);
-    ctx.textAlign = 'start';
-    ctx.textBaseline = 'middle';
+    drawScale(this, step);
+    drawNorth(this);
+    drawCursor(this);
   }
 
   /** Mirrors every drawn marker into the hidden list (ids, pixel and metric positions). */
