@@ -69,9 +69,10 @@ export class PayloadsView {
       const where = d.field ? ` (field ${d.field})` : '';
       this.toasts.show('error', `${id} ${slot} ${label}: ${res.status ? `HTTP ${res.status}` : 'no answer'}`, `${d.error}${where}`);
       this.log.note('api', 'error', 'payload', `${id} ${slot} ${label}: ${d.error}${where}`);
-      return;
+      return res;
     }
     this.log.note('api', 'ok', 'payload', `${id} ${slot} ${label}: ok`);
+    return res;
   }
 
   update(vehicles) {
@@ -123,7 +124,7 @@ export class PayloadsView {
       <div class="widget"></div>
       <details><summary>state and raw command</summary><pre class="state-json"></pre>
         <form class="raw-cmd" autocomplete="off"><input placeholder='{"command": "status"}' aria-label="Payload command (JSON)">
-        <button class="btn tiny" type="submit">Send</button></form></details>`;
+        <button class="btn tiny" type="submit">Send</button></form><pre class="state-json reply" data-field="reply" hidden></pre></details>`;
     el.querySelector('strong').textContent = `${p.slot} · ${p.kind}`;
     el.querySelector('[data-field="plugin"]').textContent = p.plugin ? `plugin ${p.plugin}` : '';
     const details = el.querySelector('details');
@@ -136,7 +137,12 @@ export class PayloadsView {
         this.toasts.show('error', `${p.slot}: not JSON`, String(e.message || e));
         return;
       }
-      send(body.command || 'command', body, ev.submitter);
+      send(body.command || 'command', body, ev.submitter).then((res) => {
+        // The payload's answer, under the command (errors are toasted by send).
+        const reply = el.querySelector('[data-field="reply"]');
+        reply.hidden = !(res && res.ok);
+        if (res && res.ok) reply.textContent = `→ ${JSON.stringify(res.data, null, 1)}`;
+      });
     });
     const W = WIDGETS[p.kind];
     const widget = W ? new W(el.querySelector('.widget'), {

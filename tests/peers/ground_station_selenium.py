@@ -11,7 +11,8 @@ Debian's chromium and chromedriver), through the page only, against
 4. payloads: uav-2's camera video shows frames (the frame counter moves and the picture
    decodes); its gimbal to -45 deg pitch: the shown attitude gets there and the picture
    changes; the gimbal tracks another vehicle: the camera reports it in view; uav-1's
-   example payload (no widget for its kind) shows its published state;
+   example payload (no widget for its kind) shows its published state and answers a raw
+   JSON command;
 5. supervision: panic injected into coordinator/uav-1/px4link from its row: the tree
    shows one more restart, the actor runs again and a toast names it;
 6. plugins: reload the gimbal plugin: generation 2 is shown; the process-isolated example
@@ -276,7 +277,13 @@ def run(args, driver, summary):
     Select(ui.css('[data-testid="payload-vehicle"]')).select_by_value(generic)
     state = f'{card}[data-kind="example"] .state-json'
     ui.wait(f"{generic}'s example payload state", lambda d: '"vehicle_state": "Hovering"' in (ui.text(state) or ""))
-    summary["generic_payload"] = {"vehicle": generic, "state": json.loads(ui.text(state))}
+    raw = ui.css(f'{card}[data-kind="example"] .raw-cmd input')
+    raw.clear()
+    raw.send_keys('{"command": "ping"}')
+    ui.click(f'{card}[data-kind="example"] .raw-cmd button')
+    reply = ui.wait("the example payload's answer to a raw ping", lambda d: (lambda t: t if t and '"pong": true' in t else None)(
+        ui.text(f'{card}[data-kind="example"] [data-field="reply"]')))
+    summary["generic_payload"] = {"vehicle": generic, "state": json.loads(ui.text(state)), "ping": reply}
 
     # 5. Supervision: panic into the px4link of uav-1.
     ui.tab("supervision")
