@@ -154,6 +154,8 @@ export class PlanView {
     this.banner.textContent = label;
     this.banner.hidden = false;
     this.canvas.classList.add('picking');
+    // On a narrow screen the plan may be scrolled away from the button that asked.
+    this.canvas.parentElement.scrollIntoView({ block: 'nearest' });
     return new Promise((resolve) => { this.picking = { resolve }; });
   }
 
