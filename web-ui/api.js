@@ -113,3 +113,70 @@ export class Stream {
     }
   }
 }
+
+// Per-vehicle detail, payloads, supervision and plugins.
+const enc = encodeURIComponent;
+export const getHealth = () => request('GET', '/health');
+export const getLinks = () => request('GET', '/links');
+export const getGeofence = () => request('GET', '/geofence');
+export const getParams = (id) => request('GET', `/vehicles/${enc(id)}/params`);
+export const getParam = (id, name) => request('GET', `/vehicles/${enc(id)}/params/${enc(name)}`);
+export const putParam = (id, name, value) =>
+  request('PUT', `/vehicles/${enc(id)}/params/${enc(name)}`, { value });
+export const payloadCommand = (id, slot, body) =>
+  request('POST', `/vehicles/${enc(id)}/payloads/${enc(slot)}`, body);
+/** URL of a payload's MJPEG stream (or its last frame with snapshot = true). */
+export const payloadVideoUrl = (id, slot, snapshot = false) =>
+  `${API}/vehicles/${enc(id)}/payloads/${enc(slot)}/${snapshot ? 'snapshot' : 'stream'}`;
+export const getSupervision = () => request('GET', '/supervision');
+export const injectFault = (target, kind) => request('POST', '/faults', { target, kind });
+export const getPlugins = () => request('GET', '/plugins');
+/** op: load ({file}) | unload ({name}) | reload ({name}). */
+export const pluginOp = (op, body) => request('POST', `/plugins/${op}`, body);
+
+/**
+ * Calls `task` (async, resolves to a {ok} result) every `periodMs` while `active()` is
+ * true. Failures back off (doubling, up to 10 s) and recover by themselves, so a skein
+ * restart does not flood it. `poke()` runs it at once.
+ */
+export class Poller {
+  constructor(task, periodMs, active = () => true) {
+    this.task = task;
+    this.period = periodMs;
+    this.active = active;
+    this.failures = 0;
+    this.timer = 0;
+    this.running = false;
+    this.schedule(0);
+  }
+
+  schedule(ms) {
+    clearTimeout(this.timer);
+    this.timer = setTimeout(() => this.run(), ms);
+  }
+
+  poke() {
+    this.schedule(0);
+  }
+
+  async run() {
+    if (this.running) return;
+    if (!this.active()) {
+      this.schedule(this.period);
+      return;
+    }
+    this.running = true;
+    let ok = false;
+    try {
+      const res = await this.task();
+      ok = !res || res.ok !== false;
+    } catch (e) {
+      console.warn('poll task failed', e); // eslint-disable-line no-console
+    } finally {
+      this.running = false;
+    }
+    this.failures = ok ? 0 : this.failures + 1;
+    const delay = ok ? this.period : Math.min(10000, this.period * 2 ** this.failures);
+    this.schedule(delay);
+  }
+}

@@ -1,5 +1,6 @@
 // skein ground station: wires the stream to the plan view, the vehicle table, the event
-// log and the header summary, and the controls to the HTTP API.
+// log, the header summary and the side panel's views (swarm controls, vehicle detail,
+// payloads, supervision, plugins, charts), and the controls to the HTTP API.
 
 import * as api from './api.js';
 import { PlanView } from './plan.js';
@@ -8,6 +9,14 @@ import { EventLog, describeFormation } from './log.js';
 import { Toasts } from './toast.js';
 import { Controls } from './controls.js';
 import { AIRBORNE, fmt } from './model.js';
+import { History } from './history.js';
+import { Tabs } from './tabs.js';
+import { VehicleDetail } from './detail.js';
+import { PayloadsView } from './payloads.js';
+import { SupervisionView } from './supervision.js';
+import { PluginsView } from './plugins.js';
+import { ChartsView } from './charts.js';
+import { installShortcuts } from './keys.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -15,13 +24,37 @@ const toasts = new Toasts($('toasts'));
 const log = new EventLog($('event-log'), $('log-filter'), $('log-clear'));
 const controls = new Controls({ toasts, log });
 
+const history = new History();
+const tabs = new Tabs($('tabs'), $('views'));
+// Vehicle id → its MAVLink connection (from vehicle_joined), to pick its link counters.
+const connections = new Map();
+
 let selected = null;
+let lastVehicles = [];
 const select = (id) => {
   selected = id;
   plan.setSelected(id);
   table.setSelected(id);
+  detail.setVehicle(id);
+  if (id) payloads.setVehicle(id);
+  // A vehicle picked on the plan or in the table opens its detail (the payloads stay
+  // open when they are what the operator is looking at).
+  if (id && tabs.current !== 'payloads') tabs.open('vehicle');
+  $('plan-follow').disabled = !id;
 };
 const plan = new PlanView($('plan'), $('plan-markers'), $('plan-empty'), { onSelect: select });
+const deps = { controls, toasts, log, history, plan, tabs };
+const detail = new VehicleDetail($('view-vehicle'), {
+  ...deps,
+  connectionOf: (id) => {
+    const v = lastVehicles.find((x) => x.id === id);
+    return (v && v.connection) || connections.get(id) || null;
+  },
+});
+const payloads = new PayloadsView($('view-payloads'), deps);
+const supervision = new SupervisionView($('view-supervision'), deps);
+new PluginsView($('view-plugins'), deps);
+new ChartsView($('view-charts'), deps);
 const table = new VehicleTable($('vehicle-rows'), $('table-empty'), {
   onCommand: (id, command, button) => controls.vehicleCommand(id, command, button),
   onSelect: select,
@@ -68,16 +101,37 @@ function summarise(vehicles) {
 
 function onVehicles(vehicles) {
   if (!Array.isArray(vehicles)) return;
+  lastVehicles = vehicles;
+  history.onVehicles(vehicles);
+  detail.update(vehicles);
+  payloads.update(vehicles);
   table.update(vehicles);
   plan.setVehicles(vehicles);
   controls.setVehicleIds(vehicles.map((v) => v.id));
+  controls.setVehicles(vehicles);
   summarise(vehicles);
   if (selected && !vehicles.some((v) => v.id === selected)) select(null);
 }
 
 function onEvent(ev) {
   log.event(ev);
+  history.onEvent(ev);
   switch (ev.type) {
+    case 'vehicle_joined':
+      if (ev.id && ev.connection) connections.set(ev.id, ev.connection);
+      break;
+    case 'actor_failed':
+      toasts.show(ev.escalated ? 'error' : 'warn', `${ev.path} failed`,
+        `${ev.reason}${ev.escalated ? ' · escalating' : ev.next_backoff_ms != null ? ` · restart in ${ev.next_backoff_ms} ms` : ''}`);
+      supervision.onActorEvent();
+      break;
+    case 'actor_escalated':
+      toasts.show('error', `${ev.path} escalated`, ev.action);
+      supervision.onActorEvent();
+      break;
+    case 'leader_changed':
+      toasts.show('warn', `leader ${ev.from || 'none'} → ${ev.to}`, ev.reason);
+      break;
     case 'formation_changed':
       setFormation(ev.formation);
       break;
@@ -88,7 +142,8 @@ function onEvent(ev) {
       toasts.show('warn', `${ev.id}: link lost`);
       break;
     case 'actor_restarted':
-      toasts.show('warn', `${ev.path} restarted`, ev.reason);
+      toasts.show('ok', `${ev.path} restarted`, `${ev.restarts}× · ${(ev.latency_us / 1000).toFixed(1)} ms · ${ev.reason}`);
+      supervision.onActorEvent();
       break;
     default:
   }
@@ -114,11 +169,18 @@ function onStatus(status, delay) {
   }
   document.body.classList.toggle('offline', status !== 'connected');
   if (status === 'connected') {
-    if (wasConnected) log.note('stream', 'ok', 'stream', 'reconnected to skein');
+    if (wasConnected) {
+      log.note('stream', 'ok', 'stream', 'reconnected to skein');
+      payloads.reconnected();
+    }
     else log.note('stream', 'ok', 'stream', 'connected to skein');
     wasConnected = true;
     // The formation is not repeated on the stream: fetch it on every (re)connection.
     api.getFormation().then((res) => { if (res.ok) setFormation(res.data); });
+    api.getGeofence().then((res) => {
+      if (res.ok) plan.setGeofence(res.data);
+      else if (res.status !== 404) toasts.show('error', 'Geofence', res.data.error);
+    });
   } else if (status === 'reconnecting' && conn.dataset.logged !== 'down') {
     log.note('stream', 'warn', 'stream', 'stream closed; reconnecting');
   }
@@ -131,7 +193,25 @@ const stream = new api.Stream(api.streamUrl(), {
 });
 stream.start();
 
-// Escape clears the selection.
-document.addEventListener('keydown', (ev) => {
-  if (ev.key === 'Escape' && selected) select(null);
-});
+// Plan tools and keyboard shortcuts.
+$('plan-fit').addEventListener('click', () => plan.fit());
+$('plan-follow').addEventListener('click', () => follow());
+$('plan-follow').disabled = true;
+function follow() {
+  if (!selected) { toasts.show('info', 'Follow', 'select a vehicle first'); return; }
+  plan.setFollow(plan.follow === selected ? null : selected);
+  $('plan-follow').classList.toggle('active', !!plan.follow);
+}
+const needSelected = (f) => () => (selected ? f(selected) : toasts.show('info', 'No vehicle selected', 'click one on the plan or in the table'));
+installShortcuts({
+  t: () => controls.swarmCommand('takeoff', null),
+  h: () => controls.swarmCommand('hold', null),
+  r: () => controls.swarmCommand('rtl', null),
+  l: () => controls.swarmCommand('land', null),
+  g: needSelected(() => { tabs.open('vehicle'); detail.goto(); }),
+  x: needSelected(() => { tabs.open('vehicle'); detail.command('force_disarm', null); }),
+  f: () => { plan.fit(); $('plan-follow').classList.remove('active'); },
+  v: () => follow(),
+  tab: (i) => { const n = tabs.names()[i]; if (n) tabs.open(n); },
+  escape: () => { if (!plan.cancelPick() && selected) select(null); },
+}, $('shortcuts'));

@@ -5,6 +5,7 @@
 import * as api from './api.js';
 import { describeFormation } from './log.js';
 import { compareIds } from './model.js';
+import { confirmAction } from './confirm.js';
 
 // Button labels of the formation shapes; the list itself and how many vehicles each needs
 // come from GET /api/v1/formation/shapes (`custom` needs offsets: API only).
@@ -42,10 +43,7 @@ export class Controls {
       if (!btn) return;
       const spec = this.formationSpec(btn.dataset.shape);
       if (!spec) return;
-      this.run(btn, `formation ${spec.shape}`, () => api.putFormation(spec), {
-        spacing_m: 'form-spacing', heading_deg: 'form-heading', altitude_m: 'form-alt', leader: 'form-leader',
-        frame: 'form-frame',
-      });
+      this.requestFormation(btn, spec);
     });
 
     // Leader motion (the virtual leader, or the leader vehicle).
@@ -67,11 +65,23 @@ export class Controls {
     }
 
     for (const b of document.querySelectorAll('[data-swarm-command]')) {
-      b.addEventListener('click', () => {
-        const command = b.dataset.swarmCommand;
-        this.run(b, command, () => api.swarmCommand({ command }));
-      });
+      b.addEventListener('click', () => this.swarmCommand(b.dataset.swarmCommand, b));
     }
+  }
+
+  /** A swarm command; landing every vehicle asks first. */
+  async swarmCommand(command, button) {
+    if (command === 'land') {
+      const ok = await confirmAction('Land every vehicle?', 'All vehicles descend where they are and the formation ends.', 'Land all');
+      if (!ok) return;
+    }
+    if (command === 'takeoff') {
+      const alt = this.takeoffAltitude();
+      if (alt === null) return;
+      this.run(button, 'takeoff', () => api.swarmCommand({ command, altitude_m: alt }), { altitude_m: 'takeoff-alt' });
+      return;
+    }
+    this.run(button, command, () => api.swarmCommand({ command }));
   }
 
   /** The takeoff altitude input as a number, or null (and a toast) when invalid. */
@@ -175,6 +185,45 @@ export class Controls {
     this.run(button, `${id} ${command}`, () => api.vehicleCommand(id, body), { altitude_m: 'takeoff-alt' });
   }
 
+  /**
+   * PUT /api/v1/formation. Refused while vehicles are still climbing (the server counts
+   * only those at altitude), it is asked again once none is taking off, for up to a minute.
+   */
+  async requestFormation(button, spec, retry = false) {
+    const label = `formation ${spec.shape}${retry ? ' (retried)' : ''}`;
+    const res = await this.run(button, label, () => api.putFormation(spec), {
+      spacing_m: 'form-spacing', heading_deg: 'form-heading', altitude_m: 'form-alt', leader: 'form-leader',
+      frame: 'form-frame',
+    });
+    const climbing = this.takingOff();
+    if (!retry && res && res.status === 400 && climbing.length) {
+      this.pendingFormation = { spec, until: Date.now() + 60000 };
+      const text = `asked again when ${climbing.join(', ')} reach${climbing.length === 1 ? 'es' : ''} their altitude`;
+      this.toasts.show('info', `formation ${spec.shape} waits for the takeoff`, text);
+      this.log.note('api', 'info', 'formation', `formation ${spec.shape}: ${text}`);
+    }
+  }
+
+  takingOff() {
+    return (this.vehicles || []).filter((v) => v.state === 'TakingOff').map((v) => v.id);
+  }
+
+  /** The stream's vehicles: states for a formation waiting on a takeoff. */
+  setVehicles(vehicles) {
+    this.vehicles = vehicles;
+    const p = this.pendingFormation;
+    if (!p) return;
+    if (Date.now() > p.until) {
+      this.pendingFormation = null;
+      this.toasts.show('warn', `formation ${p.spec.shape} not retried`, 'the takeoff did not end within a minute');
+      return;
+    }
+    if (!this.takingOff().length) {
+      this.pendingFormation = null;
+      this.requestFormation(null, p.spec, true);
+    }
+  }
+
   /** Keeps the leader choices in step with the swarm (and the current choice). */
   setVehicleIds(ids) {
     const sorted = [...ids].sort(compareIds);
@@ -201,6 +250,7 @@ export class Controls {
       this.report(label, res);
       const bad = res.data && res.data.field && fields[res.data.field];
       if (!res.ok && bad) document.getElementById(bad).setAttribute('aria-invalid', 'true');
+      return res;
     } finally {
       if (button) button.disabled = false;
     }

@@ -39,6 +39,18 @@ export function describe(ev) {
       return { level: 'warn', label: 'geofence', text: `${ev.id}: setpoint clamped (${ev.violation})` };
     case 'actor_restarted':
       return { level: 'warn', label: 'restart', text: `${ev.path} restarted (${ev.restarts}×, in ${(ev.latency_us / 1000).toFixed(1)} ms): ${ev.reason}` };
+    case 'actor_failed':
+      return {
+        level: ev.escalated ? 'error' : 'warn',
+        label: 'failure',
+        text: `${ev.path} (${ev.kind}) failed: ${ev.reason}; ${ev.escalated ? 'restart budget spent: escalating' : ev.next_backoff_ms != null ? `restart in ${ev.next_backoff_ms} ms` : 'not restarted'}`,
+      };
+    case 'actor_escalated':
+      return { level: 'error', label: 'escalation', text: `${ev.path}: ${ev.action}` };
+    case 'leader_changed':
+      return { level: 'warn', label: 'leader', text: `leader ${ev.from || 'none'} → ${ev.to}: ${ev.reason}` };
+    case 'payload_event':
+      return { level: 'info', label: 'payload', text: `${ev.id}/${ev.slot} ${ev.kind}: ${JSON.stringify(ev.data)}` };
     case 'events_dropped':
       return { level: 'warn', label: 'stream', text: `${ev.count} events dropped (dashboard too slow)` };
     default: {

@@ -19,6 +19,7 @@ const STATE_CLASS = {
 /** Canvas colours per class (kept in step with the CSS custom properties). */
 export const CLASS_COLOUR = {
   offline: '#5b6574',
+  connecting: '#7fb0c9',
   landed: '#8d97a8',
   armed: '#e6b84a',
   airborne: '#4c9bff',
@@ -30,8 +31,26 @@ export const CLASS_COLOUR = {
 /** The display class of a vehicle: a lost link trumps its last known state. */
 export function stateClass(v) {
   if (v.link && v.link.connected === false) return 'alert';
+  if (isConnecting(v)) return 'connecting';
   return STATE_CLASS[v.state] || 'offline';
 }
+
+/**
+ * True while the link is up but the vehicle's state machine has not left `Disconnected`
+ * (the first second after it is heard, before it accepts `arm`).
+ */
+export function isConnecting(v) {
+  return v.state === 'Disconnected' && !!(v.link && v.link.connected);
+}
+
+/** The state as shown to the operator: `connecting` for a link that is up but not ready. */
+export function displayState(v) {
+  return isConnecting(v) ? 'connecting' : String(v.state);
+}
+
+/** A stable colour per vehicle (for chart lines), from its position in the sorted list. */
+const PALETTE = ['#4c9bff', '#3ecf8e', '#e6b84a', '#c792ff', '#ff8a5b', '#5bd1e6', '#ff5fa2', '#a3d65c'];
+export const vehicleColour = (index) => PALETTE[index % PALETTE.length];
 
 export const AIRBORNE = new Set(['TakingOff', 'Hovering', 'InFormation', 'GoTo', 'Landing', 'ReturnToLaunch', 'Failsafe']);
 

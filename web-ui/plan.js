@@ -1,5 +1,7 @@
 // Plan view: a top-down canvas map of the swarm frame (north up, east right).
-// The view fits all vehicles and formation slots with a margin and eases towards that fit;
+// The view fits all vehicles and formation slots with a margin and eases towards that fit
+// (the wheel zooms around it, `follow` centres it on one vehicle, `fit` goes back);
+// `pickPoint` turns the next click into a point of the swarm frame (go-to, gimbal ROI);
 // vehicle markers ease towards each new 10 Hz fix, so motion looks continuous. Drawing runs
 // on requestAnimationFrame only while something changes.
 //
@@ -9,12 +11,14 @@
 // the picture settles.
 
 import { stateClass, CLASS_COLOUR, compareIds, fmt } from './model.js';
+import { drawGeofence, drawMarks, drawScale, drawNorth, drawCursor } from './plan-overlays.js';
 
 const MIN_SPAN_M = 16;        // never zoom in further than this many metres across
 const PAD_PX = 48;            // room for labels around the fitted area
 const TAU_MARKER_MS = 90;     // easing time constant of markers
 const TAU_VIEW_MS = 350;      // easing time constant of the view
 const TRAIL_POINTS = 240;     // per vehicle
+const TRAIL_S = 60;           // trails show the last minute
 const MIRROR_PERIOD_MS = 100;
 
 const ease = (dt, tau) => 1 - Math.exp(-dt / tau);
@@ -43,10 +47,25 @@ export class PlanView {
     this.raf = 0;
     this.lastT = 0;
     this.lastMirror = 0;
+    this.zoom = 1;           // wheel zoom relative to the fit
+    this.follow = null;      // id of the vehicle the view is centred on
+    this.picking = null;     // {resolve} while a click is awaited as a point
+    this.marks = new Map();  // key → {n, e, label}: go-to targets, gimbal ROIs …
+    this.geofence = null;    // GET /api/v1/geofence
+    this.banner = document.createElement('div');
+    this.banner.className = 'plan-banner';
+    this.banner.dataset.testid = 'plan-banner';
+    this.banner.hidden = true;
+    canvas.parentElement.append(this.banner);
+    canvas.addEventListener('wheel', (ev) => {
+      ev.preventDefault();
+      this.zoom = Math.min(50, Math.max(0.02, this.zoom * Math.exp(-ev.deltaY * 0.0015)));
+      this.kick();
+    }, { passive: false });
 
     new ResizeObserver(() => this.resize()).observe(canvas.parentElement);
     this.resize();
-    canvas.addEventListener('click', (ev) => this.pick(ev));
+    canvas.addEventListener('click', (ev) => (this.picking ? this.pickedPoint(ev) : this.pick(ev)));
     canvas.addEventListener('mousemove', (ev) => {
       const r = canvas.getBoundingClientRect();
       this.cursor = { x: ev.clientX - r.left, y: ev.clientY - r.top };
@@ -72,10 +91,12 @@ export class PlanView {
           t.n = p.north_m; t.e = p.east_m; t.hdg = v.heading_deg || 0; t.has = true;
         }
         const last = t.trail[t.trail.length - 1];
+        const now = performance.now();
         if (!last || Math.hypot(last[0] - p.north_m, last[1] - p.east_m) > 0.25) {
-          t.trail.push([p.north_m, p.east_m]);
+          t.trail.push([p.north_m, p.east_m, now]);
           if (t.trail.length > TRAIL_POINTS) t.trail.shift();
         }
+        while (t.trail.length > 1 && now - t.trail[0][2] > TRAIL_S * 1000) t.trail.shift();
       }
     }
     for (const [id, t] of this.tracks) {
@@ -96,6 +117,70 @@ export class PlanView {
   setSelected(id) {
     this.selected = id;
     this.kick();
+  }
+
+  /** Centres the view on a vehicle (null: back to the whole swarm). */
+  setFollow(id) {
+    this.follow = id;
+    this.kick();
+  }
+
+  /** The geofence (radius around the swarm origin, optional polygon), drawn dashed red. */
+  setGeofence(fence) {
+    this.geofence = fence || null;
+    this.kick();
+  }
+
+  /** Back to the view that fits the whole swarm. */
+  fit() {
+    this.zoom = 1;
+    this.follow = null;
+    this.kick();
+  }
+
+  /** A labelled cross on the plan (key replaces an earlier mark of the same key). */
+  setMark(key, n, e, label) {
+    this.marks.set(key, { n, e, label });
+    this.kick();
+  }
+
+  clearMark(key) {
+    if (this.marks.delete(key)) this.kick();
+  }
+
+  /** Resolves to the swarm-frame point of the next click on the plan ({north_m, east_m}), or null. */
+  pickPoint(label) {
+    this.cancelPick();
+    this.banner.textContent = label;
+    this.banner.hidden = false;
+    this.canvas.classList.add('picking');
+    // On a narrow screen the plan may be scrolled away from the button that asked.
+    this.canvas.parentElement.scrollIntoView({ block: 'nearest' });
+    return new Promise((resolve) => { this.picking = { resolve }; });
+  }
+
+  /** Ends a pending pickPoint with null; true when one was pending. */
+  cancelPick() {
+    if (!this.picking) return false;
+    this.endPick(null);
+    return true;
+  }
+
+  endPick(point) {
+    const { resolve } = this.picking;
+    this.picking = null;
+    this.banner.hidden = true;
+    this.canvas.classList.remove('picking');
+    resolve(point);
+  }
+
+  pickedPoint(ev) {
+    if (!this.view) return;
+    const r = this.canvas.getBoundingClientRect();
+    const x = ev.clientX - r.left, y = ev.clientY - r.top;
+    const { w, h } = this.size;
+    const v = this.view;
+    this.endPick({ north_m: v.cn - (y - h / 2) / v.s, east_m: v.ce + (x - w / 2) / v.s });
   }
 
   resize() {
@@ -157,8 +242,10 @@ export class PlanView {
     const spanN = Math.max(MIN_SPAN_M, (maxN - minN) * 1.15);
     const spanE = Math.max(MIN_SPAN_M, (maxE - minE) * 1.15);
     const { w, h } = this.size;
-    const s = Math.min((w - 2 * PAD_PX) / spanE, (h - 2 * PAD_PX) / spanN);
-    return { cn, ce, s: Math.max(1e-3, s) };
+    const s = Math.max(1e-3, Math.min((w - 2 * PAD_PX) / spanE, (h - 2 * PAD_PX) / spanN)) * this.zoom;
+    const f = this.follow && this.tracks.get(this.follow);
+    if (f && f.has && f.v.position) return { cn: f.v.position.north_m, ce: f.v.position.east_m, s };
+    return { cn, ce, s };
   }
 
   frame(t) {
@@ -254,6 +341,8 @@ export class PlanView {
     ctx.moveTo(0, Math.round(oy) + 0.5); ctx.lineTo(w, Math.round(oy) + 0.5);
     ctx.stroke();
 
+    drawGeofence(this);
+
     // Trails.
     ctx.lineWidth = 1.5;
     ctx.lineJoin = 'round';
@@ -298,6 +387,8 @@ export class PlanView {
       }
       ctx.stroke();
     }
+
+    drawMarks(this);
 
     // Vehicles: heading arrows, selection ring, leader ring, labels.
     const leader = this.leaderId();
@@ -363,64 +454,21 @@ export class PlanView {
     }
     ctx.textAlign = 'start';
 
-    this.drawScale(step);
-    this.drawNorth();
-    this.drawCursor();
-  }
-
-  /** Scale bar: one grid cell, bottom left. */
-  drawScale(step) {
-    const { ctx } = this;
-    const { h } = this.size;
-    const px = step * this.view.s;
-    const x0 = 16, y0 = h - 18;
-    ctx.fillStyle = 'rgba(8,11,16,0.6)';
-    ctx.fillRect(x0 - 6, y0 - 24, px + 12, 30);
-    ctx.strokeStyle = '#c9d3e0';
-    ctx.lineWidth = 2;
-    ctx.beginPath();
-    ctx.moveTo(x0, y0 - 5); ctx.lineTo(x0, y0); ctx.lineTo(x0 + px, y0); ctx.lineTo(x0 + px, y0 - 5);
-    ctx.stroke();
-    ctx.fillStyle = '#c9d3e0';
-    ctx.font = '11px system-ui, -apple-system, "Segoe UI", sans-serif';
-    ctx.textBaseline = 'bottom';
-    ctx.fillText(step >= 1000 ? `${+(step / 1000).toPrecision(3)} km` : `${+step.toPrecision(3)} m`, x0, y0 - 7);
-    ctx.textBaseline = 'middle';
-  }
-
-  drawNorth() {
-    const { ctx } = this;
-    const { w } = this.size;
-    const x = w - 24, y = 30;
-    ctx.fillStyle = '#c9d3e0';
-    ctx.beginPath();
-    ctx.moveTo(x, y - 14); ctx.lineTo(x + 6, y + 2); ctx.lineTo(x, y - 2); ctx.lineTo(x - 6, y + 2);
-    ctx.closePath(); ctx.fill();
-    ctx.font = 'bold 11px system-ui, -apple-system, "Segoe UI", sans-serif';
-    ctx.textAlign = 'center';
-    ctx.fillText('N', x, y + 12);
-    ctx.textAlign = 'start';
-  }
-
-  drawCursor() {
-    if (!this.cursor || !this.view) return;
-    const { ctx } = this;
-    const { w, h } = this.size;
-    const v = this.view;
-    const e = v.ce + (this.cursor.x - w / 2) / v.s;
-    const n = v.cn - (this.cursor.y - h / 2) / v.s;
-    const txt = `N ${fmt(n, 1)}  E ${fmt(e, 1)} m`;
-    ctx.font = '11px ui-monospace, "SF Mono", Menlo, Consolas, monospace';
-    ctx.fillStyle = '#8d97a8';
-    ctx.textAlign = 'right';
-    ctx.textBaseline = 'bottom';
-    ctx.fillText(txt, w - 12, h - 10);
-    ctx.textAlign = 'start';
-    ctx.textBaseline = 'middle';
+    drawScale(this, step);
+    drawNorth(this);
+    drawCursor(this);
   }
 
   /** Mirrors every drawn marker into the hidden list (ids, pixel and metric positions). */
   updateMirror() {
+    if (this.view) {
+      // The view itself: the canvas centre in the swarm frame and the scale (px per m).
+      const md = this.mirror.dataset;
+      md.cn = this.view.cn.toFixed(2);
+      md.ce = this.view.ce.toFixed(2);
+      md.scale = this.view.s.toFixed(4);
+      md.geofenceRadius = this.geofence ? String(this.geofence.radius_m) : '';
+    }
     const ids = [...this.tracks.keys()].sort(compareIds);
     let prev = null;
     for (const id of ids) {

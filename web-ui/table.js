@@ -3,7 +3,7 @@
 // Test hooks: <tr data-vehicle-id="uav-1"> with cells <td data-field="state|mode|armed|
 // altitude|speed|battery|link|slot">.
 
-import { stateClass, compareIds, fmt, fmtAge, groundSpeed } from './model.js';
+import { stateClass, displayState, isConnecting, compareIds, fmt, fmtAge, groundSpeed } from './model.js';
 
 const PER_VEHICLE = [
   ['takeoff', 'Take off'],
@@ -152,7 +152,8 @@ export class VehicleTable {
       void cells.state.offsetWidth; // restart the CSS animation
       cells.state.classList.add('flash');
     }
-    set('state', cells.stateBadge, String(v.state));
+    set('state', cells.stateBadge, displayState(v));
+    cells.stateBadge.title = isConnecting(v) ? 'link up; waiting for the vehicle to be ready (state Disconnected)' : '';
     set('mode', cells.mode, v.px4_mode || '–');
     set('armed', cells.armed, v.armed ? 'armed' : 'safe');
     cells.armed.classList.toggle('is-armed', !!v.armed);

@@ -8,7 +8,7 @@ chromedriver) against a fresh `skein up --sim 3`:
    along east (equal north / equal pixel y within tolerance);
 4. every shape is offered; Wedge behind the `virtual` leader, then the leader's Go to 15 m
    north: the formation status names both, and the markers follow the leader;
-5. Land: all rows `Landed`;
+5. Land (confirmed in the dialog): all rows `Landed`;
 6. no errors in the browser console, and the event log has a `state_changed` entry;
 7. optional screenshot (taken in formation) with --screenshot PATH.
 
@@ -220,8 +220,10 @@ def run(args, driver, summary):
     summary["leader_goto_north_m"] = [round(north0, 1), round(ui.wait("the markers to follow the leader north", followed), 1)]
     summary["timings_s"]["followed_leader"] = lap()
 
-    # 5. Land.
+    # 5. Land (every vehicle: the dashboard asks for confirmation first).
     ui.click("land")
+    ui.wait("the confirmation dialog", lambda d: d.find_element(By.CSS_SELECTOR, '[data-testid="confirm-dialog"]').is_displayed())
+    ui.click("confirm-ok")
     ui.wait("all rows Landed", lambda d: ui.all_rows(n, lambda r: r.get("state") == "Landed"), timeout=max(args.timeout, 60))
     summary["timings_s"]["landed"] = lap()
 

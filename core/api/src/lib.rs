@@ -27,6 +27,7 @@
 //!   "stop" | "error"}`, only with `--enable-fault-injection` (403 otherwise)
 //! - `GET /metrics`: Prometheus (OpenMetrics text)
 //! - `GET /api/v1/links`: per-endpoint MAVLink counters (malformed input)
+//! - `GET /api/v1/geofence`: the geofence every setpoint is clamped into (for the plan view)
 //! - `GET /api/v1/stream`: WebSocket, `{"type": "vehicles", "vehicles": [...]}` at
 //!   [`TELEMETRY_HZ`] plus every [`skein_swarm::SwarmEvent`]
 //! - `/`: the dashboard (`web-ui/`, embedded at build time)
@@ -70,6 +71,7 @@ pub struct ApiState {
     events: broadcast::Sender<SwarmEvent>,
     telemetry: broadcast::Sender<Arc<str>>,
     plugins: Option<Arc<plugins::PluginsApi>>,
+    geofence: Option<Arc<skein_model::safety::Geofence>>,
 }
 
 impl ApiState {
@@ -86,7 +88,14 @@ impl ApiState {
             events,
             telemetry,
             plugins: None,
+            geofence: None,
         }
+    }
+
+    /// Serves `GET /api/v1/geofence` (without it that answers 404).
+    pub fn with_geofence(mut self, fence: skein_model::safety::Geofence) -> Self {
+        self.geofence = Some(Arc::new(fence));
+        self
     }
 
     /// Serves `/api/v1/plugins` from `manager` (without it the listing shows only the
@@ -182,6 +191,7 @@ pub fn app(state: ApiState) -> Router {
         .route("/api/v1/faults", post(inject_fault))
         .route("/metrics", get(metrics))
         .route("/api/v1/links", get(links))
+        .route("/api/v1/geofence", get(geofence))
         .route("/api/v1/stream", get(stream))
         .route("/api/{*rest}", axum::routing::any(api_not_found))
         .fallback(get(static_file))
@@ -620,6 +630,13 @@ async fn payload_stream(
 async fn links(State(s): State<ApiState>) -> Result<Response, ApiError> {
     let l = s.ask(CoordinatorMsg::LinkStats).await?;
     Ok(Json(l).into_response())
+}
+
+async fn geofence(State(s): State<ApiState>) -> Result<Response, ApiError> {
+    match &s.geofence {
+        Some(f) => Ok(Json(f.as_ref()).into_response()),
+        None => Err(ApiError::not_found("no geofence configured for this API")),
+    }
 }
 
 async fn api_not_found(uri: axum::http::Uri) -> ApiError {

@@ -294,6 +294,7 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
     };
     let mut config = file.swarm_config()?;
     config.fault_injection = args.enable_fault_injection;
+    let geofence = config.geofence.clone();
     let swarm_setpoint_separation = config.setpoint_separation_m();
     if let Some(m) = &args.sim_model
         && !config.models.contains_key(m)
@@ -411,7 +412,8 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
     let listener = std::net::TcpListener::bind(http).map_err(|e| format!("--http {http}: {e}"))?;
     let local = listener.local_addr().map_err(|e| e.to_string())?;
     let state = skein_api::ApiState::new(swarm.coordinator.clone(), swarm.events.clone())
-        .with_plugins(plugins, refused);
+        .with_plugins(plugins, refused)
+        .with_geofence(geofence);
     let service = skein_api::ApiServer::service(listener, state);
     match swarm
         .coordinator

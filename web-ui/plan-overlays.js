@@ -1,0 +1,103 @@
+// What the plan view draws over the swarm: the geofence, operator marks (go-to targets,
+// gimbal points), the scale bar, the north arrow and the cursor's coordinates. Each takes
+// the PlanView (its ctx, size, view and toPx).
+
+import { fmt } from './model.js';
+
+/** Marks: go-to targets and gimbal points, as labelled crosses. */
+export function drawMarks(p) {
+  const { ctx } = p;
+  ctx.font = '10px system-ui, -apple-system, "Segoe UI", sans-serif';
+  for (const m of p.marks.values()) {
+    const [x, y] = p.toPx(m.n, m.e);
+    ctx.strokeStyle = '#ff8a5b';
+    ctx.lineWidth = 1.5;
+    ctx.beginPath();
+    ctx.moveTo(x - 7, y - 7); ctx.lineTo(x + 7, y + 7); ctx.moveTo(x + 7, y - 7); ctx.lineTo(x - 7, y + 7);
+    ctx.stroke();
+    ctx.fillStyle = '#ff8a5b';
+    ctx.textAlign = 'left';
+    ctx.fillText(m.label, x + 9, y - 6);
+  }
+}
+
+export function drawGeofence(p) {
+  const g = p.geofence;
+  if (!g) return;
+  const { ctx } = p;
+  ctx.save();
+  ctx.strokeStyle = 'rgba(255,85,102,0.7)';
+  ctx.fillStyle = 'rgba(255,85,102,0.85)';
+  ctx.lineWidth = 1.5;
+  ctx.setLineDash([8, 6]);
+  ctx.font = '10px system-ui, -apple-system, "Segoe UI", sans-serif';
+  if (Number.isFinite(g.radius_m) && g.radius_m > 0) {
+    const [ox, oy] = p.toPx(0, 0);
+    const r = g.radius_m * p.view.s;
+    ctx.beginPath(); ctx.arc(ox, oy, r, 0, Math.PI * 2); ctx.stroke();
+    ctx.textAlign = 'center';
+    ctx.fillText(`geofence ${g.radius_m} m · ceiling ${g.max_altitude_m} m`, ox, oy - r - 4);
+  }
+  if (Array.isArray(g.polygon) && g.polygon.length >= 3) {
+    ctx.beginPath();
+    g.polygon.forEach(([n, e], i) => {
+      const [x, y] = p.toPx(n, e);
+      if (i) ctx.lineTo(x, y); else ctx.moveTo(x, y);
+    });
+    ctx.closePath();
+    ctx.stroke();
+  }
+  ctx.restore();
+  ctx.textAlign = 'start';
+}
+
+/** Scale bar: one grid cell, bottom left. */
+export function drawScale(p, step) {
+  const { ctx } = p;
+  const { h } = p.size;
+  const px = step * p.view.s;
+  const x0 = 16, y0 = h - 18;
+  ctx.fillStyle = 'rgba(8,11,16,0.6)';
+  ctx.fillRect(x0 - 6, y0 - 24, px + 12, 30);
+  ctx.strokeStyle = '#c9d3e0';
+  ctx.lineWidth = 2;
+  ctx.beginPath();
+  ctx.moveTo(x0, y0 - 5); ctx.lineTo(x0, y0); ctx.lineTo(x0 + px, y0); ctx.lineTo(x0 + px, y0 - 5);
+  ctx.stroke();
+  ctx.fillStyle = '#c9d3e0';
+  ctx.font = '11px system-ui, -apple-system, "Segoe UI", sans-serif';
+  ctx.textBaseline = 'bottom';
+  ctx.fillText(step >= 1000 ? `${+(step / 1000).toPrecision(3)} km` : `${+step.toPrecision(3)} m`, x0, y0 - 7);
+  ctx.textBaseline = 'middle';
+}
+
+export function drawNorth(p) {
+  const { ctx } = p;
+  const { w } = p.size;
+  const x = w - 24, y = 30;
+  ctx.fillStyle = '#c9d3e0';
+  ctx.beginPath();
+  ctx.moveTo(x, y - 14); ctx.lineTo(x + 6, y + 2); ctx.lineTo(x, y - 2); ctx.lineTo(x - 6, y + 2);
+  ctx.closePath(); ctx.fill();
+  ctx.font = 'bold 11px system-ui, -apple-system, "Segoe UI", sans-serif';
+  ctx.textAlign = 'center';
+  ctx.fillText('N', x, y + 12);
+  ctx.textAlign = 'start';
+}
+
+export function drawCursor(p) {
+  if (!p.cursor || !p.view) return;
+  const { ctx } = p;
+  const { w, h } = p.size;
+  const v = p.view;
+  const e = v.ce + (p.cursor.x - w / 2) / v.s;
+  const n = v.cn - (p.cursor.y - h / 2) / v.s;
+  const txt = `N ${fmt(n, 1)}  E ${fmt(e, 1)} m`;
+  ctx.font = '11px ui-monospace, "SF Mono", Menlo, Consolas, monospace';
+  ctx.fillStyle = '#8d97a8';
+  ctx.textAlign = 'right';
+  ctx.textBaseline = 'bottom';
+  ctx.fillText(txt, w - 12, h - 10);
+  ctx.textAlign = 'start';
+  ctx.textBaseline = 'middle';
+}
