@@ -132,6 +132,12 @@ function onEvent(ev) {
     case 'leader_changed':
       toasts.show('warn', `leader ${ev.from || 'none'} → ${ev.to}`, ev.reason);
       break;
+    case 'hazard_added':
+      toasts.show('error', `${ev.id} is a hazard`, `${ev.reason}: the formation plans around where it was last seen`);
+      break;
+    case 'formation_blocked':
+      if (ev.reason) toasts.show('error', 'formation blocked', ev.reason);
+      break;
     case 'formation_changed':
       setFormation(ev.formation);
       break;

@@ -49,6 +49,16 @@ export function describe(ev) {
       return { level: 'error', label: 'escalation', text: `${ev.path}: ${ev.action}` };
     case 'leader_changed':
       return { level: 'warn', label: 'leader', text: `leader ${ev.from || 'none'} → ${ev.to}: ${ev.reason}` };
+    case 'hazard_added':
+      return { level: 'error', label: 'hazard', text: `${ev.id} is a hazard (${ev.reason}) at N ${ev.position.north_m.toFixed(1)} E ${ev.position.east_m.toFixed(1)}: the formation plans around it` };
+    case 'hazard_cleared':
+      return { level: 'ok', label: 'hazard', text: `${ev.id} no longer a hazard: ${ev.reason}` };
+    case 'formation_replanned':
+      return { level: 'warn', label: 'formation', text: `planned again: ${ev.reason}` };
+    case 'formation_blocked':
+      return ev.reason
+        ? { level: 'error', label: 'formation', text: `blocked: ${ev.reason}` }
+        : { level: 'ok', label: 'formation', text: 'no longer blocked by hazards' };
     case 'payload_event':
       return { level: 'info', label: 'payload', text: `${ev.id}/${ev.slot} ${ev.kind}: ${JSON.stringify(ev.data)}` };
     case 'events_dropped':

@@ -21,6 +21,36 @@ export function drawMarks(p) {
   }
 }
 
+/**
+ * Hazards: vehicles lost in the air (or in PX4's failsafe), at their last known position,
+ * as a red disc of their uncertainty radius plus the separation the formation keeps
+ * from it, with the vehicle's id and how long it has been unseen.
+ */
+export function drawHazards(p) {
+  const f = p.formation;
+  if (!f || !Array.isArray(f.hazards) || !f.hazards.length) return;
+  const { ctx } = p;
+  ctx.save();
+  ctx.font = '10px system-ui, -apple-system, "Segoe UI", sans-serif';
+  ctx.textAlign = 'center';
+  for (const h of f.hazards) {
+    const [x, y] = p.toPx(h.position.north_m, h.position.east_m);
+    const r = Math.max(3, h.radius_m * p.view.s);
+    ctx.fillStyle = 'rgba(255,85,102,0.16)';
+    ctx.strokeStyle = 'rgba(255,85,102,0.9)';
+    ctx.lineWidth = 1.5;
+    ctx.beginPath(); ctx.arc(x, y, r, 0, Math.PI * 2); ctx.fill(); ctx.stroke();
+    ctx.fillStyle = 'rgba(255,85,102,0.95)';
+    ctx.fillText(`${h.id} ${h.reason.toLowerCase()} · ${fmt(h.unseen_s, 0)} s`, x, y - r - 4);
+  }
+  if (f.blocked) {
+    ctx.textAlign = 'left';
+    ctx.fillText('formation blocked by hazards: holding', 16, 20);
+  }
+  ctx.restore();
+  ctx.textAlign = 'start';
+}
+
 export function drawGeofence(p) {
   const g = p.geofence;
   if (!g) return;

@@ -11,7 +11,7 @@
 // the picture settles.
 
 import { stateClass, CLASS_COLOUR, compareIds, fmt } from './model.js';
-import { drawGeofence, drawMarks, drawScale, drawNorth, drawCursor } from './plan-overlays.js';
+import { drawGeofence, drawHazards, drawMarks, drawScale, drawNorth, drawCursor } from './plan-overlays.js';
 
 const MIN_SPAN_M = 16;        // never zoom in further than this many metres across
 const PAD_PX = 48;            // room for labels around the fitted area
@@ -342,6 +342,7 @@ export class PlanView {
     ctx.stroke();
 
     drawGeofence(this);
+    drawHazards(this);
 
     // Trails.
     ctx.lineWidth = 1.5;

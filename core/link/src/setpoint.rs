@@ -32,6 +32,8 @@ pub struct LocalSetpoint {
     pub position: Ned,
     /// Velocity, NED m/s (feed-forward with a position, or the command alone).
     pub velocity: Ned,
+    /// Acceleration feed-forward, NED m/s² (sent only when `type_mask` asks for it).
+    pub acceleration: Ned,
     /// Yaw, radians clockwise from north.
     pub yaw_rad: f64,
     /// Yaw rate, rad/s.
@@ -46,6 +48,7 @@ impl LocalSetpoint {
         LocalSetpoint {
             position,
             velocity: Ned::ZERO,
+            acceleration: Ned::ZERO,
             yaw_rad,
             yaw_rate_rad_s: 0.0,
             type_mask: type_mask::POSITION_YAW,
@@ -57,9 +60,27 @@ impl LocalSetpoint {
         LocalSetpoint {
             position,
             velocity,
+            acceleration: Ned::ZERO,
             yaw_rad,
             yaw_rate_rad_s: 0.0,
             type_mask: type_mask::POSITION_VELOCITY_YAW,
+        }
+    }
+
+    /// Position + velocity and acceleration feed-forward + yaw (`type_mask` 2048).
+    pub fn position_velocity_acceleration(
+        position: Ned,
+        velocity: Ned,
+        acceleration: Ned,
+        yaw_rad: f64,
+    ) -> Self {
+        LocalSetpoint {
+            position,
+            velocity,
+            acceleration,
+            yaw_rad,
+            yaw_rate_rad_s: 0.0,
+            type_mask: type_mask::POSITION_VELOCITY_ACCELERATION_YAW,
         }
     }
 
@@ -68,6 +89,7 @@ impl LocalSetpoint {
         LocalSetpoint {
             position: Ned::ZERO,
             velocity,
+            acceleration: Ned::ZERO,
             yaw_rad: 0.0,
             yaw_rate_rad_s,
             type_mask: type_mask::VELOCITY_YAW_RATE,
@@ -93,9 +115,9 @@ impl LocalSetpoint {
             vx: self.velocity.north_m as f32,
             vy: self.velocity.east_m as f32,
             vz: self.velocity.down_m as f32,
-            afx: 0.0,
-            afy: 0.0,
-            afz: 0.0,
+            afx: self.acceleration.north_m as f32,
+            afy: self.acceleration.east_m as f32,
+            afz: self.acceleration.down_m as f32,
             yaw: self.yaw_rad as f32,
             yaw_rate: self.yaw_rate_rad_s as f32,
             type_mask: PositionTargetTypemask::from_bits_truncate(self.type_mask),

@@ -288,6 +288,9 @@ pub mod type_mask {
     pub const VELOCITY_YAW_RATE: u16 = IGNORE_POSITION | IGNORE_ACCELERATION | IGNORE_YAW;
     /// Position + velocity feed-forward + yaw: 2496 (0x09C0).
     pub const POSITION_VELOCITY_YAW: u16 = IGNORE_ACCELERATION | IGNORE_YAW_RATE;
+    /// Position + velocity and acceleration feed-forward + yaw: 2048 (0x0800). PX4 adds
+    /// the acceleration to its velocity controller's output.
+    pub const POSITION_VELOCITY_ACCELERATION_YAW: u16 = IGNORE_YAW_RATE;
 }
 
 /// `MAV_FRAME_LOCAL_NED` (1): the PX4 local frame of `SET_POSITION_TARGET_LOCAL_NED`.

@@ -3,7 +3,7 @@
 //! ```toml
 //! [swarm]                      # optional, every key optional
 //! origin = { lat_deg = 47.397742, lon_deg = 8.545594, alt_amsl_m = 488.0 }
-//! stream_rate_hz = 20.0        # offboard setpoints per second per vehicle
+//! stream_rate_hz = 50.0        # offboard setpoints per second per vehicle
 //! min_separation_m = 3.0        # guaranteed distance between vehicles
 //! separation_margin_m = 0.5     # kept on top between setpoints, for tracking error
 //! default_takeoff_altitude_m = 10.0

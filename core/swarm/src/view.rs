@@ -91,8 +91,8 @@ impl Default for SwarmConfig {
         models.insert("generic".to_string(), VehicleModel::generic());
         models.insert("observation".to_string(), VehicleModel::observation());
         SwarmConfig {
-            stream_rate_hz: 20.0,
-            control_rate_hz: 20.0,
+            stream_rate_hz: 50.0,
+            control_rate_hz: 50.0,
             formation_rate_hz: 10.0,
             swarm_origin: None,
             geofence: Geofence::default(),

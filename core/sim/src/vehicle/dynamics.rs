@@ -145,6 +145,7 @@ impl Vehicle {
         let mut sp = PosCtrlSetpoint {
             pos_m: t.pos,
             vel_m_s: t.vel,
+            acc_m_s2: t.acc,
             vel_xy_max_m_s: t.xy_max_m_s,
             vel_up_max_m_s: t.up_max_m_s,
             vel_dn_max_m_s: t.down_max_m_s,

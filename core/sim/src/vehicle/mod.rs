@@ -95,6 +95,9 @@ impl Outbox<'_> {
 pub(crate) struct Setpoint {
     pub pos: [Option<f64>; 3],
     pub vel: [Option<f64>; 3],
+    /// Acceleration feed-forward, NED m/s² (type_mask bits 64/128/256 clear and FORCE
+    /// 512 clear), added to the velocity controller's output as PX4 does.
+    pub acc: [Option<f64>; 3],
     pub yaw_rad: Option<f64>,
     pub yaw_rate_rad_s: Option<f64>,
 }
@@ -122,6 +125,8 @@ pub(crate) enum Goal {
 pub(crate) struct Track {
     pub pos: [Option<f64>; 3],
     pub vel: [Option<f64>; 3],
+    /// Acceleration feed-forward, NED m/s² (offboard only).
+    pub acc: [Option<f64>; 3],
     pub xy_max_m_s: f64,
     pub up_max_m_s: f64,
     pub down_max_m_s: f64,

@@ -240,6 +240,7 @@ impl Vehicle {
             Goal::Track(Track {
                 pos: [Some(pos.north_m), Some(pos.east_m), Some(pos.down_m)],
                 vel: [None; 3],
+                acc: [None; 3],
                 xy_max_m_s: auto_xy,
                 up_max_m_s: auto_up,
                 down_max_m_s: auto_dn,
@@ -256,6 +257,7 @@ impl Vehicle {
                     None,
                     Some(self.land_speed_m_s(self.height_above_home_m())),
                 ],
+                acc: [None; 3],
                 xy_max_m_s: auto_xy,
                 up_max_m_s: auto_up,
                 down_max_m_s: auto_dn.max(p.get(Param::MPC_LAND_SPEED)),
@@ -280,6 +282,7 @@ impl Vehicle {
                     Some(self.takeoff_z),
                 ],
                 vel: [None; 3],
+                acc: [None; 3],
                 xy_max_m_s: auto_xy,
                 up_max_m_s: p.get(Param::MPC_TKO_SPEED),
                 down_max_m_s: auto_dn,
@@ -318,6 +321,7 @@ impl Vehicle {
                 Goal::Track(Track {
                     pos: sp.pos,
                     vel: sp.vel,
+                    acc: sp.acc,
                     xy_max_m_s: p.get(Param::MPC_XY_VEL_MAX),
                     up_max_m_s: p.get(Param::MPC_Z_VEL_MAX_UP),
                     down_max_m_s: p.get(Param::MPC_Z_VEL_MAX_DN),

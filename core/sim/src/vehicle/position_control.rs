@@ -70,6 +70,8 @@ pub(crate) struct PosCtrlSetpoint {
     pub pos_m: [Option<f64>; 3],
     /// Velocity setpoint or feed-forward, NED, m/s.
     pub vel_m_s: [Option<f64>; 3],
+    /// Acceleration feed-forward, NED, m/s² (PX4's `trajectory_setpoint.acceleration`).
+    pub acc_m_s2: [Option<f64>; 3],
     /// Horizontal speed limit, m/s.
     pub vel_xy_max_m_s: f64,
     /// Climb / descent speed limits, m/s (positive).
@@ -178,7 +180,8 @@ impl PositionControl {
         let mut acc_sp = [0.0; 3];
         for i in 0..3 {
             vel_err[i] = vel_sp[i] - vel_m_s[i];
-            acc_sp[i] = vel_err[i] * k.vel_p[i] + self.vel_int[i] - acc_m_s2[i] * k.vel_d[i];
+            acc_sp[i] = vel_err[i] * k.vel_p[i] + self.vel_int[i] - acc_m_s2[i] * k.vel_d[i]
+                + sp.acc_m_s2[i].unwrap_or(0.0);
         }
 
         // Acceleration → thrust (PositionControl::_accelerationControl, decoupled).
@@ -274,6 +277,7 @@ mod tests {
         let sp = PosCtrlSetpoint {
             pos_m: [Some(0.0), Some(0.0), Some(-10.0)],
             vel_m_s: [None; 3],
+            acc_m_s2: [None; 3],
             vel_xy_max_m_s: 12.0,
             vel_up_max_m_s: 3.0,
             vel_dn_max_m_s: 1.5,
@@ -291,6 +295,7 @@ mod tests {
         let sp = PosCtrlSetpoint {
             pos_m: [Some(100.0), Some(0.0), Some(-10.0)],
             vel_m_s: [None; 3],
+            acc_m_s2: [None; 3],
             vel_xy_max_m_s: 12.0,
             vel_up_max_m_s: 3.0,
             vel_dn_max_m_s: 1.5,

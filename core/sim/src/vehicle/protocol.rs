@@ -295,9 +295,19 @@ impl Vehicle {
             }
             _ => return, // PX4 ignores other frames for multicopters
         }
+        let acc = if mask & type_mask::FORCE == 0 {
+            [
+                field(type_mask::IGNORE_AX, sp.afx),
+                field(type_mask::IGNORE_AY, sp.afy),
+                field(type_mask::IGNORE_AZ, sp.afz),
+            ]
+        } else {
+            [None; 3]
+        };
         let setpoint = Setpoint {
             pos,
             vel,
+            acc,
             yaw_rad: field(type_mask::IGNORE_YAW, sp.yaw),
             yaw_rate_rad_s: field(type_mask::IGNORE_YAW_RATE, sp.yaw_rate),
         };
@@ -343,6 +353,15 @@ impl Vehicle {
                 field(type_mask::IGNORE_VY, f64::from(sp.vy)),
                 field(type_mask::IGNORE_VZ, f64::from(sp.vz)),
             ],
+            acc: if mask & type_mask::FORCE == 0 {
+                [
+                    field(type_mask::IGNORE_AX, f64::from(sp.afx)),
+                    field(type_mask::IGNORE_AY, f64::from(sp.afy)),
+                    field(type_mask::IGNORE_AZ, f64::from(sp.afz)),
+                ]
+            } else {
+                [None; 3]
+            },
             yaw_rad: field(type_mask::IGNORE_YAW, f64::from(sp.yaw)),
             yaw_rate_rad_s: field(type_mask::IGNORE_YAW_RATE, f64::from(sp.yaw_rate)),
         };

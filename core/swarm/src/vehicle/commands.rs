@@ -48,6 +48,7 @@ impl VehicleActorState {
         tracing::info!(id = %self.shared.id, "{from} -> {to}");
         if to != VehicleState::InFormation {
             mem.slot = None;
+            mem.tracking.reset();
         }
         if to != VehicleState::TakingOff {
             mem.offboard_engaged = false;

@@ -5,6 +5,7 @@
 //! Formation slot targets arrive stamped and move on by their age.
 
 use super::VehicleActorState;
+use super::tracking::TrackingGains;
 use crate::events::SwarmEvent;
 use crate::protocol::{SlotTarget, age_of};
 use skein_link::LocalSetpoint;
@@ -158,12 +159,35 @@ impl VehicleActorState {
                         });
                     }
                     mem.last_fence = sp.fence;
-                    let local_pos = frame.convert_to(&local, sp.position);
-                    stream.set(Some(LocalSetpoint::position_velocity(
-                        local_pos,
-                        sp.velocity,
-                        sp.yaw_rad,
-                    )));
+                    let setpoint = if planned {
+                        // Flying a slot: cancel PX4's tracking lag (see `tracking`); the
+                        // corrected point is clamped into the fence like any other.
+                        let c = mem.tracking.update(
+                            &TrackingGains::default(),
+                            sp.position,
+                            sp.velocity,
+                            cur,
+                            dt,
+                        );
+                        let (p, _) = self
+                            .view
+                            .config
+                            .geofence
+                            .clamp(sp.position + c.offset, true);
+                        LocalSetpoint::position_velocity_acceleration(
+                            frame.convert_to(&local, p),
+                            sp.velocity,
+                            c.acceleration,
+                            sp.yaw_rad,
+                        )
+                    } else {
+                        LocalSetpoint::position_velocity(
+                            frame.convert_to(&local, sp.position),
+                            sp.velocity,
+                            sp.yaw_rad,
+                        )
+                    };
+                    stream.set(Some(setpoint));
                     // Progress of the running procedure.
                     let mode = self.observed().map(|o| o.mode);
                     if state == VehicleState::TakingOff && mem.offboard_engaged {

@@ -13,6 +13,7 @@
 //! - [`commands`]: operator commands and link events into the FSM;
 //! - [`procedures`]: multi-step operations (arm, enter OFFBOARD, land) as tasks;
 //! - [`control`]: the control loop feeding the setpoint stream;
+//! - [`tracking`]: the outer loop that cancels PX4's tracking lag;
 //! - [`children`]: supervision of its `Px4Link` and payloads.
 
 mod children;
@@ -21,6 +22,7 @@ pub mod control;
 pub mod messages;
 pub mod procedures;
 pub mod shared;
+pub mod tracking;
 
 pub use control::ARRIVAL_TOLERANCE_M;
 pub use messages::{Child, ProcedureStep, VehicleArgs, VehicleMsg};

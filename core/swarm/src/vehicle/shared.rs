@@ -4,6 +4,7 @@
 
 use super::control::Target;
 use super::messages::Child;
+use super::tracking::TrackingCorrection;
 use crate::payload::PayloadShared;
 use crate::protocol::{SlotTarget, VehicleReport, wall_us};
 use crate::supervision::{self, ChildKey, Supervision};
@@ -33,6 +34,9 @@ pub(super) struct Memory {
     pub(super) takeoff_altitude_m: f64,
     pub(super) goto_target: Option<Ned>,
     pub(super) last_fence: Option<FenceViolation>,
+    /// What the control loop learnt of the vehicle's tracking lag (kept across actor
+    /// restarts, like the rest of the memory).
+    pub(super) tracking: TrackingCorrection,
 }
 
 /// The part of a vehicle that outlives its actor: identity, link, FSM memory and the
@@ -112,6 +116,7 @@ impl VehicleShared {
                 takeoff_altitude_m: 0.0,
                 goto_target: None,
                 last_fence: None,
+                tracking: TrackingCorrection::default(),
             }),
             snapshot: watch::channel(snapshot).0,
             report: watch::channel(VehicleReport::disconnected()).0,

@@ -1,0 +1,159 @@
+//! Tracking correction: PX4's position controller lags a moving setpoint. On PX4 v1.16
+//! (SIH, default parameters) a point moving at 5 m/s with velocity feed-forward is
+//! followed 1.25 m behind, and a 5 m/s circle is flown 1.7 m wide: the drag needs a tilt
+//! that only the slow velocity integrator (`MPC_XY_VEL_I_ACC` 0.4) builds, and nothing
+//! asks for the acceleration of a curve. A formation flown on raw slot targets carries
+//! that as slot error.
+//!
+//! [`TrackingCorrection`] adds what PX4's offboard setpoint can carry beyond position and
+//! velocity: an acceleration feed-forward (SET_POSITION_TARGET_LOCAL_NED `afx/afy/afz`,
+//! type_mask without the acceleration bits, which PX4 adds to its velocity controller's
+//! output). It is the commanded path's own acceleration (the curve, the speed-ups) plus
+//! a drag term `drag_per_s × velocity` that the correction learns from the measured
+//! along-track error (where skein sends the vehicle minus where the vehicle is), so it
+//! fits any airframe: the integrator PX4 would have to build over seconds is there from
+//! the first metre. What remains across the track on a curve is integrated into a small
+//! position offset. Both are bounded, frozen while the error is large (a transient, not
+//! a lag), and the offset decays when the target stops.
+
+use skein_model::geo::Ned;
+
+/// Gains and bounds of [`TrackingCorrection`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackingGains {
+    /// Adaptation rate of the drag term, (1/s) per second per metre of along-track
+    /// error.
+    pub drag_rate: f64,
+    /// Largest drag term learnt, 1/s (SIH's linear drag on 1 kg is 1/s).
+    pub max_drag_per_s: f64,
+    /// Integral gain on the cross-track error, 1/s.
+    pub ki_per_s: f64,
+    /// Largest cross-track offset, metres.
+    pub max_cross_m: f64,
+    /// Largest acceleration feed-forward, m/s².
+    pub max_acc_m_s2: f64,
+    /// Errors above this are transients: the correction does not learn from them, metres.
+    pub max_error_m: f64,
+    /// Below this commanded speed nothing is learnt and the offset decays, m/s.
+    pub moving_m_s: f64,
+    /// Decay time constant of the offset while not moving, seconds.
+    pub leak_s: f64,
+}
+
+impl Default for TrackingGains {
+    fn default() -> Self {
+        TrackingGains {
+            drag_rate: 0.3,
+            max_drag_per_s: 2.0,
+            ki_per_s: 0.3,
+            max_cross_m: 1.5,
+            max_acc_m_s2: 6.0,
+            max_error_m: 3.0,
+            moving_m_s: 0.5,
+            leak_s: 1.0,
+        }
+    }
+}
+
+/// What to send on top of the commanded position and velocity.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Correction {
+    /// Added to the position setpoint, NED metres.
+    pub offset: Ned,
+    /// Acceleration feed-forward, NED m/s².
+    pub acceleration: Ned,
+}
+
+/// The correction's state (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TrackingCorrection {
+    /// Learnt drag: the acceleration needed per m/s of horizontal speed, 1/s.
+    pub drag_per_s: f64,
+    /// Integral of the horizontal error across the commanded velocity (positive to the
+    /// right of the direction of travel), metres.
+    pub cross_m: f64,
+    /// The commanded velocity at the last update (for its derivative), NED m/s.
+    last_velocity: Option<Ned>,
+    /// The commanded acceleration, low-pass filtered, NED m/s².
+    acceleration: Ned,
+}
+
+/// Time constant of the commanded acceleration's low-pass filter, seconds.
+const ACC_FILTER_S: f64 = 0.1;
+
+impl TrackingCorrection {
+    /// Forgets the path (keeps the learnt drag, a property of the airframe).
+    pub fn reset(&mut self) {
+        *self = TrackingCorrection {
+            drag_per_s: self.drag_per_s,
+            ..TrackingCorrection::default()
+        };
+    }
+
+    /// Learns from one control period of `dt_s` seconds: `commanded` and
+    /// `commanded_velocity` are where skein means the vehicle to be and how fast that
+    /// moves (before the correction), `measured` where it is (all swarm-frame NED).
+    pub fn update(
+        &mut self,
+        g: &TrackingGains,
+        commanded: Ned,
+        commanded_velocity: Ned,
+        measured: Ned,
+        dt_s: f64,
+    ) -> Correction {
+        if dt_s <= 0.0 {
+            return self.correction(g, commanded_velocity);
+        }
+        let raw_acc = self
+            .last_velocity
+            .map_or(Ned::ZERO, |v| (commanded_velocity - v) * (1.0 / dt_s));
+        self.last_velocity = Some(commanded_velocity);
+        let k = (dt_s / ACC_FILTER_S).min(1.0);
+        self.acceleration = self.acceleration + (raw_acc - self.acceleration) * k;
+        let error = commanded - measured;
+        let h = commanded_velocity.horizontal_norm();
+        if h >= g.moving_m_s {
+            if error.norm() <= g.max_error_m {
+                let (n, e) = (
+                    commanded_velocity.north_m / h,
+                    commanded_velocity.east_m / h,
+                );
+                let along = error.north_m * n + error.east_m * e;
+                let across = -error.north_m * e + error.east_m * n;
+                self.drag_per_s =
+                    (self.drag_per_s + g.drag_rate * along * dt_s).clamp(0.0, g.max_drag_per_s);
+                self.cross_m = (self.cross_m + g.ki_per_s * across * dt_s)
+                    .clamp(-g.max_cross_m, g.max_cross_m);
+            }
+        } else {
+            self.cross_m *= (-dt_s / g.leak_s).exp();
+        }
+        self.correction(g, commanded_velocity)
+    }
+
+    /// The correction for a target moving at `commanded_velocity` now.
+    pub fn correction(&self, g: &TrackingGains, commanded_velocity: Ned) -> Correction {
+        let h = commanded_velocity.horizontal_norm();
+        let mut offset = Ned::ZERO;
+        if h > 1e-6 {
+            // Right of the direction of travel: (−v_e, v_n)/|v|.
+            let right = Ned::new(
+                -commanded_velocity.east_m / h,
+                commanded_velocity.north_m / h,
+                0.0,
+            );
+            offset = right * self.cross_m;
+        }
+        let mut drag = commanded_velocity * self.drag_per_s;
+        drag.down_m = 0.0;
+        let mut acceleration = self.acceleration + drag;
+        let n = acceleration.norm();
+        if n > g.max_acc_m_s2 {
+            acceleration = acceleration * (g.max_acc_m_s2 / n);
+        }
+        Correction {
+            offset,
+            acceleration,
+        }
+    }
+}
