@@ -607,12 +607,14 @@ payloads = [{ slot = "lamp", kind = "lamp", config = { rate_hz = 5.0 } }]
 /// Waits until `vehicle` no longer lists a payload in `slot` (the listing follows the
 /// vehicle's snapshot, published at 10 Hz).
 fn gone(skein: &Skein, vehicle: &str, slot: &str) {
-    eventually(&format!("{vehicle}/{slot} unlisted"), Duration::from_secs(2), || {
-        match try_payload(skein, vehicle, slot) {
+    eventually(
+        &format!("{vehicle}/{slot} unlisted"),
+        Duration::from_secs(2),
+        || match try_payload(skein, vehicle, slot) {
             Ok(p) => Err(p.to_string()),
             Err(_) => Ok(()),
-        }
-    });
+        },
+    );
 }
 
 /// The payload in `slot` of each of `vehicles`, once `pred` holds for all of them.
@@ -668,6 +670,7 @@ fn a_plugin_loaded_at_run_time_reaches_waiting_slots_and_payloads_attach_in_flig
         &cfg,
     ]);
     let stats = skein.sim_stats_addr();
+    let events = support::EventLog::connect(&skein.base);
     let warned = eventually("the missing-kind warning", Duration::from_secs(5), || {
         let text = skein.process.stderr_text();
         if text.contains("payload kind `lamp`") && text.contains("wait for one") {
@@ -815,13 +818,21 @@ fn a_plugin_loaded_at_run_time_reaches_waiting_slots_and_payloads_attach_in_flig
     assert_eq!((status, &body["value"]), (200, &json!(1.5)), "{body}");
     let listed = payload(&skein, "uav-1", "lamp2");
     assert_eq!(listed["generation"], 1, "{listed}");
-    // Detach it: gone from the listing and the supervision tree; commands find no slot.
+    // Detach it: its shutdown runs (the template raises an event), then it is gone from
+    // the listing and the supervision tree; commands find no slot.
     let (status, body) = skein.delete("/api/v1/vehicles/uav-1/payloads/lamp2");
     assert_eq!(
         (status, &body["detached"]),
         (200, &json!("lamp2")),
         "{body}"
     );
+    eventually("lamp2's shutdown event", Duration::from_secs(2), || {
+        let ev = events.of_type("payload_event");
+        ev.iter()
+            .find(|e| e["slot"] == "lamp2" && e["data"]["shutdown"] == true)
+            .cloned()
+            .ok_or_else(|| json!(ev).to_string())
+    });
     gone(&skein, "uav-1", "lamp2");
     assert!(
         skein

@@ -191,7 +191,8 @@ const TEMPLATE: &str = r#"//! `__NAME__`: a skein payload plugin providing the p
 //! - `{"command": "set", "value": 2.5}` → the state
 //! - `{"command": "status"}` → the state
 //!
-//! Published state: `{"value": 2.5, "ticks": 12}`.
+//! Published state: `{"value": 2.5, "ticks": 12}`. At shutdown it raises a `__NAME__`
+//! event `{"shutdown": true, "value"}` on skein's stream.
 
 use skein_plugin_sdk::args::{Args, command_name};
 use skein_plugin_sdk::serde_json::{Value, json};
@@ -277,6 +278,12 @@ impl Plugin for __TYPE__ {
             ctx.publish_state(&self.state())?;
         }
         Ok(answer)
+    }
+
+    fn shutdown(&mut self, ctx: &Context) {
+        // Runs before the instance is dropped (detach, unload, reload, skein stopping):
+        // put your device back the way you found it. Here, just say so on the stream.
+        let _ = ctx.emit_event("__NAME__", &json!({"shutdown": true, "value": self.value}));
     }
 }
 
