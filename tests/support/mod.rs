@@ -592,7 +592,7 @@ impl Skein {
 /// twice with other features), then copies of the libraries.
 pub mod plugins {
     #[allow(unused_imports)] // each test binary uses a different subset
-    pub use super::plugin_build::{build_into, lib_file};
+    pub use super::plugin_build::{build_into, build_new_plugin, lib_file};
     use std::path::{Path, PathBuf};
 
     /// A fresh directory private to this test process (`name` tells what it holds);

@@ -139,3 +139,47 @@ fn workspace_root() -> PathBuf {
         .canonicalize()
         .expect("workspace root")
 }
+
+/// Writes a plugin crate with `skein plugin new NAME --kind KIND --dir crate_dir` (run
+/// with the `skein` binary `skein`) and builds it as a newcomer would (`cargo build` in
+/// the crate, its own workspace), with `CARGO_TARGET_DIR` under this test's target
+/// directory (`plugin-new/`) so the SDK and its dependencies are compiled once and reused
+/// by later runs. Returns the built library.
+pub fn build_new_plugin(skein: &str, name: &str, kind: &str, crate_dir: &Path) -> PathBuf {
+    let out = Command::new(skein)
+        .args(["plugin", "new", name, "--kind", kind, "--dir"])
+        .arg(crate_dir)
+        .output()
+        .expect("run skein plugin new");
+    assert!(
+        out.status.success(),
+        "skein plugin new failed:\n{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let l = layout();
+    let target = l.target_dir.join("plugin-new");
+    // Concurrent test processes share that target directory: one build at a time.
+    std::fs::create_dir_all(&target).unwrap();
+    let lock_file = std::fs::File::create(target.join("skein-plugin-new.lock"))
+        .expect("create the build lock file");
+    lock_file.lock().expect("lock the build lock file");
+    let started = Instant::now();
+    let out = Command::new(env!("CARGO"))
+        .current_dir(crate_dir)
+        .args(["build", "--quiet"])
+        .env("CARGO_TARGET_DIR", &target)
+        .env_remove("RUSTFLAGS")
+        .output()
+        .expect("run cargo build");
+    assert!(
+        out.status.success(),
+        "cargo build of the new plugin `{name}` failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    eprintln!(
+        "built the new plugin `{name}` in {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
+    target.join("debug").join(lib_file(name))
+}

@@ -18,7 +18,8 @@
 //! - `POST /api/v1/formation/leader/{goto,waypoints,orbit,hold}`: move the formation's
 //!   reference point; `GET /api/v1/formation/shapes`
 //! - `GET /api/v1/vehicles/{id}/payloads`, `POST /api/v1/vehicles/{id}/payloads/{slot}`
-//!   (the payload's JSON command), `GET …/payloads/{slot}/snapshot` (JPEG),
+//!   (the payload's JSON command), `POST …/payloads` and `DELETE …/payloads/{slot}`
+//!   (attach and detach at run time, see [`payloads`]), `GET …/payloads/{slot}/snapshot` (JPEG),
 //!   `GET …/payloads/{slot}/stream` (MJPEG)
 //! - `GET /api/v1/plugins`, `POST /api/v1/plugins/{load,unload,reload}`: payload plugin
 //!   libraries at run time (see [`plugins`])
@@ -34,6 +35,7 @@
 #![warn(missing_docs)]
 
 pub mod error;
+pub mod payloads;
 pub mod plugins;
 pub mod requests;
 pub mod server;
@@ -172,10 +174,13 @@ pub fn app(state: ApiState) -> Router {
         )
         .route("/api/v1/formation/leader/{command}", post(leader_command))
         .route("/api/v1/formation/shapes", get(shapes))
-        .route("/api/v1/vehicles/{id}/payloads", get(list_payloads))
+        .route(
+            "/api/v1/vehicles/{id}/payloads",
+            get(list_payloads).post(attach_payload),
+        )
         .route(
             "/api/v1/vehicles/{id}/payloads/{slot}",
-            post(payload_command),
+            post(payload_command).delete(detach_payload),
         )
         .route(
             "/api/v1/vehicles/{id}/payloads/{slot}/snapshot",
@@ -292,6 +297,7 @@ async fn link_of(s: &ApiState, id: &str) -> Result<ActorRef<skein_link::Px4LinkM
         Err(PayloadCommandError::Unavailable(why) | PayloadCommandError::Refused(why)) => {
             Err(ApiError::unavailable(why))
         }
+        Err(e) => Err(payloads::payload_error(e)),
     }
 }
 
@@ -524,23 +530,35 @@ async fn payload_command(
         .await?
     {
         Ok(answer) => Ok(Json(answer).into_response()),
-        Err(PayloadCommandError::NotFound(why)) => Err(ApiError::not_found(why)),
-        Err(PayloadCommandError::Unavailable(why)) => Err(ApiError::unavailable(why)),
-        Err(PayloadCommandError::Refused(why)) => {
-            // A plugin names the field at fault as "field: message" by convention.
-            let field = why
-                .split_once(':')
-                .map(|(f, _)| f.trim())
-                .filter(|f| {
-                    !f.is_empty() && f.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
-                })
-                .map(str::to_string);
-            Err(ApiError {
-                status: StatusCode::BAD_REQUEST,
-                error: why,
-                field,
-            })
-        }
+        Err(e) => Err(payloads::payload_error(e)),
+    }
+}
+
+async fn attach_payload(
+    State(s): State<ApiState>,
+    Path(id): Path<String>,
+    body: Bytes,
+) -> Result<Response, ApiError> {
+    let spec = payloads::parse_attach(&body)?;
+    match s
+        .ask(move |r| CoordinatorMsg::AttachPayload(id, spec, r))
+        .await?
+    {
+        Ok(payload) => Ok((StatusCode::CREATED, Json(payload)).into_response()),
+        Err(e) => Err(payloads::payload_error(e)),
+    }
+}
+
+async fn detach_payload(
+    State(s): State<ApiState>,
+    Path((id, slot)): Path<(String, String)>,
+) -> Result<Response, ApiError> {
+    match s
+        .ask(move |r| CoordinatorMsg::DetachPayload(id, slot, r))
+        .await?
+    {
+        Ok(answer) => Ok(Json(answer).into_response()),
+        Err(e) => Err(payloads::payload_error(e)),
     }
 }
 

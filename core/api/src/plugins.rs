@@ -10,7 +10,10 @@
 //! - `POST /api/v1/plugins/load` `{"file": "libx.so"}` (relative to the plugin directory;
 //!   a file outside it is refused with 403) → the library.
 //! - `POST /api/v1/plugins/unload` `{"name": "x"}` → the library (409 while instances live,
-//!   naming them).
+//!   naming them). With `"force": true` the library's instances are stopped first (each
+//!   driver's `shutdown` runs; their slots go back to `waiting_for_plugin`, or start on
+//!   another provider of their kind) and the answer, once they are gone (at most
+//!   [`FORCED_UNLOAD_WAIT`]), adds `stopped_instances` and `still_stopping`.
 //! - `POST /api/v1/plugins/reload` `{"name": "x"}` → `{"library", "previous_version",
 //!   "previous_generation", "stale_instances"}`; the vehicles re-create the stale
 //!   instances on the new build.
@@ -27,6 +30,10 @@ use skein_payload::PayloadFactory;
 use skein_plugin_host::{HostError, LibraryInfo, PluginManager};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, PoisonError};
+
+/// How long a forced unload waits for the vehicles to stop the library's instances
+/// before it answers (listing those still stopping).
+pub const FORCED_UNLOAD_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
 
 /// Most refused files remembered for the listing.
 const MAX_REFUSED: usize = 64;
@@ -192,18 +199,73 @@ pub async fn load(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value
     }
 }
 
+/// Reads an unload body: `{"name": "x", "force": true|false}` (`force` optional).
+fn unload_body(body: &[u8]) -> Result<(String, bool), ApiError> {
+    let mut m = requests::object(body)?;
+    let force = match m.remove("force") {
+        None | Some(Value::Null) => false,
+        Some(Value::Bool(b)) => b,
+        Some(other) => {
+            return Err(ApiError::field(
+                "force",
+                format!("force must be true or false, got {other}"),
+            ));
+        }
+    };
+    let rest = serde_json::to_vec(&Value::Object(m)).unwrap_or_default();
+    let name = only_string(&rest, "name").map_err(|mut e| {
+        if e.error.starts_with("unknown field") {
+            e.error = e
+                .error
+                .replace("(expected `name`)", "(expected `name`, `force`)");
+        }
+        e
+    })?;
+    Ok((name, force))
+}
+
 /// `POST /api/v1/plugins/unload`.
 ///
 /// # Errors
 /// See the module docs.
 pub async fn unload(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value, ApiError> {
-    let name = only_string(body, "name")?;
+    let (name, force) = unload_body(body)?;
     let pl = plugins.ok_or_else(no_host)?;
     let m = pl.manager.clone();
-    match blocking(move || m.unload(&name)).await? {
-        Ok(info) => Ok(library_json(&info, None)),
-        Err(e) => Err(host_error(&e)),
+    if !force {
+        return match blocking(move || m.unload(&name)).await? {
+            Ok(info) => Ok(library_json(&info, None)),
+            Err(e @ HostError::InUse { .. }) => {
+                let mut err = host_error(&e);
+                err.error
+                    .push_str(" (add \"force\": true to stop them first)");
+                Err(err)
+            }
+            Err(e) => Err(host_error(&e)),
+        };
     }
+    // The manager tells the vehicles (PluginEvent::Unloaded), which stop the instances;
+    // answer once they are gone.
+    let forced = blocking(move || m.unload_force(&name))
+        .await?
+        .map_err(|e| host_error(&e))?;
+    let deadline = tokio::time::Instant::now() + FORCED_UNLOAD_WAIT;
+    let mut live = forced.live_instances();
+    while !live.is_empty() && tokio::time::Instant::now() < deadline {
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+        live = forced.live_instances();
+    }
+    let mut v = library_json(&forced.library, None);
+    v["stopped_instances"] = json!(
+        forced
+            .library
+            .instances
+            .iter()
+            .filter(|i| !live.iter().any(|l| l.id == i.id))
+            .collect::<Vec<_>>()
+    );
+    v["still_stopping"] = json!(live);
+    Ok(v)
 }
 
 /// `POST /api/v1/plugins/reload`.
@@ -252,6 +314,25 @@ mod tests {
         let e = only_string(b"{}", "name").unwrap_err();
         assert_eq!(e.field.as_deref(), Some("name"), "{e:?}");
         assert_eq!(e.status, StatusCode::BAD_REQUEST);
+    }
+
+    #[test]
+    fn unload_bodies_take_an_optional_force() {
+        assert_eq!(
+            unload_body(br#"{"name": "lamp"}"#).unwrap(),
+            ("lamp".into(), false)
+        );
+        assert_eq!(
+            unload_body(br#"{"name": "lamp", "force": true}"#).unwrap(),
+            ("lamp".into(), true)
+        );
+        let e = unload_body(br#"{"name": "lamp", "force": "yes"}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("force"), "{e:?}");
+        let e = unload_body(br#"{"name": "lamp", "forse": true}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("forse"), "{e:?}");
+        assert!(e.error.contains("`force`"), "{e:?}");
+        let e = unload_body(br#"{"force": true}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("name"), "{e:?}");
     }
 
     #[test]

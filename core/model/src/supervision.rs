@@ -108,6 +108,9 @@ pub enum ChildStatus {
     Failed,
     /// Ended cleanly and not restarted (policy `on-failure` or `never`).
     Stopped,
+    /// A payload slot not started because no loaded plugin provides its kind; it starts
+    /// when one is loaded (no restart budget is spent meanwhile).
+    WaitingForPlugin,
 }
 
 #[cfg(test)]

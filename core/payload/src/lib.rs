@@ -100,6 +100,24 @@ pub trait PayloadDriver: Send {
     fn on_mavlink(&mut self, _compid: u8, _msg: &MavMessage) -> Result<(), String> {
         Ok(())
     }
+    /// Which library (and which build of it) runs this instance, for the payload listings;
+    /// `None` when the factory does not say.
+    fn served_by(&self) -> Option<ServedBy> {
+        None
+    }
+}
+
+/// The provider running a payload instance, as `GET /api/v1/vehicles/{id}/payloads` names
+/// it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ServedBy {
+    /// Plugin (library) name, or `"builtin"`.
+    pub plugin: String,
+    /// Its version.
+    pub version: String,
+    /// The library's generation the instance was created under (1 at the first load, +1
+    /// per reload); 0 for a built-in payload.
+    pub generation: u64,
 }
 
 /// What a factory knows about the payloads it can create (for `GET /api/v1/plugins`).

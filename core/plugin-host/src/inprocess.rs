@@ -148,6 +148,10 @@ impl InProcessDriver {
 }
 
 impl PayloadDriver for InProcessDriver {
+    fn served_by(&self) -> Option<skein_payload::ServedBy> {
+        Some(self.guard.served_by())
+    }
+
     fn tick_rate_hz(&self) -> f64 {
         self.tick_rate_hz
     }

@@ -474,6 +474,10 @@ impl IsolatedDriver {
 }
 
 impl PayloadDriver for IsolatedDriver {
+    fn served_by(&self) -> Option<skein_payload::ServedBy> {
+        Some(self.guard.served_by())
+    }
+
     fn tick_rate_hz(&self) -> f64 {
         self.tick_rate_hz
     }

@@ -46,7 +46,7 @@ pub use child::{PluginHostArgs, plugin_host_main};
 pub use error::HostError;
 pub use isolated::ChildCommand;
 pub use manager::{
-    HostConfig, PluginEvent, PluginManager, ReloadReport, ScanEntry, SubscriptionId,
+    ForcedUnload, HostConfig, PluginEvent, PluginManager, ReloadReport, ScanEntry, SubscriptionId,
 };
 pub use registry::{
     InstanceRecord, LibraryInfo, LibraryStatus, STALE_INSTANCE_ERROR, StalePolicy,

@@ -88,12 +88,15 @@ pub enum PluginEvent {
         /// Instances still on the old generation.
         stale_instances: Vec<InstanceRecord>,
     },
-    /// A library was unloaded.
+    /// A library was unloaded. With [`PluginManager::unload_force`] its live instances are
+    /// listed: their owners should stop them (no new instance can come from it).
     Unloaded {
         /// Plugin name.
         name: String,
         /// Its version.
         version: String,
+        /// Instances still alive (empty for a plain [`PluginManager::unload`]).
+        live_instances: Vec<InstanceRecord>,
     },
     /// A file was refused (scan or load).
     Refused {
@@ -124,6 +127,25 @@ pub struct ReloadReport {
     pub previous_generation: u64,
     /// Instances still running the replaced generation.
     pub stale_instances: Vec<InstanceRecord>,
+}
+
+/// The outcome of [`PluginManager::unload_force`].
+#[derive(Debug, Clone)]
+pub struct ForcedUnload {
+    /// The library as it was when unloaded (with the instances alive then).
+    pub library: LibraryInfo,
+    entry: Weak<LibraryEntry>,
+}
+
+impl ForcedUnload {
+    /// Instances of the unloaded library still alive (empty once their owners stopped
+    /// them all).
+    pub fn live_instances(&self) -> Vec<InstanceRecord> {
+        self.entry
+            .upgrade()
+            .map(|e| e.instances())
+            .unwrap_or_default()
+    }
 }
 
 /// Identifies a subscription, for [`PluginManager::unsubscribe`].
@@ -439,8 +461,50 @@ impl PluginManager {
         self.emit(PluginEvent::Unloaded {
             name: info.name.clone(),
             version: info.version.clone(),
+            live_instances: vec![],
         });
         Ok(info)
+    }
+
+    /// Unloads a plugin even while instances of it live: it leaves the loaded set at once
+    /// (no new instance can come from it, [`PayloadFactory::providers`] no longer lists
+    /// it), and subscribers get [`PluginEvent::Unloaded`] naming the live instances, which
+    /// their owners stop. The library is listed as [`crate::LibraryStatus::Unloading`]
+    /// until the last of them is gone; [`ForcedUnload::live_instances`] says which remain.
+    ///
+    /// # Errors
+    /// [`HostError::NotFound`].
+    pub fn unload_force(&self, name: &str) -> Result<ForcedUnload, HostError> {
+        let entry = {
+            let mut reg = self.registry();
+            let entry = reg
+                .current
+                .remove(name)
+                .ok_or_else(|| HostError::NotFound {
+                    name: name.to_string(),
+                })?;
+            entry.mark_unloaded();
+            reg.superseded.retain(|w| w.strong_count() > 0);
+            reg.superseded.push(Arc::downgrade(&entry));
+            entry
+        };
+        let info = entry.info();
+        let live = entry.instances();
+        let weak = Arc::downgrade(&entry);
+        drop(entry);
+        tracing::info!(
+            plugin = %info.name, version = %info.version, instances = live.len(),
+            "plugin unloaded with force: stopping its instances"
+        );
+        self.emit(PluginEvent::Unloaded {
+            name: info.name.clone(),
+            version: info.version.clone(),
+            live_instances: live,
+        });
+        Ok(ForcedUnload {
+            library: info,
+            entry: weak,
+        })
     }
 
     /// Replaces a plugin by the current content of the file it was loaded from (a new

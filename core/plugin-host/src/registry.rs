@@ -60,6 +60,9 @@ pub enum LibraryStatus {
     Loaded,
     /// Replaced by a reload; still mapped because instances of it are still alive.
     Superseded,
+    /// Unloaded with force: no new instance comes from it, and its instances are being
+    /// stopped by their vehicles (it leaves the listing with the last of them).
+    Unloading,
 }
 
 /// One library as `GET /api/v1/plugins` shows it.
@@ -96,6 +99,7 @@ pub(crate) struct LibraryEntry {
     pub generation: u64,
     loaded_at: SystemTime,
     superseded: AtomicBool,
+    unloaded: AtomicBool,
     instances: Mutex<BTreeMap<u64, InstanceRecord>>,
 }
 
@@ -108,6 +112,7 @@ impl LibraryEntry {
             generation,
             loaded_at: SystemTime::now(),
             superseded: AtomicBool::new(false),
+            unloaded: AtomicBool::new(false),
             instances: Mutex::new(BTreeMap::new()),
         }
     }
@@ -122,6 +127,11 @@ impl LibraryEntry {
 
     pub fn mark_superseded(&self) {
         self.superseded.store(true, Ordering::Release);
+    }
+
+    /// Marks it unloaded with force (see [`LibraryStatus::Unloading`]).
+    pub fn mark_unloaded(&self) {
+        self.unloaded.store(true, Ordering::Release);
     }
 
     pub fn instances(&self) -> Vec<InstanceRecord> {
@@ -139,7 +149,9 @@ impl LibraryEntry {
             kinds: self.lib.kinds.clone(),
             file: self.lib.source.clone(),
             generation: self.generation,
-            status: if self.superseded() {
+            status: if self.unloaded.load(Ordering::Acquire) {
+                LibraryStatus::Unloading
+            } else if self.superseded() {
                 LibraryStatus::Superseded
             } else {
                 LibraryStatus::Loaded
@@ -198,6 +210,15 @@ impl InstanceGuard {
             && let Some(r) = m.get_mut(&self.id)
         {
             r.pid = pid;
+        }
+    }
+
+    /// The library and generation this instance runs.
+    pub fn served_by(&self) -> skein_payload::ServedBy {
+        skein_payload::ServedBy {
+            plugin: self.entry.lib.name.clone(),
+            version: self.entry.lib.version.clone(),
+            generation: self.entry.generation,
         }
     }
 

@@ -7,6 +7,8 @@
 //! - `skein sim --vehicles N`: the simulator alone, for any MAVLink client.
 //! - `skein fault --target PATH --kind panic|hang|stop|error`: inject a fault through the
 //!   API of a running `skein up --enable-fault-injection`.
+//! - `skein plugin new NAME [--kind KIND] [--dir DIR]`: write a payload plugin crate that
+//!   builds as it is (see [`plugin_new`]).
 //! - `skein plugin-host --socket PATH --library PATH` (internal, not in `--help`): the
 //!   child process that runs one payload plugin library under process isolation, spoken
 //!   to over a Unix socket (see `skein_plugin_host`).
@@ -14,6 +16,7 @@
 
 mod bench;
 mod config;
+mod plugin_new;
 
 use clap::{Parser, Subcommand};
 use config::ConfigFile;
@@ -47,6 +50,16 @@ enum Commands {
     Bench(bench::BenchArgs),
     /// Inject a fault into an actor of a running skein (needs --enable-fault-injection there).
     Fault(FaultArgs),
+    /// Payload plugins: `skein plugin new NAME` writes a plugin crate ready to build.
+    #[command(subcommand)]
+    Plugin(PluginCommand),
+}
+
+#[derive(Subcommand, Debug)]
+enum PluginCommand {
+    /// Write a new payload plugin crate (Cargo.toml on this skein's SDK, export_plugin!,
+    /// tests) that builds as it is.
+    New(plugin_new::NewArgs),
 }
 
 #[derive(clap::Args, Debug)]
@@ -140,6 +153,14 @@ fn main() -> ExitCode {
                 .map(|()| ExitCode::SUCCESS)
                 .map_err(|e| e.to_string()),
             Commands::Fault(args) => fault(args),
+            Commands::Plugin(PluginCommand::New(args)) => plugin_new::run(args).map(|dir| {
+                println!(
+                    "skein: plugin crate written to {} (build it with `cargo build --release` \
+                     there; its README says how to load and attach it)",
+                    dir.display()
+                );
+                ExitCode::SUCCESS
+            }),
             Commands::Bench(args) => bench::run(args).await.map(|()| ExitCode::SUCCESS),
         }
     });
@@ -346,12 +367,13 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
         .map_err(|e| e.to_string())?;
     // A reloaded plugin: the vehicles re-create its instances on the new build at once
     // (an instance that calls first re-creates itself; either way no failure is counted).
+    // A loaded or unloaded one: the vehicles start the slots waiting for it, or stop its
+    // instances (their slots wait again).
     let coordinator = swarm.coordinator.clone();
-    plugins.subscribe(move |event| {
-        if let skein_plugin_host::PluginEvent::Reloaded {
+    plugins.subscribe(move |event| match event {
+        skein_plugin_host::PluginEvent::Reloaded {
             stale_instances, ..
-        } = event
-        {
+        } => {
             let list = stale_instances
                 .iter()
                 .map(|i| (i.vehicle_id.clone(), i.slot.clone()))
@@ -361,6 +383,11 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
                 std::time::Instant::now(),
             ));
         }
+        skein_plugin_host::PluginEvent::Loaded { .. }
+        | skein_plugin_host::PluginEvent::Unloaded { .. } => {
+            let _ = coordinator.cast(skein_swarm::CoordinatorMsg::PluginsChanged);
+        }
+        skein_plugin_host::PluginEvent::Refused { .. } => {}
     });
 
     let sim = if n_sim > 0 {
@@ -523,8 +550,8 @@ fn start_plugins(
 type Refused = Vec<(PathBuf, String)>;
 
 /// Warns once per payload kind that a vehicle's model needs and no loaded plugin (nor a
-/// built-in) provides: those payloads will fail and be disabled by their supervisor while
-/// the vehicles fly on.
+/// built-in) provides: those payloads wait for a plugin (loaded later through the API)
+/// while the vehicles fly on.
 fn warn_missing_kinds(
     config: &skein_swarm::SwarmConfig,
     endpoints: &[EndpointSpec],
@@ -542,9 +569,9 @@ fn warn_missing_kinds(
             if !provided && warned.insert(p.kind.clone()) {
                 tracing::warn!(
                     "no plugin in {} provides payload kind `{}` (model `{}`, slot `{}`): those \
-                     payloads will fail and be disabled while the vehicles fly on; build the \
-                     plugins with `cargo build --release` (they land next to the skein binary) \
-                     or give --plugin-dir",
+                     payloads wait for one while the vehicles fly on; build the plugins with \
+                     `cargo build --release` (they land next to the skein binary) or give \
+                     --plugin-dir, or load one at run time (POST /api/v1/plugins/load)",
                     plugin_dir.display(),
                     p.kind,
                     model.name,

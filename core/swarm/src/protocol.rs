@@ -136,6 +136,24 @@ pub enum ToVehicle {
         /// The payload's own command object.
         command: serde_json::Value,
     },
+    /// Attach a payload slot at run time (it lasts until skein restarts); answered by
+    /// [`FromVehicle::PayloadResult`] once its driver exists (the payload as listed), or
+    /// with why not ([`PayloadCommandError::Invalid`] / [`PayloadCommandError::Conflict`]
+    /// naming the field).
+    AttachPayload {
+        /// Request id, echoed in the answer.
+        request_id: u64,
+        /// The slot to add.
+        spec: skein_payload::PayloadSpec,
+    },
+    /// Detach the payload in `slot`: its driver's `shutdown` runs, then the slot is gone;
+    /// answered by [`FromVehicle::PayloadResult`].
+    DetachPayload {
+        /// Request id, echoed in the answer.
+        request_id: u64,
+        /// Payload slot.
+        slot: String,
+    },
 }
 
 /// Why a payload command has no answer from the payload.
@@ -147,6 +165,22 @@ pub enum PayloadCommandError {
     Unavailable(String),
     /// The payload refused the command; its message (HTTP 400).
     Refused(String),
+    /// A request field is wrong (HTTP 400 naming it): an attach of an unknown kind or
+    /// plugin, or a config the plugin refused.
+    Invalid {
+        /// The field at fault (`"kind"`, `"plugin"`, `"config"`, `"slot"`).
+        field: String,
+        /// Why.
+        error: String,
+    },
+    /// The request conflicts with the vehicle's payloads (HTTP 409 naming the field): an
+    /// attach to a slot that exists, a detach of a slot being stopped.
+    Conflict {
+        /// The field at fault (`"slot"`).
+        field: String,
+        /// Why.
+        error: String,
+    },
 }
 
 /// Vehicle → coordinator (events and answers; the vehicle's state is in

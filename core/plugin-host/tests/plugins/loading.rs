@@ -279,3 +279,45 @@ fn load_unload_rules() {
         .unwrap();
     assert_eq!(again.generation, 2);
 }
+
+#[test]
+fn a_forced_unload_announces_the_live_instances_and_creates_nothing_more() {
+    let m = manager_with(&["skein-plugin-example"]);
+    let events = Arc::new(Mutex::new(Vec::new()));
+    let ev = Arc::clone(&events);
+    m.subscribe(move |e| ev.lock().unwrap().push(e.clone()));
+    let world = World::new(true);
+    world.put("uav-1", 1, (0.0, 0.0, -10.0), 0.0);
+    let ex = spec("ex", "example", Isolation::InProcess, json!(null));
+    let d = m.create(&ex, world.host("uav-1", "ex")).unwrap();
+    assert_eq!(
+        d.served_by().map(|s| (s.plugin, s.generation)),
+        Some(("example".to_string(), 1))
+    );
+
+    let forced = m.unload_force("example").unwrap();
+    assert_eq!(forced.library.instance_count, 1);
+    assert_eq!(forced.live_instances().len(), 1);
+    // Out of the loaded set at once: nothing new comes from it, it is no provider.
+    assert!(m.library("example").is_none());
+    assert!(m.providers().iter().all(|p| p.name != "example"));
+    assert!(m.create(&ex, world.host("uav-1", "ex2")).is_err());
+    let listed = m.libraries();
+    let unloading = listed.iter().find(|l| l.name == "example").unwrap();
+    assert_eq!(unloading.status, LibraryStatus::Unloading);
+    match events.lock().unwrap().last() {
+        Some(PluginEvent::Unloaded { live_instances, .. }) => {
+            assert_eq!(live_instances.len(), 1);
+            assert_eq!(live_instances[0].slot, "ex");
+        }
+        other => panic!("{other:?}"),
+    }
+    // The instance keeps working until its owner drops it; then the library is gone.
+    drop(d);
+    assert!(forced.live_instances().is_empty());
+    assert!(m.libraries().iter().all(|l| l.name != "example"));
+    assert!(matches!(
+        m.unload_force("example"),
+        Err(HostError::NotFound { .. })
+    ));
+}

@@ -193,14 +193,15 @@ impl CoordinatorState {
         p.reply.send(p.outcome);
     }
 
-    /// Sends a payload command to vehicle `id`; the answer comes back as a
-    /// [`crate::protocol::FromVehicle::PayloadResult`].
-    pub(super) fn payload_command(
+    /// Sends a payload request (command, attach, detach: `make` builds it from its
+    /// request id) to vehicle `id`; the answer comes back as a
+    /// [`crate::protocol::FromVehicle::PayloadResult`], or the request times out after
+    /// [`PAYLOAD_TIMEOUT`].
+    pub(super) fn payload_request(
         &mut self,
         myself: &ActorRef<CoordinatorMsg>,
         id: String,
-        slot: String,
-        command: serde_json::Value,
+        make: impl FnOnce(u64) -> ToVehicle,
         reply: RpcReplyPort<Result<serde_json::Value, PayloadCommandError>>,
     ) {
         let Some(v) = self.vehicles.get(&id) else {
@@ -211,11 +212,7 @@ impl CoordinatorState {
         };
         self.in_flight.next_request_id += 1;
         let request_id = self.in_flight.next_request_id;
-        let sent = v.send(ToVehicle::PayloadCommand {
-            request_id,
-            slot,
-            command,
-        });
+        let sent = v.send(make(request_id));
         if let Err(e) = sent {
             let _ = reply.send(Err(PayloadCommandError::Unavailable(format!(
                 "vehicle {id} is not running: {e}"

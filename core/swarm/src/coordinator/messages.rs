@@ -161,6 +161,22 @@ pub enum CoordinatorMsg {
         serde_json::Value,
         RpcReplyPort<Result<serde_json::Value, PayloadCommandError>>,
     ),
+    /// Attach a payload slot to a vehicle at run time (until restart): the payload as
+    /// listed once its driver exists, or why not (naming the field).
+    AttachPayload(
+        String,
+        skein_payload::PayloadSpec,
+        RpcReplyPort<Result<serde_json::Value, PayloadCommandError>>,
+    ),
+    /// Detach a vehicle's payload slot (its driver's `shutdown` runs first).
+    DetachPayload(
+        String,
+        String,
+        RpcReplyPort<Result<serde_json::Value, PayloadCommandError>>,
+    ),
+    /// A payload plugin was loaded or unloaded in this process: every local vehicle starts
+    /// the slots now provided and stops the payloads whose library is gone.
+    PluginsChanged,
     /// Payload instances (vehicle id, slot) whose plugin was reloaded at this instant: their
     /// vehicles re-create them on the new build (those created since are left alone).
     RefreshPayloads(Vec<(String, String)>, Instant),

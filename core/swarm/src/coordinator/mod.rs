@@ -49,7 +49,7 @@ pub use swarm::{StartError, Swarm};
 use crate::events::SwarmEvent;
 use crate::formation::{FormationEngine, LeaderMotion};
 use crate::metrics::Metrics;
-use crate::protocol::{FromVehicle, PayloadCommandError, VehicleCommand};
+use crate::protocol::{FromVehicle, PayloadCommandError, ToVehicle, VehicleCommand};
 use crate::supervision::{self, Children, Supervision};
 use crate::view::{SwarmConfig, SwarmServices, SwarmView};
 use commands::{CommandReply, InFlight};
@@ -160,7 +160,7 @@ impl CoordinatorState {
             .vehicles
             .get(id)
             .and_then(|v| v.local.as_ref())
-            .map(|l| l.shared.payloads.keys().cloned().collect::<Vec<_>>())
+            .map(|l| l.shared.payloads().keys().cloned().collect::<Vec<_>>())
             .unwrap_or_default();
         format!(
             "vehicle {id} has no payload slot `{slot}` (slots: {})",
@@ -373,13 +373,35 @@ impl Actor for Coordinator {
                     Some(v) => v
                         .local
                         .as_ref()
-                        .and_then(|l| l.shared.payloads.get(&slot).cloned())
+                        .and_then(|l| l.shared.payload(&slot))
                         .ok_or_else(|| state.no_slot(&id, &slot)),
                 };
                 let _ = reply.send(r);
             }
-            CoordinatorMsg::PayloadCommand(id, slot, cmd, reply) => {
-                state.payload_command(&myself, id, slot, cmd, reply);
+            CoordinatorMsg::PayloadCommand(id, slot, command, reply) => {
+                let make = move |request_id| ToVehicle::PayloadCommand {
+                    request_id,
+                    slot,
+                    command,
+                };
+                state.payload_request(&myself, id, make, reply);
+            }
+            CoordinatorMsg::AttachPayload(id, spec, reply) => {
+                let make = move |request_id| ToVehicle::AttachPayload { request_id, spec };
+                state.payload_request(&myself, id, make, reply);
+            }
+            CoordinatorMsg::DetachPayload(id, slot, reply) => {
+                let make = move |request_id| ToVehicle::DetachPayload { request_id, slot };
+                state.payload_request(&myself, id, make, reply);
+            }
+            CoordinatorMsg::PluginsChanged => {
+                // Local to this process: its vehicles create their payloads from the
+                // plugin manager of this process.
+                for v in state.vehicles.values() {
+                    if let Some(a) = v.local.as_ref().and_then(|l| l.port.actor()) {
+                        let _ = a.cast(crate::vehicle::VehicleMsg::PluginsChanged);
+                    }
+                }
             }
             CoordinatorMsg::RefreshPayloads(instances, at) => {
                 for (id, slot) in instances {

@@ -76,6 +76,16 @@ impl Supervision {
         rec.status = ChildStatus::Running;
     }
 
+    /// Marks `path` waiting for a plugin ([`ChildStatus::WaitingForPlugin`]): not running,
+    /// nothing failed, no restart budget spent.
+    pub fn waiting(&self, path: &str, kind: ChildKind) {
+        let mut r = self.records.write().expect("records lock");
+        let rec = r
+            .entry(path.to_string())
+            .or_insert_with(|| ChildRecord::new(kind));
+        rec.status = ChildStatus::WaitingForPlugin;
+    }
+
     /// Forgets `path` and everything under it.
     pub fn remove(&self, path: &str) {
         let prefix = format!("{path}/");

@@ -2,15 +2,19 @@
 //! the same [`skein_link::VehicleLink`], so the socket, telemetry and setpoint stream are
 //! untouched) and one payload actor per slot, applies their restart policy through the
 //! shared [`Children`](crate::supervision::Children) table, and routes injected faults.
+//! A payload whose kind no loaded plugin provides is not restarted: it waits for a plugin
+//! (see [`super::payloads`]) without spending its restart budget.
 
 use super::VehicleActorState;
 use super::messages::{Child, VehicleMsg};
 use super::shared::VehicleShared;
-use crate::payload::{PayloadActor, PayloadArgs, PayloadMsg, VehiclePayloadHost};
+use crate::payload::{
+    PayloadActor, PayloadArgs, PayloadMsg, Placement, VehiclePayloadHost, placement,
+};
 use crate::supervision::{ChildHandle, Exit, Next};
 use ractor::{Actor, ActorProcessingErr, ActorRef};
 use skein_link::{Px4Link, Px4LinkArgs, Px4LinkMsg};
-use skein_model::supervision::FaultKind;
+use skein_model::supervision::{ChildKind, FaultKind};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -20,24 +24,29 @@ impl VehicleActorState {
         self.children.parent().to_string()
     }
 
-    /// Spawns `child` linked under this actor.
-    async fn spawn(
+    /// Spawns `child` linked under this actor (`ready`: told once a payload's driver
+    /// exists).
+    pub(super) async fn spawn(
         &self,
         myself: &ActorRef<VehicleMsg>,
         child: &Child,
+        ready: Option<tokio::sync::oneshot::Sender<()>>,
     ) -> Result<ChildHandle, ActorProcessingErr> {
         Ok(match child {
             Child::Link => ChildHandle::new(spawn_link(myself, &self.shared).await?, |r| {
                 Px4LinkMsg::Ping(r)
             }),
             Child::Payload(slot) => {
-                let spec = self.shared.payloads[slot].spec.clone();
+                let shared = self
+                    .shared
+                    .payload(slot)
+                    .ok_or_else(|| format!("no payload slot `{slot}`"))?;
+                let spec = shared.spec.clone();
                 let host = VehiclePayloadHost::new(
                     self.shared.clone(),
                     self.view.clone(),
                     self.events.clone(),
-                    self.shared.payloads.clone(),
-                    slot,
+                    shared.clone(),
                 );
                 let (actor, _) = Actor::spawn_linked(
                     None,
@@ -46,6 +55,8 @@ impl VehicleActorState {
                         spec,
                         factory: self.view.services.payloads.clone(),
                         host,
+                        shared,
+                        ready,
                         // Half the watchdog's deadline: a stuck driver call fails the
                         // payload naming the call before the watchdog calls it hung.
                         call_deadline: self.children.supervision().config.watchdog_deadline() / 2,
@@ -64,7 +75,7 @@ impl VehicleActorState {
         myself: &ActorRef<VehicleMsg>,
         child: Child,
     ) -> Result<(), ActorProcessingErr> {
-        let handle = self.spawn(myself, &child).await?;
+        let handle = self.spawn(myself, &child, None).await?;
         self.children.started(child, handle);
         Ok(())
     }
@@ -77,7 +88,20 @@ impl VehicleActorState {
         noticed: Instant,
         reason: String,
     ) -> Result<(), ActorProcessingErr> {
-        match self.spawn(myself, &child).await {
+        // A payload whose plugin is gone meanwhile waits for one instead.
+        if let Child::Payload(slot) = &child
+            && let Some(p) = self.shared.payload(slot)
+            && let Placement::Wait(why) =
+                placement(&p.spec, &self.view.services.payloads.providers())
+        {
+            p.set_waiting(Some(why));
+            let path = self.children.path(&child);
+            self.children
+                .supervision()
+                .waiting(&path, ChildKind::Payload);
+            return Ok(());
+        }
+        match self.spawn(myself, &child, None).await {
             Ok(handle) => {
                 self.children
                     .started_after_failure(child, handle, noticed, reason);
@@ -105,6 +129,23 @@ impl VehicleActorState {
         let noticed = Instant::now();
         let path = self.children.path(&child);
         let reason = exit.reason();
+        if let Child::Payload(slot) = &child {
+            // A slot being attached whose driver could not be created is removed again.
+            if self.attach_failed(slot, &reason) {
+                return Ok(());
+            }
+            // A payload whose plugin is gone is not a failure to count: it waits for one.
+            if let Some(p) = self.shared.payload(slot)
+                && let Placement::Wait(why) =
+                    placement(&p.spec, &self.view.services.payloads.providers())
+            {
+                p.set_waiting(Some(why));
+                self.children
+                    .supervision()
+                    .waiting(&path, ChildKind::Payload);
+                return Ok(());
+            }
+        }
         match self.children.next(&child, exit) {
             Next::RestartNow => self.restart_child(myself, child, noticed, reason).await?,
             Next::RestartAfter(d) => {
@@ -132,7 +173,7 @@ impl VehicleActorState {
             let mut known = vec![format!("{}/px4link", self.path())];
             known.extend(
                 self.shared
-                    .payloads
+                    .payloads()
                     .keys()
                     .map(|s| format!("{}/payload/{s}", self.path())),
             );
@@ -145,7 +186,7 @@ impl VehicleActorState {
         let child = match sub {
             "px4link" => Child::Link,
             other => match other.strip_prefix("payload/") {
-                Some(slot) if self.shared.payloads.contains_key(slot) => {
+                Some(slot) if self.shared.payload(slot).is_some() => {
                     Child::Payload(slot.to_string())
                 }
                 _ => return Err(unknown()),
@@ -189,13 +230,14 @@ async fn spawn_link(
     shared: &Arc<VehicleShared>,
 ) -> Result<ActorRef<Px4LinkMsg>, ActorProcessingErr> {
     let me = myself.clone();
-    let components: Option<skein_link::px4link::FrameSink> = if shared.payloads.is_empty() {
-        None
-    } else {
+    // Payloads may be attached at run time: the sink is always there, and forwards
+    // nothing while the vehicle has no payload.
+    let components: Option<skein_link::px4link::FrameSink> = {
         let me = myself.clone();
         let autopilot = shared.link.compid;
+        let vehicle = shared.clone();
         Some(Arc::new(move |f: &skein_mavlink::Frame| {
-            if f.compid != autopilot || for_payloads(&f.msg) {
+            if (f.compid != autopilot || for_payloads(&f.msg)) && vehicle.has_payloads() {
                 let _ = me.cast(VehicleMsg::Component(Box::new(f.clone())));
             }
         }))

@@ -81,6 +81,14 @@ pub enum VehicleMsg {
     /// The plugin of the payload in this slot was reloaded at this instant: re-create the
     /// payload's driver on the new build (see [`crate::payload::PayloadMsg::Refresh`]).
     RefreshPayload(String, Instant),
+    /// A payload plugin was loaded or unloaded in this process: start waiting slots a
+    /// provider now offers, stop payloads whose library is gone (local to the vehicle's
+    /// process, not part of the swarm protocol; see [`super::payloads`]).
+    PluginsChanged,
+    /// The driver of a slot being attached exists: answer the attach.
+    PayloadReady(String),
+    /// A payload stopped on purpose (unload, detach) is gone: what comes next.
+    PayloadStopped(String, AfterStop),
     /// Watchdog probe.
     Ping(RpcReplyPort<()>),
     /// Time to ping the children.
@@ -93,6 +101,15 @@ pub enum VehicleMsg {
     InjectFault(String, FaultKind, RpcReplyPort<Result<(), String>>),
     /// Fault injection into this actor itself.
     Fault(FaultKind),
+}
+
+/// Why a payload was stopped on purpose, i.e. what follows once it is gone.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AfterStop {
+    /// Its library was unloaded: the slot waits again, or starts from another provider.
+    Reevaluate,
+    /// A detach (its request id): the slot is removed and the detach answered.
+    Detach(u64),
 }
 
 /// What a procedure task reached.

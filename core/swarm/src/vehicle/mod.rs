@@ -14,20 +14,23 @@
 //! - [`procedures`]: multi-step operations (arm, enter OFFBOARD, land) as tasks;
 //! - [`control`]: the control loop feeding the setpoint stream;
 //! - [`tracking`]: the outer loop that cancels PX4's tracking lag;
-//! - [`children`]: supervision of its `Px4Link` and payloads.
+//! - [`children`]: supervision of its `Px4Link` and payloads;
+//! - [`payloads`]: payload slots waiting for plugins, plugin loads and unloads, run-time
+//!   attach and detach.
 
 mod children;
 pub mod commands;
 pub mod control;
 pub mod messages;
+mod payloads;
 pub mod procedures;
 pub mod shared;
 pub mod tracking;
 
 pub use control::ARRIVAL_TOLERANCE_M;
-pub use messages::{Child, ProcedureStep, VehicleArgs, VehicleMsg};
+pub use messages::{AfterStop, Child, ProcedureStep, VehicleArgs, VehicleMsg};
 pub use procedures::OFFBOARD_PRESTREAM;
-pub use shared::VehicleShared;
+pub use shared::{PayloadMap, VehicleShared, payload_json};
 
 use crate::events::SwarmEvent;
 use crate::payload::PayloadMsg;
@@ -37,6 +40,7 @@ use crate::view::SwarmView;
 use ractor::{Actor, ActorProcessingErr, ActorRef, SupervisionEvent};
 use skein_link::Px4LinkMsg;
 use skein_model::supervision::ChildStatus;
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::broadcast;
@@ -54,11 +58,19 @@ pub struct VehicleActorState {
     others: Vec<skein_model::safety::Obstacle>,
     last_tick: Instant,
     ticks: u64,
+    /// Slots being attached, with the request to answer once the driver exists.
+    attaching: BTreeMap<String, u64>,
+    /// Slots whose payload is being stopped on purpose (unload, detach).
+    stopping: BTreeSet<String>,
 }
 
 impl VehicleActorState {
     /// Carries out a protocol message from the coordinator.
-    fn on_protocol(&mut self, myself: &ActorRef<VehicleMsg>, msg: ToVehicle) {
+    async fn on_protocol(
+        &mut self,
+        myself: &ActorRef<VehicleMsg>,
+        msg: ToVehicle,
+    ) -> Result<(), ActorProcessingErr> {
         match msg {
             ToVehicle::Command {
                 command_id,
@@ -77,7 +89,14 @@ impl VehicleActorState {
                 slot,
                 command,
             } => self.payload_command(request_id, slot, command),
+            ToVehicle::AttachPayload { request_id, spec } => {
+                self.attach_payload(myself, request_id, spec).await?;
+            }
+            ToVehicle::DetachPayload { request_id, slot } => {
+                self.detach_payload(myself, request_id, slot).await?;
+            }
         }
+        Ok(())
     }
 
     /// Hands a payload command to the payload's actor and answers through the uplink
@@ -90,15 +109,18 @@ impl VehicleActorState {
             .find(|(s, _)| *s == slot)
             .map(|(_, a)| a);
         let Some(actor) = actor else {
-            let why = if self.shared.payloads.contains_key(&slot) {
-                PayloadCommandError::Unavailable(format!(
-                    "payload `{slot}` is not running (failed, disabled or restarting)"
-                ))
+            let why = if let Some(p) = self.shared.payload(&slot) {
+                PayloadCommandError::Unavailable(match p.waiting() {
+                    Some(why) => format!("payload `{slot}` is not running: {why}"),
+                    None => {
+                        format!("payload `{slot}` is not running (failed, disabled or restarting)")
+                    }
+                })
             } else {
                 PayloadCommandError::NotFound(format!(
                     "vehicle {id} has no payload slot `{slot}` (slots: {})",
                     self.shared
-                        .payloads
+                        .payloads()
                         .keys()
                         .cloned()
                         .collect::<Vec<_>>()
@@ -161,18 +183,21 @@ impl Actor for Vehicle {
             others: Vec::new(),
             last_tick: Instant::now(),
             ticks: 0,
+            attaching: BTreeMap::new(),
+            stopping: BTreeSet::new(),
         };
         state.start_child(&myself, Child::Link).await?;
-        let slots: Vec<String> = state.shared.payloads.keys().cloned().collect();
+        let slots: Vec<String> = state.shared.payloads().keys().cloned().collect();
         for slot in slots {
-            let child = Child::Payload(slot);
+            let child = Child::Payload(slot.clone());
             // A payload disabled by an escalation stays disabled across vehicle restarts.
             let failed = state
                 .children
                 .supervision()
                 .record(&state.children.path(&child))
                 .is_some_and(|r| r.status == ChildStatus::Failed);
-            if !failed && let Err(e) = state.start_child(&myself, child.clone()).await {
+            // A slot no loaded plugin provides waits for one.
+            if !failed && let Err(e) = state.start_payload(&myself, &slot, None).await {
                 let exit = crate::supervision::Exit::Failed(format!("start failed: {e}"));
                 state.child_ended(&myself, child, exit).await?;
             }
@@ -187,7 +212,7 @@ impl Actor for Vehicle {
         state: &mut Self::State,
     ) -> Result<(), ActorProcessingErr> {
         match msg {
-            VehicleMsg::Protocol(msg) => state.on_protocol(&myself, msg),
+            VehicleMsg::Protocol(msg) => state.on_protocol(&myself, msg).await?,
             VehicleMsg::Link(ev) => state.on_link_event(ev),
             VehicleMsg::Tick => state.tick(),
             VehicleMsg::ProcedureDone {
@@ -213,6 +238,11 @@ impl Actor for Vehicle {
                     let _ = actor.cast(PayloadMsg::Refresh(at));
                 }
             }
+            VehicleMsg::PluginsChanged => state.plugins_changed(&myself).await?,
+            VehicleMsg::PayloadReady(slot) => state.payload_ready(&slot),
+            VehicleMsg::PayloadStopped(slot, after) => {
+                state.payload_stopped(&myself, slot, after).await?;
+            }
             VehicleMsg::Ping(reply) => {
                 let _ = reply.send(());
             }
@@ -224,7 +254,14 @@ impl Actor for Vehicle {
             }
             VehicleMsg::ChildHung(child, id) => state.children.kill_hung(&child, id),
             VehicleMsg::RestartChild(child, noticed, reason) => {
-                if state.children.get(&child).is_none() {
+                // A payload detached (or being stopped) meanwhile is not restarted.
+                let gone = match &child {
+                    Child::Payload(slot) => {
+                        state.shared.payload(slot).is_none() || state.stopping.contains(slot)
+                    }
+                    Child::Link => false,
+                };
+                if state.children.get(&child).is_none() && !gone {
                     state.restart_child(&myself, child, noticed, reason).await?;
                 }
             }

@@ -17,8 +17,11 @@ use skein_model::vehicle::{
     Battery, FormationSlot, LinkStatus, Position, VehicleSnapshot, Velocity,
 };
 use std::collections::BTreeMap;
-use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError, RwLock};
 use tokio::sync::watch;
+
+/// A vehicle's payload slots by slot name.
+pub type PayloadMap = BTreeMap<String, Arc<PayloadShared>>;
 
 #[derive(Debug)]
 pub(super) struct Memory {
@@ -50,8 +53,10 @@ pub struct VehicleShared {
     pub link: Arc<VehicleLink>,
     /// True for a vehicle of the in-process simulator.
     pub simulated: bool,
-    /// The payload slots of its model, with what each published.
-    pub payloads: Arc<BTreeMap<String, Arc<PayloadShared>>>,
+    /// The payload slots (its model's, plus those attached at run time), with what each
+    /// published; read with [`VehicleShared::payloads`] (copy-on-write: readers get a
+    /// consistent map without holding the lock).
+    payloads: RwLock<Arc<PayloadMap>>,
     memory: Mutex<Memory>,
     snapshot: watch::Sender<VehicleSnapshot>,
     report: watch::Sender<VehicleReport>,
@@ -73,13 +78,13 @@ impl VehicleShared {
         link: Arc<VehicleLink>,
         simulated: bool,
     ) -> Arc<Self> {
-        let payloads = Arc::new(
+        let payloads = RwLock::new(Arc::new(
             model
                 .payloads
                 .iter()
                 .map(|p| (p.slot.clone(), PayloadShared::new(p.clone())))
                 .collect(),
-        );
+        ));
         let snapshot = VehicleSnapshot {
             id: id.clone(),
             sysid: link.sysid,
@@ -127,6 +132,48 @@ impl VehicleShared {
     /// what a restarted actor must resume from).
     pub(super) fn memory(&self) -> MutexGuard<'_, Memory> {
         self.memory.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The payload slots now (a snapshot: attaches and detaches after this call replace
+    /// the map, they do not change this one).
+    pub fn payloads(&self) -> Arc<PayloadMap> {
+        self.payloads
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// The payload in `slot`, if the vehicle has that slot.
+    pub fn payload(&self, slot: &str) -> Option<Arc<PayloadShared>> {
+        self.payloads().get(slot).cloned()
+    }
+
+    /// Adds a slot (a run-time attach; it lasts until skein restarts); false if the slot
+    /// exists already.
+    pub(crate) fn insert_payload(&self, payload: Arc<PayloadShared>) -> bool {
+        let mut map = self
+            .payloads
+            .write()
+            .unwrap_or_else(PoisonError::into_inner);
+        if map.contains_key(&payload.spec.slot) {
+            return false;
+        }
+        let mut next = PayloadMap::clone(&map);
+        next.insert(payload.spec.slot.clone(), payload);
+        *map = Arc::new(next);
+        true
+    }
+
+    /// Removes a slot (a run-time detach); the removed payload, if there was one.
+    pub(crate) fn remove_payload(&self, slot: &str) -> Option<Arc<PayloadShared>> {
+        let mut map = self
+            .payloads
+            .write()
+            .unwrap_or_else(PoisonError::into_inner);
+        let mut next = PayloadMap::clone(&map);
+        let removed = next.remove(slot);
+        *map = Arc::new(next);
+        removed
     }
 
     /// The latest published snapshot.
@@ -206,19 +253,12 @@ impl VehicleShared {
         let silence = link.silence();
         let vehicle_path = format!("{}/{}", supervision::ROOT, self.id);
         let payloads = self
-            .payloads
+            .payloads()
             .iter()
             .map(|(slot, p)| {
                 let path = Child::Payload(slot.clone()).path(&vehicle_path);
                 let status = supervision.record(&path).map(|r| r.status);
-                serde_json::json!({
-                    "slot": slot,
-                    "kind": p.spec.kind,
-                    "plugin": p.spec.plugin,
-                    "status": status,
-                    "state": p.state(),
-                    "frames": p.frames_published(),
-                })
+                payload_json(p, status)
             })
             .collect();
         let snap = link.with_telemetry(|t| {
@@ -274,6 +314,11 @@ impl VehicleShared {
         self.snapshot.send_replace(snap);
     }
 
+    /// True when the vehicle has at least one payload slot.
+    pub fn has_payloads(&self) -> bool {
+        !self.payloads().is_empty()
+    }
+
     /// With no Vehicle actor (escalated), the FSM state follows telemetry alone.
     pub fn settle_from_telemetry(&self) {
         if let Some(o) = self.link.with_telemetry(|t| t.observed()) {
@@ -294,4 +339,29 @@ impl VehicleShared {
                 .or(t.global.map(|g| g.velocity_m_s))
         })
     }
+}
+
+/// One payload as the vehicle snapshot lists it: `slot`, `kind`, `requested_plugin` (the
+/// spec's), `plugin` / `plugin_version` / `generation` (the library serving it now, `null`
+/// while none does), `isolation`, `status` (the supervision status, e.g. `running` or
+/// `waiting_for_plugin`), `waiting_for` (naming the kind, while it waits), `state`,
+/// `frames`.
+pub fn payload_json(
+    p: &PayloadShared,
+    status: Option<skein_model::supervision::ChildStatus>,
+) -> serde_json::Value {
+    let served = p.served_by();
+    serde_json::json!({
+        "slot": p.spec.slot,
+        "kind": p.spec.kind,
+        "requested_plugin": p.spec.plugin,
+        "plugin": served.as_ref().map(|s| &s.plugin),
+        "plugin_version": served.as_ref().map(|s| &s.version),
+        "generation": served.as_ref().map(|s| s.generation),
+        "isolation": p.spec.isolation,
+        "status": status,
+        "waiting_for": p.waiting(),
+        "state": p.state(),
+        "frames": p.frames_published(),
+    })
 }
