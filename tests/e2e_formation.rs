@@ -7,71 +7,20 @@ mod support;
 
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
-use support::{EventLog, Process, Skein, eventually, free_udp_range, sim_stats, summary};
-
-/// Ground-truth horizontal+vertical distances between every pair of simulated vehicles,
-/// from their geodetic positions (flat earth over a few hundred metres).
-fn truth_min_separation(stats_addr: &str) -> f64 {
-    let s = sim_stats(stats_addr, "stats");
-    let pos: Vec<(f64, f64, f64)> = s["vehicles"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|v| v["killed"] != true && v["truth"]["landed_state"] != "OnGround")
-        .map(|v| {
-            let p = &v["truth"]["position"];
-            (
-                p["lat_deg"].as_f64().unwrap(),
-                p["lon_deg"].as_f64().unwrap(),
-                p["alt_amsl_m"].as_f64().unwrap(),
-            )
-        })
-        .collect();
-    let mut best = f64::INFINITY;
-    for (i, a) in pos.iter().enumerate() {
-        for b in &pos[i + 1..] {
-            let n = (b.0 - a.0).to_radians() * 6_371_000.0;
-            let e = (b.1 - a.1).to_radians() * 6_371_000.0 * a.0.to_radians().cos();
-            let d = (n * n + e * e + (b.2 - a.2).powi(2)).sqrt();
-            best = best.min(d);
-        }
-    }
-    best
-}
+use support::{
+    EventLog, Process, Skein, eventually, free_udp_range, sim_stats, summary, truth_min_separation,
+};
 
 fn up(n: usize, extra: &[&str]) -> Skein {
-    let n = n.to_string();
-    let mut args = vec![
-        "--sim",
-        &n,
-        "--sim-base-port",
-        "0",
-        "--sim-stats",
-        "127.0.0.1:0",
-    ];
-    args.extend_from_slice(extra);
-    Skein::up(&args)
+    Skein::up_sim(n, extra)
 }
 
 fn formation(skein: &Skein) -> Value {
-    skein.get("/api/v1/formation").1
+    skein.formation()
 }
 
-/// Waits until every one of `n` members is within `tol` of its slot.
 fn settled(skein: &Skein, n: usize, tol: f64, within: Duration) {
-    eventually(&format!("{n} members within {tol} m"), within, || {
-        let f = formation(skein);
-        let members = f["members"].as_array().cloned().unwrap_or_default();
-        if members.len() == n
-            && members
-                .iter()
-                .all(|m| m["error_m"].as_f64().unwrap_or(99.0) < tol)
-        {
-            Ok(())
-        } else {
-            Err(format!("{f}"))
-        }
-    });
+    skein.settled(n, tol, within)
 }
 
 #[test]

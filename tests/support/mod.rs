@@ -537,6 +537,44 @@ impl EventLog {
 }
 
 impl Skein {
+    /// `skein up --sim n` with its simulator on free ports and its stats socket on
+    /// (`sim_stats_addr`), plus `extra` arguments.
+    pub fn up_sim(n: usize, extra: &[&str]) -> Skein {
+        let n = n.to_string();
+        let mut args = vec![
+            "--sim",
+            &n,
+            "--sim-base-port",
+            "0",
+            "--sim-stats",
+            "127.0.0.1:0",
+        ];
+        args.extend_from_slice(extra);
+        Skein::up(&args)
+    }
+
+    /// `GET /api/v1/formation`.
+    pub fn formation(&self) -> Value {
+        self.get("/api/v1/formation").1
+    }
+
+    /// Waits until every one of `n` members is within `tol` metres of its slot.
+    pub fn settled(&self, n: usize, tol: f64, within: Duration) {
+        eventually(&format!("{n} members within {tol} m"), within, || {
+            let f = self.formation();
+            let members = f["members"].as_array().cloned().unwrap_or_default();
+            if members.len() == n
+                && members
+                    .iter()
+                    .all(|m| m["error_m"].as_f64().unwrap_or(99.0) < tol)
+            {
+                Ok(())
+            } else {
+                Err(format!("{f}"))
+            }
+        });
+    }
+
     /// Waits until `n` vehicles are connected with a position, takes the swarm off to
     /// `altitude_m` and waits until all `n` hover.
     pub fn take_off(&self, n: usize, altitude_m: f64) {
@@ -616,4 +654,34 @@ pub mod plugins {
         std::fs::create_dir_all(&dir).unwrap();
         dir
     }
+}
+
+/// Ground-truth horizontal+vertical distances between every pair of simulated vehicles,
+/// from their geodetic positions (flat earth over a few hundred metres).
+pub fn truth_min_separation(stats_addr: &str) -> f64 {
+    let s = sim_stats(stats_addr, "stats");
+    let pos: Vec<(f64, f64, f64)> = s["vehicles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|v| v["killed"] != true && v["truth"]["landed_state"] != "OnGround")
+        .map(|v| {
+            let p = &v["truth"]["position"];
+            (
+                p["lat_deg"].as_f64().unwrap(),
+                p["lon_deg"].as_f64().unwrap(),
+                p["alt_amsl_m"].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    let mut best = f64::INFINITY;
+    for (i, a) in pos.iter().enumerate() {
+        for b in &pos[i + 1..] {
+            let n = (b.0 - a.0).to_radians() * 6_371_000.0;
+            let e = (b.1 - a.1).to_radians() * 6_371_000.0 * a.0.to_radians().cos();
+            let d = (n * n + e * e + (b.2 - a.2).powi(2)).sqrt();
+            best = best.min(d);
+        }
+    }
+    best
 }

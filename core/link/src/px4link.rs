@@ -50,7 +50,7 @@ pub enum LinkEvent {
     Observed(Observed),
     /// No valid message for [`LINK_TIMEOUT`].
     Lost,
-    /// Messages again after [`LinkEvent::Lost`].
+    /// The autopilot's HEARTBEAT again after [`LinkEvent::Lost`] (with what it says).
     Restored(Observed),
     /// The autopilot rebooted (boot time went backwards).
     Rebooted,
@@ -448,19 +448,24 @@ impl Px4LinkState {
                 .on_value(&param_name(&pv.param_id), value, self.target());
             self.transmit_param(myself, t);
         }
-        if self.link.lost.swap(false, Ordering::Relaxed) {
-            let observed = self.link.with_telemetry(|t| t.observed());
-            if let Some(o) = observed {
-                (self.events)(LinkEvent::Restored(o));
-            }
-            self.greet(myself);
-        }
         let change = self
             .link
             .telemetry
             .write()
             .expect("telemetry lock")
             .apply(&frame.msg, Instant::now());
+        // The link is back with the autopilot's first HEARTBEAT after the loss: what it
+        // says (armed, mode) is fresh, where other messages would leave the FSM settling
+        // on the state from before the loss.
+        if matches!(frame.msg, MavMessage::HEARTBEAT(_))
+            && self.link.lost.swap(false, Ordering::Relaxed)
+        {
+            let observed = self.link.with_telemetry(|t| t.observed());
+            if let Some(o) = observed {
+                (self.events)(LinkEvent::Restored(o));
+            }
+            self.greet(myself);
+        }
         match change {
             Change::None => {}
             Change::Observed(o) => {

@@ -220,21 +220,6 @@ pub fn slot_positions(offsets: &[Ned], leader: Ned, heading_rad: f64) -> Vec<Ned
 /// # Panics
 /// If there are more positions than slots.
 pub fn assign_slots(positions: &[Ned], slots: &[Ned]) -> Vec<usize> {
-    assign_slots_by(positions, slots, |_, _| 0.0)
-}
-
-/// [`assign_slots`] with an extra cost, square metres, for sending vehicle `i` to slot
-/// `j` (`extra(i, j)`): a planner's penalty for a path it would rather not fly. Only
-/// with no extra cost does the assignment keep the separation argument of minimum total
-/// squared distance.
-///
-/// # Panics
-/// When there are more vehicles than slots.
-pub fn assign_slots_by(
-    positions: &[Ned],
-    slots: &[Ned],
-    extra: impl Fn(usize, usize) -> f64,
-) -> Vec<usize> {
     assert!(
         positions.len() <= slots.len(),
         "{} vehicles for {} slots",
@@ -245,7 +230,7 @@ pub fn assign_slots_by(
         return Vec::new();
     }
     let weights = Matrix::from_fn(positions.len(), slots.len(), |(i, j)| {
-        (((positions[i] - slots[j]).norm_squared() + extra(i, j)) * 1e6).round() as i64
+        ((positions[i] - slots[j]).norm_squared() * 1e6).round() as i64
     });
     kuhn_munkres_min(&weights).1
 }

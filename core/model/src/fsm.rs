@@ -186,9 +186,12 @@ pub struct Observed {
 }
 
 impl Observed {
-    /// True when the landed state says airborne.
+    /// True when the vehicle is armed and the landed state says airborne. A disarmed
+    /// multicopter is not flying whatever an older `EXTENDED_SYS_STATE` said (right after
+    /// a link comes back, the landed state may still be the one from before the loss,
+    /// while the fresh heartbeat already says disarmed).
     pub fn airborne(&self) -> bool {
-        self.landed.is_airborne()
+        self.armed && self.landed.is_airborne()
     }
 }
 
@@ -648,6 +651,14 @@ mod tests {
         assert_eq!(
             transition(s, Event::LinkRestored(rtl)).unwrap(),
             S::ReturnToLaunch
+        );
+        // Landed by its failsafe while unseen: the fresh heartbeat says disarmed (and, as
+        // PX4 v1.16 does after a disarm, OFFBOARD) while the landed state is still the
+        // one from before the loss. Disarmed is on the ground.
+        let landed_unseen = obs(false, Px4Mode::Offboard, LandedState::InAir);
+        assert_eq!(
+            transition(s, Event::LinkRestored(landed_unseen)).unwrap(),
+            S::Landed
         );
     }
 

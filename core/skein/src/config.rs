@@ -522,6 +522,6 @@ payloads = [{ slot = "fixture", kind = "fault-fixture" }]
     fn empty_file_is_fine() {
         let c = ConfigFile::parse("").unwrap();
         assert!(c.vehicles.is_empty());
-        assert_eq!(c.swarm_config().unwrap().stream_rate_hz, 20.0);
+        assert_eq!(c.swarm_config().unwrap().stream_rate_hz, 50.0);
     }
 }

@@ -11,7 +11,9 @@
 //! wind and noise). Used by the transition tests and `skein bench formation`; the
 //! end-to-end tests fly the same code against the simulator over MAVLink.
 
-use crate::formation::{FormationEngine, FormationSpec, FormationStatus, LeaderMotion, Member};
+use crate::formation::{
+    FormationEngine, FormationSpec, FormationStatus, Hazard, HazardConfig, LeaderMotion, Member,
+};
 use skein_model::geo::Ned;
 use skein_model::safety::{Geofence, MotionLimits, Obstacle, SetpointShaper};
 use std::collections::BTreeMap;
@@ -82,6 +84,11 @@ pub struct RehearsalStats {
     pub fence_clamps: u64,
     /// Steps flown.
     pub steps: u64,
+    /// Longest time the formation's pacing held a member, seconds (the engine plans the
+    /// change again after `HazardConfig::replan_after_s`).
+    pub max_stall_s: f64,
+    /// The pair (indices, 0 = `uav-1`) at the smallest distance.
+    pub min_pair: (usize, usize),
 }
 
 #[derive(Debug, Clone)]
@@ -95,6 +102,11 @@ struct Aircraft {
     slot: Option<(Ned, Ned)>,
     slot_age_s: f64,
     setpoint: (Ned, Ned),
+    /// Lost at this virtual time, seconds: it holds where it was (PX4's offboard-loss
+    /// hold) and the formation plans around where it was last seen.
+    lost_at_s: Option<f64>,
+    /// Where it was when it was lost.
+    last_seen: Ned,
 }
 
 /// A formation flown in virtual time (see the module docs).
@@ -136,6 +148,8 @@ impl Rehearsal {
                     slot: None,
                     slot_age_s: 0.0,
                     setpoint: (p, Ned::ZERO),
+                    lost_at_s: None,
+                    last_seen: p,
                 }
             })
             .collect();
@@ -156,6 +170,24 @@ impl Rehearsal {
     /// Flies `spec` from the next formation tick on.
     pub fn set_formation(&mut self, spec: FormationSpec) {
         self.engine.set(spec);
+    }
+
+    /// Loses vehicle `id` now, as a link that goes silent: it stops getting slots and
+    /// holds where it is (PX4's offboard-loss action `Hold`), and from the next formation
+    /// tick on it is a hazard at the place it was lost, its radius growing as
+    /// [`HazardConfig::default`] says. Unknown ids are ignored.
+    pub fn lose(&mut self, id: &str) {
+        let t = self.time_s();
+        if let Some(a) = self
+            .aircraft
+            .iter_mut()
+            .find(|a| a.id == id && a.lost_at_s.is_none())
+        {
+            a.lost_at_s = Some(t);
+            a.last_seen = a.position;
+            a.slot = None;
+            a.setpoint = (a.position, Ned::ZERO);
+        }
     }
 
     /// Gives the reference point a motion.
@@ -199,9 +231,26 @@ impl Rehearsal {
     pub fn advance(&mut self) {
         let dt = self.config.dt_s;
         if self.step.is_multiple_of(self.config.formation_every as u64) {
+            let now = self.time_s();
+            let hazards: Vec<Hazard> = self
+                .aircraft
+                .iter()
+                .filter_map(|a| {
+                    let unseen_s = now - a.lost_at_s?;
+                    Some(Hazard {
+                        id: a.id.clone(),
+                        position: a.last_seen,
+                        radius_m: HazardConfig::default().radius_m(unseen_s),
+                        unseen_s,
+                        reason: "Lost".into(),
+                    })
+                })
+                .collect();
+            self.engine.set_hazards(hazards);
             let members: BTreeMap<String, Member> = self
                 .aircraft
                 .iter()
+                .filter(|a| a.lost_at_s.is_none())
                 .map(|a| {
                     let heading = a.velocity.east_m.atan2(a.velocity.north_m);
                     (
@@ -218,6 +267,7 @@ impl Rehearsal {
                 .collect();
             let period = dt * self.config.formation_every as f64;
             let slots = self.engine.tick(&members, period, &self.config.fence);
+            self.stats.max_stall_s = self.stats.max_stall_s.max(self.engine.stalled_s());
             for a in &mut self.aircraft {
                 if let Some(s) = slots.get(&a.id) {
                     a.slot = Some((s.position, s.velocity));
@@ -237,6 +287,16 @@ impl Rehearsal {
                     continue;
                 }
                 let planned = o.slot.is_some();
+                if o.lost_at_s.is_some() {
+                    // Nobody steers it: it does not give way (no reciprocity).
+                    self.obstacles.push(Obstacle {
+                        position: o.position,
+                        velocity: o.velocity,
+                        reciprocal: false,
+                        planned: false,
+                    });
+                    continue;
+                }
                 for (position, velocity) in [(o.position, o.velocity), o.setpoint] {
                     self.obstacles.push(Obstacle {
                         position,
@@ -282,12 +342,20 @@ impl Rehearsal {
             }
         }
         let mut min = f64::INFINITY;
+        let mut pair = (0, 0);
         for (i, a) in self.aircraft.iter().enumerate() {
-            for b in &self.aircraft[i + 1..] {
-                min = min.min((a.position - b.position).norm());
+            for (j, b) in self.aircraft.iter().enumerate().skip(i + 1) {
+                let d = (a.position - b.position).norm();
+                if d < min {
+                    min = d;
+                    pair = (i, j);
+                }
             }
         }
-        self.stats.min_separation_m = self.stats.min_separation_m.min(min);
+        if min < self.stats.min_separation_m {
+            self.stats.min_separation_m = min;
+            self.stats.min_pair = pair;
+        }
         if min < self.config.min_separation_m {
             self.stats.separation_violations += 1;
         }

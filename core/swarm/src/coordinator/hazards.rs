@@ -9,6 +9,7 @@ use super::CoordinatorState;
 use crate::events::SwarmEvent;
 use crate::formation::Hazard;
 use skein_model::fsm::VehicleState;
+use skein_model::px4::LandedState;
 use std::collections::{BTreeMap, BTreeSet};
 
 /// The hazards in force and the ones an operator cleared.
@@ -33,14 +34,18 @@ impl CoordinatorState {
             if v.failed || !is_hazard_state(r.state) {
                 self.hazards.cleared.remove(id);
                 if self.hazards.active.remove(id).is_some() {
-                    let reason = match r.state {
-                        VehicleState::Landed | VehicleState::Armed => "seen on the ground",
-                        _ if v.failed => "its actor failed: PX4 holds or lands it",
-                        _ => "heard again and following its setpoints",
+                    let on_ground = matches!(r.state, VehicleState::Landed | VehicleState::Armed)
+                        || v.snapshot().landed_state == LandedState::OnGround;
+                    let reason = if on_ground {
+                        "seen on the ground".to_string()
+                    } else if v.failed {
+                        "its actor failed: PX4 holds or lands it".to_string()
+                    } else {
+                        format!("heard again ({})", r.state)
                     };
                     events.push(SwarmEvent::HazardCleared {
                         id: id.clone(),
-                        reason: reason.into(),
+                        reason,
                     });
                 }
                 continue;

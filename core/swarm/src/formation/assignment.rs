@@ -1,19 +1,17 @@
 //! Which slot each member flies: minimum total squared distance (Kuhn–Munkres, see
 //! [`skein_model::formation::assign_slots_by`]) from where the members start to the free
 //! slots, a leader vehicle keeping slot 0, the members farthest from every slot waiting
-//! when a custom shape has too few; and the [`Transition`] that takes them there. A
-//! straight path through a hazard costs [`HAZARD_PENALTY_M2`] on top, so it is flown
-//! only when no assignment avoids it (the members' shapers then keep the separation).
+//! when a custom shape has too few; and the [`Transition`] that takes them there. The
+//! assignment stays purely the minimum total squared distance even with hazards (its
+//! separation argument depends on it): a path that would pass a hazard, or a leader
+//! vehicle, is flown on a layer above (or below) it instead (see `climb`).
 
-use super::hazard::{Hazard, path_blocked};
+use super::climb::Keepout;
+use super::hazard::Hazard;
 use super::transition::Transition;
-use skein_model::formation::assign_slots_by;
+use skein_model::formation::assign_slots;
 use skein_model::geo::Ned;
 use std::collections::BTreeMap;
-
-/// Extra cost of a straight path through a hazard, square metres (more than any
-/// formation's total squared distance).
-pub const HAZARD_PENALTY_M2: f64 = 1.0e6;
 
 /// Assigns members to slots and plans the transition to them. `starts` are where the
 /// members start, pattern frame (metres from the anchor, unturned); `offsets` are the
@@ -53,19 +51,22 @@ pub(super) fn assign(
         candidates.truncate(free.len());
     }
     let positions: Vec<Ned> = candidates.iter().map(|(_, p)| *p).collect();
-    let slots = assign_slots_by(&positions, free, |i, j| {
-        let blocked = hazards
-            .iter()
-            .filter(|h| path_blocked(positions[i], free[j], h, separation_m))
-            .count();
-        blocked as f64 * HAZARD_PENALTY_M2
-    });
+    let slots = assign_slots(&positions, free);
     let mut transition = Transition::new();
-    let layer = leader.map(|_| separation_m);
+    // Paths keep clear of the leader vehicle and of every hazard, on a layer if need be.
+    let keepouts: Vec<Keepout> = leader
+        .map(|_| Keepout::leader(separation_m))
+        .into_iter()
+        .chain(hazards.iter().map(|h| Keepout {
+            centre: h.position,
+            radius_m: h.clearance_m(separation_m),
+            may_leave: true,
+        }))
+        .collect();
     for ((id, start), slot) in candidates.into_iter().zip(slots) {
         let slot = slot + first_follower_slot;
         assignment.insert(id.clone(), slot);
-        transition.add(id, start, offsets[slot], layer);
+        transition.add(id, start, offsets[slot], &keepouts);
     }
     (assignment, transition)
 }
@@ -148,7 +149,7 @@ mod tests {
     }
 
     #[test]
-    fn no_member_is_sent_through_a_hazard_when_another_slot_avoids_it() {
+    fn a_path_through_a_hazard_is_flown_on_a_layer_over_it() {
         // Slots 6 m west and east; each member starts 12 m north of its nearest one, and
         // a hazard sits on the western member's straight path.
         let offsets = vec![Ned::new(0.0, -6.0, 0.0), Ned::new(0.0, 6.0, 0.0)];
@@ -156,20 +157,28 @@ mod tests {
             ("e", Ned::new(12.0, 8.0, 0.0)),
             ("w", Ned::new(12.0, -8.0, 0.0)),
         ]);
-        let (plain, _) = assign(&s, &offsets, None, 3.5, &[]);
-        assert_eq!(plain, starts_to_slots(&[("e", 1), ("w", 0)]));
         let hazard = Hazard {
             id: "x".into(),
             position: Ned::new(6.0, -7.0, 0.0),
-            radius_m: 0.0,
-            unseen_s: 0.0,
+            radius_m: 1.0,
+            unseen_s: 1.0,
             reason: "Lost".into(),
         };
-        let (avoiding, t) = assign(&s, &offsets, None, 3.5, std::slice::from_ref(&hazard));
-        assert_eq!(avoiding, starts_to_slots(&[("e", 0), ("w", 1)]));
-        for (id, start) in &t.starts {
-            assert!(!path_blocked(*start, t.goals[id], &hazard, 3.5), "{id}");
-        }
+        let (plain, t) = assign(&s, &offsets, None, 3.5, &[]);
+        let (avoiding, layered) = assign(&s, &offsets, None, 3.5, std::slice::from_ref(&hazard));
+        // The same assignment (minimum squared distance keeps the separation argument)…
+        assert_eq!(plain, starts_to_slots(&[("e", 1), ("w", 0)]));
+        assert_eq!(avoiding, plain);
+        assert!(t.extents().iter().all(|p| p.down_m == 0.0));
+        // … but "w" flies over the hazard, 4.5 m (its clearance) above its straight path.
+        let up: Vec<Ned> = layered
+            .extents()
+            .into_iter()
+            .filter(|p| p.down_m != 0.0)
+            .collect();
+        assert!(up.contains(&Ned::new(12.0, -8.0, -4.5)), "{up:?}");
+        assert!(up.contains(&Ned::new(0.0, -6.0, -4.5)), "{up:?}");
+        assert_eq!(up.len(), 2, "only w climbs: {up:?}");
     }
 
     fn starts_to_slots(list: &[(&str, usize)]) -> BTreeMap<String, usize> {

@@ -1,7 +1,7 @@
 //! The layers of a transition: a follower whose straight path would pass a leader
-//! vehicle (which keeps slot 0, outside the assignment's separation argument) flies it on
-//! a layer above or below the leader ([`Climb`]), chosen by its clearance from the
-//! leader along the whole three-phase path.
+//! vehicle (which keeps slot 0, outside the assignment's separation argument) or a hazard
+//! (a lost vehicle) flies it on a layer above or below it ([`Climb`]), chosen by its
+//! clearance from every such [`Keepout`] along the whole three-phase path.
 
 use super::transition::TRANSIT_CLIMB_M_S;
 use skein_model::geo::Ned;
@@ -13,22 +13,63 @@ pub(super) struct Climb {
     pub(super) height_m: f64,
 }
 
+/// A place a transition path keeps away from, pattern frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Keepout {
+    /// Its centre, metres.
+    pub(super) centre: Ned,
+    /// The distance to keep, metres.
+    pub(super) radius_m: f64,
+    /// A path that starts closer may leave it (a member caught inside a growing hazard);
+    /// otherwise the path must keep the full radius from its first metre.
+    pub(super) may_leave: bool,
+}
+
+impl Keepout {
+    /// The leader vehicle at the pattern's origin.
+    pub(super) fn leader(separation_m: f64) -> Self {
+        Keepout {
+            centre: Ned::ZERO,
+            radius_m: separation_m,
+            may_leave: false,
+        }
+    }
+
+    /// The distance a path `a → b` on `climb` must keep from it.
+    fn needed_m(&self, a: Ned) -> f64 {
+        if self.may_leave {
+            self.radius_m.min((a - self.centre).norm())
+        } else {
+            self.radius_m
+        }
+    }
+
+    /// True when the path `a → b` on `climb` keeps what it must.
+    pub(super) fn clear(&self, a: Ned, b: Ned, climb: Option<&Climb>) -> bool {
+        clearance_from_origin(a - self.centre, b - self.centre, climb) >= self.needed_m(a) - 1e-9
+    }
+}
+
 impl Climb {
-    /// The smallest layer (over the leader rather than under it on a tie) that keeps a
-    /// follower going `a → b` at least `separation_m` from the origin (the leader
-    /// vehicle, in its own pattern frame) through all three phases, or the highest one
-    /// when none does (the shapers protect the rest). A layer below lowers the reference's
-    /// ceiling (every planned place stays inside the fence).
-    pub(super) fn over_origin(a: Ned, b: Ned, separation_m: f64) -> Climb {
+    /// The smallest layer (above rather than below on a tie) that keeps a member going
+    /// `a → b` clear of every keep-out through all three phases, trying multiples of the
+    /// largest keep-out radius; the highest tried when none does (the shapers protect the
+    /// rest).
+    pub(super) fn over(a: Ned, b: Ned, keepouts: &[Keepout]) -> Climb {
+        let base = keepouts.iter().map(|k| k.radius_m).fold(0.0, f64::max);
         [1.0, -1.0, 1.5, -1.5, 2.0, -2.0, 3.0, -3.0]
             .into_iter()
-            .map(|k| Climb {
-                height_m: k * separation_m,
-            })
-            .find(|c| clearance_from_origin(a, b, Some(c)) >= separation_m)
+            .map(|k| Climb { height_m: k * base })
+            .find(|c| keepouts.iter().all(|k| k.clear(a, b, Some(c))))
             .unwrap_or(Climb {
-                height_m: 3.0 * separation_m,
+                height_m: 3.0 * base,
             })
+    }
+
+    /// [`Climb::over`] the leader vehicle alone (at the origin, `separation_m`).
+    #[cfg(test)]
+    pub(super) fn over_origin(a: Ned, b: Ned, separation_m: f64) -> Climb {
+        Climb::over(a, b, &[Keepout::leader(separation_m)])
     }
 
     /// Length of the layering phases for this climb, seconds (peak vertical speed

@@ -111,6 +111,11 @@ impl FormationEngine {
         self.hazards = hazards;
     }
 
+    /// How long pacing has been holding a member, seconds (0 while nobody is held).
+    pub fn stalled_s(&self) -> f64 {
+        self.stalled_s
+    }
+
     /// The hazards planned around.
     pub fn hazards(&self) -> &[Hazard] {
         &self.hazards

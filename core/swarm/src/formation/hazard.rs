@@ -3,12 +3,11 @@
 //! whose radius grows with the time since it was last seen, at an assumed drift speed,
 //! up to a cap.
 //!
-//! The formation plans around hazards with two pure functions:
-//! - [`clearing_shift`]: the smallest horizontal shift of the slot pattern that puts every
-//!   slot at least the separation plus the hazard's radius from every hazard (exact along
-//!   each of a set of directions; the best direction wins);
-//! - [`path_blocked`]: whether a straight transition path comes closer to a hazard than
-//!   that (a path that starts inside may only move away).
+//! The formation plans around hazards: [`clearing_shift`] gives the smallest horizontal
+//! shift of the slot pattern that puts every slot at least the separation plus the
+//! hazard's radius from every hazard (exact along each of a set of directions; the best
+//! direction wins); transition paths that would pass one are flown on a layer over it
+//! (see `climb`).
 
 use serde::{Deserialize, Serialize};
 use skein_model::geo::Ned;
@@ -149,23 +148,6 @@ fn clear_along(points: &[Ned], hazards: &[Hazard], separation_m: f64, u: Ned) ->
     }
 }
 
-/// True when the straight path from `a` to `b` comes closer to `hazard` than its
-/// clearance, unless it starts that close and only moves away (a member caught inside a
-/// growing hazard must be able to leave it).
-pub fn path_blocked(a: Ned, b: Ned, hazard: &Hazard, separation_m: f64) -> bool {
-    let r = hazard.clearance_m(separation_m);
-    let ab = b - a;
-    let len2 = ab.norm_squared();
-    let start = (a - hazard.position).norm();
-    let closest = if len2 < 1e-12 {
-        start
-    } else {
-        let t = ((hazard.position - a).dot(&ab) / len2).clamp(0.0, 1.0);
-        (a + ab * t - hazard.position).norm()
-    };
-    closest < r && closest < start - 1e-6
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -241,18 +223,5 @@ mod tests {
         let moved: Vec<Ned> = pts.iter().map(|p| *p + s).collect();
         assert!(clear(&moved, &h, 3.5), "{s:?}");
         assert_eq!(clearing_shift(&pts, &h, 3.5, 1.0), None);
-    }
-
-    #[test]
-    fn a_path_through_a_hazard_is_blocked_but_leaving_one_is_not() {
-        let h = hazard(0.0, 0.0, 1.0);
-        let w = Ned::new(0.0, -10.0, -10.0);
-        let e = Ned::new(0.0, 10.0, -10.0);
-        assert!(path_blocked(w, e, &h, 3.5));
-        assert!(!path_blocked(w, Ned::new(10.0, -10.0, -10.0), &h, 3.5));
-        // Starting 2 m from it and moving away is allowed; moving closer is not.
-        let inside = Ned::new(0.0, 2.0, -10.0);
-        assert!(!path_blocked(inside, e, &h, 3.5));
-        assert!(path_blocked(inside, w, &h, 3.5));
     }
 }

@@ -36,9 +36,11 @@
 //! - **Hazards**: a member lost (or in PX4's failsafe) is an obstacle at its last known
 //!   position, its radius growing with the time unseen. The reference moves by the
 //!   smallest horizontal shift that puts every slot the separation plus that radius away
-//!   ([`clearing_shift`]); assignments avoid straight paths through a hazard; a formation
-//!   that cannot be cleared within [`MAX_HAZARD_SHIFT_M`] inside the fence holds and says
-//!   so (`blocked`).
+//!   ([`clearing_shift`]); a member whose straight path would pass a hazard flies it on a
+//!   layer above (or below) it, as followers pass a leader vehicle (the assignment stays
+//!   minimum squared distance, so its separation argument holds); a formation that cannot
+//!   be cleared within [`MAX_HAZARD_SHIFT_M`] inside the fence holds and says so
+//!   (`blocked`).
 //! - **No deadlock**: a change whose pacing has held a member for the replan time
 //!   (default 10 s) is planned again from where the members are ([`Replan`]).
 //!
@@ -69,7 +71,7 @@ mod status;
 mod transition;
 
 pub use engine::{DEFAULT_SEPARATION_M, FormationEngine, MAX_HAZARD_SHIFT_M};
-pub use hazard::{Hazard, HazardConfig, clearing_shift, path_blocked};
+pub use hazard::{Hazard, HazardConfig, clearing_shift};
 pub use leader::{LEADER_SILENCE, LeaderChange};
 pub use pattern::{TURN_ACCEL_M_S2, TURN_SPEED_M_S};
 pub use reference::{FENCE_BUFFER_M, PACE_SLOW_M, PACE_STOP_M, RETURN_SPEED_M_S, Reference};

@@ -4,7 +4,7 @@
 //! followers whose line would pass a leader vehicle fly it on a layer above (or below)
 //! it ([`Climb`]), reached before and left after the horizontal motion.
 
-use super::climb::{Climb, clearance_from_origin};
+use super::climb::{Climb, Keepout};
 use skein_model::geo::Ned;
 use std::collections::BTreeMap;
 
@@ -66,22 +66,14 @@ impl Transition {
     /// Adds member `id` going `start → goal` (pattern frame, metres). With
     /// `leader_separation_m` (a leader vehicle at the pattern's origin), a member whose
     /// straight path would pass closer than that to it flies on a layer ([`Climb`]).
-    pub(super) fn add(
-        &mut self,
-        id: &str,
-        start: Ned,
-        goal: Ned,
-        leader_separation_m: Option<f64>,
-    ) {
+    pub(super) fn add(&mut self, id: &str, start: Ned, goal: Ned, keepouts: &[Keepout]) {
         self.length_m = self.length_m.max(leg_length(goal - start));
         // The assignment's ordering argument does not cover the leader vehicle (it keeps
         // slot 0): a follower whose straight path would pass it flies on a layer above (or
         // below) it, reached before anyone moves horizontally and left after everyone
         // arrived (see `Transition`).
-        if let Some(sep) = leader_separation_m
-            && clearance_from_origin(start, goal, None) < sep
-        {
-            let climb = Climb::over_origin(start, goal, sep);
+        if keepouts.iter().any(|k| !k.clear(start, goal, None)) {
+            let climb = Climb::over(start, goal, keepouts);
             self.hold_s = self.hold_s.max(climb.hold_s());
             self.climbs.insert(id.to_string(), climb);
         }
@@ -225,7 +217,7 @@ mod tests {
     /// One member going 20 m east: a trapezoid (5 s up to 2.5 m/s, 3 s cruise, 5 s down).
     fn twenty_metres() -> Transition {
         let mut t = Transition::new();
-        t.add("a", Ned::ZERO, Ned::new(0.0, 20.0, 0.0), None);
+        t.add("a", Ned::ZERO, Ned::new(0.0, 20.0, 0.0), &[]);
         t
     }
 
@@ -258,8 +250,8 @@ mod tests {
     #[test]
     fn a_short_path_never_reaches_cruise_speed() {
         let mut t = Transition::new();
-        t.add("a", Ned::ZERO, Ned::new(4.0, 0.0, 0.0), None);
-        t.add("b", Ned::ZERO, Ned::new(1.0, 0.0, 0.0), None);
+        t.add("a", Ned::ZERO, Ned::new(4.0, 0.0, 0.0), &[]);
+        t.add("b", Ned::ZERO, Ned::new(1.0, 0.0, 0.0), &[]);
         // Triangle: peak √(a·l) = √2 m/s after 2√2 s, 4√2 s in all.
         let half = 2.0 * 2f64.sqrt();
         assert!(close(t.duration_s(), 2.0 * half));
@@ -302,7 +294,7 @@ mod tests {
     fn a_follower_passing_the_leader_climbs_first_and_lands_last() {
         let (a, b) = (Ned::new(0.0, -5.0, 0.0), Ned::new(0.0, 5.0, 0.0));
         let mut t = Transition::new();
-        t.add("f", a, b, Some(3.5));
+        t.add("f", a, b, &[Keepout::leader(3.5)]);
         assert_eq!(t.climbs["f"].height_m, 3.5);
         assert!(close(t.hold_s, 5.25));
         // Layers, then a 10 m triangle (4 · √5 s), then back down.
@@ -331,7 +323,7 @@ mod tests {
             "f",
             Ned::new(0.0, -5.0, 0.0),
             Ned::new(0.0, 5.0, 0.0),
-            Some(3.5),
+            &[Keepout::leader(3.5)],
         );
         let l = |e: f64| at(t.clone(), e).layering();
         assert_eq!(l(0.0).0, 0.0);
@@ -349,12 +341,12 @@ mod tests {
     fn no_layer_without_a_leader_vehicle_or_away_from_it() {
         let (a, b) = (Ned::new(0.0, -5.0, 0.0), Ned::new(0.0, 5.0, 0.0));
         let mut t = Transition::new();
-        t.add("virtual-follower", a, b, None);
+        t.add("virtual-follower", a, b, &[]);
         t.add(
             "beside",
             Ned::new(0.0, 5.0, 0.0),
             Ned::new(0.0, 10.0, 0.0),
-            Some(3.5),
+            &[Keepout::leader(3.5)],
         );
         assert!(t.climbs.is_empty());
         assert_eq!(t.hold_s, 0.0);
