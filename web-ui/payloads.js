@@ -104,7 +104,12 @@ export class PayloadsView {
       c.el.dataset.status = String(p.status);
       const st = c.el.querySelector('[data-field="status"]');
       const status = String(p.status);
-      if (st.textContent !== status) { st.textContent = status; st.className = `pl-status st-${status.split(/[^a-z]/)[0]}`; }
+      // A slot whose kind no loaded plugin provides says which kind it waits for.
+      const text = status === 'waiting_for_plugin' && p.waiting_for ? `waiting for a ${p.waiting_for} plugin` : status;
+      if (st.textContent !== text) { st.textContent = text; st.className = `pl-status st-${status.split(/[^a-z]/)[0]}`; }
+      const served = pluginLabel(p);
+      const pl = c.el.querySelector('[data-field="plugin"]');
+      if (pl.textContent !== served) pl.textContent = served;
       if (c.widget) c.widget.update(p, v);
       if (c.details.open) {
         const text = JSON.stringify(p.state, null, 1);
@@ -126,7 +131,7 @@ export class PayloadsView {
         <form class="raw-cmd" autocomplete="off"><input placeholder='{"command": "status"}' aria-label="Payload command (JSON)">
         <button class="btn tiny" type="submit">Send</button></form><pre class="state-json reply" data-field="reply" hidden></pre></details>`;
     el.querySelector('strong').textContent = `${p.slot} · ${p.kind}`;
-    el.querySelector('[data-field="plugin"]').textContent = p.plugin ? `plugin ${p.plugin}` : '';
+    el.querySelector('[data-field="plugin"]').textContent = pluginLabel(p);
     const details = el.querySelector('details');
     const send = (label, body, button) => this.send(p.slot, label, body, button);
     el.querySelector('.raw-cmd').addEventListener('submit', (ev) => {
@@ -152,4 +157,12 @@ export class PayloadsView {
     this.list.append(el);
     return { el, widget, details, stateEl: el.querySelector('.state-json') };
   }
+}
+
+/** Which library and build serve a payload: "plugin gimbal 0.1.0 · gen 2". */
+function pluginLabel(p) {
+  if (!p.plugin) return '';
+  const version = p.plugin_version ? ` ${p.plugin_version}` : '';
+  const generation = p.generation != null ? ` · gen ${p.generation}` : '';
+  return `plugin ${p.plugin}${version}${generation}`;
 }
