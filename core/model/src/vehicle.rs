@@ -95,6 +95,10 @@ pub struct VehicleSnapshot {
     pub id: String,
     /// MAVLink system id.
     pub sysid: u8,
+    /// Connection string of the MAVLink endpoint it is reached on (`udpin:0.0.0.0:14540`;
+    /// empty when unknown): the key of its counters in `GET /api/v1/links`.
+    #[serde(default)]
+    pub connection: String,
     /// Vehicle model name (`generic`, `observation`).
     pub model: String,
     /// FSM state.
@@ -132,6 +136,7 @@ mod tests {
         let snap = VehicleSnapshot {
             id: "uav-1".into(),
             sysid: 1,
+            connection: "udpin:0.0.0.0:14540".into(),
             model: "generic".into(),
             state: VehicleState::InFormation,
             armed: true,

@@ -63,6 +63,7 @@ impl BenchHost {
             snapshot: VehicleSnapshot {
                 id: "bench-1".into(),
                 sysid: 1,
+                connection: String::new(),
                 model: "observation".into(),
                 state: VehicleState::Hovering,
                 armed: true,

@@ -89,6 +89,8 @@ pub struct RehearsalStats {
     pub max_stall_s: f64,
     /// The pair (indices, 0 = `uav-1`) at the smallest distance.
     pub min_pair: (usize, usize),
+    /// Formation changes planned again because pacing held a member too long.
+    pub replans: u64,
 }
 
 #[derive(Debug, Clone)]
@@ -268,6 +270,7 @@ impl Rehearsal {
             let period = dt * self.config.formation_every as f64;
             let slots = self.engine.tick(&members, period, &self.config.fence);
             self.stats.max_stall_s = self.stats.max_stall_s.max(self.engine.stalled_s());
+            self.stats.replans += self.engine.take_replans().len() as u64;
             for a in &mut self.aircraft {
                 if let Some(s) = slots.get(&a.id) {
                     a.slot = Some((s.position, s.velocity));

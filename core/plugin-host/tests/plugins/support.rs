@@ -138,6 +138,7 @@ pub fn snapshot(id: &str, sysid: u8, ned: (f64, f64, f64), heading_deg: f64) -> 
     VehicleSnapshot {
         id: id.into(),
         sysid,
+        connection: String::new(),
         model: "observation".into(),
         state: VehicleState::Hovering,
         armed: true,

@@ -88,6 +88,7 @@ impl VehicleShared {
         let snapshot = VehicleSnapshot {
             id: id.clone(),
             sysid: link.sysid,
+            connection: link.endpoint.address().to_string(),
             model: model.name.clone(),
             state: VehicleState::Disconnected,
             armed: false,
@@ -287,6 +288,7 @@ impl VehicleShared {
             VehicleSnapshot {
                 id: self.id.clone(),
                 sysid: link.sysid,
+                connection: link.endpoint.address().to_string(),
                 model: self.model.name.clone(),
                 state,
                 armed: t.heartbeat.is_some_and(|h| h.armed),
