@@ -81,7 +81,9 @@ fn bench_formation_reports_convergence_error_and_separation() {
     assert_eq!(run["vehicles"], 8, "{report}");
     for key in ["mean", "max"] {
         assert!(run["rms_slot_error_moving_m"][key].is_number(), "{report}");
+        assert!(run["rms_slot_error_orbit_m"][key].is_number(), "{report}");
     }
+    assert_eq!(report["airframe"], "px4", "{report}");
     for key in ["p50", "max"] {
         assert!(run["converge_s"][key].is_number(), "{report}");
     }

@@ -11,6 +11,7 @@ use std::sync::mpsc;
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
+pub mod payloads;
 mod plugin_build;
 
 /// The `skein` binary cargo built for this test run.

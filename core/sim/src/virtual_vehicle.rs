@@ -7,7 +7,9 @@
 
 use crate::config::{SimConfig, TelemetryProfile};
 use crate::vehicle::{Environment, Outbox, Vehicle};
+use skein_mavlink::dialect::MavCmd;
 use skein_mavlink::{Decoder, Encoder, Frame, MavMessage};
+use skein_model::geo::Ned;
 use std::time::{Duration, Instant};
 
 /// A simulated vehicle (sysid 1) driven by a virtual clock.
@@ -132,5 +134,120 @@ impl VirtualVehicle {
     /// True while armed.
     pub fn armed(&self) -> bool {
         self.vehicle.armed
+    }
+}
+
+impl VirtualVehicle {
+    /// Boots, arms and takes off in OFFBOARD to `altitude_m` above where it stands, as a
+    /// ground station would (GCS heartbeat each second, a hold setpoint at 50 Hz), for
+    /// `settle_s` seconds; true when it is armed and within 0.5 m of the hold point.
+    pub fn take_off_offboard(&mut self, altitude_m: f64, settle_s: f64) -> bool {
+        let hold = Ned::new(0.0, 0.0, -altitude_m);
+        let sp = client::setpoint(client::POSITION_YAW, hold, Ned::ZERO, Ned::ZERO, 0.0);
+        self.send(&client::gcs_heartbeat());
+        self.run_until(self.time_s() + 1.5);
+        self.send(&sp);
+        self.send(&client::command(
+            MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+            [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        ));
+        self.send(&client::command(
+            MavCmd::MAV_CMD_DO_SET_MODE,
+            [1.0, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        ));
+        let end = self.time_s() + settle_s;
+        let (mut next_sp, mut next_hb) = (self.time_s(), self.time_s() + 1.0);
+        while self.time_s() < end {
+            if self.time_s() >= next_sp {
+                self.send(&sp);
+                next_sp += 0.02;
+            }
+            if self.time_s() >= next_hb {
+                self.send(&client::gcs_heartbeat());
+                next_hb += 1.0;
+            }
+            self.step();
+        }
+        let p = self.true_position_ned_m();
+        self.armed() && (Ned::new(p[0], p[1], p[2]) - hold).norm() < 0.5
+    }
+}
+
+/// What a ground station sends, built for [`VirtualVehicle::send`] (target 1/1, frame
+/// MAV_FRAME_LOCAL_NED).
+pub mod client {
+    use skein_mavlink::MavMessage;
+    use skein_mavlink::dialect::*;
+    use skein_model::geo::Ned;
+
+    /// `type_mask` position + yaw (2552).
+    pub const POSITION_YAW: u16 = 2552;
+    /// `type_mask` position + velocity feed-forward + yaw (2496).
+    pub const POSITION_VELOCITY_YAW: u16 = 2496;
+    /// `type_mask` position + velocity and acceleration feed-forward + yaw (2048).
+    pub const POSITION_VELOCITY_ACCELERATION_YAW: u16 = 2048;
+
+    /// A MAV_TYPE_GCS HEARTBEAT (keeps PX4's GCS-loss failsafe away).
+    pub fn gcs_heartbeat() -> MavMessage {
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode: 0,
+            mavtype: MavType::MAV_TYPE_GCS,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+            base_mode: MavModeFlag::empty(),
+            system_status: MavState::MAV_STATE_ACTIVE,
+            mavlink_version: 3,
+        })
+    }
+
+    /// COMMAND_LONG `cmd` with `params` 1–7.
+    pub fn command(cmd: MavCmd, p: [f32; 7]) -> MavMessage {
+        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            param1: p[0],
+            param2: p[1],
+            param3: p[2],
+            param4: p[3],
+            param5: p[4],
+            param6: p[5],
+            param7: p[6],
+            command: cmd,
+            target_system: 1,
+            target_component: 1,
+            confirmation: 0,
+        })
+    }
+
+    /// SET_POSITION_TARGET_LOCAL_NED: position (m), velocity (m/s), acceleration (m/s²),
+    /// all local NED, yaw (rad); `type_mask` says which are used.
+    pub fn setpoint(type_mask: u16, p: Ned, v: Ned, a: Ned, yaw_rad: f64) -> MavMessage {
+        MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+            time_boot_ms: 0,
+            x: p.north_m as f32,
+            y: p.east_m as f32,
+            z: p.down_m as f32,
+            vx: v.north_m as f32,
+            vy: v.east_m as f32,
+            vz: v.down_m as f32,
+            afx: a.north_m as f32,
+            afy: a.east_m as f32,
+            afz: a.down_m as f32,
+            yaw: yaw_rad as f32,
+            yaw_rate: 0.0,
+            type_mask: PositionTargetTypemask::from_bits_retain(type_mask),
+            target_system: 1,
+            target_component: 1,
+            coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+        })
+    }
+
+    /// The last LOCAL_POSITION_NED in `msgs`: (time s, position m, velocity m/s).
+    pub fn last_estimate(msgs: &[(f64, MavMessage)]) -> Option<(f64, Ned, Ned)> {
+        msgs.iter().rev().find_map(|(t, m)| match m {
+            MavMessage::LOCAL_POSITION_NED(p) => Some((
+                *t,
+                Ned::new(p.x.into(), p.y.into(), p.z.into()),
+                Ned::new(p.vx.into(), p.vy.into(), p.vz.into()),
+            )),
+            _ => None,
+        })
     }
 }

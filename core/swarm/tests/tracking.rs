@@ -6,64 +6,20 @@
 //! under the formation's 0.3 m budget.
 
 use skein_mavlink::MavMessage;
-use skein_mavlink::dialect::*;
 use skein_model::geo::Ned;
+use skein_sim::virtual_vehicle::client;
 use skein_sim::{SimConfig, VirtualVehicle};
 use skein_swarm::vehicle::tracking::{TrackingCorrection, TrackingGains};
 
 fn setpoint(p: Ned, v: Ned, yaw: f64) -> MavMessage {
-    setpoint_acc(p, v, None, yaw)
+    client::setpoint(client::POSITION_VELOCITY_YAW, p, v, Ned::ZERO, yaw)
 }
 
-/// Position + velocity (+ acceleration when given) + yaw: type_mask 2496, or 2048 with
-/// the acceleration feed-forward.
 fn setpoint_acc(p: Ned, v: Ned, a: Option<Ned>, yaw: f64) -> MavMessage {
-    let a_or_zero = a.unwrap_or(Ned::ZERO);
-    MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
-        time_boot_ms: 0,
-        x: p.north_m as f32,
-        y: p.east_m as f32,
-        z: p.down_m as f32,
-        vx: v.north_m as f32,
-        vy: v.east_m as f32,
-        vz: v.down_m as f32,
-        afx: a_or_zero.north_m as f32,
-        afy: a_or_zero.east_m as f32,
-        afz: a_or_zero.down_m as f32,
-        yaw: yaw as f32,
-        yaw_rate: 0.0,
-        type_mask: PositionTargetTypemask::from_bits_retain(if a.is_some() { 2048 } else { 2496 }),
-        target_system: 1,
-        target_component: 1,
-        coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
-    })
-}
-
-fn command(cmd: MavCmd, p1: f32, p2: f32, p3: f32) -> MavMessage {
-    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        param1: p1,
-        param2: p2,
-        param3: p3,
-        param4: 0.0,
-        param5: 0.0,
-        param6: 0.0,
-        param7: 0.0,
-        command: cmd,
-        target_system: 1,
-        target_component: 1,
-        confirmation: 0,
-    })
-}
-
-fn gcs_heartbeat() -> MavMessage {
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_GCS,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    })
+    match a {
+        Some(a) => client::setpoint(client::POSITION_VELOCITY_ACCELERATION_YAW, p, v, a, yaw),
+        None => setpoint(p, v, yaw),
+    }
 }
 
 /// What the vehicle last said of its position: (time, position, velocity).
@@ -128,33 +84,10 @@ fn fly_where(
         ..SimConfig::default()
     };
     let mut vv = VirtualVehicle::new(&cfg);
-    let mut est = None;
-    vv.send(&gcs_heartbeat());
-    read(&mut est, vv.run_until(1.5));
-    let hover = setpoint(Ned::new(0.0, 0.0, -10.0), Ned::ZERO, 0.0);
-    vv.send(&hover);
-    vv.send(&command(
-        MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-        1.0,
-        0.0,
-        0.0,
-    ));
-    vv.send(&command(MavCmd::MAV_CMD_DO_SET_MODE, 1.0, 6.0, 0.0));
+    let mut est: Option<Estimate> = None;
+    assert!(vv.take_off_offboard(10.0, 20.0), "did not take off");
     let mut next_sp = vv.time_s();
     let mut next_hb = vv.time_s() + 1.0;
-    let settle = vv.time_s() + 20.0;
-    while vv.time_s() < settle {
-        if vv.time_s() >= next_sp {
-            vv.send(&hover);
-            next_sp += 0.02;
-        }
-        if vv.time_s() >= next_hb {
-            vv.send(&gcs_heartbeat());
-            next_hb += 1.0;
-        }
-        read(&mut est, vv.step());
-    }
-    assert!(vv.armed(), "did not take off");
     let t0 = vv.time_s();
     let mut correction = TrackingCorrection::default();
     let mut errors = Vec::new();
@@ -184,7 +117,7 @@ fn fly_where(
             }
         }
         if vv.time_s() >= next_hb {
-            vv.send(&gcs_heartbeat());
+            vv.send(&client::gcs_heartbeat());
             next_hb += 1.0;
         }
         read(&mut est, vv.step());

@@ -1,34 +1,29 @@
 //! Formation flight rehearsed in virtual time: the real [`FormationEngine`] and one real
-//! [`SetpointShaper`] per vehicle, flying point-mass multicopters with a PX4-like position
-//! controller, stepped as fast as the CPU allows and fully deterministic.
+//! [`SetpointShaper`] per vehicle, stepped as fast as the CPU allows and fully
+//! deterministic.
 //!
 //! What runs is the code that flies: slot targets at the formation rate, extrapolated by
 //! each vehicle between formation ticks as the Vehicle actor does, shaped against every
 //! other vehicle's position and setpoint (planned between members, as [`crate::view`]
-//! marks them). What is modelled is the aircraft: position P gain `MPC_XY_P` 0.95 /
-//! `MPC_Z_P` 1.0 plus velocity feed-forward, velocity setpoint smoothed at `MPC_ACC_HOR`
-//! 3 m/s², velocity P 1.8 (the structure of `skein-sim`'s offboard controller, without
-//! wind and noise). Used by the transition tests and `skein bench formation`; the
-//! end-to-end tests fly the same code against the simulator over MAVLink.
+//! marks them), and for a simulated PX4 the same tracking correction (acceleration
+//! feed-forward with a learnt drag term). What flies is chosen by
+//! [`RehearsalConfig::airframe`] ([`airframe`]): skein's PX4-faithful simulated
+//! multicopter (`skein bench formation`), or a kinder point mass for the seeded sweeps of
+//! formation changes. Separation is measured on where the aircraft really are.
+
+mod airframe;
+
+pub use airframe::AirframeKind;
 
 use crate::formation::{
     FormationEngine, FormationSpec, FormationStatus, Hazard, HazardConfig, LeaderMotion, Member,
 };
+use crate::vehicle::tracking::{TrackingCorrection, TrackingGains};
+use airframe::Airframe;
 use skein_model::geo::Ned;
 use skein_model::safety::{Geofence, MotionLimits, Obstacle, SetpointShaper};
 use std::collections::BTreeMap;
 use std::time::Duration;
-
-/// Position P gain, horizontal (PX4 `MPC_XY_P`), 1/s.
-const POS_P_XY: f64 = 0.95;
-/// Position P gain, vertical (PX4 `MPC_Z_P`), 1/s.
-const POS_P_Z: f64 = 1.0;
-/// Velocity P gain, 1/s.
-const VEL_P: f64 = 1.8;
-/// Acceleration of the velocity setpoint (PX4 `MPC_ACC_HOR`), m/s².
-const ACC_HOR_M_S2: f64 = 3.0;
-/// Largest acceleration the airframe delivers, m/s².
-const ACC_MAX_M_S2: f64 = 5.0;
 
 /// How a rehearsal is set up.
 #[derive(Debug, Clone)]
@@ -51,6 +46,8 @@ pub struct RehearsalConfig {
     pub spawn_spacing_m: f64,
     /// Altitude they start at, metres above the origin.
     pub spawn_altitude_m: f64,
+    /// What flies (default: the point mass).
+    pub airframe: AirframeKind,
 }
 
 impl RehearsalConfig {
@@ -67,6 +64,7 @@ impl RehearsalConfig {
             margin_m: 0.5,
             spawn_spacing_m: 5.25,
             spawn_altitude_m: 10.0,
+            airframe: AirframeKind::PointMass,
         }
     }
 }
@@ -93,13 +91,16 @@ pub struct RehearsalStats {
     pub replans: u64,
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 struct Aircraft {
     id: String,
+    airframe: Airframe,
+    /// Where skein measures it (at the start of the step), rehearsal frame.
     position: Ned,
+    /// Its measured velocity, NED m/s.
     velocity: Ned,
-    velocity_sp: Ned,
     shaper: SetpointShaper,
+    tracking: TrackingCorrection,
     /// Slot target and velocity from the last formation tick (its age in `slot_age_s`).
     slot: Option<(Ned, Ned)>,
     slot_age_s: f64,
@@ -143,10 +144,11 @@ impl Rehearsal {
                 shaper.enforce_floor(true);
                 Aircraft {
                     id: format!("uav-{}", i + 1),
+                    airframe: Airframe::new(config.airframe, p, i as u64 + 1),
                     position: p,
                     velocity: Ned::ZERO,
-                    velocity_sp: Ned::ZERO,
                     shaper,
+                    tracking: TrackingCorrection::default(),
                     slot: None,
                     slot_age_s: 0.0,
                     setpoint: (p, Ned::ZERO),
@@ -212,8 +214,67 @@ impl Rehearsal {
 
     /// The formation status of the last tick (positions of all vehicles as airborne).
     pub fn status(&self) -> FormationStatus {
-        let positions: Vec<Ned> = self.aircraft.iter().map(|a| a.position).collect();
+        let positions: Vec<Ned> = self.aircraft.iter().map(|a| a.airframe.truth()).collect();
         self.engine.status(&positions)
+    }
+
+    /// Sends the virtual leader to `target` at `speed_m_s` and flies until it stops there
+    /// (at most 120 s); returns the formation's RMS slot error at every formation tick
+    /// while the reference cruised at full speed, past the first quarter of them (the
+    /// formation catching up with the acceleration), metres.
+    ///
+    /// # Errors
+    /// When no formation is flown.
+    pub fn cruise_to(&mut self, target: Ned, speed_m_s: f64) -> Result<Vec<f64>, String> {
+        self.set_motion(LeaderMotion::GoTo { target, speed_m_s })?;
+        let mut samples = Vec::new();
+        self.run_until(120.0, |r| {
+            let s = r.status();
+            let Some(reference) = s.reference else {
+                return true;
+            };
+            if reference.velocity.horizontal_norm() > speed_m_s - 0.01 {
+                samples.push(s.rms_error_m.unwrap_or(f64::NAN));
+            }
+            (reference.position - target).horizontal_norm() < 0.5 && reference.velocity.norm() < 0.1
+        });
+        Ok(samples.split_off(samples.len() / 4))
+    }
+
+    /// Orbits the virtual leader around `centre` (radius `radius_m`, clockwise) at
+    /// `speed_m_s` for `seconds` once on the circle, then holds; returns the RMS slot
+    /// errors while it orbited at full speed, past the first quarter, metres.
+    ///
+    /// # Errors
+    /// When no formation is flown.
+    pub fn orbit(
+        &mut self,
+        centre: Ned,
+        radius_m: f64,
+        speed_m_s: f64,
+        seconds: f64,
+    ) -> Result<Vec<f64>, String> {
+        self.set_motion(LeaderMotion::Orbit {
+            centre,
+            radius_m,
+            speed_m_s,
+            clockwise: true,
+        })?;
+        let mut samples = Vec::new();
+        let mut orbiting_s = 0.0;
+        let tick_s = self.config.dt_s * self.config.formation_every as f64;
+        self.run_until(seconds + 60.0, |r| {
+            let s = r.status();
+            if s.reference
+                .is_some_and(|p| p.velocity.horizontal_norm() > speed_m_s - 0.01)
+            {
+                samples.push(s.rms_error_m.unwrap_or(f64::NAN));
+                orbiting_s += tick_s;
+            }
+            orbiting_s >= seconds
+        });
+        self.set_motion(LeaderMotion::Hold)?;
+        Ok(samples.split_off(samples.len() / 4))
     }
 
     /// Steps until `done` holds (checked after every formation tick) or `max_s` of
@@ -232,6 +293,9 @@ impl Rehearsal {
     /// One integration step.
     pub fn advance(&mut self) {
         let dt = self.config.dt_s;
+        for a in &mut self.aircraft {
+            (a.position, a.velocity) = a.airframe.measured();
+        }
         if self.step.is_multiple_of(self.config.formation_every as u64) {
             let now = self.time_s();
             let hazards: Vec<Hazard> = self
@@ -319,36 +383,30 @@ impl Rehearsal {
             }
             a.setpoint = (sp.position, sp.velocity);
         }
-        // Fly.
+        // Fly: a member flying its slot on a simulated PX4 adds the tracking correction,
+        // as the Vehicle actor does; a lost one gets nothing.
+        let gains = TrackingGains::default();
         for a in &mut self.aircraft {
             let (sp, ff) = a.setpoint;
-            let e = sp - a.position;
-            let mut vel_sp = Ned::new(
-                POS_P_XY * e.north_m,
-                POS_P_XY * e.east_m,
-                POS_P_Z * e.down_m,
-            ) + ff;
-            let h = vel_sp.horizontal_norm();
-            if h > 12.0 {
-                vel_sp.north_m *= 12.0 / h;
-                vel_sp.east_m *= 12.0 / h;
-            }
-            let dv = vel_sp - a.velocity_sp;
-            let dv = dv.clamped_norm(ACC_HOR_M_S2 * dt);
-            a.velocity_sp = a.velocity_sp + dv;
-            let acc =
-                ((a.velocity_sp - a.velocity) * VEL_P + dv * (1.0 / dt)).clamped_norm(ACC_MAX_M_S2);
-            a.velocity = a.velocity + acc * dt;
-            a.position = a.position + a.velocity * dt;
-            if !self.config.fence.contains(a.position) {
+            let setpoint = if a.lost_at_s.is_some() {
+                None
+            } else if a.slot.is_some() && a.airframe.is_px4() {
+                let c = a.tracking.update(&gains, sp, ff, a.position, dt);
+                Some((sp + c.offset, ff, c.acceleration))
+            } else {
+                Some((sp, ff, Ned::ZERO))
+            };
+            a.airframe.fly(setpoint, dt);
+            if !self.config.fence.contains(a.airframe.truth()) {
                 self.stats.fence_violations += 1;
             }
         }
         let mut min = f64::INFINITY;
         let mut pair = (0, 0);
-        for (i, a) in self.aircraft.iter().enumerate() {
-            for (j, b) in self.aircraft.iter().enumerate().skip(i + 1) {
-                let d = (a.position - b.position).norm();
+        let truth: Vec<Ned> = self.aircraft.iter().map(|a| a.airframe.truth()).collect();
+        for (i, a) in truth.iter().enumerate() {
+            for (j, b) in truth.iter().enumerate().skip(i + 1) {
+                let d = (*a - *b).norm();
                 if d < min {
                     min = d;
                     pair = (i, j);
