@@ -9,6 +9,8 @@
 
 use skein_mavlink::MavMessage;
 use skein_mavlink::dialect::*;
+use skein_model::geo::Ned;
+use skein_sim::virtual_vehicle::client;
 use skein_sim::{SimConfig, VirtualVehicle};
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -94,52 +96,11 @@ fn load(name: &str) -> Trace {
 // ------------------------------------------------------------------ simulator side
 
 fn setpoint(mask: u16, p: [f64; 3], v: [f64; 3], yaw: f64) -> MavMessage {
-    MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
-        time_boot_ms: 0,
-        x: p[0] as f32,
-        y: p[1] as f32,
-        z: p[2] as f32,
-        vx: v[0] as f32,
-        vy: v[1] as f32,
-        vz: v[2] as f32,
-        afx: 0.0,
-        afy: 0.0,
-        afz: 0.0,
-        yaw: yaw as f32,
-        yaw_rate: 0.0,
-        type_mask: PositionTargetTypemask::from_bits_retain(mask),
-        target_system: 1,
-        target_component: 1,
-        coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
-    })
+    let ned = |a: [f64; 3]| Ned::new(a[0], a[1], a[2]);
+    client::setpoint(mask, ned(p), ned(v), Ned::ZERO, yaw)
 }
 
-fn command(cmd: MavCmd, p: [f32; 7]) -> MavMessage {
-    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        param1: p[0],
-        param2: p[1],
-        param3: p[2],
-        param4: p[3],
-        param5: p[4],
-        param6: p[5],
-        param7: p[6],
-        command: cmd,
-        target_system: 1,
-        target_component: 1,
-        confirmation: 0,
-    })
-}
-
-fn gcs_heartbeat() -> MavMessage {
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_GCS,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    })
-}
+use client::{command, gcs_heartbeat};
 
 /// Records the vehicle's output into `tr` with times relative to `t0`.
 fn record(tr: &mut Trace, last_armed: &mut Option<bool>, t0: f64, msgs: Vec<(f64, MavMessage)>) {
