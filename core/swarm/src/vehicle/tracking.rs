@@ -43,9 +43,9 @@ pub struct TrackingGains {
 impl Default for TrackingGains {
     fn default() -> Self {
         TrackingGains {
-            drag_rate: 0.3,
+            drag_rate: 0.1,
             max_drag_per_s: 2.0,
-            ki_per_s: 0.6,
+            ki_per_s: 0.3,
             max_cross_m: 1.5,
             max_acc_m_s2: 6.0,
             max_error_m: 3.0,
