@@ -131,8 +131,7 @@ fn hundred_seeded_runs_losing_a_vehicle_mid_transition() {
     settle_s.sort_by(f64::total_cmp);
     eprintln!(
         "{{\"runs\": 100, \"settle_s_p50\": {:.1}, \"settle_s_max\": {:.1}, \"runs_replanned\": {replanned}}}",
-        settle_s[50],
-        settle_s[99]
+        settle_s[50], settle_s[99]
     );
     // Some losses do block a change in flight (the lost vehicle on a path planned before
     // it was lost): those were planned again, and settled like the others.
