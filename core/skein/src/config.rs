@@ -19,7 +19,11 @@
 //! params = { COM_OF_LOSS_T = 1.0, COM_OBL_RC_ACT = 5, NAV_DLL_ACT = 0 }  # set at connect
 //!
 //! [http]
-//! listen = "127.0.0.1:8080"
+//! listen = "127.0.0.1:8080"   # a non-loopback address needs tokens (or --insecure-no-auth)
+//! [[http.tokens]]              # one per holder, from `skein token create --role operator`
+//! name = "ops"
+//! role = "operator"            # viewer | operator | admin
+//! hash = "sha256$<salt>$<digest>"
 //!
 //! [plugins]                    # payload plugins (cdylibs built with plugins/sdk)
 //! dir = "/var/lib/skein/plugins"  # loads every lib*.so at start; default: the directory
@@ -124,6 +128,10 @@ pub enum MavTypeName {
 pub struct HttpSection {
     /// Listen address.
     pub listen: Option<SocketAddr>,
+    /// API tokens (`[[http.tokens]]`, made by `skein token create`); none: no
+    /// authentication, allowed on loopback only (or with `--insecure-no-auth`).
+    #[serde(default)]
+    pub tokens: Vec<skein_api::auth::TokenConfig>,
 }
 
 /// `[plugins]`.
