@@ -172,3 +172,41 @@ fn the_shipped_companion_config_does_not_start_without_tokens() {
         "{err}"
     );
 }
+
+/// The dashboard's login in headless Chromium (tests/peers/login_selenium.py).
+#[test]
+fn the_dashboard_logs_in_and_hides_what_the_role_cannot_do_in_chromium() {
+    let (viewer, v_cfg) = create("viewer", "watch");
+    let (operator, o_cfg) = create("operator", "ops");
+    let dir = std::env::temp_dir().join(format!("skein-auth-ui-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("skein.toml");
+    std::fs::write(&path, format!("{v_cfg}\n\n{o_cfg}\n")).unwrap();
+    let skein = support::Skein::up(&[
+        "--sim",
+        "1",
+        "--sim-base-port",
+        "0",
+        "--config",
+        path.to_str().unwrap(),
+    ]);
+    let url = format!("{}/", skein.base);
+    let (code, out, err) = support::run_peer(
+        "login_selenium.py",
+        &[
+            "--url",
+            &url,
+            "--viewer-token",
+            &viewer,
+            "--operator-token",
+            &operator,
+        ],
+        Duration::from_secs(180),
+    );
+    assert_eq!(
+        code,
+        Some(0),
+        "login_selenium.py\n--- stdout\n{out}\n--- stderr\n{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
