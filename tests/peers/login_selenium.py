@@ -16,7 +16,8 @@ import json
 import sys
 
 from selenium import webdriver
-from selenium.common.exceptions import TimeoutException, WebDriverException
+from selenium.common.exceptions import (NoSuchElementException, StaleElementReferenceException,
+                                        TimeoutException, WebDriverException)
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
@@ -50,7 +51,10 @@ def main():
 
     def wait(what, cond):
         try:
-            return WebDriverWait(driver, args.timeout, poll_frequency=0.1).until(lambda d: cond())
+            # The page reloads after a login: elements found before it go stale.
+            return WebDriverWait(driver, args.timeout, poll_frequency=0.1,
+                                 ignored_exceptions=(NoSuchElementException, StaleElementReferenceException)
+                                 ).until(lambda d: cond())
         except TimeoutException:
             raise SystemExit(json.dumps({"ok": False, "failed": what, "steps": steps}))
 

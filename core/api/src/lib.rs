@@ -42,6 +42,7 @@ pub mod payloads;
 pub mod plugins;
 pub mod requests;
 pub mod server;
+pub mod tls;
 
 pub use server::ApiServer;
 
@@ -78,6 +79,7 @@ pub struct ApiState {
     plugins: Option<Arc<plugins::PluginsApi>>,
     geofence: Option<Arc<skein_model::safety::Geofence>>,
     auth: Arc<auth::Auth>,
+    tls: Option<Arc<rustls::ServerConfig>>,
 }
 
 impl ApiState {
@@ -96,7 +98,14 @@ impl ApiState {
             plugins: None,
             geofence: None,
             auth: Arc::new(auth::Auth::disabled()),
+            tls: None,
         }
+    }
+
+    /// Serves HTTPS with this configuration (see [`tls::server_config`]) in [`ApiServer`].
+    pub fn with_tls(mut self, config: Arc<rustls::ServerConfig>) -> Self {
+        self.tls = Some(config);
+        self
     }
 
     /// Requires these tokens (see [`auth`]; without this call every request is allowed).

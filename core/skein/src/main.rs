@@ -364,6 +364,11 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
     let http = args.http.or(file.http.listen).unwrap_or(DEFAULT_HTTP);
     refuse_unauthenticated(http, file.http.tokens.len(), args.insecure_no_auth)?;
     let auth = skein_api::auth::Auth::new(&file.http.tokens)?;
+    let tls = match (&file.http.tls_cert, &file.http.tls_key) {
+        (Some(cert), Some(key)) => Some(skein_api::tls::server_config(cert, key)?),
+        (None, None) => None,
+        _ => return Err("[http]: tls_cert and tls_key go together".into()),
+    };
     if args.insecure_no_auth && !auth.enabled() && !http.ip().is_loopback() {
         eprintln!("skein: WARNING: --insecure-no-auth: the API on {http} has no authentication");
     }
@@ -518,6 +523,11 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
         .with_plugins(plugins, refused)
         .with_geofence(geofence)
         .with_auth(auth);
+    let scheme = if tls.is_some() { "https" } else { "http" };
+    let state = match tls {
+        Some(t) => state.with_tls(t),
+        None => state,
+    };
     let service = skein_api::ApiServer::service(listener, state);
     match swarm
         .coordinator
@@ -531,7 +541,7 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
         Ok(ractor::rpc::CallResult::Success(Err(e))) => return Err(e),
         _ => return Err("the coordinator did not start the API".into()),
     }
-    println!("skein: dashboard at http://{local}/");
+    println!("skein: dashboard at {scheme}://{local}/");
     spawn_process_watchdog(
         swarm.coordinator.clone(),
         Duration::from_millis(
