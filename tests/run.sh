@@ -3,6 +3,7 @@
 # toolchain, Python 3.11 with pip and apt-get assumed), idempotently:
 #   - .venv with the independent peers (tests/peers/requirements.txt)
 #   - Debian's chromium and chromium-driver for the dashboard test
+#   - Debian's openssl for the HTTPS test's certificate
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -24,6 +25,15 @@ if ! have_chromium; then
   [ "$(id -u)" = 0 ] || sudo="sudo"
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq chromium chromium-driver >/dev/null
+fi
+
+# The HTTPS test makes its self-signed certificate with the openssl command-line tool.
+if ! command -v openssl >/dev/null 2>&1; then
+  echo "tests/run.sh: installing openssl" >&2
+  sudo=""
+  [ "$(id -u)" = 0 ] || sudo="sudo"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq openssl >/dev/null
 fi
 
 export SKEIN_PYTHON="$PWD/.venv/bin/python"

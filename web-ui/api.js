@@ -4,9 +4,25 @@
 
 const API = '/api/v1';
 
+// The API token of this tab (see auth.js): sent as `Authorization: Bearer` on requests
+// and as `?token=` where a browser cannot set headers (the WebSocket, <img> video).
+const TOKEN_KEY = 'skein.token';
+export const getToken = () => { try { return sessionStorage.getItem(TOKEN_KEY); } catch { return null; } };
+export const setToken = (t) => sessionStorage.setItem(TOKEN_KEY, t);
+export const clearToken = () => sessionStorage.removeItem(TOKEN_KEY);
+/** `url` with `?token=` (or `&token=`) when logged in. */
+export function withToken(url) {
+  const t = getToken();
+  return t ? `${url}${url.includes('?') ? '&' : '?'}token=${encodeURIComponent(t)}` : url;
+}
+/** Called with the error body when the API answers 401 (auth.js shows the login). */
+export const auth = { onUnauthorized: null };
+
 /** One JSON request. Resolves to {ok, status, data}. */
 export async function request(method, path, body) {
   const init = { method, headers: { Accept: 'application/json' } };
+  const token = getToken();
+  if (token) init.headers.Authorization = `Bearer ${token}`;
   if (body !== undefined) {
     init.headers['Content-Type'] = 'application/json';
     init.body = JSON.stringify(body);
@@ -22,6 +38,7 @@ export async function request(method, path, body) {
   if (text) {
     try { data = JSON.parse(text); } catch { data = { error: text.slice(0, 200) }; }
   }
+  if (res.status === 401 && auth.onUnauthorized) auth.onUnauthorized(data);
   if (!res.ok && (!data || typeof data.error !== 'string')) {
     data = { ...(data || {}), error: `HTTP ${res.status} ${res.statusText}`.trim() };
   }
@@ -41,7 +58,7 @@ export const leaderMotion = (motion, body = {}) =>
 /** The stream URL, derived from the page's location (ws: or wss:). */
 export function streamUrl(loc = window.location) {
   const scheme = loc.protocol === 'https:' ? 'wss:' : 'ws:';
-  return `${scheme}//${loc.host}${API}/stream`;
+  return withToken(`${scheme}//${loc.host}${API}/stream`);
 }
 
 /**
@@ -127,7 +144,7 @@ export const payloadCommand = (id, slot, body) =>
   request('POST', `/vehicles/${enc(id)}/payloads/${enc(slot)}`, body);
 /** URL of a payload's MJPEG stream (or its last frame with snapshot = true). */
 export const payloadVideoUrl = (id, slot, snapshot = false) =>
-  `${API}/vehicles/${enc(id)}/payloads/${enc(slot)}/${snapshot ? 'snapshot' : 'stream'}`;
+  withToken(`${API}/vehicles/${enc(id)}/payloads/${enc(slot)}/${snapshot ? 'snapshot' : 'stream'}`);
 export const getSupervision = () => request('GET', '/supervision');
 export const injectFault = (target, kind) => request('POST', '/faults', { target, kind });
 export const getPlugins = () => request('GET', '/plugins');

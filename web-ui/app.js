@@ -3,6 +3,7 @@
 // payloads, supervision, plugins, charts), and the controls to the HTTP API.
 
 import * as api from './api.js';
+import { initAuth } from './auth.js';
 import { PlanView } from './plan.js';
 import { VehicleTable } from './table.js';
 import { EventLog, describeFormation } from './log.js';
@@ -19,6 +20,8 @@ import { ChartsView } from './charts.js';
 import { installShortcuts } from './keys.js';
 
 const $ = (id) => document.getElementById(id);
+
+initAuth();
 
 const toasts = new Toasts($('toasts'));
 const log = new EventLog($('event-log'), $('log-filter'), $('log-clear'));

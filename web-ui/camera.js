@@ -70,7 +70,8 @@ export class CameraCard {
     if (!this.active) return;
     this.status.textContent = 'connecting…';
     // A fresh URL each time, so the browser opens a new stream instead of reusing a dead one.
-    this.img.src = `${api.payloadVideoUrl(this.id, this.slot)}?t=${Date.now()}`;
+    const url = api.payloadVideoUrl(this.id, this.slot);
+    this.img.src = `${url}${url.includes('?') ? '&' : '?'}t=${Date.now()}`;
   }
 
   onError() {

@@ -4,10 +4,12 @@
 //! [`app`] builds the axum router (tests call it without a socket); [`serve`] runs it on a
 //! listener. Handlers reach the swarm only by messages to the coordinator (`call` with a
 //! timeout). Errors are JSON, `{"error": "...", "field": "..."}`, with a 4xx status naming
-//! the problem (see [`error::ApiError`]).
+//! the problem (see [`error::ApiError`]). With tokens configured every route but health
+//! needs `Authorization: Bearer <token>` with a role (see [`auth::ROUTES`]).
 //!
 //! Routes (all JSON):
-//! - `GET /api/v1/health`
+//! - `GET /api/v1/health` (the only route that never needs a token)
+//! - `GET /api/v1/auth/whoami`: `{"auth", "name", "role"}` of the caller's token
 //! - `GET /api/v1/vehicles`, `GET /api/v1/vehicles/{id}`
 //! - `POST /api/v1/vehicles/{id}/commands`, `POST /api/v1/swarm/commands`: `202` with
 //!   `{"command_id", "accepted", "refused"}`; the outcome follows on the stream
@@ -34,11 +36,13 @@
 //! - `/`: the dashboard (`web-ui/`, embedded at build time)
 #![warn(missing_docs)]
 
+pub mod auth;
 pub mod error;
 pub mod payloads;
 pub mod plugins;
 pub mod requests;
 pub mod server;
+pub mod tls;
 
 pub use server::ApiServer;
 
@@ -74,6 +78,8 @@ pub struct ApiState {
     telemetry: broadcast::Sender<Arc<str>>,
     plugins: Option<Arc<plugins::PluginsApi>>,
     geofence: Option<Arc<skein_model::safety::Geofence>>,
+    auth: Arc<auth::Auth>,
+    tls: Option<Arc<rustls::ServerConfig>>,
 }
 
 impl ApiState {
@@ -91,7 +97,21 @@ impl ApiState {
             telemetry,
             plugins: None,
             geofence: None,
+            auth: Arc::new(auth::Auth::disabled()),
+            tls: None,
         }
+    }
+
+    /// Serves HTTPS with this configuration (see [`tls::server_config`]) in [`ApiServer`].
+    pub fn with_tls(mut self, config: Arc<rustls::ServerConfig>) -> Self {
+        self.tls = Some(config);
+        self
+    }
+
+    /// Requires these tokens (see [`auth`]; without this call every request is allowed).
+    pub fn with_auth(mut self, auth: auth::Auth) -> Self {
+        self.auth = Arc::new(auth);
+        self
     }
 
     /// Serves `GET /api/v1/geofence` (without it that answers 404).
@@ -157,6 +177,7 @@ async fn publish_telemetry(coordinator: ActorRef<CoordinatorMsg>, tx: broadcast:
 pub fn app(state: ApiState) -> Router {
     Router::new()
         .route("/api/v1/health", get(health))
+        .route("/api/v1/auth/whoami", get(auth::whoami))
         .route("/api/v1/vehicles", get(list_vehicles))
         .route("/api/v1/vehicles/{id}", get(get_vehicle))
         .route("/api/v1/vehicles/{id}/commands", post(vehicle_command))
@@ -199,6 +220,11 @@ pub fn app(state: ApiState) -> Router {
         .route("/api/v1/geofence", get(geofence))
         .route("/api/v1/stream", get(stream))
         .route("/api/{*rest}", axum::routing::any(api_not_found))
+        // Every route above (not the dashboard's static files below) goes through auth.
+        .route_layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            auth::require,
+        ))
         .fallback(get(static_file))
         .with_state(state)
 }
@@ -212,9 +238,12 @@ pub async fn serve(
     state: ApiState,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    axum::serve(listener, app(state))
-        .with_graceful_shutdown(shutdown)
-        .await
+    axum::serve(
+        listener,
+        app(state).into_make_service_with_connect_info::<std::net::SocketAddr>(),
+    )
+    .with_graceful_shutdown(shutdown)
+    .await
 }
 
 async fn health(State(s): State<ApiState>) -> Result<Response, ApiError> {

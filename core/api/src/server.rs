@@ -8,6 +8,7 @@
 //! them) before it is aborted. Long-lived streams end then; the dashboard reconnects.
 
 use crate::{ApiState, app};
+use axum::serve::ListenerExt;
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
 use skein_model::supervision::ChildKind;
 use skein_swarm::{ServiceMsg, ServiceSpec};
@@ -95,15 +96,30 @@ impl Actor for ApiServer {
         std_listener.set_nonblocking(true)?;
         let listener = tokio::net::TcpListener::from_std(std_listener)?;
         let router = app(p.state.clone());
+        let tls = p.state.tls.clone();
         let (stop, mut stopped) = watch::channel(false);
         let task = tokio::spawn(async move {
             let shutdown = async move {
                 let _ = stopped.wait_for(|s| *s).await;
             };
-            if let Err(e) = axum::serve(listener, router)
-                .with_graceful_shutdown(shutdown)
-                .await
-            {
+            let service = router.into_make_service_with_connect_info::<std::net::SocketAddr>();
+            let served = match tls {
+                Some(config) => match crate::tls::TlsListener::new(listener, config) {
+                    // tap_io: axum gives the connect info of any listener wrapped so.
+                    Ok(l) => {
+                        axum::serve(l.tap_io(|_| {}), service)
+                            .with_graceful_shutdown(shutdown)
+                            .await
+                    }
+                    Err(e) => Err(e),
+                },
+                None => {
+                    axum::serve(listener, service)
+                        .with_graceful_shutdown(shutdown)
+                        .await
+                }
+            };
+            if let Err(e) = served {
                 tracing::error!("http server: {e}");
             }
         });

@@ -19,7 +19,13 @@
 //! params = { COM_OF_LOSS_T = 1.0, COM_OBL_RC_ACT = 5, NAV_DLL_ACT = 0 }  # set at connect
 //!
 //! [http]
-//! listen = "127.0.0.1:8080"
+//! listen = "127.0.0.1:8080"   # a non-loopback address needs tokens (or --insecure-no-auth)
+//! [[http.tokens]]              # one per holder, from `skein token create --role operator`
+//! name = "ops"
+//! role = "operator"            # viewer | operator | admin
+//! hash = "sha256$<salt>$<digest>"
+//! # tls_cert = "cert.pem"      # [http] keys: serve HTTPS (PEM files, both or neither)
+//! # tls_key = "key.pem"
 //!
 //! [plugins]                    # payload plugins (cdylibs built with plugins/sdk)
 //! dir = "/var/lib/skein/plugins"  # loads every lib*.so at start; default: the directory
@@ -124,6 +130,14 @@ pub enum MavTypeName {
 pub struct HttpSection {
     /// Listen address.
     pub listen: Option<SocketAddr>,
+    /// API tokens (`[[http.tokens]]`, made by `skein token create`); none: no
+    /// authentication, allowed on loopback only (or with `--insecure-no-auth`).
+    #[serde(default)]
+    pub tokens: Vec<skein_api::auth::TokenConfig>,
+    /// PEM certificate chain: serve HTTPS (with `tls_key`; relative to the config file).
+    pub tls_cert: Option<std::path::PathBuf>,
+    /// PEM private key of `tls_cert`.
+    pub tls_key: Option<std::path::PathBuf>,
 }
 
 /// `[plugins]`.
@@ -201,6 +215,15 @@ impl ConfigFile {
             && let Some(base) = path.parent()
         {
             cfg.plugins.dir = Some(base.join(dir));
+        }
+        if let Some(base) = path.parent() {
+            for p in [&mut cfg.http.tls_cert, &mut cfg.http.tls_key] {
+                if let Some(f) = p.as_mut()
+                    && f.is_relative()
+                {
+                    *f = base.join(&*f);
+                }
+            }
         }
         Ok(cfg)
     }

@@ -7,6 +7,8 @@
 //! - `skein sim --vehicles N`: the simulator alone, for any MAVLink client.
 //! - `skein fault --target PATH --kind panic|hang|stop|error`: inject a fault through the
 //!   API of a running `skein up --enable-fault-injection`.
+//! - `skein token create --role viewer|operator|admin [--name NAME]`: a new API token
+//!   and the `[[http.tokens]]` line (with its salted hash) to add to the config.
 //! - `skein plugin new NAME [--kind KIND] [--dir DIR]`: write a payload plugin crate that
 //!   builds as it is (see [`plugin_new`]).
 //! - `skein plugin-host --socket PATH --library PATH` (internal, not in `--help`): the
@@ -53,6 +55,28 @@ enum Commands {
     /// Payload plugins: `skein plugin new NAME` writes a plugin crate ready to build.
     #[command(subcommand)]
     Plugin(PluginCommand),
+    /// API tokens: `skein token create --role operator --name ops` prints a new token and
+    /// the `[[http.tokens]]` line to add to the config.
+    #[command(subcommand)]
+    Token(TokenCommand),
+}
+
+#[derive(Subcommand, Debug)]
+enum TokenCommand {
+    /// Print a new random token (give it to its holder) and the config line with its hash
+    /// (the token itself is stored nowhere).
+    Create(TokenCreateArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct TokenCreateArgs {
+    /// viewer (reads, the stream), operator (flies: commands, formation, payloads) or
+    /// admin (plugins, parameter writes, faults, and everything else).
+    #[arg(long)]
+    role: skein_api::auth::Role,
+    /// Who holds it (shown in the dashboard); default: the role.
+    #[arg(long)]
+    name: Option<String>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -67,6 +91,9 @@ struct FaultArgs {
     /// Base URL of the running skein's API.
     #[arg(long, default_value = "http://127.0.0.1:8080")]
     url: String,
+    /// API token (admin); default: the SKEIN_TOKEN environment variable.
+    #[arg(long)]
+    token: Option<String>,
     /// Actor path, e.g. coordinator/uav-1/px4link (see GET /api/v1/supervision).
     #[arg(long)]
     target: String,
@@ -109,6 +136,10 @@ struct UpArgs {
     /// Accept POST /api/v1/faults (make actors panic, hang, stop or fail on purpose).
     #[arg(long)]
     enable_fault_injection: bool,
+    /// Listen on a non-loopback address without any `[[http.tokens]]`: anyone who can
+    /// reach the port can fly the swarm. Refused without this flag.
+    #[arg(long)]
+    insecure_no_auth: bool,
 }
 
 const DEFAULT_HTTP: SocketAddr = SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 8080);
@@ -162,6 +193,7 @@ fn main() -> ExitCode {
                 ExitCode::SUCCESS
             }),
             Commands::Bench(args) => bench::run(args).await.map(|()| ExitCode::SUCCESS),
+            Commands::Token(TokenCommand::Create(args)) => token_create(&args),
         }
     });
     match result {
@@ -234,6 +266,38 @@ fn spawn_process_watchdog(
         .expect("spawn the watchdog thread");
 }
 
+fn token_create(args: &TokenCreateArgs) -> Result<ExitCode, String> {
+    let token = skein_api::auth::new_token()?;
+    let hash = skein_api::auth::hash_token(&token)?;
+    let name = args.name.clone().unwrap_or_else(|| args.role.to_string());
+    if name.contains(['"', '\\', '\n']) {
+        return Err(format!(
+            "--name {name:?}: no quotes, backslashes or newlines"
+        ));
+    }
+    println!("token: {token}");
+    println!();
+    println!("# Add to the [http] part of the config file (the token itself is not stored):");
+    println!("[[http.tokens]]");
+    println!("name = \"{name}\"");
+    println!("role = \"{}\"", args.role);
+    println!("hash = \"{hash}\"");
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Why skein will not listen on `addr`: not loopback, no tokens, and no
+/// `--insecure-no-auth`.
+fn refuse_unauthenticated(addr: SocketAddr, tokens: usize, insecure: bool) -> Result<(), String> {
+    if tokens > 0 || insecure || addr.ip().is_loopback() {
+        return Ok(());
+    }
+    Err(format!(
+        "refusing to listen on {addr} without authentication: anyone on that network could \
+         fly the swarm. Add tokens to the config ([[http.tokens]], made by `skein token create \
+         --role operator`), listen on 127.0.0.1, or pass --insecure-no-auth if you really mean it"
+    ))
+}
+
 fn fault(args: FaultArgs) -> Result<ExitCode, String> {
     let agent: ureq::Agent = ureq::Agent::config_builder()
         .http_status_as_error(false)
@@ -241,8 +305,15 @@ fn fault(args: FaultArgs) -> Result<ExitCode, String> {
         .build()
         .into();
     let url = format!("{}/api/v1/faults", args.url.trim_end_matches('/'));
-    let mut resp = agent
-        .post(&url)
+    let mut req = agent.post(&url);
+    if let Some(t) = args
+        .token
+        .clone()
+        .or_else(|| std::env::var("SKEIN_TOKEN").ok())
+    {
+        req = req.header("Authorization", format!("Bearer {t}"));
+    }
+    let mut resp = req
         .send_json(serde_json::json!({"target": args.target, "kind": args.kind}))
         .map_err(|e| format!("{url}: {e}"))?;
     let status = resp.status().as_u16();
@@ -290,6 +361,17 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
         Some(path) => ConfigFile::load(path)?,
         None => ConfigFile::default(),
     };
+    let http = args.http.or(file.http.listen).unwrap_or(DEFAULT_HTTP);
+    refuse_unauthenticated(http, file.http.tokens.len(), args.insecure_no_auth)?;
+    let auth = skein_api::auth::Auth::new(&file.http.tokens)?;
+    let tls = match (&file.http.tls_cert, &file.http.tls_key) {
+        (Some(cert), Some(key)) => Some(skein_api::tls::server_config(cert, key)?),
+        (None, None) => None,
+        _ => return Err("[http]: tls_cert and tls_key go together".into()),
+    };
+    if args.insecure_no_auth && !auth.enabled() && !http.ip().is_loopback() {
+        eprintln!("skein: WARNING: --insecure-no-auth: the API on {http} has no authentication");
+    }
     if args.sim.is_none() && file.vehicles.is_empty() {
         return Err("nothing to fly: give --sim N or a --config file with [[vehicles]]".into());
     }
@@ -435,12 +517,17 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
         None
     };
 
-    let http = args.http.or(file.http.listen).unwrap_or(DEFAULT_HTTP);
     let listener = std::net::TcpListener::bind(http).map_err(|e| format!("--http {http}: {e}"))?;
     let local = listener.local_addr().map_err(|e| e.to_string())?;
     let state = skein_api::ApiState::new(swarm.coordinator.clone(), swarm.events.clone())
         .with_plugins(plugins, refused)
-        .with_geofence(geofence);
+        .with_geofence(geofence)
+        .with_auth(auth);
+    let scheme = if tls.is_some() { "https" } else { "http" };
+    let state = match tls {
+        Some(t) => state.with_tls(t),
+        None => state,
+    };
     let service = skein_api::ApiServer::service(listener, state);
     match swarm
         .coordinator
@@ -454,7 +541,7 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
         Ok(ractor::rpc::CallResult::Success(Err(e))) => return Err(e),
         _ => return Err("the coordinator did not start the API".into()),
     }
-    println!("skein: dashboard at http://{local}/");
+    println!("skein: dashboard at {scheme}://{local}/");
     spawn_process_watchdog(
         swarm.coordinator.clone(),
         Duration::from_millis(

@@ -1,0 +1,246 @@
+//! Roles on every route, over the router without a socket: each route of
+//! `skein_api::auth::ROUTES` × {no token, viewer, operator, admin} → 401 / 403 / through,
+//! and the failed-attempt lockout (429). The coordinator is a stand-in that drops every
+//! request (handlers answer 503 at once): only the middleware's verdict is under test.
+
+use axum::body::Body;
+use axum::extract::ConnectInfo;
+use axum::http::{Method, Request, StatusCode};
+use ractor::{Actor, ActorProcessingErr, ActorRef};
+use skein_api::auth::{self, Access, Auth, Role, TokenConfig};
+use skein_swarm::CoordinatorMsg;
+use std::net::SocketAddr;
+use tokio::sync::broadcast;
+use tower::ServiceExt;
+
+struct Mute;
+
+impl Actor for Mute {
+    type Msg = CoordinatorMsg;
+    type State = ();
+    type Arguments = ();
+    async fn pre_start(
+        &self,
+        _: ActorRef<CoordinatorMsg>,
+        _: (),
+    ) -> Result<(), ActorProcessingErr> {
+        Ok(())
+    }
+    async fn handle(
+        &self,
+        _: ActorRef<CoordinatorMsg>,
+        _msg: CoordinatorMsg,
+        _: &mut (),
+    ) -> Result<(), ActorProcessingErr> {
+        Ok(()) // the reply port is dropped: the caller learns at once
+    }
+}
+
+const TOKENS: [(&str, Role, &str); 3] = [
+    ("watch", Role::Viewer, "v1ewer-token-0123456789abcdef"),
+    ("ops", Role::Operator, "0perator-token-0123456789abcdef"),
+    ("root", Role::Admin, "adm1n-token-0123456789abcdef"),
+];
+
+async fn router(auth: Auth) -> axum::Router {
+    let (coordinator, _) = Actor::spawn(None, Mute, ()).await.unwrap();
+    let (events, _) = broadcast::channel(4);
+    skein_api::app(skein_api::ApiState::new(coordinator, events).with_auth(auth))
+}
+
+fn configured() -> Auth {
+    let cfg: Vec<TokenConfig> = TOKENS
+        .iter()
+        .map(|(name, role, token)| TokenConfig {
+            name: (*name).into(),
+            role: *role,
+            hash: auth::hash_token(token).unwrap(),
+        })
+        .collect();
+    Auth::new(&cfg).unwrap()
+}
+
+fn concrete(path: &str) -> String {
+    path.replace("{id}", "uav-1")
+        .replace("{name}", "MPC_XY_VEL_MAX")
+        .replace("{command}", "hold")
+        .replace("{slot}", "cam")
+        .replace("{op}", "load")
+}
+
+fn request(method: &str, path: &str, token: Option<&str>, ip: [u8; 4]) -> Request<Body> {
+    let mut b = Request::builder()
+        .method(Method::from_bytes(method.as_bytes()).unwrap())
+        .uri(path)
+        .header("content-type", "application/json");
+    if let Some(t) = token {
+        b = b.header("authorization", format!("Bearer {t}"));
+    }
+    let body = if method == "GET" {
+        Body::empty()
+    } else {
+        Body::from("{}")
+    };
+    let mut req = b.body(body).unwrap();
+    req.extensions_mut()
+        .insert(ConnectInfo(SocketAddr::from((ip, 40000))));
+    req
+}
+
+async fn call(app: &axum::Router, req: Request<Body>) -> (StatusCode, serde_json::Value) {
+    let res = app.clone().oneshot(req).await.unwrap();
+    let status = res.status();
+    let bytes = axum::body::to_bytes(res.into_body(), 1 << 20)
+        .await
+        .unwrap();
+    let json = serde_json::from_slice(&bytes).unwrap_or(serde_json::Value::Null);
+    (status, json)
+}
+
+#[derive(Debug, PartialEq)]
+enum Verdict {
+    Unauthorized,
+    Forbidden,
+    Through,
+}
+
+#[tokio::test]
+async fn every_route_enforces_its_role() {
+    let app = router(configured()).await;
+    let mut failures = Vec::new();
+    for (method, path, access) in auth::ROUTES {
+        let uri = concrete(path);
+        for caller in [None, Some(0usize), Some(1), Some(2)] {
+            let token = caller.map(|i| TOKENS[i].2);
+            let role = caller.map(|i| TOKENS[i].1);
+            let expected = match (access, role) {
+                (Access::Public, _) => Verdict::Through,
+                (Access::Role(_), None) => Verdict::Unauthorized,
+                (Access::Role(need), Some(r)) if r < *need => Verdict::Forbidden,
+                _ => Verdict::Through,
+            };
+            let (status, body) = call(&app, request(method, &uri, token, [10, 0, 0, 1])).await;
+            let got = match status {
+                StatusCode::UNAUTHORIZED => {
+                    assert_eq!(body["field"], "authorization", "{method} {uri}: {body}");
+                    Verdict::Unauthorized
+                }
+                // A 403 of the middleware names the role; a handler's own 403 does not.
+                StatusCode::FORBIDDEN if body.get("required_role").is_some() => {
+                    assert_eq!(body["field"], "authorization");
+                    let Access::Role(need) = access else {
+                        unreachable!()
+                    };
+                    assert_eq!(body["required_role"], need.as_str());
+                    Verdict::Forbidden
+                }
+                _ => Verdict::Through,
+            };
+            // The table names real routes: none falls through to the 404 catch-all or 405.
+            if caller == Some(2) {
+                let e = body["error"].as_str().unwrap_or("");
+                if e.starts_with("no such endpoint") || status == StatusCode::METHOD_NOT_ALLOWED {
+                    failures.push(format!("{method} {uri}: not a route of the router"));
+                }
+            }
+            if got != expected {
+                failures.push(format!(
+                    "{method} {uri} as {:?}: expected {expected:?}, got {status} {body}",
+                    caller.map(|i| TOKENS[i].0)
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[tokio::test]
+async fn without_tokens_everything_is_open_and_whoami_says_so() {
+    let app = router(Auth::disabled()).await;
+    for (method, path, _) in auth::ROUTES {
+        let (status, body) =
+            call(&app, request(method, &concrete(path), None, [127, 0, 0, 1])).await;
+        assert!(
+            status != StatusCode::UNAUTHORIZED && body.get("required_role").is_none(),
+            "{method} {path}: {status} {body}"
+        );
+    }
+    let (status, body) = call(
+        &app,
+        request("GET", "/api/v1/auth/whoami", None, [127, 0, 0, 1]),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(
+        body,
+        serde_json::json!({"auth": false, "name": null, "role": "admin"})
+    );
+}
+
+#[tokio::test]
+async fn whoami_names_the_token_and_the_query_token_works_for_gets_only() {
+    let app = router(configured()).await;
+    let (status, body) = call(
+        &app,
+        request(
+            "GET",
+            "/api/v1/auth/whoami",
+            Some(TOKENS[1].2),
+            [10, 0, 0, 2],
+        ),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(
+        body,
+        serde_json::json!({"auth": true, "name": "ops", "role": "operator"})
+    );
+    let q = format!("/api/v1/auth/whoami?token={}", TOKENS[0].2);
+    let (status, body) = call(&app, request("GET", &q, None, [10, 0, 0, 2])).await;
+    assert_eq!(status, StatusCode::OK, "{body}");
+    assert_eq!(body["name"], "watch");
+    let q = format!("/api/v1/swarm/commands?token={}", TOKENS[2].2);
+    let (status, _) = call(&app, request("POST", &q, None, [10, 0, 0, 2])).await;
+    assert_eq!(status, StatusCode::UNAUTHORIZED);
+    // Unknown API paths need a token too (no probing), the dashboard's files do not.
+    let (status, _) = call(&app, request("GET", "/api/v1/nothing", None, [10, 0, 0, 2])).await;
+    assert_eq!(status, StatusCode::UNAUTHORIZED);
+    let (status, _) = call(&app, request("GET", "/", None, [10, 0, 0, 2])).await;
+    assert_eq!(status, StatusCode::OK);
+}
+
+#[tokio::test]
+async fn repeated_bad_tokens_are_answered_429_per_ip() {
+    let app = router(configured()).await;
+    let bad = [10, 0, 0, 66];
+    for i in 0..auth::MAX_FAILURES {
+        let (status, _) = call(
+            &app,
+            request("GET", "/api/v1/vehicles", Some(&format!("guess-{i}")), bad),
+        )
+        .await;
+        assert_eq!(status, StatusCode::UNAUTHORIZED, "attempt {i}");
+    }
+    // Locked out: even the right token is refused for now.
+    let (status, body) = call(
+        &app,
+        request("GET", "/api/v1/vehicles", Some(TOKENS[2].2), bad),
+    )
+    .await;
+    assert_eq!(status, StatusCode::TOO_MANY_REQUESTS, "{body}");
+    assert_eq!(body["field"], "authorization");
+    // Another client is not affected, nor is the public health route.
+    let (status, body) = call(
+        &app,
+        request(
+            "GET",
+            "/api/v1/auth/whoami",
+            Some(TOKENS[0].2),
+            [10, 0, 0, 67],
+        ),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{body}");
+    let (status, _) = call(&app, request("GET", "/api/v1/health", None, bad)).await;
+    assert_ne!(status, StatusCode::TOO_MANY_REQUESTS);
+}
