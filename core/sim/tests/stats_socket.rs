@@ -35,6 +35,13 @@ async fn stats_socket_commands() {
         serde_json::from_str(&line).expect("one line of JSON")
     };
 
+    // The GCS heartbeat is a UDP datagram: wait until the simulator has taken it.
+    assert!(
+        eventually(Duration::from_secs(5), || sim.stats()[0].frames_received
+            >= 1)
+        .await,
+        "the heartbeat never arrived"
+    );
     let stats = ask("stats").await;
     let vehicles = stats["vehicles"].as_array().expect("vehicles");
     assert_eq!(vehicles.len(), 2);
