@@ -235,7 +235,7 @@ impl VehicleActorState {
         let slot = mem.slot;
         drop(mem);
         let publish_every = (self.config().control_rate_hz / 10.0).round().max(1.0) as u64;
-        self.shared.publish_report(Some(frame));
+        self.shared.publish_measured(measured);
         if self.ticks.is_multiple_of(publish_every) {
             self.shared
                 .publish(Some(frame), slot, self.children.supervision());

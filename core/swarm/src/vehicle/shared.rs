@@ -195,14 +195,23 @@ impl VehicleShared {
     /// Publishes a [`VehicleReport`] from the telemetry and the FSM memory, positions in
     /// the swarm `frame` (none without a frame).
     pub fn publish_report(&self, frame: Option<NedFrame>) {
+        let measured = frame
+            .and_then(|f| self.position(&f))
+            .map(|p| (p, self.velocity().unwrap_or(Ned::ZERO)));
+        self.publish_measured(measured);
+    }
+
+    /// Publishes a [`VehicleReport`] with the position and velocity the control loop has
+    /// just measured (swarm frame), so they are not read from the telemetry twice.
+    pub(super) fn publish_measured(&self, measured: Option<(Ned, Ned)>) {
         let (state, target) = {
             let mem = self.memory();
             (mem.state, mem.target.map(|t| t.position()))
         };
         let report = VehicleReport {
             state,
-            position: frame.and_then(|f| self.position(&f)),
-            velocity: self.velocity().unwrap_or(Ned::ZERO),
+            position: measured.map(|(p, _)| p),
+            velocity: measured.map_or(Ned::ZERO, |(_, v)| v),
             heading_rad: self.heading_rad(),
             link_silence_s: self.link.silence().map(|s| s.as_secs_f64()),
             target,
