@@ -38,6 +38,7 @@
 
 pub mod auth;
 pub mod error;
+pub mod params;
 pub mod payloads;
 pub mod plugins;
 pub mod requests;
@@ -56,7 +57,6 @@ use axum::{Json, Router};
 use error::ApiError;
 use include_dir::{Dir, include_dir};
 use ractor::ActorRef;
-use skein_swarm::payload::PayloadCommandError;
 use skein_swarm::{CommandOutcome, CoordinatorMsg, SwarmEvent, VehicleCommand};
 use std::sync::Arc;
 use std::time::Duration;
@@ -181,10 +181,10 @@ pub fn app(state: ApiState) -> Router {
         .route("/api/v1/vehicles", get(list_vehicles))
         .route("/api/v1/vehicles/{id}", get(get_vehicle))
         .route("/api/v1/vehicles/{id}/commands", post(vehicle_command))
-        .route("/api/v1/vehicles/{id}/params", get(list_params))
+        .route("/api/v1/vehicles/{id}/params", get(params::list_params))
         .route(
             "/api/v1/vehicles/{id}/params/{name}",
-            get(get_param).put(put_param),
+            get(params::get_param).put(params::put_param),
         )
         .route("/api/v1/swarm/commands", post(swarm_command))
         .route(
@@ -313,117 +313,6 @@ async fn swarm_command(State(s): State<ApiState>, body: Bytes) -> Result<Respons
         return Err(ApiError::conflict(error, Some("command")));
     }
     Ok(accepted(outcome))
-}
-
-/// How long a parameter exchange may take (resends included).
-const PARAM_TIMEOUT: Duration = Duration::from_secs(15);
-
-async fn link_of(s: &ApiState, id: &str) -> Result<ActorRef<skein_link::Px4LinkMsg>, ApiError> {
-    let id2 = id.to_string();
-    match s.ask(move |r| CoordinatorMsg::GetLink(id2, r)).await? {
-        Ok(link) => Ok(link),
-        Err(PayloadCommandError::NotFound(why)) => Err(ApiError::not_found(why)),
-        Err(PayloadCommandError::Unavailable(why) | PayloadCommandError::Refused(why)) => {
-            Err(ApiError::unavailable(why))
-        }
-        Err(e) => Err(payloads::payload_error(e)),
-    }
-}
-
-fn param_json(name: &str, v: skein_mavlink::param::ParamValue) -> Response {
-    use skein_mavlink::param::ParamValue;
-    let (value, ty) = match v {
-        ParamValue::Int32(i) => (serde_json::json!(i), "int32"),
-        ParamValue::Real32(f) => (serde_json::json!(f64::from(f)), "real32"),
-    };
-    Json(serde_json::json!({"name": name, "value": value, "type": ty})).into_response()
-}
-
-fn link_error(e: skein_link::LinkError) -> ApiError {
-    use skein_link::LinkError;
-    let status = match &e {
-        LinkError::Timeout { .. } => StatusCode::GATEWAY_TIMEOUT,
-        LinkError::Rejected { .. } | LinkError::ModeNotConfirmed { .. } => StatusCode::CONFLICT,
-        LinkError::NoLink | LinkError::Send(_) => StatusCode::SERVICE_UNAVAILABLE,
-    };
-    ApiError::status(status, e.to_string())
-}
-
-fn check_param_name(name: &str) -> Result<(), ApiError> {
-    if name.is_empty() || name.len() > 16 || !name.is_ascii() {
-        return Err(ApiError::field(
-            "name",
-            format!("`{name}` is not a PX4 parameter name (1 to 16 ASCII characters)"),
-        ));
-    }
-    Ok(())
-}
-
-async fn list_params(
-    State(s): State<ApiState>,
-    Path(id): Path<String>,
-) -> Result<Response, ApiError> {
-    let link = link_of(&s, &id).await?;
-    match link
-        .call(skein_link::Px4LinkMsg::Params, Some(COORDINATOR_TIMEOUT))
-        .await
-    {
-        Ok(ractor::rpc::CallResult::Success(all)) => Ok(Json(
-            all.into_iter()
-                .map(|(k, v)| serde_json::json!({"name": k, "value": v.as_f64()}))
-                .collect::<Vec<_>>(),
-        )
-        .into_response()),
-        _ => Err(ApiError::unavailable(format!(
-            "the link of `{id}` did not answer"
-        ))),
-    }
-}
-
-async fn get_param(
-    State(s): State<ApiState>,
-    Path((id, name)): Path<(String, String)>,
-) -> Result<Response, ApiError> {
-    check_param_name(&name)?;
-    let link = link_of(&s, &id).await?;
-    let n = name.clone();
-    match link
-        .call(
-            move |r| skein_link::Px4LinkMsg::ParamGet(n, r),
-            Some(PARAM_TIMEOUT),
-        )
-        .await
-    {
-        Ok(ractor::rpc::CallResult::Success(Ok(v))) => Ok(param_json(&name, v)),
-        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(e)),
-        _ => Err(ApiError::unavailable(format!(
-            "the link of `{id}` did not answer"
-        ))),
-    }
-}
-
-async fn put_param(
-    State(s): State<ApiState>,
-    Path((id, name)): Path<(String, String)>,
-    body: Bytes,
-) -> Result<Response, ApiError> {
-    check_param_name(&name)?;
-    let value = requests::param_value(&body)?;
-    let link = link_of(&s, &id).await?;
-    let n = name.clone();
-    match link
-        .call(
-            move |r| skein_link::Px4LinkMsg::ParamSet(n, value, r),
-            Some(PARAM_TIMEOUT),
-        )
-        .await
-    {
-        Ok(ractor::rpc::CallResult::Success(Ok(v))) => Ok(param_json(&name, v)),
-        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(e)),
-        _ => Err(ApiError::unavailable(format!(
-            "the link of `{id}` did not answer"
-        ))),
-    }
 }
 
 async fn get_formation(State(s): State<ApiState>) -> Result<Response, ApiError> {
