@@ -273,8 +273,16 @@ struct Metric {
     name: &'static str,
     unit: &'static str,
     tol: Tol,
+    /// Measured over [`SEEDS`] seeds of the estimator noise instead of once without it:
+    /// the metric is dominated by PX4's estimator error (its slow vertical velocity
+    /// bias), of which the recording holds a single draw. It passes when PX4's value
+    /// lies within the simulator's range over the seeds, widened by the tolerance.
+    noisy: bool,
     f: fn(&Trace) -> f64,
 }
+
+/// Seeds of the estimator noise for the [`Metric::noisy`] metrics.
+const SEEDS: u64 = 16;
 
 fn yaw_deg(tr: &Trace) -> Vec<(f64, f64)> {
     tr.att.iter().map(|a| (a.0, a.1.to_degrees())).collect()
@@ -287,6 +295,7 @@ fn metrics() -> Vec<Metric> {
             name: "t90",
             unit: "s",
             tol: Tol::Rel(0.15),
+            noisy: false,
             f: |t| step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).0,
         },
         Metric {
@@ -294,6 +303,7 @@ fn metrics() -> Vec<Metric> {
             name: "overshoot",
             unit: "m",
             tol: Tol::Abs(0.3),
+            noisy: false,
             f: |t| step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).1,
         },
         Metric {
@@ -301,6 +311,7 @@ fn metrics() -> Vec<Metric> {
             name: "steady-state",
             unit: "m",
             tol: Tol::Abs(0.15),
+            noisy: false,
             f: |t| step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).2,
         },
         Metric {
@@ -308,6 +319,7 @@ fn metrics() -> Vec<Metric> {
             name: "t90 up",
             unit: "s",
             tol: Tol::Rel(0.15),
+            noisy: false,
             f: |t| step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).0,
         },
         Metric {
@@ -315,20 +327,23 @@ fn metrics() -> Vec<Metric> {
             name: "overshoot up",
             unit: "m",
             tol: Tol::Abs(0.3),
+            noisy: false,
             f: |t| step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).1,
         },
         Metric {
             maneuver: "step_up_5m",
             name: "steady-state up",
             unit: "m",
-            tol: Tol::Report,
+            tol: Tol::Abs(0.15),
+            noisy: true,
             f: |t| step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).2,
         },
         Metric {
             maneuver: "step_up_5m",
             name: "t90 down",
             unit: "s",
-            tol: Tol::Report,
+            tol: Tol::Rel(0.15),
+            noisy: true,
             f: |t| step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).0,
         },
         Metric {
@@ -336,13 +351,15 @@ fn metrics() -> Vec<Metric> {
             name: "overshoot down",
             unit: "m",
             tol: Tol::Abs(0.3),
+            noisy: false,
             f: |t| step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).1,
         },
         Metric {
             maneuver: "step_up_5m",
             name: "steady-state down",
             unit: "m",
-            tol: Tol::Report,
+            tol: Tol::Abs(0.15),
+            noisy: true,
             f: |t| step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).2,
         },
         Metric {
@@ -350,6 +367,7 @@ fn metrics() -> Vec<Metric> {
             name: "lag t=4..12",
             unit: "m",
             tol: Tol::Abs(0.25),
+            noisy: false,
             f: |t| ramp_lag(t),
         },
         Metric {
@@ -357,6 +375,7 @@ fn metrics() -> Vec<Metric> {
             name: "overshoot at stop",
             unit: "m",
             tol: Tol::Report,
+            noisy: false,
             f: |t| {
                 window(&axis(t, 0), 12.0, 18.0)
                     .iter()
@@ -369,6 +388,7 @@ fn metrics() -> Vec<Metric> {
             name: "lag t=4..12",
             unit: "m",
             tol: Tol::Abs(0.25),
+            noisy: false,
             f: |t| ramp_lag(t),
         },
         Metric {
@@ -376,6 +396,7 @@ fn metrics() -> Vec<Metric> {
             name: "vy at 5 s",
             unit: "m/s",
             tol: Tol::Report,
+            noisy: false,
             f: |t| mean(window(&t.pos, 4.5, 5.0).iter().map(|p| p.1.1[1])),
         },
         Metric {
@@ -383,6 +404,7 @@ fn metrics() -> Vec<Metric> {
             name: "creep t=7..10",
             unit: "m/s",
             tol: Tol::Report,
+            noisy: false,
             f: |t| {
                 mean(
                     window(&t.pos, 7.0, 10.0)
@@ -396,6 +418,7 @@ fn metrics() -> Vec<Metric> {
             name: "mean error",
             unit: "m",
             tol: Tol::Abs(0.5),
+            noisy: false,
             f: |t| circle(t).0,
         },
         Metric {
@@ -403,6 +426,7 @@ fn metrics() -> Vec<Metric> {
             name: "radial offset",
             unit: "m",
             tol: Tol::Report,
+            noisy: false,
             f: |t| circle(t).1,
         },
         Metric {
@@ -410,6 +434,7 @@ fn metrics() -> Vec<Metric> {
             name: "t90",
             unit: "s",
             tol: Tol::Rel(0.15),
+            noisy: false,
             f: |t| step_metrics(&yaw_deg(t), 0.0, 6.0, 90.0, 1.0).0,
         },
         Metric {
@@ -417,6 +442,7 @@ fn metrics() -> Vec<Metric> {
             name: "overshoot",
             unit: "deg",
             tol: Tol::Abs(5.0),
+            noisy: false,
             f: |t| step_metrics(&yaw_deg(t), 0.0, 6.0, 90.0, 1.0).1,
         },
         Metric {
@@ -424,6 +450,7 @@ fn metrics() -> Vec<Metric> {
             name: "NAV_LAND to disarm",
             unit: "s",
             tol: Tol::Abs(3.0),
+            noisy: false,
             f: |t| {
                 t.modes
                     .iter()
@@ -455,9 +482,17 @@ fn circle(tr: &Trace) -> (f64, f64) {
     (err, radial)
 }
 
+/// Allowed difference for a metric whose PX4 value is `px4`.
+fn allowance(tol: Tol, px4: f64) -> Option<f64> {
+    match tol {
+        Tol::Rel(r) => Some(r * px4.abs()),
+        Tol::Abs(d) => Some(d),
+        Tol::Report => None,
+    }
+}
+
 #[test]
 fn simulator_responds_like_px4_to_every_recorded_trace() {
-    let cfg = SimConfig::default();
     let mut table = String::new();
     let mut failures = Vec::new();
     writeln!(
@@ -465,36 +500,72 @@ fn simulator_responds_like_px4_to_every_recorded_trace() {
         "| maneuver | metric | simulator | PX4 | tolerance | ok |\n|---|---|---|---|---|---|"
     )
     .unwrap();
-    let mut cache: Vec<(&str, Trace, Trace)> = Vec::new();
-    for m in metrics() {
-        if !cache.iter().any(|c| c.0 == m.maneuver) {
-            let px4 = load(m.maneuver);
-            let sim = replay(&px4, m.maneuver == "landing", &cfg);
-            cache.push((m.maneuver, px4, sim));
+    // (maneuver, seed: None = no estimator noise) -> (PX4 trace, simulator trace).
+    let mut cache: Vec<(&str, Option<u64>, Trace, Trace)> = Vec::new();
+    let mut run = |maneuver: &'static str, seed: Option<u64>, f: fn(&Trace) -> f64| {
+        if !cache.iter().any(|c| c.0 == maneuver && c.1 == seed) {
+            let cfg = SimConfig {
+                estimator_noise: seed.is_some(),
+                seed: seed.unwrap_or(0),
+                ..SimConfig::default()
+            };
+            let px4 = load(maneuver);
+            let sim = replay(&px4, maneuver == "landing", &cfg);
+            cache.push((maneuver, seed, px4, sim));
         }
-        let (_, px4, sim) = cache.iter().find(|c| c.0 == m.maneuver).unwrap();
-        let (a, b) = ((m.f)(sim), (m.f)(px4));
-        let (ok, tol) = match m.tol {
-            Tol::Rel(r) => ((a - b).abs() <= r * b.abs(), format!("±{:.0} %", r * 100.0)),
-            Tol::Abs(d) => ((a - b).abs() <= d, format!("±{d} {}", m.unit)),
-            Tol::Report => (true, "reported".into()),
+        let (_, _, px4, sim) = cache
+            .iter()
+            .find(|c| c.0 == maneuver && c.1 == seed)
+            .unwrap();
+        (f(sim), f(px4))
+    };
+    for m in metrics() {
+        let unit = m.unit;
+        let tol_text = match m.tol {
+            Tol::Rel(r) => format!("±{:.0} %", r * 100.0),
+            Tol::Abs(d) => format!("±{d} {unit}"),
+            Tol::Report => "reported".into(),
         };
-        let ok = ok && a.is_finite() == b.is_finite();
+        let (sim_text, b, ok) = if m.noisy {
+            let runs: Vec<(f64, f64)> =
+                (1..=SEEDS).map(|s| run(m.maneuver, Some(s), m.f)).collect();
+            let b = runs[0].1;
+            let lo = runs.iter().map(|r| r.0).fold(f64::INFINITY, f64::min);
+            let hi = runs.iter().map(|r| r.0).fold(f64::NEG_INFINITY, f64::max);
+            let mean = mean(runs.iter().map(|r| r.0));
+            let ok = match allowance(m.tol, b) {
+                Some(d) => lo.is_finite() && hi.is_finite() && b >= lo - d && b <= hi + d,
+                None => true,
+            };
+            (
+                format!("{mean:.2} ({lo:.2}–{hi:.2} over {SEEDS} seeds)"),
+                b,
+                ok,
+            )
+        } else {
+            let (a, b) = run(m.maneuver, None, m.f);
+            let ok = match allowance(m.tol, b) {
+                Some(d) => (a - b).abs() <= d,
+                None => true,
+            } && a.is_finite() == b.is_finite();
+            (format!("{a:.2}"), b, ok)
+        };
         writeln!(
             table,
-            "| {} | {} ({}) | {:.2} | {:.2} | {} | {} |",
+            "| {} | {} ({}) | {} | {:.2} | {}{} | {} |",
             m.maneuver,
             m.name,
-            m.unit,
-            a,
+            unit,
+            sim_text,
             b,
-            tol,
+            tol_text,
+            if m.noisy { " of the range" } else { "" },
             if ok { "yes" } else { "NO" }
         )
         .unwrap();
         if !ok {
             failures.push(format!(
-                "{} {}: sim {a:.2} vs PX4 {b:.2}",
+                "{} {}: sim {sim_text} vs PX4 {b:.2}",
                 m.maneuver, m.name
             ));
         }

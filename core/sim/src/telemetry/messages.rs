@@ -199,7 +199,7 @@ impl Vehicle {
         let time_boot_ms = self.time_boot_ms(now);
         let time_usec = self.time_boot_us(now);
         let est = self.est_pos();
-        let vel = self.vel + self.est_vel_noise;
+        let vel = self.est_vel();
         let msg = match stream {
             Stream::Heartbeat => MavMessage::HEARTBEAT(HEARTBEAT_DATA {
                 custom_mode: self.mode.custom_mode(),

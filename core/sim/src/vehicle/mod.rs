@@ -232,6 +232,9 @@ pub(crate) struct Vehicle {
     pub est_noise: Ned,
     /// Estimator velocity error, m/s.
     pub est_vel_noise: Ned,
+    /// Slow bias of the estimated vertical velocity (NED, positive = reads descending),
+    /// m/s; not integrated into the position estimate.
+    pub est_vz_bias_m_s: f64,
 
     // Controller.
     /// Auto-mode trajectory: velocity of the moving setpoint, NED m/s.
@@ -355,6 +358,7 @@ impl Vehicle {
             gust: Ned::ZERO,
             est_noise: Ned::ZERO,
             est_vel_noise: Ned::ZERO,
+            est_vz_bias_m_s: 0.0,
             vel_sp_smooth: Ned::ZERO,
             traj_pos: Ned::ZERO,
             traj_valid: false,
@@ -436,6 +440,12 @@ impl Vehicle {
     /// The estimated (reported) local position: truth plus estimator noise.
     pub fn est_pos(&self) -> Ned {
         self.pos + self.est_noise
+    }
+
+    /// The estimated (reported) velocity, NED m/s: truth plus the estimator's velocity
+    /// error and vertical bias.
+    pub fn est_vel(&self) -> Ned {
+        self.vel + self.est_vel_noise + Ned::new(0.0, 0.0, self.est_vz_bias_m_s)
     }
 
     /// Geodetic position of a local NED point.

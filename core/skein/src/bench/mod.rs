@@ -81,7 +81,8 @@ pub enum BenchWhat {
     /// full stack: setpoint timing as the simulator receives it, coordinator CPU and memory.
     Swarm(SwarmBenchArgs),
     /// Formation flight in virtual time (the real formation engine and setpoint shapers,
-    /// point-mass PX4-like vehicles): every shape behind a virtual leader at 5 m/s.
+    /// vehicles on the PX4-faithful simulated multicopter): every shape behind a virtual
+    /// leader at 5 m/s.
     Formation(FormationBenchArgs),
     /// Injected panics of a payload actor under hovering vehicles: restart latency and
     /// the largest gap in the offboard setpoint stream.

@@ -15,6 +15,12 @@
 //! the first metre. What remains across the track on a curve is integrated into a small
 //! position offset. Both are bounded, frozen while the error is large (a transient, not
 //! a lag), and the offset decays when the target stops.
+//!
+//! Vertically, PX4's estimate of the vertical velocity drifts by 0.1–0.3 m/s for seconds
+//! at a time while its height stays anchored to the barometer (the PX4 traces), so PX4
+//! holds its height estimate `bias / MPC_Z_P` (about 0.2 m) off the setpoint. That error
+//! is visible in LOCAL_POSITION_NED: a slow integral of the measured height error
+//! (`ki_z_per_s`, learnt in level flight, bounded by `max_height_m`) cancels it.
 
 use skein_model::geo::Ned;
 
@@ -30,6 +36,10 @@ pub struct TrackingGains {
     pub ki_per_s: f64,
     /// Largest cross-track offset, metres.
     pub max_cross_m: f64,
+    /// Integral gain on the height error in level flight, 1/s.
+    pub ki_z_per_s: f64,
+    /// Largest height offset, metres.
+    pub max_height_m: f64,
     /// Largest acceleration feed-forward, m/s².
     pub max_acc_m_s2: f64,
     /// Errors above this are transients: the correction does not learn from them, metres.
@@ -47,6 +57,8 @@ impl Default for TrackingGains {
             max_drag_per_s: 2.0,
             ki_per_s: 0.3,
             max_cross_m: 1.5,
+            ki_z_per_s: 1.0,
+            max_height_m: 1.0,
             max_acc_m_s2: 6.0,
             max_error_m: 3.0,
             moving_m_s: 0.5,
@@ -72,6 +84,8 @@ pub struct TrackingCorrection {
     /// Integral of the horizontal error across the commanded velocity (positive to the
     /// right of the direction of travel), metres.
     pub cross_m: f64,
+    /// Integral of the height error (down positive: the vehicle sits too high), metres.
+    pub height_m: f64,
     /// The commanded velocity at the last update (for its derivative), NED m/s.
     last_velocity: Option<Ned>,
     /// The commanded acceleration, low-pass filtered, NED m/s².
@@ -128,13 +142,17 @@ impl TrackingCorrection {
         } else {
             self.cross_m *= (-dt_s / g.leak_s).exp();
         }
+        if commanded_velocity.down_m.abs() < g.moving_m_s && error.down_m.abs() <= g.max_error_m {
+            self.height_m = (self.height_m + g.ki_z_per_s * error.down_m * dt_s)
+                .clamp(-g.max_height_m, g.max_height_m);
+        }
         self.correction(g, commanded_velocity)
     }
 
     /// The correction for a target moving at `commanded_velocity` now.
     pub fn correction(&self, g: &TrackingGains, commanded_velocity: Ned) -> Correction {
         let h = commanded_velocity.horizontal_norm();
-        let mut offset = Ned::ZERO;
+        let mut offset = Ned::new(0.0, 0.0, self.height_m);
         if h > 1e-6 {
             // Right of the direction of travel: (−v_e, v_n)/|v|.
             let right = Ned::new(
@@ -142,7 +160,7 @@ impl TrackingCorrection {
                 commanded_velocity.north_m / h,
                 0.0,
             );
-            offset = right * self.cross_m;
+            offset = offset + right * self.cross_m;
         }
         let mut drag = commanded_velocity * self.drag_per_s;
         drag.down_m = 0.0;
@@ -155,5 +173,45 @@ impl TrackingCorrection {
             offset,
             acceleration,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A vehicle that holds its height estimate `bias_m` above the setpoint (PX4's
+    /// vertical velocity bias): the height offset converges to cancel it, within bounds,
+    /// and nothing is learnt while the target climbs.
+    #[test]
+    fn the_height_offset_cancels_a_steady_height_error_in_level_flight() {
+        let g = TrackingGains::default();
+        let mut c = TrackingCorrection::default();
+        let target = Ned::new(0.0, 0.0, -10.0);
+        let bias_m = -0.2;
+        let dt = 0.02;
+        for _ in 0..(20.0 / dt) as usize {
+            // The vehicle flies to setpoint + offset, and sits `bias_m` off it.
+            let measured = target + c.correction(&g, Ned::ZERO).offset + Ned::new(0.0, 0.0, bias_m);
+            c.update(&g, target, Ned::ZERO, measured, dt);
+        }
+        let measured = target + c.correction(&g, Ned::ZERO).offset + Ned::new(0.0, 0.0, bias_m);
+        assert!((measured - target).norm() < 0.01, "{measured:?}");
+        assert!((c.height_m - 0.2).abs() < 0.01, "{}", c.height_m);
+
+        let before = c.height_m;
+        let climbing = Ned::new(0.0, 0.0, -2.0);
+        c.update(&g, target, climbing, target + Ned::new(0.0, 0.0, 1.0), dt);
+        assert_eq!(c.height_m, before, "learnt during a climb");
+
+        let mut far = TrackingCorrection::default();
+        for _ in 0..1000 {
+            far.update(&g, target, Ned::ZERO, target + Ned::new(0.0, 0.0, -2.5), dt);
+        }
+        assert!(
+            (far.height_m - g.max_height_m).abs() < 1e-9,
+            "{}",
+            far.height_m
+        );
     }
 }
