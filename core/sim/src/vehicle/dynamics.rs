@@ -31,7 +31,7 @@ const THRUST_TO_WEIGHT_AT_1KG: f64 = 2.0;
 /// Estimator noise (on with `--estimator-noise`): standard deviation of the velocity
 /// error per axis, m/s, its correlation time, s, and the leak of the position error, s.
 /// Tuned so that the hover wanders about 0.2 m and 0.2 m/s, as PX4 SIH does.
-const EST_VEL_NOISE_M_S: [f64; 3] = [0.2, 0.2, 0.15];
+const EST_VEL_NOISE_M_S: [f64; 3] = [0.2, 0.2, 0.05];
 const EST_VEL_NOISE_TAU_S: f64 = 0.5;
 const EST_POS_LEAK_TAU_S: f64 = 1.5;
 /// Estimator noise: the slow bias of the vertical velocity estimate, m/s (standard

@@ -58,6 +58,9 @@ pub fn formation(args: &FormationBenchArgs) -> Result<Value, String> {
         let mut converge_s = Vec::new();
         let mut moving_rms = Vec::new();
         let mut orbit_rms = Vec::new();
+        // Per shape: time-mean of the RMS slot error cruising and orbiting, m.
+        let mut per_shape = serde_json::Map::new();
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
         let mut north = 0.0;
         for shape in Shape::ALL
             .into_iter()
@@ -84,19 +87,19 @@ pub fn formation(args: &FormationBenchArgs) -> Result<Value, String> {
             }
             converge_s.push(r.time_s() - t0);
             north = if north == 0.0 { 60.0 } else { 0.0 };
-            moving_rms.extend(r.cruise_to(Ned::new(north, 0.0, -12.0), args.speed_m_s)?);
+            let moving = r.cruise_to(Ned::new(north, 0.0, -12.0), args.speed_m_s)?;
             // Half an orbit around a point 30 m east of where the leg ended.
             let half_s = std::f64::consts::PI * 30.0 / args.speed_m_s;
-            orbit_rms.extend(r.orbit(
-                Ned::new(north, 30.0, -12.0),
-                30.0,
-                args.speed_m_s,
-                half_s,
-            )?);
+            let orbit = r.orbit(Ned::new(north, 30.0, -12.0), 30.0, args.speed_m_s, half_s)?;
+            per_shape.insert(
+                shape.name().into(),
+                json!({"moving": round(mean(&moving), 3), "orbit": round(mean(&orbit), 3)}),
+            );
+            moving_rms.extend(moving);
+            orbit_rms.extend(orbit);
         }
         converge_s.sort_by(f64::total_cmp);
         let stats = r.stats();
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
         let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
         runs.push(json!({
             "vehicles": n,
@@ -108,6 +111,7 @@ pub fn formation(args: &FormationBenchArgs) -> Result<Value, String> {
                 "mean": round(mean(&orbit_rms), 3),
                 "max": round(max(&orbit_rms), 3),
             },
+            "rms_slot_error_per_shape_m": per_shape,
             "converge_s": {
                 "p50": round(converge_s[converge_s.len() / 2], 1),
                 "max": round(converge_s.last().copied().unwrap_or(0.0), 1),
