@@ -9,9 +9,15 @@
 //!
 //! The endpoint outlives the actors that use it: a restarted link actor re-registers its
 //! route on the same socket, so the vehicle never sees a new address.
+//!
+//! MAVLink 2 signing is per vehicle ([`Endpoint::set_signing`]): frames to a signing
+//! vehicle are signed, and its frames are checked before anything else looks at them
+//! (routing, discovery, the address a `udpin` endpoint replies to): unsigned, badly
+//! signed and replayed frames are counted ([`Endpoint::signing_counts`]) and dropped.
 
 use crate::address::ConnectionAddress;
 use skein_mavlink::dialect::{MavAutopilot, MavType};
+use skein_mavlink::signing::{LinkSigning, PX4_UNSIGNED_OK, SigningCounts};
 use skein_mavlink::{DecodeCounts, DecodeStats, Decoder, Encoder, Frame, MavMessage};
 use std::collections::HashMap;
 use std::io;
@@ -47,6 +53,23 @@ impl Default for Identity {
     }
 }
 
+/// MAVLink 2 signing of one vehicle's link, as configured (`signing_key_file`,
+/// `signing_link_id`); installed with [`Endpoint::set_signing`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SigningSpec {
+    /// The secret key shared with the vehicle.
+    pub key: skein_mavlink::signing::SigningKey,
+    /// The link id our signed frames carry (MAVLink's channel number; default 0).
+    pub link_id: u8,
+}
+
+impl SigningSpec {
+    /// The signing state to install on an endpoint.
+    pub fn signing(&self) -> Arc<LinkSigning> {
+        Arc::new(LinkSigning::new(self.key.clone(), self.link_id))
+    }
+}
+
 /// A HEARTBEAT from an autopilot the endpoint has no route for.
 #[derive(Debug, Clone, Copy)]
 pub struct Discovery {
@@ -63,6 +86,23 @@ pub struct Discovery {
 pub type FrameHandler = Arc<dyn Fn(Frame) + Send + Sync>;
 /// Receives discoveries (see [`Discovery`]).
 pub type DiscoveryHandler = Arc<dyn Fn(Discovery) + Send + Sync>;
+/// Sees every accepted frame with its bytes as received (after the signature check),
+/// e.g. to forward it to a ground station. Called on the receive task: must be cheap.
+pub type FrameTap = Arc<dyn Fn(&Frame, &[u8]) + Send + Sync>;
+
+/// Which vehicles of an endpoint sign, and with what.
+#[derive(Default)]
+struct SigningTable {
+    /// For every sysid without its own entry.
+    default: Option<Arc<LinkSigning>>,
+    by_sysid: HashMap<u8, Arc<LinkSigning>>,
+}
+
+impl SigningTable {
+    fn get(&self, sysid: u8) -> Option<&Arc<LinkSigning>> {
+        self.by_sysid.get(&sysid).or(self.default.as_ref())
+    }
+}
 
 #[derive(Default)]
 struct Peer {
@@ -124,6 +164,8 @@ pub struct Endpoint {
     encoder: Mutex<Encoder>,
     peers: RwLock<HashMap<u8, Peer>>,
     discovery: RwLock<Option<DiscoveryHandler>>,
+    signing: RwLock<SigningTable>,
+    tap: RwLock<Option<FrameTap>>,
     decode_stats: Arc<DecodeStats>,
     frames_sent: AtomicU64,
     send_errors: AtomicU64,
@@ -227,6 +269,8 @@ impl Endpoint {
             encoder: Mutex::new(Encoder::new(identity.sysid, identity.compid)),
             peers: RwLock::new(HashMap::new()),
             discovery: RwLock::new(None),
+            signing: RwLock::new(SigningTable::default()),
+            tap: RwLock::new(None),
             decode_stats: Arc::new(DecodeStats::default()),
             frames_sent: AtomicU64::new(0),
             send_errors: AtomicU64::new(0),
@@ -260,6 +304,89 @@ impl Endpoint {
     /// Installs the callback for HEARTBEATs of unrouted autopilots.
     pub fn set_discovery(&self, handler: DiscoveryHandler) {
         *self.discovery.write().expect("discovery lock") = Some(handler);
+    }
+
+    /// Requires MAVLink 2 signing of vehicle `sysid` (`None`: of every vehicle of this
+    /// endpoint without its own entry): frames to it are signed with `signing`, and its
+    /// frames are accepted only with a valid, fresh signature (PX4's unsigned exceptions
+    /// RADIO_STATUS, ADSB_VEHICLE and COLLISION aside); the others are counted and dropped.
+    pub fn set_signing(&self, sysid: Option<u8>, signing: Arc<LinkSigning>) {
+        let mut t = self.signing.write().expect("signing lock");
+        match sysid {
+            Some(s) => {
+                t.by_sysid.insert(s, signing);
+            }
+            None => t.default = Some(signing),
+        }
+    }
+
+    /// The signing of vehicle `sysid`, if it signs.
+    pub fn signing_of(&self, sysid: u8) -> Option<Arc<LinkSigning>> {
+        self.signing
+            .read()
+            .expect("signing lock")
+            .get(sysid)
+            .cloned()
+    }
+
+    /// Signing counters summed over this endpoint's signing vehicles; `None` when none
+    /// signs.
+    pub fn signing_counts(&self) -> Option<SigningCounts> {
+        let t = self.signing.read().expect("signing lock");
+        let mut all: Vec<&Arc<LinkSigning>> = Vec::new();
+        for s in t.default.iter().chain(t.by_sysid.values()) {
+            if !all.iter().any(|a| Arc::ptr_eq(a, s)) {
+                all.push(s);
+            }
+        }
+        if all.is_empty() {
+            return None;
+        }
+        let mut total = SigningCounts::default();
+        for s in all {
+            total.add(&s.counts());
+        }
+        Some(total)
+    }
+
+    /// Installs (or removes) the tap that sees every accepted frame.
+    pub fn set_tap(&self, tap: Option<FrameTap>) {
+        *self.tap.write().expect("tap lock") = tap;
+    }
+
+    /// The system ids heard on this endpoint.
+    pub fn sysids(&self) -> Vec<u8> {
+        self.peers
+            .read()
+            .expect("peers lock")
+            .iter()
+            .filter(|(_, p)| p.last_seen.is_some())
+            .map(|(s, _)| *s)
+            .collect()
+    }
+
+    /// Sends a frame that another system encoded (a ground station's command) to vehicle
+    /// `sysid`: its bytes unchanged, or, when that vehicle signs, re-encoded with the
+    /// sender's own sysid, compid and sequence and signed with the vehicle's key.
+    ///
+    /// # Errors
+    /// As [`Endpoint::send`].
+    pub fn forward(&self, sysid: u8, frame: &Frame, raw: &[u8]) -> Result<(), SendError> {
+        let signed;
+        let bytes = match self.signing_of(sysid) {
+            Some(s) => {
+                signed = skein_mavlink::encode_frame(
+                    frame.sysid,
+                    frame.compid,
+                    frame.seq,
+                    &frame.msg,
+                    Some(&s),
+                );
+                signed.as_bytes()
+            }
+            None => raw,
+        };
+        self.send_bytes(sysid, bytes)
     }
 
     /// Routes every frame from `sysid` (any component) to `handler`, replacing a previous
@@ -325,7 +452,25 @@ impl Endpoint {
     /// [`SendError::NoAddress`] before a `udpin` endpoint has heard from `sysid`;
     /// [`SendError::Io`] when the socket refuses.
     pub fn send(&self, sysid: u8, msg: &MavMessage) -> Result<(), SendError> {
-        let dest = match &self.transport {
+        let dest = self.dest(sysid)?;
+        let signing = self.signing_of(sysid);
+        let frame = self
+            .encoder
+            .lock()
+            .expect("encoder lock")
+            .encode_with(msg, signing.as_deref());
+        self.write(dest, frame.as_bytes())
+    }
+
+    /// Sends bytes that already are whole frames to vehicle `sysid`.
+    fn send_bytes(&self, sysid: u8, bytes: &[u8]) -> Result<(), SendError> {
+        let dest = self.dest(sysid)?;
+        self.write(dest, bytes)
+    }
+
+    /// Where frames to `sysid` go (`None` on a byte stream).
+    fn dest(&self, sysid: u8) -> Result<Option<SocketAddr>, SendError> {
+        Ok(match &self.transport {
             Transport::Udp { remote, .. } => match remote.or_else(|| self.peer_addr(sysid)) {
                 Some(a) => Some(a),
                 None => {
@@ -334,17 +479,19 @@ impl Endpoint {
                 }
             },
             Transport::Stream { .. } => None,
-        };
-        let frame = self.encoder.lock().expect("encoder lock").encode(msg);
+        })
+    }
+
+    fn write(&self, dest: Option<SocketAddr>, bytes: &[u8]) -> Result<(), SendError> {
         let result = match (&self.transport, dest) {
             (Transport::Udp { socket, .. }, Some(dest)) => socket
-                .try_send_to(frame.as_bytes(), dest)
+                .try_send_to(bytes, dest)
                 .map(|_| ())
                 .map_err(|e| SendError::Io(e.to_string())),
             (Transport::Stream { tx }, _) => tx
-                .send(frame.as_bytes().to_vec())
+                .send(bytes.to_vec())
                 .map_err(|_| SendError::Io("stream closed".into())),
-            (Transport::Udp { .. }, None) => unreachable!("dest resolved above"),
+            (Transport::Udp { .. }, None) => Err(SendError::Io("no destination".into())),
         };
         match &result {
             Ok(()) => self.frames_sent.fetch_add(1, Ordering::Relaxed),
@@ -375,9 +522,18 @@ impl Endpoint {
         }
     }
 
-    fn deliver(&self, frame: Frame, from: Option<SocketAddr>) {
-        let now = Instant::now();
+    fn deliver(&self, frame: Frame, raw: &[u8], from: Option<SocketAddr>) {
         let sysid = frame.sysid;
+        if let Some(s) = self.signing_of(sysid)
+            && !s.accept(raw, PX4_UNSIGNED_OK)
+        {
+            return;
+        }
+        let tap = self.tap.read().expect("tap lock").clone();
+        if let Some(tap) = tap {
+            tap(&frame, raw);
+        }
+        let now = Instant::now();
         let (handler, discover) = {
             let mut peers = self.peers.write().expect("peers lock");
             let p = peers.entry(sysid).or_default();
@@ -459,7 +615,6 @@ async fn udp_reader(endpoint: Weak<Endpoint>, socket: Arc<UdpSocket>) {
         return;
     };
     let mut decoder = Decoder::new(stats);
-    let mut frames = Vec::with_capacity(16);
     loop {
         let (n, from) = match socket.recv_from(&mut buf).await {
             Ok(r) => r,
@@ -471,10 +626,7 @@ async fn udp_reader(endpoint: Weak<Endpoint>, socket: Arc<UdpSocket>) {
             }
         };
         let Some(ep) = endpoint.upgrade() else { return };
-        decoder.decode_datagram(&buf[..n], |f| frames.push(f));
-        for f in frames.drain(..) {
-            ep.deliver(f, Some(from));
-        }
+        decoder.decode_datagram_raw(&buf[..n], |f, raw| ep.deliver(f, raw, Some(from)));
     }
 }
 
@@ -520,9 +672,7 @@ async fn stream_session(
                     let n = match r { Ok(0) | Err(_) => break, Ok(n) => n };
                     let Some(ep) = endpoint.upgrade() else { return };
                     decoder.push(&buf[..n]);
-                    while let Some(f) = decoder.next_frame() {
-                        ep.deliver(f, None);
-                    }
+                    while decoder.next_frame_raw(|f, raw| ep.deliver(f, raw, None)).is_some() {}
                 }
                 out = outgoing.recv() => {
                     let Some(bytes) = out else { return };
