@@ -99,9 +99,43 @@ fn pymavlink_flies_the_signed_simulator_only_with_the_key() {
 /// is dropped and counted.
 #[test]
 fn pymavlink_as_qgroundcontrol_sees_every_vehicle_and_commands_one() {
+    qgroundcontrol_on_the_forward(&[]);
+}
+
+/// The same with signed links (`--sim-signing-key-file`): the unsigned commands of the
+/// ground station reach the vehicle only because skein's link signs them.
+#[test]
+fn pymavlink_as_qgroundcontrol_commands_a_signing_vehicle_through_skein() {
+    let key = signing_key_file("gcs");
+    let skein = qgroundcontrol_on_the_forward(&["--sim-signing-key-file", key.to_str().unwrap()]);
+    let (_, links) = skein.get("/api/v1/links");
+    let signing: Vec<&serde_json::Value> = links
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|l| l.get("signing"))
+        .collect();
+    assert_eq!(signing.len(), 3, "{links}");
+    let (_, _, metrics) = skein.get_bytes("/metrics");
+    assert!(
+        String::from_utf8_lossy(&metrics).contains("mavlink_signing_dropped_frames{"),
+        "no per-endpoint signing drop metric"
+    );
+    for s in signing {
+        assert!(s["signed_ok"].as_u64() > Some(10), "{s}");
+        assert_eq!(s["unsigned"], 0, "{s}");
+        assert_eq!(s["bad_signature"], 0, "{s}");
+    }
+}
+
+/// Runs `gcs_forward_pymavlink.py` against `skein up --sim 3 --gcs-forward … <extra>`
+/// and checks the forwarder's counters; returns the running skein.
+fn qgroundcontrol_on_the_forward(extra: &[&str]) -> support::Skein {
     let gcs_port = free_udp_range(1);
     let forward = format!("udpout:127.0.0.1:{gcs_port}");
-    let skein = support::Skein::up_sim(3, &["--gcs-forward", &forward]);
+    let mut args = vec!["--gcs-forward", forward.as_str()];
+    args.extend_from_slice(extra);
+    let skein = support::Skein::up_sim(3, &args);
     assert_peer(
         "gcs_forward_pymavlink.py",
         &[
@@ -132,6 +166,7 @@ fn pymavlink_as_qgroundcontrol_sees_every_vehicle_and_commands_one() {
         metrics.contains("gcs_forward_frames") && metrics.contains("setpoints_dropped"),
         "{metrics}"
     );
+    skein
 }
 
 #[test]
