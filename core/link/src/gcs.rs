@@ -140,7 +140,7 @@ impl GcsForwarder {
             let weak = Arc::downgrade(&fwd);
             ep.set_tap(Some(Arc::new(move |_frame: &Frame, raw: &[u8]| {
                 if let Some(f) = weak.upgrade() {
-                    f.to_gcs(raw);
+                    f.send_to_gcs(raw);
                 }
             })));
         }
@@ -181,7 +181,7 @@ impl GcsForwarder {
     }
 
     /// One vehicle frame, as received, to the ground station.
-    fn to_gcs(&self, raw: &[u8]) {
+    fn send_to_gcs(&self, raw: &[u8]) {
         let remote = *self.remote.lock().unwrap_or_else(|e| e.into_inner());
         match remote.map(|r| self.socket.try_send_to(raw, r)) {
             Some(Ok(_)) => Self::bump(&self.stats.to_gcs),
@@ -190,7 +190,7 @@ impl GcsForwarder {
     }
 
     /// One ground-station frame to the vehicle(s) it is for.
-    fn from_gcs(&self, frame: &Frame, raw: &[u8]) {
+    fn route_from_gcs(&self, frame: &Frame, raw: &[u8]) {
         if is_setpoint(&frame.msg) {
             Self::bump(&self.stats.setpoints_dropped);
             return;
@@ -234,6 +234,6 @@ async fn receive(fwd: Weak<GcsForwarder>, socket: Arc<UdpSocket>) {
         if !f.fixed_remote {
             *f.remote.lock().unwrap_or_else(|e| e.into_inner()) = Some(from);
         }
-        decoder.decode_datagram_raw(&buf[..n], |frame, raw| f.from_gcs(&frame, raw));
+        decoder.decode_datagram_raw(&buf[..n], |frame, raw| f.route_from_gcs(&frame, raw));
     }
 }
