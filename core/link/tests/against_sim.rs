@@ -473,3 +473,86 @@ async fn a_signed_link_flies_the_signed_simulator_and_unsigned_frames_are_droppe
         "a spoofed frame moved the vehicle's address"
     );
 }
+
+fn set_mode_posctl(target_system: u8) -> MavMessage {
+    MavMessage::COMMAND_LONG(d::COMMAND_LONG_DATA {
+        target_system,
+        target_component: 0,
+        command: d::MavCmd::MAV_CMD_DO_SET_MODE,
+        confirmation: 0,
+        param1: 1.0,
+        param2: 3.0,
+        param3: 0.0,
+        param4: 0.0,
+        param5: 0.0,
+        param6: 0.0,
+        param7: 0.0,
+    })
+}
+
+/// A ground station on a `udpin` forward: it hears the vehicles once it spoke, a
+/// broadcast reaches both, a frame for an unknown sysid and a setpoint are counted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_ground_station_on_a_udpin_forward_broadcasts_and_is_refused_setpoints() {
+    let (sim, endpoint, vehicles) = swarm_on_one_port(2, LinkSetup::default()).await;
+    let fwd = skein_link::GcsForwarder::start(
+        ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
+        vec![endpoint.clone()],
+    )
+    .await
+    .unwrap();
+    let gcs = tokio::net::UdpSocket::bind("127.0.0.1:0").await.unwrap();
+    let mut enc = Encoder::new(255, 190);
+    let to = fwd.local_addr();
+    for v in &vehicles {
+        eventually(
+            "a global position (POSCTL needs it)",
+            Duration::from_secs(20),
+            || v.link.with_telemetry(|t| t.home.is_some()).then_some(()),
+        )
+        .await;
+    }
+    // Nothing reaches a udpin ground station before it spoke.
+    assert_eq!(fwd.counts().to_gcs, 0);
+    gcs.send_to(enc.encode(&set_mode_posctl(0)).as_bytes(), to)
+        .await
+        .unwrap();
+    eventually("both vehicles in POSCTL", Duration::from_secs(10), || {
+        (1..=2)
+            .all(|s| sim.truth(s).unwrap().mode == Px4Mode::Posctl)
+            .then_some(())
+    })
+    .await;
+    let mut buf = [0u8; 2048];
+    let (n, _) = tokio::time::timeout(Duration::from_secs(5), gcs.recv_from(&mut buf))
+        .await
+        .expect("vehicle frames forwarded")
+        .unwrap();
+    let mut sysids = std::collections::BTreeSet::new();
+    skein_mavlink::Decoder::default().decode_datagram(&buf[..n], |f| {
+        sysids.insert(f.sysid);
+    });
+    assert!(sysids.iter().all(|s| (1..=2).contains(s)), "{sysids:?}");
+    gcs.send_to(enc.encode(&set_mode_posctl(9)).as_bytes(), to)
+        .await
+        .unwrap();
+    let attitude = MavMessage::SET_ATTITUDE_TARGET(d::SET_ATTITUDE_TARGET_DATA {
+        target_system: 1,
+        target_component: 1,
+        ..Default::default()
+    });
+    gcs.send_to(enc.encode(&attitude).as_bytes(), to)
+        .await
+        .unwrap();
+    let c = eventually(
+        "no route and setpoint counted",
+        Duration::from_secs(5),
+        || {
+            let c = fwd.counts();
+            (c.no_route == 1 && c.setpoints_dropped == 1).then_some(c)
+        },
+    )
+    .await;
+    assert_eq!(c.from_gcs, 2, "the broadcast, once per vehicle: {c:?}");
+    assert!(c.to_gcs > 0, "{c:?}");
+}
