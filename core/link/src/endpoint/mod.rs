@@ -16,8 +16,9 @@
 //! signed and replayed frames are counted ([`Endpoint::signing_counts`]) and dropped.
 
 use crate::address::ConnectionAddress;
+use signing::SigningTable;
 use skein_mavlink::dialect::{MavAutopilot, MavType};
-use skein_mavlink::signing::{LinkSigning, PX4_UNSIGNED_OK, SigningCounts};
+use skein_mavlink::signing::PX4_UNSIGNED_OK;
 use skein_mavlink::{DecodeCounts, DecodeStats, Decoder, Encoder, Frame, MavMessage};
 use std::collections::HashMap;
 use std::io;
@@ -29,6 +30,9 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpStream, UdpSocket};
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
+
+mod signing;
+pub use signing::SigningSpec;
 
 /// Our own MAVLink identity on an endpoint (sender of heartbeats, commands, setpoints).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -53,23 +57,6 @@ impl Default for Identity {
     }
 }
 
-/// MAVLink 2 signing of one vehicle's link, as configured (`signing_key_file`,
-/// `signing_link_id`); installed with [`Endpoint::set_signing`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct SigningSpec {
-    /// The secret key shared with the vehicle.
-    pub key: skein_mavlink::signing::SigningKey,
-    /// The link id our signed frames carry (MAVLink's channel number; default 0).
-    pub link_id: u8,
-}
-
-impl SigningSpec {
-    /// The signing state to install on an endpoint.
-    pub fn signing(&self) -> Arc<LinkSigning> {
-        Arc::new(LinkSigning::new(self.key.clone(), self.link_id))
-    }
-}
-
 /// A HEARTBEAT from an autopilot the endpoint has no route for.
 #[derive(Debug, Clone, Copy)]
 pub struct Discovery {
@@ -89,20 +76,6 @@ pub type DiscoveryHandler = Arc<dyn Fn(Discovery) + Send + Sync>;
 /// Sees every accepted frame with its bytes as received (after the signature check),
 /// e.g. to forward it to a ground station. Called on the receive task: must be cheap.
 pub type FrameTap = Arc<dyn Fn(&Frame, &[u8]) + Send + Sync>;
-
-/// Which vehicles of an endpoint sign, and with what.
-#[derive(Default)]
-struct SigningTable {
-    /// For every sysid without its own entry.
-    default: Option<Arc<LinkSigning>>,
-    by_sysid: HashMap<u8, Arc<LinkSigning>>,
-}
-
-impl SigningTable {
-    fn get(&self, sysid: u8) -> Option<&Arc<LinkSigning>> {
-        self.by_sysid.get(&sysid).or(self.default.as_ref())
-    }
-}
 
 #[derive(Default)]
 struct Peer {
@@ -304,49 +277,6 @@ impl Endpoint {
     /// Installs the callback for HEARTBEATs of unrouted autopilots.
     pub fn set_discovery(&self, handler: DiscoveryHandler) {
         *self.discovery.write().expect("discovery lock") = Some(handler);
-    }
-
-    /// Requires MAVLink 2 signing of vehicle `sysid` (`None`: of every vehicle of this
-    /// endpoint without its own entry): frames to it are signed with `signing`, and its
-    /// frames are accepted only with a valid, fresh signature (PX4's unsigned exceptions
-    /// RADIO_STATUS, ADSB_VEHICLE and COLLISION aside); the others are counted and dropped.
-    pub fn set_signing(&self, sysid: Option<u8>, signing: Arc<LinkSigning>) {
-        let mut t = self.signing.write().expect("signing lock");
-        match sysid {
-            Some(s) => {
-                t.by_sysid.insert(s, signing);
-            }
-            None => t.default = Some(signing),
-        }
-    }
-
-    /// The signing of vehicle `sysid`, if it signs.
-    pub fn signing_of(&self, sysid: u8) -> Option<Arc<LinkSigning>> {
-        self.signing
-            .read()
-            .expect("signing lock")
-            .get(sysid)
-            .cloned()
-    }
-
-    /// Signing counters summed over this endpoint's signing vehicles; `None` when none
-    /// signs.
-    pub fn signing_counts(&self) -> Option<SigningCounts> {
-        let t = self.signing.read().expect("signing lock");
-        let mut all: Vec<&Arc<LinkSigning>> = Vec::new();
-        for s in t.default.iter().chain(t.by_sysid.values()) {
-            if !all.iter().any(|a| Arc::ptr_eq(a, s)) {
-                all.push(s);
-            }
-        }
-        if all.is_empty() {
-            return None;
-        }
-        let mut total = SigningCounts::default();
-        for s in all {
-            total.add(&s.counts());
-        }
-        Some(total)
     }
 
     /// Installs (or removes) the tap that sees every accepted frame.
@@ -685,150 +615,4 @@ async fn stream_session(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use skein_mavlink::dialect::*;
-    use std::time::Duration;
-
-    fn heartbeat(autopilot: MavAutopilot) -> MavMessage {
-        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            custom_mode: 0,
-            mavtype: MavType::MAV_TYPE_QUADROTOR,
-            autopilot,
-            base_mode: MavModeFlag::empty(),
-            system_status: MavState::MAV_STATE_STANDBY,
-            mavlink_version: 3,
-        })
-    }
-
-    async fn eventually(what: &str, mut f: impl FnMut() -> bool) {
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while !f() {
-            assert!(Instant::now() < deadline, "timed out waiting for {what}");
-            tokio::time::sleep(Duration::from_millis(5)).await;
-        }
-    }
-
-    #[tokio::test]
-    async fn shared_udpin_endpoint_demultiplexes_by_sysid_and_discovers() {
-        let ep = Endpoint::open(
-            ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
-            Identity::default(),
-        )
-        .await
-        .unwrap();
-        let addr = ep.local_addr().unwrap();
-        let found = Arc::new(Mutex::new(Vec::new()));
-        let f2 = found.clone();
-        ep.set_discovery(Arc::new(move |d| f2.lock().unwrap().push(d.sysid)));
-        // Three "vehicles" on their own sockets, all sending to the one endpoint.
-        let mut vehicles = Vec::new();
-        for sysid in [1u8, 2, 3] {
-            let s = UdpSocket::bind("127.0.0.1:0").await.unwrap();
-            let mut enc = Encoder::new(sysid, 1);
-            s.send_to(
-                enc.encode(&heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4))
-                    .as_bytes(),
-                addr,
-            )
-            .await
-            .unwrap();
-            vehicles.push((s, enc));
-        }
-        eventually("three discoveries", || found.lock().unwrap().len() == 3).await;
-        // A GCS heartbeat (autopilot INVALID) is not a vehicle.
-        let gcs = UdpSocket::bind("127.0.0.1:0").await.unwrap();
-        gcs.send_to(
-            Encoder::new(200, 190)
-                .encode(&heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID))
-                .as_bytes(),
-            addr,
-        )
-        .await
-        .unwrap();
-        // Route sysid 2 and check only its frames arrive there.
-        let got = Arc::new(Mutex::new(Vec::new()));
-        let g2 = got.clone();
-        ep.route(
-            2,
-            Arc::new(move |f: Frame| g2.lock().unwrap().push(f.sysid)),
-        );
-        for (s, enc) in vehicles.iter_mut() {
-            s.send_to(
-                enc.encode(&heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4))
-                    .as_bytes(),
-                addr,
-            )
-            .await
-            .unwrap();
-        }
-        eventually("sysid 2 routed", || !got.lock().unwrap().is_empty()).await;
-        eventually("gcs seen", || ep.last_seen(200).is_some()).await;
-        assert!(got.lock().unwrap().iter().all(|&s| s == 2));
-        assert_eq!(found.lock().unwrap().len(), 3, "GCS not discovered");
-        // Replies go back to each vehicle's own address.
-        ep.send(3, &heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID))
-            .unwrap();
-        let mut buf = [0u8; 300];
-        let n = tokio::time::timeout(Duration::from_secs(5), vehicles[2].0.recv(&mut buf))
-            .await
-            .unwrap()
-            .unwrap();
-        let mut dec = Decoder::default();
-        let mut frames = Vec::new();
-        dec.decode_datagram(&buf[..n], |f| frames.push(f));
-        assert_eq!(frames[0].sysid, 255);
-    }
-
-    #[tokio::test]
-    async fn malformed_datagrams_are_counted_and_dropped() {
-        let ep = Endpoint::open(
-            ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
-            Identity::default(),
-        )
-        .await
-        .unwrap();
-        let s = UdpSocket::bind("127.0.0.1:0").await.unwrap();
-        s.send_to(
-            b"\xfd\x09garbage that is not mavlink",
-            ep.local_addr().unwrap(),
-        )
-        .await
-        .unwrap();
-        eventually("rejected datagram counted", || {
-            ep.decode_counts().rejected_datagrams == 1
-        })
-        .await;
-        assert_eq!(ep.decode_counts().frames_ok, 0);
-    }
-
-    #[tokio::test]
-    async fn send_before_the_vehicle_spoke_is_refused() {
-        let ep = Endpoint::open(
-            ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
-            Identity::default(),
-        )
-        .await
-        .unwrap();
-        assert_eq!(
-            ep.send(7, &heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID)),
-            Err(SendError::NoAddress(7))
-        );
-        assert_eq!(ep.send_counts().no_route, 1);
-    }
-
-    #[tokio::test]
-    async fn a_missing_serial_device_is_refused_naming_it() {
-        let e = Endpoint::open(
-            "serial:/dev/skein-no-such-tty:57600".parse().unwrap(),
-            Identity::default(),
-        )
-        .await
-        .unwrap_err();
-        assert!(
-            e.to_string()
-                .contains("serial:/dev/skein-no-such-tty:57600"),
-            "{e}"
-        );
-    }
-}
+mod tests;
