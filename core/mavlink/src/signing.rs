@@ -259,7 +259,7 @@ impl LinkSigning {
     /// Checks one incoming frame (its bytes as received, CRC already checked) without
     /// counting it. A valid frame advances its stream's timestamp.
     pub fn verify(&self, frame: &[u8]) -> Verdict {
-        if frame.len() < 3 || frame[0] != crate::STX_V2 || frame[2] & IFLAG_SIGNED == 0 {
+        if !is_signed(frame) {
             return Verdict::Unsigned;
         }
         if frame.len() > MAX_FRAME_SIZE {
@@ -326,8 +326,13 @@ impl LinkSigning {
     }
 }
 
+/// True when `frame` (one frame's bytes) is a MAVLink 2 frame with the signed flag.
+pub fn is_signed(frame: &[u8]) -> bool {
+    frame.len() > 2 && frame[0] == crate::STX_V2 && frame[2] & IFLAG_SIGNED != 0
+}
+
 /// The message id of a raw MAVLink 1 or 2 frame (0 when too short to tell).
-fn frame_msgid(frame: &[u8]) -> u32 {
+pub fn frame_msgid(frame: &[u8]) -> u32 {
     match frame.first() {
         Some(&crate::STX_V2) if frame.len() >= 10 => {
             u32::from_le_bytes([frame[7], frame[8], frame[9], 0])
@@ -444,6 +449,18 @@ mod tests {
             rx.accept(&plain, &[2]),
             "SYSTEM_TIME (2) allowed unsigned here"
         );
+        assert!(!is_signed(&plain) && is_signed(&first));
+        // A MAVLink 1 frame whose sequence byte (where v2 keeps its flags) is odd.
+        let mut v1 = mavlink::MAVLinkV1MessageRaw::new();
+        v1.serialize_message(
+            mavlink::MavHeader {
+                system_id: 2,
+                component_id: 1,
+                sequence: 1,
+            },
+            &ping(),
+        );
+        assert!(!is_signed(v1.raw_bytes()));
         let c = rx.counts();
         assert_eq!(
             (

@@ -18,7 +18,9 @@
 //!   vehicle's only MAVLink instance). The key survives a reboot, as PX4's key file does.
 
 use skein_mavlink::MavMessage;
-use skein_mavlink::signing::{LinkSigning, PX4_UNSIGNED_OK, SigningCounts, SigningKey};
+use skein_mavlink::signing::{
+    LinkSigning, PX4_UNSIGNED_OK, SigningCounts, SigningKey, frame_msgid, is_signed,
+};
 use std::sync::Arc;
 
 /// The link id a simulated vehicle signs with (PX4: its MAVLink instance number).
@@ -51,10 +53,9 @@ impl SimSigning {
             (Some(s), true) => s.accept(raw, PX4_UNSIGNED_OK),
             // Not required: unsigned frames pass; signed ones must still verify (the MAVLink
             // C library checks every signed frame once signing is set up).
-            (Some(s), false) => raw.get(2).is_none_or(|f| f & 1 == 0) || s.accept(raw, &[]),
+            (Some(s), false) => !is_signed(raw) || s.accept(raw, &[]),
             (None, true) => {
-                let unsigned_ok = raw.len() >= 10
-                    && PX4_UNSIGNED_OK.contains(&u32::from_le_bytes([raw[7], raw[8], raw[9], 0]));
+                let unsigned_ok = PX4_UNSIGNED_OK.contains(&frame_msgid(raw));
                 if !unsigned_ok {
                     self.base.unsigned += 1;
                 }
