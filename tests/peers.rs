@@ -1,4 +1,5 @@
-//! Independent peers against skein: pymavlink flies a `skein sim` vehicle. The Python
+//! Independent peers against skein: pymavlink flies a `skein sim` vehicle (signed and
+//! unsigned), and acts as QGroundControl on `skein up`'s ground-station forward. The Python
 //! scripts live in `tests/peers/`; their interpreter is the test venv (see
 //! `support::python`).
 
@@ -10,19 +11,33 @@ use support::{Process, free_udp_range, run_peer};
 /// Starts `skein sim --vehicles n` with the PX4 SITL layout on free ports; returns the
 /// process and the first target port (where vehicle 0 sends, where a client listens).
 fn sim(n: u16) -> (Process, u16) {
+    let (p, targets, _) = sim_with(n, &[]);
+    (p, targets)
+}
+
+/// [`sim`] with `extra` arguments and its stats socket open; also returns the stats
+/// address.
+fn sim_with(n: u16, extra: &[&str]) -> (Process, u16, String) {
     let targets = free_udp_range(n);
     let listens = free_udp_range(n);
-    let mut p = Process::start(&[
+    let (n, targets_s, listens_s) = (n.to_string(), targets.to_string(), listens.to_string());
+    let mut args = vec![
         "sim",
         "--vehicles",
-        &n.to_string(),
+        &n,
         "--target-base-port",
-        &targets.to_string(),
+        &targets_s,
         "--listen-base-port",
-        &listens.to_string(),
-    ]);
+        &listens_s,
+        "--stats",
+        "127.0.0.1:0",
+    ];
+    args.extend_from_slice(extra);
+    let mut p = Process::start(&args);
+    let stats = p.wait_line("stats ", Duration::from_secs(30));
+    let stats = stats.trim_start_matches("stats ").trim().to_string();
     p.wait_line("ready", Duration::from_secs(30));
-    (p, targets)
+    (p, targets, stats)
 }
 
 fn assert_peer(script: &str, args: &[&str], timeout: Duration) {
@@ -42,6 +57,116 @@ fn pymavlink_decodes_everything_and_flies_offboard() {
         &["--port", &port.to_string()],
         Duration::from_secs(180),
     );
+}
+
+/// A key file for one test, written by `skein key create` itself.
+fn signing_key_file(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("skein-key-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("sim.key");
+    let mut p = Process::start(&["key", "create", "--out", path.to_str().unwrap()]);
+    p.wait_line("signing_key_file = ", Duration::from_secs(30));
+    assert_eq!(p.wait_exit(Duration::from_secs(10)), Some(0));
+    use std::os::unix::fs::PermissionsExt;
+    let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o600, "key file mode {mode:o}");
+    path
+}
+
+/// The signed simulator ignores pymavlink without the key (the vehicle stays disarmed,
+/// the simulator's unsigned-drop counter rises) and flies with it (arm, take off).
+#[test]
+fn pymavlink_flies_the_signed_simulator_only_with_the_key() {
+    let key = signing_key_file("pymavlink");
+    let (_sim, port, stats) = sim_with(1, &["--signing-key-file", key.to_str().unwrap()]);
+    assert_peer(
+        "sim_signing_pymavlink.py",
+        &[
+            "--port",
+            &port.to_string(),
+            "--key-file",
+            key.to_str().unwrap(),
+            "--stats",
+            &stats,
+        ],
+        Duration::from_secs(120),
+    );
+}
+
+/// pymavlink as QGroundControl on `skein up --sim 3 --gcs-forward`: three heartbeats with
+/// three sysids; a DO_SET_MODE to sysid 2 changes that vehicle only; a setpoint from it
+/// is dropped and counted.
+#[test]
+fn pymavlink_as_qgroundcontrol_sees_every_vehicle_and_commands_one() {
+    qgroundcontrol_on_the_forward(&[]);
+}
+
+/// The same with signed links (`--sim-signing-key-file`): the unsigned commands of the
+/// ground station reach the vehicle only because skein's link signs them.
+#[test]
+fn pymavlink_as_qgroundcontrol_commands_a_signing_vehicle_through_skein() {
+    let key = signing_key_file("gcs");
+    let skein = qgroundcontrol_on_the_forward(&["--sim-signing-key-file", key.to_str().unwrap()]);
+    let (_, links) = skein.get("/api/v1/links");
+    let signing: Vec<&serde_json::Value> = links
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|l| l.get("signing"))
+        .collect();
+    assert_eq!(signing.len(), 3, "{links}");
+    let (_, _, metrics) = skein.get_bytes("/metrics");
+    assert!(
+        String::from_utf8_lossy(&metrics).contains("mavlink_signing_dropped_frames{"),
+        "no per-endpoint signing drop metric"
+    );
+    for s in signing {
+        assert!(s["signed_ok"].as_u64() > Some(10), "{s}");
+        assert_eq!(s["unsigned"], 0, "{s}");
+        assert_eq!(s["bad_signature"], 0, "{s}");
+    }
+}
+
+/// Runs `gcs_forward_pymavlink.py` against `skein up --sim 3 --gcs-forward … <extra>`
+/// and checks the forwarder's counters; returns the running skein.
+fn qgroundcontrol_on_the_forward(extra: &[&str]) -> support::Skein {
+    let gcs_port = free_udp_range(1);
+    let forward = format!("udpout:127.0.0.1:{gcs_port}");
+    let mut args = vec!["--gcs-forward", forward.as_str()];
+    args.extend_from_slice(extra);
+    let skein = support::Skein::up_sim(3, &args);
+    assert_peer(
+        "gcs_forward_pymavlink.py",
+        &[
+            "--port",
+            &gcs_port.to_string(),
+            "--api",
+            &skein.base,
+            "--vehicles",
+            "3",
+        ],
+        Duration::from_secs(120),
+    );
+    let (status, links) = skein.get("/api/v1/links");
+    assert_eq!(status, 200, "{links}");
+    let gcs = links
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|l| l["connection"] == forward.as_str())
+        .unwrap_or_else(|| panic!("no forwarder entry in {links}"));
+    let c = &gcs["gcs_forward"];
+    assert!(c["setpoints_dropped"].as_u64() >= Some(1), "{gcs}");
+    assert!(c["to_gcs"].as_u64() > Some(100), "{gcs}");
+    assert!(c["from_gcs"].as_u64() >= Some(1), "{gcs}");
+    let (_, _, metrics) = skein.get_bytes("/metrics");
+    let metrics = String::from_utf8_lossy(&metrics);
+    assert!(
+        metrics.contains("gcs_forward_frames") && metrics.contains("setpoints_dropped"),
+        "{metrics}"
+    );
+    skein
 }
 
 #[test]

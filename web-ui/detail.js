@@ -48,7 +48,8 @@ export class VehicleDetail {
         <h4>Link counters <span class="hint" data-field="conn"></span></h4>
         <table class="links" data-testid="link-counters"><thead><tr><th>endpoint</th><th title="frames decoded">ok</th>
           <th title="bad CRC">crc</th><th title="unknown message ids">unkn.</th><th title="parse errors, truncated, bad flags, garbage bytes">malf.</th>
-          <th title="rejected datagrams (other sources)">rej.</th><th title="frames sent">sent</th><th title="send errors, no route">s.err</th></tr></thead><tbody></tbody></table>
+          <th title="rejected datagrams (other sources)">rej.</th><th title="frames sent">sent</th><th title="send errors, no route">s.err</th>
+          <th title="MAVLink 2 signing: frames dropped unsigned, badly signed or replayed (– when the link does not sign)">sig.</th></tr></thead><tbody></tbody></table>
         <h4>Parameters</h4>
         <div data-testid="params"></div>
       </div>`;
@@ -199,7 +200,8 @@ export class VehicleDetail {
       const d = e.decode || {}, sd = e.send || {};
       const malformed = (d.parse_errors || 0) + (d.truncated || 0) + (d.bad_flags || 0) + (d.garbage_bytes || 0);
       const cells = [e.connection, d.frames_ok, d.bad_crc, d.unknown_message, malformed, d.rejected_datagrams,
-        sd.frames_sent, (sd.send_errors || 0) + (sd.no_route || 0)];
+        sd.frames_sent, (sd.send_errors || 0) + (sd.no_route || 0),
+        e.signing ? e.signing.unsigned + e.signing.bad_signature + e.signing.replayed + e.signing.too_old : null];
       const tr = document.createElement('tr');
       tr.classList.toggle('mine', known && e.connection === conn);
       cells.forEach((c, i) => {

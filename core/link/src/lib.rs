@@ -10,6 +10,7 @@
 //! - [`setpoint`]: the offboard setpoint stream, a task that outlives actor restarts.
 //! - [`px4link`]: the `Px4Link` actor tying these together per vehicle.
 //! - [`fault`]: fault injection shared by every supervised actor.
+//! - [`gcs`]: forwarding to a ground station (QGroundControl) and back, setpoints refused.
 //!
 //! PX4 facts honoured here (see the project's `px4.md`): PX4 locks onto the first sender,
 //! so an endpoint never changes its socket; OFFBOARD needs a setpoint stream running for
@@ -21,6 +22,7 @@ pub mod address;
 pub mod command;
 pub mod endpoint;
 pub mod fault;
+pub mod gcs;
 pub mod params;
 pub mod px4link;
 pub mod setpoint;
@@ -29,7 +31,8 @@ pub mod telemetry;
 
 pub use address::ConnectionAddress;
 pub use command::{LinkCommand, LinkError};
-pub use endpoint::{Discovery, Endpoint, Identity};
+pub use endpoint::{Discovery, Endpoint, Identity, SigningSpec};
+pub use gcs::GcsForwarder;
 pub use px4link::{EventSink, LinkEvent, Px4Link, Px4LinkArgs, Px4LinkMsg, VehicleLink};
 pub use setpoint::{LocalSetpoint, SetpointStream};
 pub use setup::{LinkSetup, TelemetryProfile};

@@ -1,5 +1,6 @@
 //! The link against the simulator over real UDP: shared-endpoint demultiplexing, loss and
-//! recovery, reboots, the command and parameter protocols, telemetry profiles.
+//! recovery, reboots, the command and parameter protocols, telemetry profiles, MAVLink 2
+//! signing.
 
 use ractor::{Actor, ActorRef};
 use skein_link::endpoint::Discovery;
@@ -8,6 +9,8 @@ use skein_link::{
     Px4LinkArgs, Px4LinkMsg, TelemetryProfile, VehicleLink,
 };
 use skein_mavlink::param::ParamValue;
+use skein_mavlink::signing::SigningKey;
+use skein_mavlink::{Encoder, MavMessage, dialect as d};
 use skein_model::px4::Px4Mode;
 use skein_sim::{SimConfig, SimVehicleConfig, Simulator};
 use std::net::SocketAddr;
@@ -69,18 +72,35 @@ async fn attach(endpoint: &Arc<Endpoint>, d: Discovery, setup: LinkSetup) -> Veh
 /// `n` simulated vehicles all sending to one `udpin` endpoint; links attached as they are
 /// discovered.
 async fn swarm_on_one_port(n: u8, setup: LinkSetup) -> (Simulator, Arc<Endpoint>, Vec<Vehicle>) {
+    swarm_on_one_port_signed(n, setup, None).await
+}
+
+/// [`swarm_on_one_port`] with MAVLink 2 signing on both sides when given a key (the
+/// simulator requiring it, `MAV_SIGN_CFG` 2).
+async fn swarm_on_one_port_signed(
+    n: u8,
+    setup: LinkSetup,
+    key: Option<SigningKey>,
+) -> (Simulator, Arc<Endpoint>, Vec<Vehicle>) {
     let endpoint = Endpoint::open(
         ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
         Identity::default(),
     )
     .await
     .unwrap();
+    if let Some(k) = &key {
+        let spec = skein_link::SigningSpec {
+            key: k.clone(),
+            link_id: 7,
+        };
+        endpoint.set_signing(None, spec.signing());
+    }
     let found: Arc<Mutex<Vec<Discovery>>> = Arc::default();
     let f = found.clone();
     endpoint.set_discovery(Arc::new(move |d| f.lock().unwrap().push(d)));
     let target = endpoint.local_addr().unwrap();
     let bind: SocketAddr = "127.0.0.1:0".parse().unwrap();
-    let sim = Simulator::start(SimConfig::with_vehicles(
+    let mut cfg = SimConfig::with_vehicles(
         (1..=n)
             .map(|sysid| SimVehicleConfig {
                 sysid,
@@ -88,9 +108,12 @@ async fn swarm_on_one_port(n: u8, setup: LinkSetup) -> (Simulator, Arc<Endpoint>
                 target,
             })
             .collect(),
-    ))
-    .await
-    .unwrap();
+    );
+    if key.is_some() {
+        cfg.signing_key = key;
+        cfg.params.push(("MAV_SIGN_CFG".into(), 2.0));
+    }
+    let sim = Simulator::start(cfg).await.unwrap();
     let discoveries = eventually("every vehicle discovered", Duration::from_secs(20), || {
         let f = found.lock().unwrap();
         (f.len() == usize::from(n)).then(|| f.clone())
@@ -337,4 +360,199 @@ async fn the_swarm_profile_cuts_telemetry_to_what_skein_uses() {
             "swarm profile still at {reduced_rate} msg/s"
         );
     }
+}
+
+fn disarm_force(target_system: u8) -> MavMessage {
+    MavMessage::COMMAND_LONG(d::COMMAND_LONG_DATA {
+        target_system,
+        target_component: 1,
+        command: d::MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        confirmation: 0,
+        param1: 0.0,
+        param2: 21196.0,
+        param3: 0.0,
+        param4: 0.0,
+        param5: 0.0,
+        param6: 0.0,
+        param7: 0.0,
+    })
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_signed_link_flies_the_signed_simulator_and_unsigned_frames_are_dropped() {
+    let key = SigningKey::from_bytes([0x5a; 32]);
+    let (sim, endpoint, vehicles) =
+        swarm_on_one_port_signed(1, LinkSetup::default(), Some(key)).await;
+    let v = &vehicles[0];
+    let home_alt = eventually("home position", Duration::from_secs(20), || {
+        v.link.with_telemetry(|t| t.home.map(|h| h.geo.alt_amsl_m))
+    })
+    .await;
+    v.command(LinkCommand::Takeoff {
+        altitude_amsl_m: Some(home_alt + 5.0),
+    })
+    .await
+    .unwrap();
+    v.command(LinkCommand::Arm).await.unwrap();
+    eventually("climbing above 3 m", Duration::from_secs(30), || {
+        let t = sim.truth(1).unwrap();
+        (t.armed && t.local_ned_m.down_m < -3.0).then_some(())
+    })
+    .await;
+    // Both directions were signed, and nothing was refused.
+    let ours = endpoint.signing_counts().unwrap();
+    let theirs = sim.stats()[0].signing;
+    assert!(ours.signed_ok > 50 && ours.frames_signed > 5, "{ours:?}");
+    assert!(
+        theirs.signed_ok > 5 && theirs.frames_signed > 50,
+        "{theirs:?}"
+    );
+    assert_eq!((ours.dropped(), theirs.dropped()), (0, 0));
+
+    // An intruder without the key, straight to the vehicle: counted and ignored.
+    let intruder = tokio::net::UdpSocket::bind("127.0.0.1:0").await.unwrap();
+    let mut enc = Encoder::new(255, 190);
+    for _ in 0..3 {
+        intruder
+            .send_to(
+                enc.encode(&disarm_force(1)).as_bytes(),
+                sim.vehicles()[0].bound,
+            )
+            .await
+            .unwrap();
+    }
+    eventually(
+        "the simulator counted 3 unsigned frames",
+        Duration::from_secs(5),
+        || (sim.stats()[0].signing.unsigned >= 3).then_some(()),
+    )
+    .await;
+    assert!(
+        sim.truth(1).unwrap().armed,
+        "an unsigned disarm got through"
+    );
+
+    // Frames claiming to be the vehicle, unsigned, to skein: counted and dropped.
+    let heartbeat = MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: d::MavType::MAV_TYPE_QUADROTOR,
+        autopilot: d::MavAutopilot::MAV_AUTOPILOT_PX4,
+        base_mode: d::MavModeFlag::empty(),
+        system_status: d::MavState::MAV_STATE_STANDBY,
+        mavlink_version: 3,
+    });
+    let mut spoof = Encoder::new(1, 1);
+    intruder
+        .send_to(
+            spoof.encode(&heartbeat).as_bytes(),
+            endpoint.local_addr().unwrap(),
+        )
+        .await
+        .unwrap();
+    // Signed with another key: a bad signature.
+    let other = skein_link::SigningSpec {
+        key: SigningKey::from_bytes([0x11; 32]),
+        link_id: 0,
+    };
+    spoof.set_signing(Some(other.signing()));
+    intruder
+        .send_to(
+            spoof.encode(&heartbeat).as_bytes(),
+            endpoint.local_addr().unwrap(),
+        )
+        .await
+        .unwrap();
+    eventually("skein counted both", Duration::from_secs(5), || {
+        let c = endpoint.signing_counts().unwrap();
+        (c.unsigned >= 1 && c.bad_signature >= 1).then_some(())
+    })
+    .await;
+    assert_eq!(
+        endpoint.peer_addr(1),
+        Some(sim.vehicles()[0].bound),
+        "a spoofed frame moved the vehicle's address"
+    );
+}
+
+fn set_mode_posctl(target_system: u8) -> MavMessage {
+    MavMessage::COMMAND_LONG(d::COMMAND_LONG_DATA {
+        target_system,
+        target_component: 0,
+        command: d::MavCmd::MAV_CMD_DO_SET_MODE,
+        confirmation: 0,
+        param1: 1.0,
+        param2: 3.0,
+        param3: 0.0,
+        param4: 0.0,
+        param5: 0.0,
+        param6: 0.0,
+        param7: 0.0,
+    })
+}
+
+/// A ground station on a `udpin` forward: it hears the vehicles once it spoke, a
+/// broadcast reaches both, a frame for an unknown sysid and a setpoint are counted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_ground_station_on_a_udpin_forward_broadcasts_and_is_refused_setpoints() {
+    let (sim, endpoint, vehicles) = swarm_on_one_port(2, LinkSetup::default()).await;
+    let fwd = skein_link::GcsForwarder::start(
+        ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
+        vec![endpoint.clone()],
+    )
+    .await
+    .unwrap();
+    let gcs = tokio::net::UdpSocket::bind("127.0.0.1:0").await.unwrap();
+    let mut enc = Encoder::new(255, 190);
+    let to = fwd.local_addr();
+    for v in &vehicles {
+        eventually(
+            "a global position (POSCTL needs it)",
+            Duration::from_secs(20),
+            || v.link.with_telemetry(|t| t.home.is_some()).then_some(()),
+        )
+        .await;
+    }
+    // Nothing reaches a udpin ground station before it spoke.
+    assert_eq!(fwd.counts().to_gcs, 0);
+    gcs.send_to(enc.encode(&set_mode_posctl(0)).as_bytes(), to)
+        .await
+        .unwrap();
+    eventually("both vehicles in POSCTL", Duration::from_secs(10), || {
+        (1..=2)
+            .all(|s| sim.truth(s).unwrap().mode == Px4Mode::Posctl)
+            .then_some(())
+    })
+    .await;
+    let mut buf = [0u8; 2048];
+    let (n, _) = tokio::time::timeout(Duration::from_secs(5), gcs.recv_from(&mut buf))
+        .await
+        .expect("vehicle frames forwarded")
+        .unwrap();
+    let mut sysids = std::collections::BTreeSet::new();
+    skein_mavlink::Decoder::default().decode_datagram(&buf[..n], |f| {
+        sysids.insert(f.sysid);
+    });
+    assert!(sysids.iter().all(|s| (1..=2).contains(s)), "{sysids:?}");
+    gcs.send_to(enc.encode(&set_mode_posctl(9)).as_bytes(), to)
+        .await
+        .unwrap();
+    let attitude = MavMessage::SET_ATTITUDE_TARGET(d::SET_ATTITUDE_TARGET_DATA {
+        target_system: 1,
+        target_component: 1,
+        ..Default::default()
+    });
+    gcs.send_to(enc.encode(&attitude).as_bytes(), to)
+        .await
+        .unwrap();
+    let c = eventually(
+        "no route and setpoint counted",
+        Duration::from_secs(5),
+        || {
+            let c = fwd.counts();
+            (c.no_route == 1 && c.setpoints_dropped == 1).then_some(c)
+        },
+    )
+    .await;
+    assert_eq!(c.from_gcs, 2, "the broadcast, once per vehicle: {c:?}");
+    assert!(c.to_gcs > 0, "{c:?}");
 }

@@ -9,17 +9,20 @@
 //! - [`Encoder`]: serialises MAVLink 2 frames with a per-sender sequence number.
 //!
 //! - [`param`]: parameter values in PX4's bytewise wire encoding.
+//! - [`signing`]: MAVLink 2 message signing (keys, signing, replay protection).
 //!
 //! Only the common dialect is compiled (one feature set for the whole workspace).
 #![warn(missing_docs)]
 
 pub mod param;
+pub mod signing;
 
 /// Per-message constants (`ID`, `EXTRA_CRC`) of the dialect's message structs.
 pub use mavlink::MessageData;
 pub use mavlink::dialects::common as dialect;
 pub use mavlink::dialects::common::MavMessage;
 use mavlink::{MAVLinkV2MessageRaw, MavHeader, Message, calculate_crc};
+use signing::LinkSigning;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -171,17 +174,23 @@ impl Decoder {
     /// Decodes one UDP datagram and calls `on_frame` for every valid frame in it. Bytes
     /// left over at the end (a cut frame) are counted as truncated and discarded.
     pub fn decode_datagram(&mut self, datagram: &[u8], mut on_frame: impl FnMut(Frame)) {
+        self.decode_datagram_raw(datagram, |f, _| on_frame(f));
+    }
+
+    /// [`Decoder::decode_datagram`], also handing over each frame's bytes as received
+    /// (to check a signature, or forward the frame unchanged).
+    pub fn decode_datagram_raw(&mut self, datagram: &[u8], mut on_frame: impl FnMut(Frame, &[u8])) {
         DecodeStats::bump(&self.stats.datagrams, 1);
         let mut pos = 0;
         let mut delivered = false;
         while pos < datagram.len() {
             match self.step(&datagram[pos..]) {
                 Step::Frame(len, frame) => {
-                    pos += len;
                     if let Some(f) = frame {
                         delivered = true;
-                        on_frame(f);
+                        on_frame(f, &datagram[pos..pos + len]);
                     }
+                    pos += len;
                 }
                 Step::Skip(n) => pos += n,
                 Step::Incomplete => {
@@ -203,6 +212,11 @@ impl Decoder {
 
     /// The next valid frame from the stream buffer, or `None` when more bytes are needed.
     pub fn next_frame(&mut self) -> Option<Frame> {
+        self.next_frame_raw(|f, _| f)
+    }
+
+    /// [`Decoder::next_frame`], handing the frame and its bytes as received to `f`.
+    pub fn next_frame_raw<R>(&mut self, f: impl FnOnce(Frame, &[u8]) -> R) -> Option<R> {
         let mut consumed = 0;
         let mut out = None;
         while consumed < self.buf.len() {
@@ -210,11 +224,12 @@ impl Decoder {
             let step = Self::step_with(&self.stats, &self.buf[consumed..]);
             match step {
                 Step::Frame(len, frame) => {
-                    consumed += len;
-                    if frame.is_some() {
-                        out = frame;
+                    if let Some(frame) = frame {
+                        out = Some(f(frame, &self.buf[consumed..consumed + len]));
+                        consumed += len;
                         break;
                     }
+                    consumed += len;
                 }
                 Step::Skip(n) => consumed += n,
                 Step::Incomplete => break,
@@ -315,12 +330,14 @@ impl Decoder {
     }
 }
 
-/// Serialises MAVLink 2 frames for one sender (system id, component id), numbering them.
+/// Serialises MAVLink 2 frames for one sender (system id, component id), numbering them,
+/// and signs them when given a [`LinkSigning`].
 #[derive(Debug, Clone)]
 pub struct Encoder {
     sysid: u8,
     compid: u8,
     seq: u8,
+    signing: Option<Arc<LinkSigning>>,
 }
 
 impl Encoder {
@@ -331,7 +348,18 @@ impl Encoder {
             sysid,
             compid,
             seq: 0,
+            signing: None,
         }
+    }
+
+    /// Signs every frame from now on with `signing` (`None`: unsigned frames).
+    pub fn set_signing(&mut self, signing: Option<Arc<LinkSigning>>) {
+        self.signing = signing;
+    }
+
+    /// The signing in use, if any.
+    pub fn signing(&self) -> Option<&Arc<LinkSigning>> {
+        self.signing.as_ref()
     }
 
     /// The sender system id.
@@ -344,19 +372,18 @@ impl Encoder {
         self.compid
     }
 
-    /// Encodes `msg` as the next MAVLink 2 frame.
+    /// Encodes `msg` as the next MAVLink 2 frame, signed if the encoder signs.
     pub fn encode(&mut self, msg: &MavMessage) -> EncodedFrame {
-        let mut raw = MAVLinkV2MessageRaw::new();
-        raw.serialize_message(
-            MavHeader {
-                system_id: u32::from(self.sysid),
-                component_id: self.compid,
-                sequence: self.seq,
-            },
-            msg,
-        );
+        let signing = self.signing.clone();
+        self.encode_with(msg, signing.as_deref())
+    }
+
+    /// Encodes `msg` as the next frame, signed with `signing` when given (whatever the
+    /// encoder's own setting: an endpoint shared by vehicles with their own keys).
+    pub fn encode_with(&mut self, msg: &MavMessage, signing: Option<&LinkSigning>) -> EncodedFrame {
+        let frame = encode_frame(self.sysid, self.compid, self.seq, msg, signing);
         self.seq = self.seq.wrapping_add(1);
-        EncodedFrame(raw)
+        frame
     }
 
     /// Encodes `msg` and appends the frame bytes to `out` (to batch several frames into
@@ -364,6 +391,31 @@ impl Encoder {
     pub fn encode_into(&mut self, msg: &MavMessage, out: &mut Vec<u8>) {
         out.extend_from_slice(self.encode(msg).as_bytes());
     }
+}
+
+/// Encodes `msg` as one MAVLink 2 frame from `sysid`/`compid` with sequence number `seq`,
+/// signed with `signing` when given (to re-sign another system's frame on a signed link).
+pub fn encode_frame(
+    sysid: u8,
+    compid: u8,
+    seq: u8,
+    msg: &MavMessage,
+    signing: Option<&LinkSigning>,
+) -> EncodedFrame {
+    let mut raw = MAVLinkV2MessageRaw::new();
+    let header = MavHeader {
+        system_id: u32::from(sysid),
+        component_id: compid,
+        sequence: seq,
+    };
+    match signing {
+        Some(s) => {
+            raw.serialize_message_for_signing(header, msg);
+            s.sign(&mut raw);
+        }
+        None => raw.serialize_message(header, msg),
+    }
+    EncodedFrame(raw)
 }
 
 /// One encoded frame.
@@ -379,6 +431,12 @@ impl EncodedFrame {
 /// The name of a message (`"HEARTBEAT"`), for logs and counters.
 pub fn message_name(msg: &MavMessage) -> &'static str {
     msg.message_name()
+}
+
+/// The `target_system` a message is addressed to (`None` for messages without one, such
+/// as HEARTBEAT; `Some(0)` is a broadcast).
+pub fn target_system(msg: &MavMessage) -> Option<u8> {
+    msg.target_system_id()
 }
 
 /// The id of a message (0 for `HEARTBEAT`).

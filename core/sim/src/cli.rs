@@ -87,6 +87,12 @@ pub struct SimArgs {
     /// Parameter override for every vehicle, NAME=VALUE (repeatable).
     #[arg(long = "param", value_parser = parse_param)]
     pub params: Vec<(String, f64)>,
+    /// MAVLink 2 signing: install the key of this file (64 hex characters, from `skein key
+    /// create`) on every vehicle and require signed frames (PX4 `MAV_SIGN_CFG` 2), unless
+    /// `--param MAV_SIGN_CFG=0` says otherwise. Unsigned frames are then counted and
+    /// dropped; `SETUP_SIGNING` signed with the key replaces it.
+    #[arg(long)]
+    pub signing_key_file: Option<std::path::PathBuf>,
     /// Open the stats socket on this TCP address (port 0 allowed; the bound address is
     /// printed).
     #[arg(long)]
@@ -165,6 +171,13 @@ impl SimArgs {
         cfg.offboard_min_stream_s = self.offboard_min_stream_s;
         cfg.estimator_noise = self.estimator_noise;
         cfg.params = self.params.clone();
+        if let Some(path) = &self.signing_key_file {
+            cfg.signing_key =
+                Some(skein_mavlink::signing::SigningKey::load(path).map_err(|e| e.to_string())?);
+            if !cfg.params.iter().any(|(n, _)| n == "MAV_SIGN_CFG") {
+                cfg.params.push(("MAV_SIGN_CFG".into(), 2.0));
+            }
+        }
         Ok(cfg)
     }
 }

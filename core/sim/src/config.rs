@@ -121,6 +121,11 @@ pub struct SimConfig {
     pub params: Vec<(String, f64)>,
     /// The vehicles.
     pub vehicles: Vec<SimVehicleConfig>,
+    /// MAVLink 2 signing key installed on every vehicle at boot (PX4's key file); with
+    /// `MAV_SIGN_CFG` non-zero they then require signed frames (see the `signing` module
+    /// docs). `skein sim --signing-key-file` sets both. Never serialised (a secret).
+    #[serde(skip)]
+    pub signing_key: Option<skein_mavlink::signing::SigningKey>,
 }
 
 impl Default for SimConfig {
@@ -137,6 +142,7 @@ impl Default for SimConfig {
             estimator_noise: false,
             params: Vec::new(),
             vehicles: Vec::new(),
+            signing_key: None,
         }
     }
 }

@@ -24,6 +24,7 @@ mod histogram;
 mod impairment;
 pub mod params;
 mod runtime;
+mod signing;
 mod telemetry;
 mod vehicle;
 pub mod virtual_vehicle;
@@ -198,6 +199,11 @@ pub struct SimVehicleStats {
     pub statustexts_suppressed: u64,
     /// A GCS heartbeat arrived in the last 1.5 s.
     pub gcs_connected: bool,
+    /// MAVLink 2 signing: frames accepted signed, dropped (unsigned, bad signature,
+    /// replayed, too old) and sent signed.
+    pub signing: skein_mavlink::signing::SigningCounts,
+    /// A signing key is installed (from the configuration or `SETUP_SIGNING`).
+    pub signing_key_installed: bool,
     /// An onboard-controller heartbeat arrived in the last 1.5 s.
     pub onboard_controller_connected: bool,
     /// Detailed decoder counters.
@@ -399,13 +405,16 @@ impl Simulator {
             let spawn = spawn_point(cfg.home, i, n, cfg.spacing_m);
             let vehicle = Vehicle::new(vc.sysid, spawn, env.clone(), now);
             let decode_stats = Arc::new(DecodeStats::default());
+            let signing = signing::SimSigning::with_key(cfg.signing_key.clone());
+            let mut encoder = Encoder::new(vc.sysid, 1);
+            encoder.set_signing(signing.current.clone());
             let cell = Arc::new(Cell {
                 sysid: vc.sysid,
                 bound,
                 target: vc.target,
                 slot: Mutex::new(Slot {
                     vehicle,
-                    encoder: Encoder::new(vc.sysid, 1),
+                    encoder,
                     peer: None,
                     silence: Silence::Off,
                     killed: false,
@@ -414,6 +423,7 @@ impl Simulator {
                     net: Default::default(),
                     decode_baseline: DecodeCounts::default(),
                     impair: Impairment::new(link_seed(cfg.seed, i)),
+                    signing,
                 }),
                 decode_stats,
                 recv_task: Mutex::new(None),
@@ -513,6 +523,8 @@ impl Simulator {
                     statustexts_sent: v.counters.statustexts_sent,
                     statustexts_suppressed: v.counters.statustexts_suppressed,
                     gcs_connected: v.gcs_connected(now),
+                    signing: slot.signing.counts(),
+                    signing_key_installed: slot.signing.current.is_some(),
                     onboard_controller_connected: v.onboard_controller_connected(now),
                     decode,
                     truth: truth_of(v, now),
@@ -533,6 +545,7 @@ impl Simulator {
             slot.net = Default::default();
             slot.impair.counters = Default::default();
             slot.decode_baseline = decode_now;
+            slot.signing.reset_counts();
         }
     }
 

@@ -27,6 +27,7 @@ params! {
     COM_OBL_RC_ACT = "COM_OBL_RC_ACT": Int32(0),
     COM_OF_LOSS_T = "COM_OF_LOSS_T": Real32(1.0),
     COM_RC_IN_MODE = "COM_RC_IN_MODE": Int32(3),
+    MAV_SIGN_CFG = "MAV_SIGN_CFG": Int32(0),
     MAV_SYS_ID = "MAV_SYS_ID": Int32(1),
     MC_YAWRATE_MAX = "MC_YAWRATE_MAX": Real32(200.0),
     MC_YAW_P = "MC_YAW_P": Real32(2.8),

@@ -15,6 +15,8 @@
 //! datagram enters an empty line).
 
 use crate::impairment::Impairment;
+use crate::params::Param;
+use crate::signing::SimSigning;
 use crate::vehicle::{Outbox, Vehicle};
 use skein_mavlink::{DecodeCounts, DecodeStats, Decoder, Encoder};
 use std::net::SocketAddr;
@@ -56,6 +58,8 @@ pub(crate) struct Slot {
     pub decode_baseline: DecodeCounts,
     /// Simulated link quality and delay lines.
     pub impair: Impairment,
+    /// MAVLink 2 signing (key, counters).
+    pub signing: SimSigning,
 }
 
 /// Whether a vehicle's link is cut.
@@ -96,8 +100,14 @@ impl Slot {
         let mut pos = 0;
         let mut frames = 0u64;
         while pos < buf.len() {
-            // Every frame in `out` is an unsigned MAVLink 2 frame we encoded ourselves.
-            let len = usize::from(buf.get(pos + 1).copied().unwrap_or(0)) + 12;
+            // Every frame in `out` is a MAVLink 2 frame we encoded ourselves: header,
+            // payload, CRC, and the signature when the signed flag is set.
+            let signature = if buf.get(pos + 2).is_some_and(|f| f & 1 != 0) {
+                13
+            } else {
+                0
+            };
+            let len = usize::from(buf.get(pos + 1).copied().unwrap_or(0)) + 12 + signature;
             let end = (pos + len).min(buf.len());
             if end - start > MAX_DATAGRAM && pos > start {
                 self.emit(&socket, now, dest, &buf[start..pos]);
@@ -163,12 +173,21 @@ impl Slot {
         }
         {
             let vehicle = &mut self.vehicle;
+            let signing = &mut self.signing;
             let mut out = Outbox {
                 enc: &mut self.encoder,
                 buf: &mut self.out,
                 frames: 0,
             };
-            decoder.decode_datagram(datagram, |frame| {
+            decoder.decode_datagram_raw(datagram, |frame, raw| {
+                let required = vehicle.params.get(Param::MAV_SIGN_CFG) != 0.0;
+                if !signing.accept(raw, required) {
+                    return;
+                }
+                if signing.on_message(&frame.msg) {
+                    out.enc.set_signing(signing.current.clone());
+                    return;
+                }
                 vehicle.handle_frame(now, &frame, &mut out);
             });
             vehicle.link.rx_parse_errors = cell
@@ -231,6 +250,7 @@ impl Slot {
     pub fn reboot(&mut self, now: Instant) {
         self.vehicle.reboot(now);
         self.encoder = Encoder::new(self.vehicle.sysid, 1);
+        self.encoder.set_signing(self.signing.current.clone());
         self.peer = None;
         self.out.clear();
     }

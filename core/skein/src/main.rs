@@ -9,6 +9,8 @@
 //!   API of a running `skein up --enable-fault-injection`.
 //! - `skein token create --role viewer|operator|admin [--name NAME]`: a new API token
 //!   and the `[[http.tokens]]` line (with its salted hash) to add to the config.
+//! - `skein key create [--out FILE]`: a random MAVLink 2 signing key file (mode 0600) and
+//!   the `signing_key_file` line that uses it (see [`keys`]).
 //! - `skein plugin new NAME [--kind KIND] [--dir DIR]`: write a payload plugin crate that
 //!   builds as it is (see [`plugin_new`]).
 //! - `skein plugin-host --socket PATH --library PATH` (internal, not in `--help`): the
@@ -18,6 +20,7 @@
 
 mod bench;
 mod config;
+mod keys;
 mod plugin_new;
 
 use clap::{Parser, Subcommand};
@@ -59,6 +62,16 @@ enum Commands {
     /// the `[[http.tokens]]` line to add to the config.
     #[command(subcommand)]
     Token(TokenCommand),
+    /// MAVLink 2 signing keys: `skein key create --out uav.key` writes a random key
+    /// (mode 0600) and prints the `signing_key_file` line to add to the config.
+    #[command(subcommand)]
+    Key(KeyCommand),
+}
+
+#[derive(Subcommand, Debug)]
+enum KeyCommand {
+    /// Write a new random signing key file (64 hex characters, mode 0600).
+    Create(keys::KeyCreateArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -140,6 +153,15 @@ struct UpArgs {
     /// reach the port can fly the swarm. Refused without this flag.
     #[arg(long)]
     insecure_no_auth: bool,
+    /// Forward every vehicle's MAVLink to a ground station and its commands back
+    /// (overrides `[gcs] forward`), e.g. `udpout:127.0.0.1:14550` for QGroundControl;
+    /// setpoints from it are dropped.
+    #[arg(long, value_name = "CONNECTION")]
+    gcs_forward: Option<skein_link::ConnectionAddress>,
+    /// With --sim: MAVLink 2 signing key file (`skein key create`): the simulated vehicles
+    /// require signed frames and skein's links sign.
+    #[arg(long, value_name = "FILE")]
+    sim_signing_key_file: Option<PathBuf>,
 }
 
 const DEFAULT_HTTP: SocketAddr = SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 8080);
@@ -194,6 +216,7 @@ fn main() -> ExitCode {
             }),
             Commands::Bench(args) => bench::run(args).await.map(|()| ExitCode::SUCCESS),
             Commands::Token(TokenCommand::Create(args)) => token_create(&args),
+            Commands::Key(KeyCommand::Create(args)) => keys::key_create(&args),
         }
     });
     match result {
@@ -375,7 +398,11 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
     if args.sim.is_none() && file.vehicles.is_empty() {
         return Err("nothing to fly: give --sim N or a --config file with [[vehicles]]".into());
     }
-    let mut endpoints: Vec<EndpointSpec> = file.endpoints();
+    let mut endpoints: Vec<EndpointSpec> = file.endpoints()?;
+    let sim_key = match &args.sim_signing_key_file {
+        Some(f) => Some(skein_mavlink::signing::SigningKey::load(f).map_err(|e| e.to_string())?),
+        None => None,
+    };
     let real = endpoints.len();
     let n_sim = args.sim.unwrap_or(0);
     if n_sim > 255 {
@@ -418,6 +445,9 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
                         .clone()
                         .unwrap_or_else(|| sim_mix_model(i + 1).to_string()),
                 ),
+                signing: sim_key
+                    .clone()
+                    .map(|key| skein_link::SigningSpec { key, link_id: 0 }),
             }],
             simulated: true,
         });
@@ -447,6 +477,25 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
     let mut swarm = Swarm::start(config, services, file.identity(), endpoints)
         .await
         .map_err(|e| e.to_string())?;
+    // Kept for the life of the process: dropping it stops the forwarding.
+    let _gcs = match args
+        .gcs_forward
+        .clone()
+        .or(file.gcs.forward.clone().map(|c| c.0))
+    {
+        Some(addr) => {
+            let fwd = swarm
+                .forward_to_gcs(addr)
+                .await
+                .map_err(|e| e.to_string())?;
+            println!(
+                "skein: forwarding MAVLink to the ground station at {}",
+                fwd.address()
+            );
+            Some(fwd)
+        }
+        None => None,
+    };
     // A reloaded plugin: the vehicles re-create its instances on the new build at once
     // (an instance that calls first re-creates itself; either way no failure is counted).
     // A loaded or unloaded one: the vehicles start the slots waiting for it, or stop its
@@ -487,6 +536,10 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
             .collect::<Result<Vec<_>, String>>()?;
         let mut cfg = skein_sim::SimConfig::with_vehicles(vehicles);
         cfg.seed = args.sim_seed;
+        if let Some(key) = sim_key {
+            cfg.signing_key = Some(key);
+            cfg.params.push(("MAV_SIGN_CFG".into(), 2.0));
+        }
         // Vehicles start as far apart as formation slots must be, so that the first
         // formation's transition keeps the separation too (see skein_swarm::formation).
         cfg.spacing_m = cfg

@@ -34,6 +34,12 @@ pub struct Metrics {
     pub mavlink_malformed: Family<Labels, Gauge>,
     /// Setpoints sent, per vehicle (`vehicle` label).
     pub setpoints_sent: Family<Labels, Gauge>,
+    /// MAVLink frames dropped by signing checks (unsigned, bad signature, replayed, too
+    /// old), per endpoint (`connection` label).
+    pub mavlink_signing_dropped: Family<Labels, Gauge>,
+    /// Ground-station forwarding, frames by `kind` (to_gcs, from_gcs, setpoints_dropped,
+    /// no_route, to_gcs_dropped) and `connection`.
+    pub gcs_forward_frames: Family<Labels, Gauge>,
     /// Payload driver threads given up because a call did not return in time (set from
     /// [`crate::payload::abandoned_driver_threads`] at every render).
     payload_threads_abandoned: Gauge,
@@ -70,6 +76,8 @@ impl Metrics {
         let slot_error_m = Family::<Labels, Gauge<f64, AtomicU64>>::default();
         let mavlink_malformed = Family::<Labels, Gauge>::default();
         let setpoints_sent = Family::<Labels, Gauge>::default();
+        let mavlink_signing_dropped = Family::<Labels, Gauge>::default();
+        let gcs_forward_frames = Family::<Labels, Gauge>::default();
         let payload_threads_abandoned = Gauge::default();
         registry.register(
             "actor_failures",
@@ -118,6 +126,17 @@ impl Metrics {
             mavlink_malformed.clone(),
         );
         registry.register(
+            "mavlink_signing_dropped_frames",
+            "MAVLink frames dropped by MAVLink 2 signing checks (unsigned, bad signature, \
+             replayed, too old), per endpoint",
+            mavlink_signing_dropped.clone(),
+        );
+        registry.register(
+            "gcs_forward_frames",
+            "Ground-station forwarding: frames to and from the ground station and dropped, by kind",
+            gcs_forward_frames.clone(),
+        );
+        registry.register(
             "setpoints_sent",
             "Offboard setpoints sent, per vehicle",
             setpoints_sent.clone(),
@@ -141,6 +160,8 @@ impl Metrics {
             slot_error_m,
             mavlink_malformed,
             setpoints_sent,
+            mavlink_signing_dropped,
+            gcs_forward_frames,
             payload_threads_abandoned,
         }
     }

@@ -104,6 +104,15 @@ impl Client {
         }
     }
 
+    /// The bytes of the next datagram from the vehicle, or None after `timeout`.
+    pub async fn next_raw(&mut self, timeout: Duration) -> Option<Vec<u8>> {
+        let (n, _) = tokio::time::timeout(timeout, self.sock.recv_from(&mut self.buf))
+            .await
+            .ok()?
+            .expect("recv");
+        Some(self.buf[..n].to_vec())
+    }
+
     /// Waits for a frame matching `pred`; frames that do not match are dropped.
     pub async fn wait_for<T>(
         &mut self,

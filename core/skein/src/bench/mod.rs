@@ -357,6 +357,7 @@ async fn start_swarm(
                     id: Some(format!("uav-{}", i + 1)),
                     sysid: Some(skein_sim::instance_sysid(i, n)),
                     model: model.map(str::to_string),
+                    signing: None,
                 }],
                 // The simulator runs in its own process: nothing in-process to drive.
                 simulated: false,

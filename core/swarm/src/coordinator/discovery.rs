@@ -22,6 +22,9 @@ pub struct VehicleSpec {
     pub sysid: Option<u8>,
     /// Model name (default `generic`).
     pub model: Option<String>,
+    /// MAVLink 2 signing of its link: installed on the endpoint for `sysid` (for every
+    /// vehicle of the endpoint when `sysid` is `None`) before the first frame is read.
+    pub signing: Option<skein_link::SigningSpec>,
 }
 
 /// An endpoint to open and the vehicles expected on it.

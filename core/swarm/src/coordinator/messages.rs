@@ -30,6 +30,15 @@ pub struct EndpointStats {
     pub decode: DecodeCounts,
     /// Send counters.
     pub send: skein_link::endpoint::SendCounts,
+    /// MAVLink 2 signing counters summed over the endpoint's signing vehicles (frames
+    /// accepted signed, dropped unsigned / badly signed / replayed / too old, sent signed);
+    /// absent when no vehicle there signs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub signing: Option<skein_mavlink::signing::SigningCounts>,
+    /// On the ground-station forwarder's entry (`[gcs] forward`): frames forwarded each
+    /// way and dropped (setpoints, unknown target sysid).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gcs_forward: Option<skein_link::gcs::ForwardCounts>,
 }
 
 /// Swarm health for `GET /api/v1/health`.
@@ -143,6 +152,8 @@ pub enum CoordinatorMsg {
     Health(RpcReplyPort<Health>),
     /// Link statistics per endpoint.
     LinkStats(RpcReplyPort<Vec<EndpointStats>>),
+    /// The ground-station forwarder, for its counters (see `Swarm::forward_to_gcs`).
+    SetGcs(Arc<skein_link::GcsForwarder>),
     /// A local vehicle's `Px4Link` actor (parameters); `Err` says why there is none.
     GetLink(
         String,

@@ -80,6 +80,7 @@ pub struct CoordinatorArgs {
 pub struct CoordinatorState {
     view: Arc<SwarmView>,
     endpoints: Vec<(Arc<Endpoint>, EndpointSpec)>,
+    gcs: Option<Arc<skein_link::GcsForwarder>>,
     vehicles: BTreeMap<String, VehicleProxy>,
     services: BTreeMap<String, ServiceSpec>,
     children: Children<Node>,
@@ -143,6 +144,31 @@ impl CoordinatorState {
                 .mavlink_malformed
                 .get_or_create(&Metrics::label("connection", &e.address().to_string()))
                 .set(e.decode_counts().errors() as i64);
+            if let Some(s) = e.signing_counts() {
+                self.metrics
+                    .mavlink_signing_dropped
+                    .get_or_create(&Metrics::label("connection", &e.address().to_string()))
+                    .set(s.dropped() as i64);
+            }
+        }
+        if let Some(g) = &self.gcs {
+            let c = g.counts();
+            let conn = g.address().to_string();
+            for (way, n) in [
+                ("to_gcs", c.to_gcs),
+                ("from_gcs", c.from_gcs),
+                ("setpoints_dropped", c.setpoints_dropped),
+                ("no_route", c.no_route),
+                ("to_gcs_dropped", c.to_gcs_dropped),
+            ] {
+                self.metrics
+                    .gcs_forward_frames
+                    .get_or_create(&vec![
+                        ("connection".to_string(), conn.clone()),
+                        ("kind".to_string(), way.to_string()),
+                    ])
+                    .set(n as i64);
+            }
         }
         for (id, v) in &self.vehicles {
             if let Some(local) = &v.local {
@@ -237,6 +263,7 @@ impl Actor for Coordinator {
         Ok(CoordinatorState {
             view: Arc::new(SwarmView::new(args.config, args.services)),
             endpoints: args.endpoints,
+            gcs: None,
             vehicles: BTreeMap::new(),
             services: BTreeMap::new(),
             children: Children::new(supervision::ROOT, supervision.clone()),
@@ -362,10 +389,21 @@ impl Actor for Coordinator {
                         local_addr: e.local_addr().map(|a| a.to_string()),
                         decode: e.decode_counts(),
                         send: e.send_counts(),
+                        signing: e.signing_counts(),
+                        gcs_forward: None,
                     })
+                    .chain(state.gcs.iter().map(|g| EndpointStats {
+                        connection: g.address().to_string(),
+                        local_addr: Some(g.local_addr().to_string()),
+                        decode: g.decode_counts(),
+                        send: Default::default(),
+                        signing: None,
+                        gcs_forward: Some(g.counts()),
+                    }))
                     .collect();
                 let _ = reply.send(stats);
             }
+            CoordinatorMsg::SetGcs(g) => state.gcs = Some(g),
             CoordinatorMsg::GetLink(id, reply) => state.get_link(id, reply),
             CoordinatorMsg::GetPayload(id, slot, reply) => {
                 let r = match state.vehicles.get(&id) {

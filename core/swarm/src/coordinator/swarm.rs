@@ -52,6 +52,11 @@ impl Swarm {
             let ep = Endpoint::open(spec.connection.clone(), identity)
                 .await
                 .map_err(|e| StartError(format!("{}: {e}", spec.connection)))?;
+            for v in &spec.vehicles {
+                if let Some(s) = &v.signing {
+                    ep.set_signing(v.sysid, s.signing());
+                }
+            }
             opened.push((ep, spec));
         }
         let (events, _) = broadcast::channel(4096);
@@ -75,6 +80,23 @@ impl Swarm {
             endpoints,
             handle,
         })
+    }
+
+    /// Forwards every endpoint's frames to a ground station at `address` and its frames
+    /// back (see [`skein_link::gcs`]); the forwarder's counters join `GET /api/v1/links`
+    /// and `/metrics`.
+    ///
+    /// # Errors
+    /// The forwarder's socket could not be opened (named with its address).
+    pub async fn forward_to_gcs(
+        &self,
+        address: skein_link::ConnectionAddress,
+    ) -> Result<Arc<skein_link::GcsForwarder>, StartError> {
+        let fwd = skein_link::GcsForwarder::start(address.clone(), self.endpoints.clone())
+            .await
+            .map_err(|e| StartError(format!("ground-station forward {address}: {e}")))?;
+        let _ = self.coordinator.cast(CoordinatorMsg::SetGcs(fwd.clone()));
+        Ok(fwd)
     }
 
     /// Resolves when the coordinator has stopped or failed (for the process to exit).

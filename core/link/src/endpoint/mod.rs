@@ -9,9 +9,16 @@
 //!
 //! The endpoint outlives the actors that use it: a restarted link actor re-registers its
 //! route on the same socket, so the vehicle never sees a new address.
+//!
+//! MAVLink 2 signing is per vehicle ([`Endpoint::set_signing`]): frames to a signing
+//! vehicle are signed, and its frames are checked before anything else looks at them
+//! (routing, discovery, the address a `udpin` endpoint replies to): unsigned, badly
+//! signed and replayed frames are counted ([`Endpoint::signing_counts`]) and dropped.
 
 use crate::address::ConnectionAddress;
+use signing::SigningTable;
 use skein_mavlink::dialect::{MavAutopilot, MavType};
+use skein_mavlink::signing::PX4_UNSIGNED_OK;
 use skein_mavlink::{DecodeCounts, DecodeStats, Decoder, Encoder, Frame, MavMessage};
 use std::collections::HashMap;
 use std::io;
@@ -23,6 +30,9 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpStream, UdpSocket};
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
+
+mod signing;
+pub use signing::SigningSpec;
 
 /// Our own MAVLink identity on an endpoint (sender of heartbeats, commands, setpoints).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -63,6 +73,9 @@ pub struct Discovery {
 pub type FrameHandler = Arc<dyn Fn(Frame) + Send + Sync>;
 /// Receives discoveries (see [`Discovery`]).
 pub type DiscoveryHandler = Arc<dyn Fn(Discovery) + Send + Sync>;
+/// Sees every accepted frame with its bytes as received (after the signature check),
+/// e.g. to forward it to a ground station. Called on the receive task: must be cheap.
+pub type FrameTap = Arc<dyn Fn(&Frame, &[u8]) + Send + Sync>;
 
 #[derive(Default)]
 struct Peer {
@@ -124,6 +137,8 @@ pub struct Endpoint {
     encoder: Mutex<Encoder>,
     peers: RwLock<HashMap<u8, Peer>>,
     discovery: RwLock<Option<DiscoveryHandler>>,
+    signing: RwLock<SigningTable>,
+    tap: RwLock<Option<FrameTap>>,
     decode_stats: Arc<DecodeStats>,
     frames_sent: AtomicU64,
     send_errors: AtomicU64,
@@ -227,6 +242,8 @@ impl Endpoint {
             encoder: Mutex::new(Encoder::new(identity.sysid, identity.compid)),
             peers: RwLock::new(HashMap::new()),
             discovery: RwLock::new(None),
+            signing: RwLock::new(SigningTable::default()),
+            tap: RwLock::new(None),
             decode_stats: Arc::new(DecodeStats::default()),
             frames_sent: AtomicU64::new(0),
             send_errors: AtomicU64::new(0),
@@ -260,6 +277,46 @@ impl Endpoint {
     /// Installs the callback for HEARTBEATs of unrouted autopilots.
     pub fn set_discovery(&self, handler: DiscoveryHandler) {
         *self.discovery.write().expect("discovery lock") = Some(handler);
+    }
+
+    /// Installs (or removes) the tap that sees every accepted frame.
+    pub fn set_tap(&self, tap: Option<FrameTap>) {
+        *self.tap.write().expect("tap lock") = tap;
+    }
+
+    /// The system ids heard on this endpoint.
+    pub fn sysids(&self) -> Vec<u8> {
+        self.peers
+            .read()
+            .expect("peers lock")
+            .iter()
+            .filter(|(_, p)| p.last_seen.is_some())
+            .map(|(s, _)| *s)
+            .collect()
+    }
+
+    /// Sends a frame that another system encoded (a ground station's command) to vehicle
+    /// `sysid`: its bytes unchanged, or, when that vehicle signs, re-encoded with the
+    /// sender's own sysid, compid and sequence and signed with the vehicle's key.
+    ///
+    /// # Errors
+    /// As [`Endpoint::send`].
+    pub fn forward(&self, sysid: u8, frame: &Frame, raw: &[u8]) -> Result<(), SendError> {
+        let signed;
+        let bytes = match self.signing_of(sysid) {
+            Some(s) => {
+                signed = skein_mavlink::encode_frame(
+                    frame.sysid,
+                    frame.compid,
+                    frame.seq,
+                    &frame.msg,
+                    Some(&s),
+                );
+                signed.as_bytes()
+            }
+            None => raw,
+        };
+        self.send_bytes(sysid, bytes)
     }
 
     /// Routes every frame from `sysid` (any component) to `handler`, replacing a previous
@@ -325,7 +382,25 @@ impl Endpoint {
     /// [`SendError::NoAddress`] before a `udpin` endpoint has heard from `sysid`;
     /// [`SendError::Io`] when the socket refuses.
     pub fn send(&self, sysid: u8, msg: &MavMessage) -> Result<(), SendError> {
-        let dest = match &self.transport {
+        let dest = self.dest(sysid)?;
+        let signing = self.signing_of(sysid);
+        let frame = self
+            .encoder
+            .lock()
+            .expect("encoder lock")
+            .encode_with(msg, signing.as_deref());
+        self.write(dest, frame.as_bytes())
+    }
+
+    /// Sends bytes that already are whole frames to vehicle `sysid`.
+    fn send_bytes(&self, sysid: u8, bytes: &[u8]) -> Result<(), SendError> {
+        let dest = self.dest(sysid)?;
+        self.write(dest, bytes)
+    }
+
+    /// Where frames to `sysid` go (`None` on a byte stream).
+    fn dest(&self, sysid: u8) -> Result<Option<SocketAddr>, SendError> {
+        Ok(match &self.transport {
             Transport::Udp { remote, .. } => match remote.or_else(|| self.peer_addr(sysid)) {
                 Some(a) => Some(a),
                 None => {
@@ -334,17 +409,19 @@ impl Endpoint {
                 }
             },
             Transport::Stream { .. } => None,
-        };
-        let frame = self.encoder.lock().expect("encoder lock").encode(msg);
+        })
+    }
+
+    fn write(&self, dest: Option<SocketAddr>, bytes: &[u8]) -> Result<(), SendError> {
         let result = match (&self.transport, dest) {
             (Transport::Udp { socket, .. }, Some(dest)) => socket
-                .try_send_to(frame.as_bytes(), dest)
+                .try_send_to(bytes, dest)
                 .map(|_| ())
                 .map_err(|e| SendError::Io(e.to_string())),
             (Transport::Stream { tx }, _) => tx
-                .send(frame.as_bytes().to_vec())
+                .send(bytes.to_vec())
                 .map_err(|_| SendError::Io("stream closed".into())),
-            (Transport::Udp { .. }, None) => unreachable!("dest resolved above"),
+            (Transport::Udp { .. }, None) => Err(SendError::Io("no destination".into())),
         };
         match &result {
             Ok(()) => self.frames_sent.fetch_add(1, Ordering::Relaxed),
@@ -375,9 +452,18 @@ impl Endpoint {
         }
     }
 
-    fn deliver(&self, frame: Frame, from: Option<SocketAddr>) {
-        let now = Instant::now();
+    fn deliver(&self, frame: Frame, raw: &[u8], from: Option<SocketAddr>) {
         let sysid = frame.sysid;
+        if let Some(s) = self.signing_of(sysid)
+            && !s.accept(raw, PX4_UNSIGNED_OK)
+        {
+            return;
+        }
+        let tap = self.tap.read().expect("tap lock").clone();
+        if let Some(tap) = tap {
+            tap(&frame, raw);
+        }
+        let now = Instant::now();
         let (handler, discover) = {
             let mut peers = self.peers.write().expect("peers lock");
             let p = peers.entry(sysid).or_default();
@@ -459,7 +545,6 @@ async fn udp_reader(endpoint: Weak<Endpoint>, socket: Arc<UdpSocket>) {
         return;
     };
     let mut decoder = Decoder::new(stats);
-    let mut frames = Vec::with_capacity(16);
     loop {
         let (n, from) = match socket.recv_from(&mut buf).await {
             Ok(r) => r,
@@ -471,10 +556,7 @@ async fn udp_reader(endpoint: Weak<Endpoint>, socket: Arc<UdpSocket>) {
             }
         };
         let Some(ep) = endpoint.upgrade() else { return };
-        decoder.decode_datagram(&buf[..n], |f| frames.push(f));
-        for f in frames.drain(..) {
-            ep.deliver(f, Some(from));
-        }
+        decoder.decode_datagram_raw(&buf[..n], |f, raw| ep.deliver(f, raw, Some(from)));
     }
 }
 
@@ -520,9 +602,7 @@ async fn stream_session(
                     let n = match r { Ok(0) | Err(_) => break, Ok(n) => n };
                     let Some(ep) = endpoint.upgrade() else { return };
                     decoder.push(&buf[..n]);
-                    while let Some(f) = decoder.next_frame() {
-                        ep.deliver(f, None);
-                    }
+                    while decoder.next_frame_raw(|f, raw| ep.deliver(f, raw, None)).is_some() {}
                 }
                 out = outgoing.recv() => {
                     let Some(bytes) = out else { return };
@@ -535,150 +615,4 @@ async fn stream_session(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use skein_mavlink::dialect::*;
-    use std::time::Duration;
-
-    fn heartbeat(autopilot: MavAutopilot) -> MavMessage {
-        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            custom_mode: 0,
-            mavtype: MavType::MAV_TYPE_QUADROTOR,
-            autopilot,
-            base_mode: MavModeFlag::empty(),
-            system_status: MavState::MAV_STATE_STANDBY,
-            mavlink_version: 3,
-        })
-    }
-
-    async fn eventually(what: &str, mut f: impl FnMut() -> bool) {
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while !f() {
-            assert!(Instant::now() < deadline, "timed out waiting for {what}");
-            tokio::time::sleep(Duration::from_millis(5)).await;
-        }
-    }
-
-    #[tokio::test]
-    async fn shared_udpin_endpoint_demultiplexes_by_sysid_and_discovers() {
-        let ep = Endpoint::open(
-            ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
-            Identity::default(),
-        )
-        .await
-        .unwrap();
-        let addr = ep.local_addr().unwrap();
-        let found = Arc::new(Mutex::new(Vec::new()));
-        let f2 = found.clone();
-        ep.set_discovery(Arc::new(move |d| f2.lock().unwrap().push(d.sysid)));
-        // Three "vehicles" on their own sockets, all sending to the one endpoint.
-        let mut vehicles = Vec::new();
-        for sysid in [1u8, 2, 3] {
-            let s = UdpSocket::bind("127.0.0.1:0").await.unwrap();
-            let mut enc = Encoder::new(sysid, 1);
-            s.send_to(
-                enc.encode(&heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4))
-                    .as_bytes(),
-                addr,
-            )
-            .await
-            .unwrap();
-            vehicles.push((s, enc));
-        }
-        eventually("three discoveries", || found.lock().unwrap().len() == 3).await;
-        // A GCS heartbeat (autopilot INVALID) is not a vehicle.
-        let gcs = UdpSocket::bind("127.0.0.1:0").await.unwrap();
-        gcs.send_to(
-            Encoder::new(200, 190)
-                .encode(&heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID))
-                .as_bytes(),
-            addr,
-        )
-        .await
-        .unwrap();
-        // Route sysid 2 and check only its frames arrive there.
-        let got = Arc::new(Mutex::new(Vec::new()));
-        let g2 = got.clone();
-        ep.route(
-            2,
-            Arc::new(move |f: Frame| g2.lock().unwrap().push(f.sysid)),
-        );
-        for (s, enc) in vehicles.iter_mut() {
-            s.send_to(
-                enc.encode(&heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4))
-                    .as_bytes(),
-                addr,
-            )
-            .await
-            .unwrap();
-        }
-        eventually("sysid 2 routed", || !got.lock().unwrap().is_empty()).await;
-        eventually("gcs seen", || ep.last_seen(200).is_some()).await;
-        assert!(got.lock().unwrap().iter().all(|&s| s == 2));
-        assert_eq!(found.lock().unwrap().len(), 3, "GCS not discovered");
-        // Replies go back to each vehicle's own address.
-        ep.send(3, &heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID))
-            .unwrap();
-        let mut buf = [0u8; 300];
-        let n = tokio::time::timeout(Duration::from_secs(5), vehicles[2].0.recv(&mut buf))
-            .await
-            .unwrap()
-            .unwrap();
-        let mut dec = Decoder::default();
-        let mut frames = Vec::new();
-        dec.decode_datagram(&buf[..n], |f| frames.push(f));
-        assert_eq!(frames[0].sysid, 255);
-    }
-
-    #[tokio::test]
-    async fn malformed_datagrams_are_counted_and_dropped() {
-        let ep = Endpoint::open(
-            ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
-            Identity::default(),
-        )
-        .await
-        .unwrap();
-        let s = UdpSocket::bind("127.0.0.1:0").await.unwrap();
-        s.send_to(
-            b"\xfd\x09garbage that is not mavlink",
-            ep.local_addr().unwrap(),
-        )
-        .await
-        .unwrap();
-        eventually("rejected datagram counted", || {
-            ep.decode_counts().rejected_datagrams == 1
-        })
-        .await;
-        assert_eq!(ep.decode_counts().frames_ok, 0);
-    }
-
-    #[tokio::test]
-    async fn send_before_the_vehicle_spoke_is_refused() {
-        let ep = Endpoint::open(
-            ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
-            Identity::default(),
-        )
-        .await
-        .unwrap();
-        assert_eq!(
-            ep.send(7, &heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID)),
-            Err(SendError::NoAddress(7))
-        );
-        assert_eq!(ep.send_counts().no_route, 1);
-    }
-
-    #[tokio::test]
-    async fn a_missing_serial_device_is_refused_naming_it() {
-        let e = Endpoint::open(
-            "serial:/dev/skein-no-such-tty:57600".parse().unwrap(),
-            Identity::default(),
-        )
-        .await
-        .unwrap_err();
-        assert!(
-            e.to_string()
-                .contains("serial:/dev/skein-no-such-tty:57600"),
-            "{e}"
-        );
-    }
-}
+mod tests;

@@ -47,11 +47,17 @@
 //! payloads = [{ slot = "gimbal", kind = "gimbal" }, { slot = "camera", kind = "camera" }]
 //! limits = { max_speed_m_s = 8.0, max_climb_m_s = 3.0, max_descent_m_s = 1.5, max_accel_m_s2 = 3.0 }
 //!
+//! [gcs]                        # forward every vehicle's MAVLink to QGroundControl and
+//! forward = "udpout:127.0.0.1:14550"  # its commands back (setpoints refused); or udpin:
+//!
 //! [[vehicles]]                 # one table per vehicle (or per shared endpoint)
 //! connection = "udpin:0.0.0.0:14540"
 //! id = "uav-1"                 # optional, default uav-<sysid>
 //! model = "generic"            # optional
 //! sysid = 1                    # optional: only this sysid on the endpoint gets this id
+//! signing_key_file = "uav-1.key"  # optional: MAVLink 2 signing, 64 hex characters
+//!                              # (`skein key create`); unsigned frames then dropped
+//! signing_link_id = 0          # optional link id of our signed frames (default 0)
 //! ```
 //!
 //! Unknown keys, wrong types and bad values are refused with the TOML parser's message,
@@ -171,6 +177,19 @@ pub struct VehicleEntry {
     pub model: Option<String>,
     /// Restrict to this sysid.
     pub sysid: Option<u8>,
+    /// MAVLink 2 signing key file (64 hex characters; relative to the config file).
+    pub signing_key_file: Option<std::path::PathBuf>,
+    /// Link id of our signed frames (default 0); needs `signing_key_file`.
+    pub signing_link_id: Option<u8>,
+}
+
+/// `[gcs]`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GcsSection {
+    /// Where to forward every vehicle's frames (`udpout:HOST:PORT`, QGroundControl
+    /// listens on 14550; or `udpin:ADDR:PORT` to wait for the ground station).
+    pub forward: Option<Connection>,
 }
 
 /// The whole file.
@@ -189,6 +208,9 @@ pub struct ConfigFile {
     /// `[plugins]`.
     #[serde(default)]
     pub plugins: PluginsSection,
+    /// `[gcs]`.
+    #[serde(default)]
+    pub gcs: GcsSection,
     /// `[supervision]`.
     pub supervision: Option<skein_swarm::supervision::SupervisionConfig>,
     /// `[hazards]`.
@@ -217,7 +239,11 @@ impl ConfigFile {
             cfg.plugins.dir = Some(base.join(dir));
         }
         if let Some(base) = path.parent() {
-            for p in [&mut cfg.http.tls_cert, &mut cfg.http.tls_key] {
+            let keys = cfg.vehicles.iter_mut().map(|v| &mut v.signing_key_file);
+            for p in [&mut cfg.http.tls_cert, &mut cfg.http.tls_key]
+                .into_iter()
+                .chain(keys)
+            {
                 if let Some(f) = p.as_mut()
                     && f.is_relative()
                 {
@@ -225,6 +251,8 @@ impl ConfigFile {
                 }
             }
         }
+        // Read every key now: a bad key file stops the start, naming the file.
+        cfg.endpoints()?;
         Ok(cfg)
     }
 
@@ -299,6 +327,11 @@ impl ConfigFile {
         let known_model =
             |m: &str| self.models.contains_key(m) || m == "generic" || m == "observation";
         for (i, v) in self.vehicles.iter().enumerate() {
+            if v.signing_link_id.is_some() && v.signing_key_file.is_none() {
+                return Err(format!(
+                    "vehicles[{i}].signing_link_id needs vehicles[{i}].signing_key_file"
+                ));
+            }
             if let Some(m) = &v.model
                 && !known_model(m)
             {
@@ -391,7 +424,10 @@ impl ConfigFile {
     }
 
     /// The endpoints to open: vehicles sharing a connection string share the endpoint.
-    pub fn endpoints(&self) -> Vec<EndpointSpec> {
+    ///
+    /// # Errors
+    /// A signing key file that cannot be read or is not 64 hex characters (named).
+    pub fn endpoints(&self) -> Result<Vec<EndpointSpec>, String> {
         let mut by_conn: BTreeMap<String, EndpointSpec> = BTreeMap::new();
         let mut order = Vec::new();
         for v in &self.vehicles {
@@ -404,147 +440,26 @@ impl ConfigFile {
                     simulated: false,
                 }
             });
+            let signing = match &v.signing_key_file {
+                Some(f) => Some(skein_link::SigningSpec {
+                    key: skein_mavlink::signing::SigningKey::load(f).map_err(|e| e.to_string())?,
+                    link_id: v.signing_link_id.unwrap_or(0),
+                }),
+                None => None,
+            };
             e.vehicles.push(VehicleSpec {
                 id: v.id.clone(),
                 sysid: v.sysid,
                 model: v.model.clone(),
+                signing,
             });
         }
-        order
+        Ok(order
             .into_iter()
             .map(|k| by_conn.remove(&k).expect("inserted"))
-            .collect()
+            .collect())
     }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn full_file_parses() {
-        let c = ConfigFile::parse(
-            r#"
-[swarm]
-origin = { lat_deg = 47.397742, lon_deg = 8.545594, alt_amsl_m = 488.0 }
-stream_rate_hz = 30.0
-geofence = { radius_m = 200.0, max_altitude_m = 60.0 }
-
-[link]
-mav_type = "onboard_controller"
-telemetry = "swarm"
-params = { COM_OF_LOSS_T = 1.0, COM_OBL_RC_ACT = 5 }
-
-[[vehicles]]
-connection = "udpin:0.0.0.0:14540"
-id = "alpha"
-
-[[vehicles]]
-connection = "udpin:0.0.0.0:14549"
-sysid = 11
-
-[[vehicles]]
-connection = "udpin:0.0.0.0:14549"
-sysid = 12
-model = "generic"
-"#,
-        )
-        .unwrap();
-        let s = c.swarm_config().unwrap();
-        assert_eq!(s.stream_rate_hz, 30.0);
-        assert_eq!(s.geofence.radius_m, 200.0);
-        assert_eq!(c.identity().mav_type, MavType::MAV_TYPE_ONBOARD_CONTROLLER);
-        assert_eq!(s.link_setup.telemetry, skein_link::TelemetryProfile::Swarm);
-        assert_eq!(
-            s.link_setup.params,
-            vec![
-                ("COM_OBL_RC_ACT".to_string(), 5.0),
-                ("COM_OF_LOSS_T".to_string(), 1.0)
-            ]
-        );
-        let eps = c.endpoints();
-        assert_eq!(eps.len(), 2, "the two 14549 entries share an endpoint");
-        assert_eq!(eps[1].vehicles.len(), 2);
-        assert_eq!(eps[0].vehicles[0].id.as_deref(), Some("alpha"));
-    }
-
-    #[test]
-    fn errors_name_the_key_and_line() {
-        let e =
-            ConfigFile::parse("[[vehicles]]\nconection = \"udpin:0.0.0.0:14540\"\n").unwrap_err();
-        assert!(e.contains("line 2"), "{e}");
-        assert!(e.contains("conection"), "{e}");
-
-        let e = ConfigFile::parse("[[vehicles]]\nid = \"a\"\nconnection = \"udpn:1.2.3.4:5\"\n")
-            .unwrap_err();
-        assert!(e.contains("line 3"), "{e}");
-        assert!(e.contains("unknown scheme `udpn`"), "{e}");
-
-        let e = ConfigFile::parse("[swarm]\nstream_rate_hz = \"fast\"\n").unwrap_err();
-        assert!(e.contains("line 2") && e.contains("stream_rate_hz"), "{e}");
-
-        let e = ConfigFile::parse("[swarm]\nstream_rate_hz = 1.0\n").unwrap_err();
-        assert!(e.contains("swarm.stream_rate_hz"), "{e}");
-
-        let e = ConfigFile::parse(
-            "[[vehicles]]\nconnection = \"udpin:0.0.0.0:1\"\nid = \"x\"\n[[vehicles]]\nconnection = \"udpin:0.0.0.0:2\"\nid = \"x\"\n",
-        )
-        .unwrap_err();
-        assert!(e.contains("vehicles[1].id"), "{e}");
-    }
-
-    #[test]
-    fn supervision_and_models() {
-        let c = ConfigFile::parse(
-            r#"
-[supervision]
-vehicle_escalation = "land"
-payload = { max_restarts = 2, window_s = 30.0 }
-
-[models.tester]
-payloads = [{ slot = "fixture", kind = "fault-fixture" }]
-"#,
-        )
-        .unwrap();
-        let s = c.swarm_config().unwrap();
-        assert_eq!(
-            s.supervision.vehicle_escalation,
-            skein_swarm::supervision::VehicleEscalation::Land
-        );
-        assert_eq!(s.supervision.payload.max_restarts, 2);
-        assert_eq!(
-            s.supervision.payload.backoff_max_ms, 5000,
-            "other fields default"
-        );
-        assert_eq!(s.models["tester"].payloads[0].kind, "fault-fixture");
-        let e = ConfigFile::parse("[supervision]\npayload = { max_restart = 2 }\n").unwrap_err();
-        assert!(e.contains("max_restart") && e.contains("line 2"), "{e}");
-        let e = ConfigFile::parse(
-            "[models.x]\npayloads = [{ slot = \"a\", kind = \"k\" }, { slot = \"a\", kind = \"k\" }]\n",
-        )
-        .unwrap_err();
-        assert!(e.contains("models.x.payloads[1].slot"), "{e}");
-        let e =
-            ConfigFile::parse("[[vehicles]]\nconnection = \"udpin:0.0.0.0:1\"\nmodel = \"nope\"\n")
-                .unwrap_err();
-        assert!(e.contains("vehicles[0].model `nope`"), "{e}");
-    }
-
-    #[test]
-    fn plugins_section() {
-        let c = ConfigFile::parse("[plugins]\ndir = \"/opt/skein/plugins\"\n").unwrap();
-        assert_eq!(
-            c.plugins.dir.as_deref(),
-            Some(Path::new("/opt/skein/plugins"))
-        );
-        let e = ConfigFile::parse("[plugins]\ndirectory = \"x\"\n").unwrap_err();
-        assert!(e.contains("directory") && e.contains("line 2"), "{e}");
-    }
-
-    #[test]
-    fn empty_file_is_fine() {
-        let c = ConfigFile::parse("").unwrap();
-        assert!(c.vehicles.is_empty());
-        assert_eq!(c.swarm_config().unwrap().stream_rate_hz, 50.0);
-    }
-}
+mod tests;
