@@ -4,6 +4,7 @@
 #   - .venv with the independent peers (tests/peers/requirements.txt)
 #   - Debian's chromium and chromium-driver for the dashboard test
 #   - Debian's openssl for the HTTPS test's certificate
+#   - cargo-fuzz, for the fuzz smoke run (tests/fuzz.sh: each target 60 s) after the tests
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -41,3 +42,7 @@ export SKEIN_PYTHON="$PWD/.venv/bin/python"
 # shared dependencies are not compiled a second time with other features.
 export SKEIN_PLUGIN_TEST_SELECTION=workspace
 cargo test --workspace --locked "$@"
+# Fuzz smoke run, unless the caller passed test filters (a partial run).
+if [ $# -eq 0 ]; then
+  tests/fuzz.sh
+fi

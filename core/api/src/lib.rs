@@ -41,6 +41,7 @@ pub mod error;
 pub mod params;
 pub mod payloads;
 pub mod plugins;
+pub mod replay;
 pub mod requests;
 pub mod server;
 pub mod tls;
@@ -635,7 +636,7 @@ fn content_type(path: &str) -> &'static str {
     }
 }
 
-async fn static_file(uri: axum::http::Uri) -> Response {
+pub(crate) async fn static_file(uri: axum::http::Uri) -> Response {
     let path = uri.path().trim_start_matches('/');
     let path = if path.is_empty() { "index.html" } else { path };
     match WEB_UI.get_file(path) {

@@ -22,6 +22,7 @@ mod bench;
 mod config;
 mod keys;
 mod plugin_new;
+mod replay;
 
 use clap::{Parser, Subcommand};
 use config::ConfigFile;
@@ -66,6 +67,8 @@ enum Commands {
     /// (mode 0600) and prints the `signing_key_file` line to add to the config.
     #[command(subcommand)]
     Key(KeyCommand),
+    /// Play a recording (`skein up --record FILE.mcap`) back into the dashboard, read-only.
+    Replay(replay::ReplayArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -217,6 +220,7 @@ fn main() -> ExitCode {
             Commands::Bench(args) => bench::run(args).await.map(|()| ExitCode::SUCCESS),
             Commands::Token(TokenCommand::Create(args)) => token_create(&args),
             Commands::Key(KeyCommand::Create(args)) => keys::key_create(&args),
+            Commands::Replay(args) => replay::run(args).await,
         }
     });
     match result {

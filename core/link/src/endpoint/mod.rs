@@ -76,6 +76,9 @@ pub type DiscoveryHandler = Arc<dyn Fn(Discovery) + Send + Sync>;
 /// Sees every accepted frame with its bytes as received (after the signature check),
 /// e.g. to forward it to a ground station. Called on the receive task: must be cheap.
 pub type FrameTap = Arc<dyn Fn(&Frame, &[u8]) + Send + Sync>;
+/// Sees every message skein sends (to `sysid`), before encoding: what a recording
+/// keeps of the setpoints and commands that left skein.
+pub type SentTap = Arc<dyn Fn(u8, &MavMessage) + Send + Sync>;
 
 #[derive(Default)]
 struct Peer {
@@ -139,6 +142,7 @@ pub struct Endpoint {
     discovery: RwLock<Option<DiscoveryHandler>>,
     signing: RwLock<SigningTable>,
     tap: RwLock<Option<FrameTap>>,
+    sent_tap: RwLock<Option<SentTap>>,
     decode_stats: Arc<DecodeStats>,
     frames_sent: AtomicU64,
     send_errors: AtomicU64,
@@ -244,6 +248,7 @@ impl Endpoint {
             discovery: RwLock::new(None),
             signing: RwLock::new(SigningTable::default()),
             tap: RwLock::new(None),
+            sent_tap: RwLock::new(None),
             decode_stats: Arc::new(DecodeStats::default()),
             frames_sent: AtomicU64::new(0),
             send_errors: AtomicU64::new(0),
@@ -282,6 +287,12 @@ impl Endpoint {
     /// Installs (or removes) the tap that sees every accepted frame.
     pub fn set_tap(&self, tap: Option<FrameTap>) {
         *self.tap.write().expect("tap lock") = tap;
+    }
+
+    /// Installs (or removes) the tap that sees every message sent with
+    /// [`Endpoint::send`] (and [`Endpoint::broadcast`]), whether or not it could be sent.
+    pub fn set_sent_tap(&self, tap: Option<SentTap>) {
+        *self.sent_tap.write().expect("sent tap lock") = tap;
     }
 
     /// The system ids heard on this endpoint.
@@ -382,6 +393,9 @@ impl Endpoint {
     /// [`SendError::NoAddress`] before a `udpin` endpoint has heard from `sysid`;
     /// [`SendError::Io`] when the socket refuses.
     pub fn send(&self, sysid: u8, msg: &MavMessage) -> Result<(), SendError> {
+        if let Some(tap) = self.sent_tap.read().expect("sent tap lock").as_ref() {
+            tap(sysid, msg);
+        }
         let dest = self.dest(sysid)?;
         let signing = self.signing_of(sysid);
         let frame = self
@@ -450,6 +464,16 @@ impl Endpoint {
             }
             _ => usize::from(self.send(0, msg).is_ok()),
         }
+    }
+
+    /// Feeds one received datagram through the endpoint's ingress, as the receive task
+    /// does with every datagram: MAVLink decoding (malformed bytes and frames counted in
+    /// [`Endpoint::decode_counts`] and dropped), the signing check of a signing sysid,
+    /// the peer address and discovery, then the handler routed to the frame's sysid
+    /// (frames of an unrouted sysid are counted, not lost silently). `from` is the
+    /// sender (`None` for byte streams). Public so the fuzz target drives the same path.
+    pub fn ingest(&self, decoder: &mut Decoder, datagram: &[u8], from: Option<SocketAddr>) {
+        decoder.decode_datagram_raw(datagram, |f, raw| self.deliver(f, raw, from));
     }
 
     fn deliver(&self, frame: Frame, raw: &[u8], from: Option<SocketAddr>) {
@@ -556,7 +580,7 @@ async fn udp_reader(endpoint: Weak<Endpoint>, socket: Arc<UdpSocket>) {
             }
         };
         let Some(ep) = endpoint.upgrade() else { return };
-        decoder.decode_datagram_raw(&buf[..n], |f, raw| ep.deliver(f, raw, Some(from)));
+        ep.ingest(&mut decoder, &buf[..n], Some(from));
     }
 }
 

@@ -1,0 +1,26 @@
+//! Flight recording: what happened in the swarm, written to an MCAP file that Foxglove
+//! and the reference `mcap` readers open, and read back for `skein replay`.
+//!
+//! A [`Recording`] collects, while it runs:
+//! - every vehicle's snapshot at 10 Hz (`/skein/<id>/state`, the `GET /api/v1/vehicles`
+//!   shape) and its position as `foxglove.LocationFix` (`/skein/<id>/fix`, WGS-84);
+//! - every MAVLink message skein sends to a vehicle (`/skein/<id>/sent`: setpoints with
+//!   their `type_mask`, commands with their parameters);
+//! - the swarm events of the stream (`/skein/events`: state changes, command outcomes,
+//!   failovers, hazards, plugin events) and the commands the API accepted
+//!   (`/skein/commands`);
+//! - the formation (`/skein/formation`, on every change and each second);
+//! - camera frames as `foxglove.CompressedImage` (`/skein/<id>/<slot>/image`, JPEG).
+//!
+//! Messages are JSON with a JSON Schema per channel (MCAP `jsonschema` encoding), stamped
+//! with the wall-clock time they were taken (ns since the Unix epoch). See
+//! [`channels`] for the schemas and [`replay`] for reading a file back.
+
+pub mod channels;
+pub mod recorder;
+pub mod replay;
+mod sent;
+mod writer;
+
+pub use recorder::{RecordError, Recorder, Recording, RecordingSummary, Sources};
+pub use replay::{ReplayError, Timeline};
