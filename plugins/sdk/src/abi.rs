@@ -304,7 +304,7 @@ pub struct HostApi {
 }
 
 /// The build stamp of this SDK: `key=value` pairs joined by `;`, e.g.
-/// `abi=1;messages=1;dialect=common;arch=x86_64;os=linux;pointer_width=64;endian=little`.
+/// `abi=2;messages=1;dialect=common;arch=x86_64;os=linux;pointer_width=64;endian=little`.
 /// Host and plugin must have equal stamps (see the module docs for what is in it and why).
 pub fn build_stamp() -> String {
     format!(

@@ -44,7 +44,7 @@ fn every_plugin_loads_and_mismatched_builds_are_refused_by_name() {
     assert!(text.contains("libskein_plugin_abi_mismatch.so"), "{text}");
     assert!(
         text.contains(
-            "ABI version mismatch: the plugin was built for ABI 999, this skein speaks ABI 1"
+            "ABI version mismatch: the plugin was built for ABI 999, this skein speaks ABI 2"
         ),
         "{text}"
     );

@@ -184,6 +184,11 @@ pub enum CoordinatorMsg {
     GetSupervision(RpcReplyPort<TreeNode>),
     /// The metrics in Prometheus text format.
     RenderMetrics(RpcReplyPort<String>),
+    /// The counter-UAS tracks now (`GET /api/v1/tracks`).
+    GetTracks(RpcReplyPort<Vec<crate::tracking::TrackView>>),
+    /// The in-process simulator's ground truth (`GET /api/v1/sim/truth`); `None` when no
+    /// simulator is embedded.
+    GetSimTruth(RpcReplyPort<Option<serde_json::Value>>),
     /// Start and supervise a service (the HTTP API).
     AddService(ServiceSpec, RpcReplyPort<Result<(), String>>),
     /// Inject a fault at an actor path (`"coordinator/uav-1/px4link"`).

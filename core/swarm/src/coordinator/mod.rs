@@ -91,6 +91,8 @@ pub struct CoordinatorState {
     hazards: hazards::Hazards,
     started: Instant,
     last_formation_tick: Instant,
+    /// The counter-UAS tracker (its task stops with the coordinator).
+    tracking: crate::tracking::TrackingService,
 }
 
 /// The `Coordinator` actor (see module docs).
@@ -234,8 +236,16 @@ impl Actor for Coordinator {
         let separation_m = args.config.setpoint_separation_m();
         let mut formation = FormationEngine::new(separation_m);
         formation.set_replan_after_s(args.config.hazards.replan_after_s);
+        let view = Arc::new(SwarmView::new(args.config, args.services));
+        let tracking = crate::tracking::TrackingService::spawn(
+            crate::tracking::TrackerConfig::default(),
+            view.clone(),
+            args.events.clone(),
+            args.metrics.clone(),
+        );
         Ok(CoordinatorState {
-            view: Arc::new(SwarmView::new(args.config, args.services)),
+            view,
+            tracking,
             endpoints: args.endpoints,
             vehicles: BTreeMap::new(),
             services: BTreeMap::new(),
@@ -417,6 +427,17 @@ impl Actor for Coordinator {
             }
             CoordinatorMsg::GetSupervision(reply) => {
                 let _ = reply.send(state.supervision.tree());
+            }
+            CoordinatorMsg::GetTracks(reply) => {
+                let _ = reply.send(state.tracking.shared().tracks());
+            }
+            CoordinatorMsg::GetSimTruth(reply) => {
+                let truth = state
+                    .view
+                    .simulator()
+                    .map(|sim| sim.truth(state.view.frame().as_ref()))
+                    .filter(|v| !v.is_null());
+                let _ = reply.send(truth);
             }
             CoordinatorMsg::RenderMetrics(reply) => {
                 let _ = reply.send(state.render_metrics());
