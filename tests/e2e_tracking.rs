@@ -4,9 +4,11 @@
 //! 10 m with their cameras turned east. The intruder has no link: only the cameras' frames,
 //! the detectors' image processing and the coordinator's tracker can find it. Checked over
 //! HTTP against the simulator's ground truth (`GET /api/v1/sim/truth`): a confirmed track
-//! within 5 s of the intruder entering both cameras' view, position RMSE under 3 m over the
-//! pass, one track id for the whole pass, no track on a swarm member, and the tracker's
-//! counters in `/metrics`.
+//! within 5 s of the intruder entering both cameras' view; then `POST
+//! /api/v1/tracks/{id}/observe` turns both gimbals onto the track and keeps the intruder in
+//! both cameras' view while it flies far past the edge of their first view; position RMSE
+//! under 3 m over the whole pass, one track id, no track on a swarm member, the
+//! `track_confirmed` event on the stream and the tracker's counters in `/metrics`.
 
 mod support;
 
@@ -39,6 +41,59 @@ fn ned(v: &Value) -> [f64; 3] {
 
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// One look at the world: is the intruder in both cameras' view, the confirmed track
+/// nearest it (id, distance to the truth, m), how far its bearing from uav-2 is off east.
+struct Sample {
+    in_view: bool,
+    nearest_confirmed: Option<(String, f64)>,
+    off_east_deg: f64,
+}
+
+fn sample(skein: &Skein) -> Sample {
+    let vs = skein.vehicles();
+    let in_view = OBSERVERS.iter().all(|o| camera_sees_intruder(&vs, o));
+    let (_, tracks) = skein.get("/api/v1/tracks");
+    let (_, truth) = skein.get("/api/v1/sim/truth");
+    let intruder = ned(&truth["intruders"][0]);
+    let tracks = tracks["tracks"].as_array().cloned().unwrap_or_default();
+    let vehicles = truth["vehicles"].as_array().cloned().unwrap_or_default();
+    // Swarm members are never tracks.
+    for t in &tracks {
+        for v in &vehicles {
+            let d = dist(ned(&t["position"]), ned(v));
+            assert!(
+                d > 3.0 || t["status"] != "confirmed",
+                "a confirmed track on {}: {t}",
+                v["id"]
+            );
+        }
+    }
+    let nearest_confirmed = tracks
+        .iter()
+        .filter(|t| t["status"] == "confirmed")
+        .map(|t| {
+            (
+                t["id"].as_str().unwrap_or("?").to_string(),
+                dist(ned(&t["position"]), intruder),
+            )
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    let eye = vehicles
+        .iter()
+        .find(|v| v["id"] == "uav-2")
+        .map(ned)
+        .unwrap_or([0.0; 3]);
+    let off_east_deg = (intruder[0] - eye[0])
+        .atan2(intruder[1] - eye[1])
+        .to_degrees()
+        .abs();
+    Sample {
+        in_view,
+        nearest_confirmed,
+        off_east_deg,
+    }
 }
 
 #[test]
@@ -110,81 +165,124 @@ fn a_passing_intruder_becomes_a_confirmed_track_that_follows_the_truth() {
     });
 
     // Watch for the intruder to enter both views (from out of view), then for a confirmed
-    // track; then compare the track with the truth while it stays in view.
+    // track; compare the track with the truth while it stays in view.
     let mut was_in_view = true;
     let mut entered: Option<Instant> = None;
-    let mut confirmed: Option<(String, Duration)> = None;
+    let mut confirmed: Option<(String, Duration, Instant)> = None;
     let mut errors: Vec<f64> = Vec::new();
     let mut ids_seen = std::collections::BTreeSet::new();
     let deadline = Instant::now() + Duration::from_secs(150);
     loop {
         assert!(
             Instant::now() < deadline,
-            "no complete pass in time: entered {entered:?}, confirmed {confirmed:?}, {} samples",
+            "no pass in time: entered {entered:?}, confirmed {confirmed:?}, {} samples",
             errors.len()
         );
-        let vs = skein.vehicles();
-        let in_view = OBSERVERS.iter().all(|o| camera_sees_intruder(&vs, o));
-        let (_, tracks) = skein.get("/api/v1/tracks");
-        let (_, truth) = skein.get("/api/v1/sim/truth");
-        let intruder = ned(&truth["intruders"][0]);
-        let tracks = tracks["tracks"].as_array().cloned().unwrap_or_default();
-        // Swarm members are never tracks.
-        for t in &tracks {
-            for v in truth["vehicles"].as_array().unwrap() {
-                let d = dist(ned(&t["position"]), ned(v));
-                assert!(
-                    d > 3.0 || t["status"] != "confirmed",
-                    "a confirmed track on {}: {t}",
-                    v["id"]
-                );
-            }
-        }
-        match (entered, in_view) {
+        let s = sample(&skein);
+        match (entered, s.in_view) {
             (None, true) if !was_in_view => entered = Some(Instant::now()),
-            (Some(_), false) if confirmed.is_some() => break,
-            (Some(_), false) => {
-                // Left again before a track was confirmed: a failure below.
-                break;
-            }
+            (Some(_), false) => panic!("the intruder left the views: confirmed {confirmed:?}"),
             _ => {}
         }
-        was_in_view = in_view;
-        if let Some(t_in) = entered {
-            let nearest = tracks
-                .iter()
-                .filter(|t| t["status"] == "confirmed")
-                .min_by(|a, b| {
-                    dist(ned(&a["position"]), intruder)
-                        .total_cmp(&dist(ned(&b["position"]), intruder))
-                });
-            if let Some(t) = nearest {
-                let id = t["id"].as_str().unwrap().to_string();
-                if confirmed.is_none() {
-                    confirmed = Some((id.clone(), t_in.elapsed()));
-                }
-                ids_seen.insert(id);
-                errors.push(dist(ned(&t["position"]), intruder));
+        was_in_view = s.in_view;
+        if let Some(t_in) = entered
+            && let Some((id, err)) = s.nearest_confirmed
+        {
+            if confirmed.is_none() {
+                confirmed = Some((id.clone(), t_in.elapsed(), Instant::now()));
             }
+            ids_seen.insert(id);
+            errors.push(err);
+        }
+        // Enough of the unsteered pass: observe the track from here on.
+        if confirmed
+            .as_ref()
+            .is_some_and(|c| c.2.elapsed() > Duration::from_secs(4))
+        {
+            break;
         }
         std::thread::sleep(Duration::from_millis(200));
     }
-    let (id, to_confirm) = confirmed.expect("a confirmed track while the intruder was in view");
-    let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
-    println!(
-        "tracking: confirmed {id} {:.2} s after the intruder entered both views; RMSE {rmse:.2} m \
-         over {} samples (max {:.2} m); ids {ids_seen:?}",
-        to_confirm.as_secs_f64(),
-        errors.len(),
-        errors.iter().cloned().fold(0.0, f64::max)
-    );
+    let (id, to_confirm, _) = confirmed.expect("a confirmed track");
     assert!(
         to_confirm < Duration::from_secs(5),
         "confirmed after {to_confirm:?}"
     );
+
+    // Observe: refused for an unknown track and for a vehicle without a gimbal, then both
+    // gimbals follow the track, which stays in both cameras' view well past the edge of
+    // the view they had.
+    let (status, body) = skein.post("/api/v1/tracks/track-999/observe", json!({}));
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (404, Some("id")),
+        "{body}"
+    );
+    let (status, body) = skein.post(
+        &format!("/api/v1/tracks/{id}/observe"),
+        json!({"vehicles": ["uav-1"]}),
+    );
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (400, Some("vehicles")),
+        "{body}"
+    );
+    let (status, body) = skein.post(&format!("/api/v1/tracks/{id}/observe"), json!({}));
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["vehicles"], json!(OBSERVERS), "{body}");
+    let (_, tracks) = skein.get("/api/v1/tracks");
+    let listed = tracks["tracks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["id"] == id.as_str())
+        .cloned();
+    assert_eq!(
+        listed.map(|t| t["observed_by"].clone()),
+        Some(json!(OBSERVERS))
+    );
+    let observe_start = Instant::now();
+    let (mut in_view, mut samples, mut widest_deg) = (0usize, 0usize, 0.0f64);
+    while observe_start.elapsed() < Duration::from_secs(20) {
+        let s = sample(&skein);
+        if let Some((tid, err)) = s.nearest_confirmed {
+            ids_seen.insert(tid);
+            errors.push(err);
+        }
+        if observe_start.elapsed() > Duration::from_secs(2) {
+            samples += 1;
+            in_view += usize::from(s.in_view);
+            if s.in_view {
+                widest_deg = widest_deg.max(s.off_east_deg);
+            }
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let (status, body) = skein.delete(&format!("/api/v1/tracks/{id}/observe"));
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["released"], json!(OBSERVERS), "{body}");
+
+    let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    println!(
+        "tracking: confirmed {id} {:.2} s after the intruder entered both views; RMSE {rmse:.2} m \
+         over {} samples (max {:.2} m); ids {ids_seen:?}; observed: in both views {in_view}/{samples} \
+         samples, up to {widest_deg:.0} deg off the cameras' first axis",
+        to_confirm.as_secs_f64(),
+        errors.len(),
+        errors.iter().cloned().fold(0.0, f64::max)
+    );
     assert!(errors.len() >= 10, "{} samples", errors.len());
     assert!(rmse < 3.0, "RMSE {rmse:.2} m: {errors:?}");
     assert_eq!(ids_seen.len(), 1, "one track for the pass: {ids_seen:?}");
+    assert!(
+        in_view * 10 >= samples * 9,
+        "in view {in_view}/{samples} while observed"
+    );
+    // Half the camera's 75° view is 37.6°: without the gimbals following, it would be gone.
+    assert!(
+        widest_deg > 45.0,
+        "the intruder never went far: {widest_deg:.0}°"
+    );
 
     // The stream said so too, and the metrics count it.
     let on_stream: Vec<Value> = stream.of_type("track_confirmed");

@@ -223,6 +223,10 @@ pub fn app(state: ApiState) -> Router {
         .route("/api/v1/geofence", get(geofence))
         .route("/api/v1/stream", get(stream))
         .route("/api/v1/tracks", get(tracks::list_tracks))
+        .route(
+            "/api/v1/tracks/{id}/observe",
+            post(tracks::observe).delete(tracks::stop_observing),
+        )
         .route("/api/v1/sim/truth", get(tracks::sim_truth))
         .route("/api/{*rest}", axum::routing::any(api_not_found))
         // Every route above (not the dashboard's static files below) goes through auth.

@@ -27,6 +27,8 @@
 //!                  "azimuth_deg": 12.5, "elevation_deg": 4.1,
 //!                  "angular_size_deg": 0.9, "confidence": 0.8}]}
 //! ```
+//! `angular_size_deg` (the blob's larger side as an angle) is `null` for blobs under
+//! [`MIN_SIZED_BLOB_PX`]: a distant aircraft is a blur of a few pixels whatever its size.
 //! State: `{"camera_slot", "frames", "detections_total", "last_frame", "last_error",
 //! "last": {…}}`.
 //!
@@ -42,6 +44,9 @@ use skein_plugin_sdk::frame_meta::FrameMeta;
 use skein_plugin_sdk::geometry::{Ned, direction, look_angles};
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::{Context, Plugin, export_plugin};
+
+/// Blobs narrower than this (pixels) get no `angular_size_deg`: too small to measure.
+pub const MIN_SIZED_BLOB_PX: f64 = 8.0;
 
 /// Payload event kind of a processed frame.
 pub const DETECTIONS_EVENT: &str = "detections";
@@ -75,8 +80,11 @@ pub fn detections(meta: &FrameMeta, blobs: &[Blob], threshold: f64, camera_slot:
         .iter()
         .map(|b| {
             let (az, el) = pixel_bearing(meta, b.cx, b.cy);
+            // A blob a few pixels wide is the optics' blur as much as the aircraft: its
+            // size only bounds the range, so it is not reported.
             let size_px = f64::from(b.width.max(b.height));
-            let angular_size_deg = 2.0 * (size_px / 2.0 / meta.focal_px).atan().to_degrees();
+            let angular_size_deg = (size_px >= MIN_SIZED_BLOB_PX)
+                .then(|| 2.0 * (size_px / 2.0 / meta.focal_px).atan().to_degrees());
             json!({
                 "box_px": {"x": b.x, "y": b.y, "width": b.width, "height": b.height},
                 "center_px": {"x": b.cx, "y": b.cy},

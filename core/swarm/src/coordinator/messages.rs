@@ -184,8 +184,18 @@ pub enum CoordinatorMsg {
     GetSupervision(RpcReplyPort<TreeNode>),
     /// The metrics in Prometheus text format.
     RenderMetrics(RpcReplyPort<String>),
-    /// The counter-UAS tracks now (`GET /api/v1/tracks`).
-    GetTracks(RpcReplyPort<Vec<crate::tracking::TrackView>>),
+    /// The counter-UAS tracks now and which vehicle observes which track
+    /// (`GET /api/v1/tracks`).
+    GetTracks(RpcReplyPort<(Vec<crate::tracking::TrackView>, Vec<(String, String)>)>),
+    /// Point the gimbals of the vehicles (default: all with a gimbal) at a track and keep
+    /// them on it; answers the observing vehicles.
+    ObserveTrack(
+        String,
+        Option<Vec<String>>,
+        RpcReplyPort<Result<Vec<String>, super::observe::ObserveRefusal>>,
+    ),
+    /// Stop observing a track; answers the vehicles released.
+    StopObserving(String, RpcReplyPort<Vec<String>>),
     /// The in-process simulator's ground truth (`GET /api/v1/sim/truth`); `None` when no
     /// simulator is embedded.
     GetSimTruth(RpcReplyPort<Option<serde_json::Value>>),

@@ -32,6 +32,7 @@ pub mod escalation;
 pub mod formation_loop;
 pub mod hazards;
 pub mod messages;
+pub mod observe;
 pub mod proxy;
 pub mod swarm;
 pub mod validation;
@@ -93,6 +94,8 @@ pub struct CoordinatorState {
     last_formation_tick: Instant,
     /// The counter-UAS tracker (its task stops with the coordinator).
     tracking: crate::tracking::TrackingService,
+    /// Observing vehicle → (track id, gimbal slot), see [`observe`].
+    observing: BTreeMap<String, (String, String)>,
 }
 
 /// The `Coordinator` actor (see module docs).
@@ -246,6 +249,7 @@ impl Actor for Coordinator {
         Ok(CoordinatorState {
             view,
             tracking,
+            observing: BTreeMap::new(),
             endpoints: args.endpoints,
             vehicles: BTreeMap::new(),
             services: BTreeMap::new(),
@@ -429,7 +433,13 @@ impl Actor for Coordinator {
                 let _ = reply.send(state.supervision.tree());
             }
             CoordinatorMsg::GetTracks(reply) => {
-                let _ = reply.send(state.tracking.shared().tracks());
+                let _ = reply.send((state.tracking.shared().tracks(), state.observations()));
+            }
+            CoordinatorMsg::ObserveTrack(track, vehicles, reply) => {
+                let _ = reply.send(state.observe_track(&track, vehicles));
+            }
+            CoordinatorMsg::StopObserving(track, reply) => {
+                let _ = reply.send(state.stop_observing(&track));
             }
             CoordinatorMsg::GetSimTruth(reply) => {
                 let truth = state
@@ -461,7 +471,10 @@ impl Actor for Coordinator {
             CoordinatorMsg::Ping(reply) => {
                 let _ = reply.send(());
             }
-            CoordinatorMsg::FormationTick => state.formation_tick(),
+            CoordinatorMsg::FormationTick => {
+                state.formation_tick();
+                state.observe_tick();
+            }
             CoordinatorMsg::WatchTick => {
                 let me = myself.clone();
                 state.children.watch(move |node, id| {

@@ -66,7 +66,7 @@ pub struct TrackerConfig {
 impl Default for TrackerConfig {
     fn default() -> Self {
         TrackerConfig {
-            bearing_sigma_deg: 0.3,
+            bearing_sigma_deg: 0.15,
             size_range_rel_sigma: 0.35,
             accel_sigma_m_s2: 2.0,
             gate_chi2: 16.0,
@@ -379,21 +379,36 @@ impl Tracker {
             let t = &self.tracks[ti];
             let v = t.filter.velocity();
             let p = t.filter.position();
+            let mut observers: Vec<String> =
+                ray_ids.iter().map(|&i| rays[i].observer.clone()).collect();
+            observers.sort();
+            observers.dedup();
+            let triangulated = observers.len() >= 2;
             let fused: Vec<_> = ray_ids
                 .iter()
                 .map(|&i| {
                     let r = &rays[i];
                     let o = Self::shifted(r, &v, t.t_us);
-                    // A lone bearing without a size range keeps the track's range.
-                    let range = r.range_from_size_m.or(Some((p - o).dot(&r.dir)));
+                    // Two observers fix the point by triangulation alone (a size range is
+                    // far coarser); a lone bearing uses its size range, or without one
+                    // keeps the track's range.
+                    let range = if triangulated {
+                        None
+                    } else {
+                        r.range_from_size_m.or(Some((p - o).dot(&r.dir)))
+                    };
                     (o, r.dir, range)
                 })
                 .collect();
-            let mut observers: Vec<String> =
-                ray_ids.iter().map(|&i| rays[i].observer.clone()).collect();
-            observers.sort();
-            observers.dedup();
-            let Some((z, cov)) = fuse_rays(&fused, noise) else {
+            // Nearly parallel rays of two observers fix no point: keep the track's range.
+            let fix = fuse_rays(&fused, noise).or_else(|| {
+                let along: Vec<_> = fused
+                    .iter()
+                    .map(|(o, d, _)| (*o, *d, Some((p - o).dot(d))))
+                    .collect();
+                fuse_rays(&along, noise)
+            });
+            let Some((z, cov)) = fix else {
                 continue;
             };
             let view_before = self.tracks[ti].status;
@@ -403,7 +418,7 @@ impl Tracker {
             }
             self.counters.bearings_associated += ray_ids.len() as u64;
             t.hits += 1;
-            if observers.len() >= 2 {
+            if triangulated {
                 t.triangulated_hits += 1;
             }
             t.observers = observers;
