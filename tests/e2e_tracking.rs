@@ -8,7 +8,9 @@
 //! /api/v1/tracks/{id}/observe` turns both gimbals onto the track and keeps the intruder in
 //! both cameras' view while it flies far past the edge of their first view; position RMSE
 //! under 3 m over the whole pass, one track id, no track on a swarm member, the
-//! `track_confirmed` event on the stream and the tracker's counters in `/metrics`.
+//! `track_confirmed` event on the stream and the tracker's counters in `/metrics`. Last, a
+//! wedge takes the track as its leader with a 30 m stand-off and follows the intruder at
+//! that distance, without a separation or geofence violation.
 
 mod support;
 
@@ -258,6 +260,89 @@ fn a_passing_intruder_becomes_a_confirmed_track_that_follows_the_truth() {
         }
         std::thread::sleep(Duration::from_millis(200));
     }
+    // A formation led by the track: refused naming the field for an unknown track or a
+    // missing stand-off; then the swarm follows the intruder at the stand-off (the
+    // gimbals still on it), keeping its separation and the geofence.
+    let wedge = |leader: &str, standoff: Option<f64>| {
+        let mut f =
+            json!({"shape": "wedge", "spacing_m": 6.0, "leader": leader, "altitude_m": 10.0});
+        if let Some(s) = standoff {
+            f["standoff_m"] = json!(s);
+        }
+        f
+    };
+    let (status, body) = skein.put("/api/v1/formation", wedge("track-999", Some(30.0)));
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (400, Some("leader")),
+        "{body}"
+    );
+    let (status, body) = skein.put("/api/v1/formation", wedge(&id, None));
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (400, Some("standoff_m")),
+        "{body}"
+    );
+    const STANDOFF_M: f64 = 30.0;
+    let (status, body) = skein.put("/api/v1/formation", wedge(&id, Some(STANDOFF_M)));
+    assert_eq!(status, 200, "{body}");
+    let stats = skein.sim_stats_addr();
+    let (_, fence) = skein.get("/api/v1/geofence");
+    let fence_radius = fence["radius_m"].as_f64().unwrap_or(f64::INFINITY);
+    let follow_start = Instant::now();
+    let (mut standoffs, mut min_sep, mut farthest) = (Vec::new(), f64::INFINITY, 0.0f64);
+    // Tracking quality while the observers fly (reported, see docs/architecture.md).
+    let (mut follow_errors, mut follow_ids) = (Vec::new(), std::collections::BTreeSet::new());
+    while follow_start.elapsed() < Duration::from_secs(40) {
+        let s = sample(&skein);
+        if let Some((tid, err)) = s.nearest_confirmed {
+            follow_ids.insert(tid);
+            follow_errors.push(err);
+        }
+        let (_, truth) = skein.get("/api/v1/sim/truth");
+        let intruder = ned(&truth["intruders"][0]);
+        for v in truth["vehicles"].as_array().unwrap() {
+            let p = ned(v);
+            farthest = farthest.max(p[0].hypot(p[1]));
+        }
+        min_sep = min_sep.min(support::truth_min_separation(&stats));
+        if follow_start.elapsed() > Duration::from_secs(20) {
+            let f = skein.formation();
+            let r = &f["reference"]["position"];
+            let (rn, re) = (
+                r["north_m"].as_f64().unwrap(),
+                r["east_m"].as_f64().unwrap(),
+            );
+            standoffs.push((intruder[0] - rn).hypot(intruder[1] - re));
+        }
+        std::thread::sleep(Duration::from_millis(250));
+    }
+    let mean_standoff = standoffs.iter().sum::<f64>() / standoffs.len().max(1) as f64;
+    let follow_rmse = (follow_errors.iter().map(|e: &f64| e * e).sum::<f64>()
+        / follow_errors.len().max(1) as f64)
+        .sqrt();
+    println!(
+        "tracking: formation led by {id}: horizontal distance to the intruder {mean_standoff:.1} m \
+         on average (asked {STANDOFF_M} m; {} samples, min {:.1}, max {:.1}), closest pair \
+         {min_sep:.2} m, farthest vehicle {farthest:.0} m from the origin; tracking while the \
+         observers fly: RMSE {follow_rmse:.2} m over {} samples, ids {follow_ids:?}",
+        standoffs.len(),
+        standoffs.iter().cloned().fold(f64::INFINITY, f64::min),
+        standoffs.iter().cloned().fold(0.0, f64::max),
+        follow_errors.len(),
+    );
+    assert!(
+        (mean_standoff - STANDOFF_M).abs() < 12.0,
+        "stand-off {mean_standoff:.1} m: {standoffs:?}"
+    );
+    assert!(min_sep >= 3.0, "closest pair {min_sep:.2} m");
+    assert!(
+        farthest < fence_radius,
+        "{farthest} m outside the {fence_radius} m fence"
+    );
+    let (status, body) = skein.delete("/api/v1/formation");
+    assert!(status < 300, "{body}");
+
     let (status, body) = skein.delete(&format!("/api/v1/tracks/{id}/observe"));
     assert_eq!(status, 200, "{body}");
     assert_eq!(body["released"], json!(OBSERVERS), "{body}");

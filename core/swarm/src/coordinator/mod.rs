@@ -35,6 +35,7 @@ pub mod messages;
 pub mod observe;
 pub mod proxy;
 pub mod swarm;
+pub mod track_leader;
 pub mod validation;
 
 pub use children::Node;
@@ -310,13 +311,18 @@ impl Actor for Coordinator {
                     .iter()
                     .map(|(id, v)| (id.as_str(), v.state(), v.failed))
                     .collect();
-                match validation::validate_formation(&state.view.config, &spec, &vehicles) {
+                let tracks = state.tracking.shared().tracks();
+                let checked = track_leader::validate_track_leader(&spec, &tracks).and_then(|()| {
+                    validation::validate_formation(&state.view.config, &spec, &vehicles)
+                });
+                match checked {
                     Err(e) => {
                         let _ = reply.send(Err(e));
                     }
                     Ok(()) => {
                         state.formation.set(spec);
                         state.join_hovering();
+                        state.follow_track_tick();
                         state.formation_tick();
                         let status = state.formation_status();
                         state.emit(SwarmEvent::FormationChanged {
@@ -472,6 +478,7 @@ impl Actor for Coordinator {
                 let _ = reply.send(());
             }
             CoordinatorMsg::FormationTick => {
+                state.follow_track_tick();
                 state.formation_tick();
                 state.observe_tick();
             }
