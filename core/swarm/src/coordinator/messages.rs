@@ -49,6 +49,9 @@ pub struct Health {
     pub fault_injection: bool,
 }
 
+/// The tracks now, and which vehicle observes which track (vehicle id, track id).
+pub type TracksAnswer = (Vec<crate::tracking::TrackView>, Vec<(String, String)>);
+
 /// Why a formation request was refused: the field and the reason.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FieldError {
@@ -186,7 +189,7 @@ pub enum CoordinatorMsg {
     RenderMetrics(RpcReplyPort<String>),
     /// The counter-UAS tracks now and which vehicle observes which track
     /// (`GET /api/v1/tracks`).
-    GetTracks(RpcReplyPort<(Vec<crate::tracking::TrackView>, Vec<(String, String)>)>),
+    GetTracks(RpcReplyPort<TracksAnswer>),
     /// Point the gimbals of the vehicles (default: all with a gimbal) at a track and keep
     /// them on it; answers the observing vehicles.
     ObserveTrack(

@@ -132,7 +132,7 @@ mod tests {
         let target = Vector3::new(60.0, 5.0, -20.0);
         let a = ray_to(Vector3::new(0.0, 0.0, -10.0), target);
         let b = ray_to(Vector3::new(0.0, 8.0, -10.0), target);
-        let (p, cov) = fuse_rays(&[a.clone(), b.clone()], NOISE).expect("fixes a point");
+        let (p, cov) = fuse_rays(&[a, b], NOISE).expect("fixes a point");
         assert!((p - target).norm() < 1e-6, "{p}");
         // Uncertain mostly along the line of sight (8 m baseline at 60 m).
         assert!(
