@@ -1,7 +1,7 @@
 //! The benchmarks end to end, small: `skein bench swarm` (20 vehicles at 50 Hz for 3 s, the
-//! simulator in its own process), `skein bench formation` (8 vehicles) and `skein bench
-//! restart` (40 panics). Each checks the report's shape and that the swarm really flew;
-//! never its timing (that is what the benchmarks themselves are for, on a quiet machine).
+//! simulator in its own process), `skein bench formation` (8 vehicles), `skein bench
+//! restart` (40 panics) and `skein bench tracking` (15 s). Each checks the report's shape
+//! and that the swarm really flew; never its timing (that is what the benchmarks themselves are for, on a quiet machine).
 
 mod support;
 
@@ -165,4 +165,67 @@ fn bench_plugins_reports_round_trips_loads_and_restarts() {
     ] {
         assert!(p50(&[key]) > 0.0, "{key}: {report}");
     }
+}
+
+/// `skein bench tracking` for 15 s on freshly built gimbal, camera and detector plugins:
+/// every figure present, frames were scored, and the intruders were tracked.
+#[test]
+fn bench_tracking_reports_detection_and_track_quality() {
+    let dir = support::plugins::scratch("bench-tracking");
+    support::plugins::build_into(
+        &[
+            "skein-plugin-gimbal",
+            "skein-plugin-camera",
+            "skein-plugin-detector",
+        ],
+        &[],
+        &dir,
+    );
+    let dir_arg = dir.display().to_string();
+    let mut p = Process::start(&[
+        "bench",
+        "tracking",
+        "--plugin-dir",
+        &dir_arg,
+        "--seconds",
+        "15",
+    ]);
+    let line = p.wait_line("\"detection\"", Duration::from_secs(300));
+    let code = p.wait_exit(Duration::from_secs(60));
+    assert_eq!(code, Some(0), "stderr:\n{}", p.stderr_text());
+    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+    for key in [
+        "frames",
+        "true_positives",
+        "false_positives",
+        "misses",
+        "precision",
+        "recall",
+    ] {
+        assert!(
+            !report["detection"][key].is_null(),
+            "detection.{key} missing: {report}"
+        );
+    }
+    for key in [
+        "rmse_m",
+        "samples",
+        "time_to_confirm_s",
+        "id_switches",
+        "confirmed_tracks",
+        "false_tracks",
+    ] {
+        assert!(
+            !report["tracks"][key].is_null(),
+            "tracks.{key} missing: {report}"
+        );
+    }
+    assert!(
+        report["detection"]["frames"].as_u64().unwrap() > 10,
+        "{report}"
+    );
+    assert!(
+        report["tracks"]["confirmed_tracks"].as_u64().unwrap() >= 1,
+        "{report}"
+    );
 }

@@ -129,6 +129,10 @@ pub const ROUTES: &[(&str, &str, Access)] = &[
     ("GET", "/api/v1/links", VIEWER),
     ("GET", "/api/v1/geofence", VIEWER),
     ("GET", "/api/v1/stream", VIEWER),
+    ("GET", "/api/v1/tracks", VIEWER),
+    ("POST", "/api/v1/tracks/{id}/observe", OPERATOR),
+    ("DELETE", "/api/v1/tracks/{id}/observe", OPERATOR),
+    ("GET", "/api/v1/sim/truth", VIEWER),
 ];
 
 /// The access a request needs: its (method, matched route) in [`ROUTES`]; `HEAD` as `GET`;

@@ -31,6 +31,8 @@
 //! - `GET /metrics`: Prometheus (OpenMetrics text)
 //! - `GET /api/v1/links`: per-endpoint MAVLink counters (malformed input)
 //! - `GET /api/v1/geofence`: the geofence every setpoint is clamped into (for the plan view)
+//! - `GET /api/v1/tracks`, `GET /api/v1/sim/truth`: counter-UAS tracks and the embedded
+//!   simulator's ground truth (see [`tracks`])
 //! - `GET /api/v1/stream`: WebSocket, `{"type": "vehicles", "vehicles": [...]}` at
 //!   [`TELEMETRY_HZ`] plus every [`skein_swarm::SwarmEvent`]
 //! - `/`: the dashboard (`web-ui/`, embedded at build time)
@@ -45,6 +47,7 @@ pub mod replay;
 pub mod requests;
 pub mod server;
 pub mod tls;
+pub mod tracks;
 
 pub use server::ApiServer;
 
@@ -220,6 +223,12 @@ pub fn app(state: ApiState) -> Router {
         .route("/api/v1/links", get(links))
         .route("/api/v1/geofence", get(geofence))
         .route("/api/v1/stream", get(stream))
+        .route("/api/v1/tracks", get(tracks::list_tracks))
+        .route(
+            "/api/v1/tracks/{id}/observe",
+            post(tracks::observe).delete(tracks::stop_observing),
+        )
+        .route("/api/v1/sim/truth", get(tracks::sim_truth))
         .route("/api/{*rest}", axum::routing::any(api_not_found))
         // Every route above (not the dashboard's static files below) goes through auth.
         .route_layer(axum::middleware::from_fn_with_state(

@@ -213,6 +213,7 @@ pub fn formation(body: &[u8]) -> Result<FormationSpec, ApiError> {
             "altitude_m",
             "frame",
             "offsets",
+            "standoff_m",
         ],
     )?;
     let names: Vec<&str> = Shape::ALL.iter().map(|s| s.name()).collect();
@@ -293,6 +294,7 @@ pub fn formation(body: &[u8]) -> Result<FormationSpec, ApiError> {
         altitude_m: number(&m, "altitude_m")?,
         frame,
         offsets,
+        standoff_m: number(&m, "standoff_m")?,
     })
 }
 

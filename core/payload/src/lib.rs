@@ -53,6 +53,25 @@ pub struct PayloadSpec {
 /// A payload's own state as it publishes it (JSON object, shown by the API and dashboard).
 pub type PayloadState = serde_json::Value;
 
+/// A simulated non-cooperative aircraft (an intruder of the simulator) as a simulated
+/// vehicle's payloads may see it: what a simulated camera renders besides the swarm.
+/// Serialised as the plugin SDK's `SimAircraft`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SimAircraft {
+    /// Truth id (`"intruder-1"`), for evaluation only.
+    pub id: String,
+    /// North of the swarm origin, metres.
+    pub north_m: f64,
+    /// East of the swarm origin, metres.
+    pub east_m: f64,
+    /// Down from the swarm origin, metres.
+    pub down_m: f64,
+    /// Velocity, NED, m/s.
+    pub velocity: skein_model::vehicle::Velocity,
+    /// Rotor-tip to rotor-tip span, metres.
+    pub span_m: f64,
+}
+
 /// What a vehicle offers its payloads. Every method is cheap and never blocks (they may
 /// be called from the payload's tick at tens of Hz).
 pub trait PayloadHost: Send + Sync {
@@ -83,6 +102,16 @@ pub trait PayloadHost: Send + Sync {
     /// datagrams lost (0..1) and the one-way latency added, ms. Only meaningful when
     /// [`PayloadHost::simulated`]; returns false when there is no simulator to tell.
     fn set_simulated_link(&self, loss_fraction: f64, latency_ms: f64) -> bool;
+    /// The simulator's non-cooperative aircraft (swarm frame), when the vehicle is
+    /// simulated and the simulator flies intruders; empty otherwise.
+    fn sim_aircraft(&self) -> Vec<SimAircraft> {
+        Vec::new()
+    }
+    /// The latest video frame (JPEG) the payload in `slot` of the same vehicle published,
+    /// if any (a detector reads its camera's frames).
+    fn payload_frame(&self, _slot: &str) -> Option<Arc<Vec<u8>>> {
+        None
+    }
 }
 
 /// A payload instance. Errors are strings shown to the operator as they are.

@@ -157,6 +157,12 @@ impl Services for ChildServices {
     fn log(&self, level: u32, message: &[u8]) {
         let _ = self.notify(service::LOG, &[&level.to_le_bytes(), message]);
     }
+    fn sim_aircraft(&self) -> Result<Vec<u8>, String> {
+        self.call(service::SIM_AIRCRAFT, &[])
+    }
+    fn payload_frame(&self, slot: &[u8]) -> Result<Vec<u8>, String> {
+        self.call(service::PAYLOAD_FRAME, &[slot])
+    }
 }
 
 /// Exits when the parent process goes away (the child is re-parented), so a child stuck

@@ -337,6 +337,8 @@ impl IsolatedDriver {
                 service::SIMULATED => Ok(vec![u8::from(s.simulated())]),
                 service::SEND_MAVLINK => s.send_mavlink(args).map(|_| Vec::new()),
                 service::PAYLOAD_STATE => s.payload_state(args),
+                service::SIM_AIRCRAFT => s.sim_aircraft(),
+                service::PAYLOAD_FRAME => s.payload_frame(args),
                 service::SET_SIMULATED_LINK => {
                     let (loss, rest) = take_f64(args).map_err(|e| e.to_string())?;
                     let (latency, _) = take_f64(rest).map_err(|e| e.to_string())?;

@@ -34,7 +34,8 @@
 //! `f64` latency; reply: one byte) are calls; `EMIT_EVENT` 8 (`u32` kind length, kind, data
 //! JSON), `PUBLISH_STATE` 9 (JSON), `PUBLISH_FRAME` 10 (JPEG), `LOG` 11 (`u32` level,
 //! message) are notifications: their errors are logged by the parent, not returned to the
-//! plugin. The vehicle id is sent in `CREATE` and answered by the child itself.
+//! plugin; `SIM_AIRCRAFT` 12 (reply: JSON array) and `PAYLOAD_FRAME` 13 (slot; reply: JPEG,
+//! empty when none) are calls too. The vehicle id is sent in `CREATE` and answered by the child itself.
 //!
 //! The parent gives every request a deadline (the call timeout); a child that misses it is
 //! killed. A child whose socket closes (it died) makes the driver fail every later call.
@@ -93,6 +94,10 @@ pub mod service {
     pub const PUBLISH_FRAME: u8 = 10;
     /// Log line (notification).
     pub const LOG: u8 = 11;
+    /// Simulated non-cooperative aircraft.
+    pub const SIM_AIRCRAFT: u8 = 12;
+    /// Another slot's latest frame.
+    pub const PAYLOAD_FRAME: u8 = 13;
 }
 
 /// Writes one frame made of `tag` and the concatenation of `parts`, in one `write_all`.

@@ -35,6 +35,10 @@ pub(crate) trait Services: Sync {
     fn set_simulated_link(&self, loss_fraction: f64, latency_ms: f64) -> bool;
     /// A log line.
     fn log(&self, level: u32, message: &[u8]);
+    /// The simulated non-cooperative aircraft, JSON array.
+    fn sim_aircraft(&self) -> Result<Vec<u8>, String>;
+    /// Another slot's latest frame, JPEG (empty when none).
+    fn payload_frame(&self, slot: &[u8]) -> Result<Vec<u8>, String>;
 }
 
 /// The services of one payload instance on top of its vehicle's [`PayloadHost`].
@@ -140,6 +144,19 @@ impl Services for HostServices {
             return false;
         }
         self.host.set_simulated_link(loss_fraction, latency_ms)
+    }
+
+    fn sim_aircraft(&self) -> Result<Vec<u8>, String> {
+        serde_json::to_vec(&self.host.sim_aircraft()).map_err(|e| e.to_string())
+    }
+
+    fn payload_frame(&self, slot: &[u8]) -> Result<Vec<u8>, String> {
+        let slot = text(slot, "slot")?;
+        Ok(self
+            .host
+            .payload_frame(&slot)
+            .map(|f| f.as_ref().clone())
+            .unwrap_or_default())
     }
 
     fn log(&self, level: u32, message: &[u8]) {
@@ -278,6 +295,22 @@ unsafe extern "C" fn t_set_simulated_link<S: Services>(
     .unwrap_or(0)
 }
 
+unsafe extern "C" fn t_sim_aircraft<S: Services>(ctx: *const c_void, out: RawSink) -> u32 {
+    // SAFETY: as in `t_vehicle_id`.
+    let s = unsafe { services::<S>(ctx) };
+    guarded(out, || s.sim_aircraft())
+}
+
+unsafe extern "C" fn t_payload_frame<S: Services>(
+    ctx: *const c_void,
+    slot: RawBytes,
+    out: RawSink,
+) -> u32 {
+    // SAFETY: as in `t_send_mavlink`.
+    let (s, slot) = unsafe { (services::<S>(ctx), bytes(slot)) };
+    guarded(out, || s.payload_frame(slot))
+}
+
 unsafe extern "C" fn t_log<S: Services>(ctx: *const c_void, level: u32, message: RawBytes) {
     // SAFETY: as in `t_send_mavlink`.
     let (s, message) = unsafe { (services::<S>(ctx), bytes(message)) };
@@ -302,5 +335,7 @@ pub(crate) fn host_api<S: Services>(services: &S) -> HostApi {
         publish_frame: t_publish_frame::<S>,
         set_simulated_link: t_set_simulated_link::<S>,
         log: t_log::<S>,
+        sim_aircraft: t_sim_aircraft::<S>,
+        payload_frame: t_payload_frame::<S>,
     }
 }

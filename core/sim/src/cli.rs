@@ -11,6 +11,8 @@
 //! - `summary` → [`crate::SimSummary`]: totals over every vehicle and the histogram of
 //!   setpoint intervals of all vehicles (what `skein bench` reads)
 //! - `vehicles` → `{"vehicles":[SimVehicleInfo…]}`
+//! - `intruders` → `{"intruders":[IntruderTruth…]}`: ground truth of the non-cooperative
+//!   aircraft (`--intruders M`, see [`crate::intruders`])
 //!
 //! Commands taking a sysid act on the first vehicle with it (sysids repeat beyond 255
 //! vehicles).
@@ -97,6 +99,9 @@ pub struct SimArgs {
     /// printed).
     #[arg(long)]
     pub stats: Option<SocketAddr>,
+    /// Intruders (non-cooperative aircraft).
+    #[command(flatten)]
+    pub intruders: crate::intruders::IntruderArgs,
 }
 
 fn parse_home(s: &str) -> Result<GeoPoint, String> {
@@ -220,6 +225,7 @@ pub fn stats_command(sim: &Simulator, line: &str) -> String {
             serde_json::json!({ "ok": true })
         }),
         "summary" => serde_json::to_value(sim.summary()).map_err(|e| e.to_string()),
+        "intruders" => Ok(serde_json::json!({ "intruders": sim.intruders() })),
         "link" => link_command(sim, &mut words),
         "" => Err("empty command".into()),
         other => Err(format!("unknown command {other:?}")),
@@ -290,6 +296,10 @@ pub async fn serve_stats(sim: Simulator, listener: TcpListener) {
 pub async fn run(args: SimArgs) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
     let cfg = args.config()?;
     let sim = Simulator::start(cfg).await?;
+    if args.intruders.intruders > 0 {
+        sim.start_intruders(args.intruders.config(args.seed))?;
+        println!("intruders {}", args.intruders.intruders);
+    }
     for v in sim.vehicles() {
         println!(
             "vehicle sysid={} bound={} target={}",
@@ -360,5 +370,46 @@ mod tests {
         assert_eq!(cfg.vehicles[250].sysid, 1);
         assert_eq!(cfg.vehicles[250].target.port(), 20_250);
         assert!(Cli::try_parse_from(["sim", "--home", "95,0,0"]).is_err());
+    }
+
+    #[tokio::test]
+    async fn intruders_fly_and_answer_on_the_stats_socket() {
+        let cli = Cli::try_parse_from([
+            "sim",
+            "--listen-base-port",
+            "0",
+            "--target-base-port",
+            "9",
+            "--intruders",
+            "2",
+            "--intruder-pattern",
+            "straight",
+            "--intruder-speed-m-s",
+            "7",
+        ])
+        .expect("parse");
+        assert_eq!(
+            cli.sim.intruders.intruder_pattern.0,
+            Some(crate::intruders::IntruderPattern::Straight)
+        );
+        let sim = Simulator::start(cli.sim.config().expect("config"))
+            .await
+            .expect("start");
+        assert_eq!(stats_command(&sim, "intruders"), r#"{"intruders":[]}"#);
+        sim.start_intruders(cli.sim.intruders.config(cli.sim.seed))
+            .expect("intruders");
+        let reply: serde_json::Value =
+            serde_json::from_str(&stats_command(&sim, "intruders")).expect("json");
+        let list = reply["intruders"].as_array().expect("list");
+        assert_eq!(list.len(), 2);
+        assert_eq!(list[1]["id"], "intruder-2");
+        let v = &list[0]["velocity_ned_m_s"];
+        let speed =
+            (v["north_m"].as_f64().unwrap().powi(2) + v["east_m"].as_f64().unwrap().powi(2)).sqrt();
+        assert!((speed - 7.0).abs() < 0.1, "{reply}");
+        // The radio never hears them: no vehicle was added.
+        assert_eq!(sim.vehicles().len(), 1);
+        assert!(sim.start_intruders(cli.sim.intruders.config(0)).is_err());
+        sim.shutdown().await;
     }
 }

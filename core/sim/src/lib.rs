@@ -22,6 +22,7 @@ pub mod cli;
 mod config;
 mod histogram;
 mod impairment;
+pub mod intruders;
 pub mod params;
 mod runtime;
 mod signing;
@@ -295,6 +296,9 @@ fn truth_of(v: &Vehicle, now: Instant) -> SimTruth {
 
 struct Inner {
     cells: Vec<Arc<Cell>>,
+    /// The simulator's home (the first vehicle's spawn point): the intruders' frame.
+    home: GeoPoint,
+    intruders: std::sync::OnceLock<intruders::Intruders>,
     tasks: Mutex<Vec<JoinHandle<()>>>,
     stop: Arc<AtomicBool>,
 }
@@ -452,6 +456,8 @@ impl Simulator {
         Ok(Simulator {
             inner: Arc::new(Inner {
                 cells,
+                home: cfg.home,
+                intruders: std::sync::OnceLock::new(),
                 tasks: Mutex::new(tasks),
                 stop,
             }),
@@ -625,6 +631,28 @@ impl Simulator {
         let cell = self.cell(sysid)?;
         let slot = cell.lock();
         Some(truth_of(&slot.vehicle, Instant::now()))
+    }
+
+    /// Starts the intruders of `config` (non-cooperative aircraft with no link, see
+    /// [`intruders`]) around the simulator's home; their paths start now. Once per run.
+    ///
+    /// # Errors
+    /// An invalid configuration, or intruders already started.
+    pub fn start_intruders(&self, config: intruders::IntruderConfig) -> Result<(), String> {
+        let ints = intruders::Intruders::new(self.inner.home, config, Instant::now())?;
+        self.inner
+            .intruders
+            .set(ints)
+            .map_err(|_| "intruders already started".to_string())
+    }
+
+    /// Ground truth of every intruder now (empty without intruders).
+    pub fn intruders(&self) -> Vec<intruders::IntruderTruth> {
+        self.inner
+            .intruders
+            .get()
+            .map(intruders::Intruders::truth)
+            .unwrap_or_default()
     }
 
     /// Cuts (`true`) or restores the vehicle's link: while cut it sends nothing and drops

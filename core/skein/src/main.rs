@@ -23,6 +23,7 @@ mod config;
 mod keys;
 mod plugin_new;
 mod replay;
+mod sim_control;
 
 use clap::{Parser, Subcommand};
 use config::ConfigFile;
@@ -165,6 +166,9 @@ struct UpArgs {
     /// require signed frames and skein's links sign.
     #[arg(long, value_name = "FILE")]
     sim_signing_key_file: Option<PathBuf>,
+    /// With --sim: intruders, non-cooperative aircraft the simulated cameras see.
+    #[command(flatten)]
+    intruders: skein_sim::intruders::IntruderArgs,
 }
 
 const DEFAULT_HTTP: SocketAddr = SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 8080);
@@ -374,15 +378,6 @@ async fn shutdown_signal() {
     let _ = ctrl_c.await;
 }
 
-/// Runs the in-process simulator's radio-link impairment for the radio payload.
-struct SimControl(skein_sim::Simulator);
-
-impl skein_swarm::payload::SimulatorControl for SimControl {
-    fn set_link_quality(&self, sysid: u8, loss_fraction: f64, latency_ms: f64) -> bool {
-        self.0.set_link_quality(sysid, loss_fraction, latency_ms)
-    }
-}
-
 async fn up(args: UpArgs) -> Result<ExitCode, String> {
     let file = match &args.config {
         Some(path) => ConfigFile::load(path)?,
@@ -398,6 +393,9 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
     };
     if args.insecure_no_auth && !auth.enabled() && !http.ip().is_loopback() {
         eprintln!("skein: WARNING: --insecure-no-auth: the API on {http} has no authentication");
+    }
+    if args.sim.is_none() && args.intruders.intruders > 0 {
+        return Err("--intruders needs --sim N (intruders fly in the simulator)".into());
     }
     if args.sim.is_none() && file.vehicles.is_empty() {
         return Err("nothing to fly: give --sim N or a --config file with [[vehicles]]".into());
@@ -473,7 +471,7 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
     let services = skein_swarm::SwarmServices {
         payloads: factory,
         simulator: if n_sim > 0 {
-            Some(Arc::new(LateSimControl(sim_slot.clone())))
+            Some(Arc::new(sim_control::LateSimControl(sim_slot.clone())))
         } else {
             None
         },
@@ -552,6 +550,14 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
         let sim = skein_sim::Simulator::start(cfg)
             .await
             .map_err(|e| format!("simulator: {e}"))?;
+        if args.intruders.intruders > 0 {
+            sim.start_intruders(args.intruders.config(args.sim_seed))
+                .map_err(|e| format!("--intruders: {e}"))?;
+            println!(
+                "skein: {} intruders in the simulator",
+                args.intruders.intruders
+            );
+        }
         let _ = sim_slot.set(sim.clone());
         if let Some(addr) = args.sim_stats {
             let listener = tokio::net::TcpListener::bind(addr)
@@ -723,17 +729,6 @@ fn warn_missing_kinds(
                 );
             }
         }
-    }
-}
-
-/// [`SimControl`] for a simulator started after the swarm.
-struct LateSimControl(Arc<std::sync::OnceLock<skein_sim::Simulator>>);
-
-impl skein_swarm::payload::SimulatorControl for LateSimControl {
-    fn set_link_quality(&self, sysid: u8, loss_fraction: f64, latency_ms: f64) -> bool {
-        self.0.get().is_some_and(|sim| {
-            SimControl(sim.clone()).set_link_quality(sysid, loss_fraction, latency_ms)
-        })
     }
 }
 

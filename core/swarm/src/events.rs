@@ -118,6 +118,31 @@ pub enum SwarmEvent {
         /// its first message, µs.
         latency_us: u64,
     },
+    /// The tracker started a (tentative) track of a non-cooperative aircraft.
+    TrackCreated {
+        /// The track.
+        track: crate::tracking::TrackView,
+    },
+    /// A track was confirmed.
+    TrackConfirmed {
+        /// The track.
+        track: crate::tracking::TrackView,
+    },
+    /// A confirmed track has not been seen for the tracker's `lost_after_s`.
+    TrackLost {
+        /// The track.
+        track: crate::tracking::TrackView,
+    },
+    /// A lost track was seen again, under its id.
+    TrackRecovered {
+        /// The track.
+        track: crate::tracking::TrackView,
+    },
+    /// A track was deleted (aged out, never confirmed, or merged into another).
+    TrackDeleted {
+        /// The track.
+        track: crate::tracking::TrackView,
+    },
     /// An event raised by a payload.
     PayloadEvent {
         /// Vehicle id.

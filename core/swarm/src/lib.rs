@@ -17,6 +17,7 @@
 //! - [`rehearsal`]: formation flight in virtual time (transition tests, `skein bench formation`).
 //! - [`payload`]: payload actors, the vehicle side of the payload contract, built-ins.
 //! - [`supervision`]: restart policies, failure records, the supervision tree.
+//! - [`tracking`]: counter-UAS tracker fusing the detectors' bearings into 3D tracks.
 //! - [`metrics`]: Prometheus metrics.
 //! - [`view`]: configuration and the swarm frame shared by all vehicles.
 //! - [`events`]: what the stream and dashboard are told.
@@ -34,6 +35,7 @@ pub mod payload;
 pub mod protocol;
 pub mod rehearsal;
 pub mod supervision;
+pub mod tracking;
 pub mod vehicle;
 pub mod view;
 

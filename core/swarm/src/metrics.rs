@@ -43,6 +43,11 @@ pub struct Metrics {
     /// Payload driver threads given up because a call did not return in time (set from
     /// [`crate::payload::abandoned_driver_threads`] at every render).
     payload_threads_abandoned: Gauge,
+    /// Tracks by status (`status` label: tentative, confirmed, lost).
+    tracks: Family<Labels, Gauge>,
+    /// Tracker totals since the start (`what` label: bearings, bearings_excluded_members,
+    /// bearings_associated, tracks_created, tracks_confirmed, tracks_lost, tracks_deleted).
+    tracker_totals: Family<Labels, Gauge>,
 }
 
 impl std::fmt::Debug for Metrics {
@@ -79,6 +84,19 @@ impl Metrics {
         let mavlink_signing_dropped = Family::<Labels, Gauge>::default();
         let gcs_forward_frames = Family::<Labels, Gauge>::default();
         let payload_threads_abandoned = Gauge::default();
+        let tracks = Family::<Labels, Gauge>::default();
+        let tracker_totals = Family::<Labels, Gauge>::default();
+        registry.register(
+            "tracks",
+            "Tracks of non-cooperative aircraft, by status",
+            tracks.clone(),
+        );
+        registry.register(
+            "tracker",
+            "Counter-UAS tracker totals since the start: bearings received, excluded as swarm \
+             members, associated; tracks created, confirmed, lost, deleted",
+            tracker_totals.clone(),
+        );
         registry.register(
             "actor_failures",
             "Supervised actor failures (panic, error, hang), by actor kind",
@@ -163,6 +181,40 @@ impl Metrics {
             mavlink_signing_dropped,
             gcs_forward_frames,
             payload_threads_abandoned,
+            tracks,
+            tracker_totals,
+        }
+    }
+
+    /// Sets the tracking metrics from the tracker's current tracks and totals.
+    pub fn set_tracking(
+        &self,
+        tracks: &[crate::tracking::TrackView],
+        c: &crate::tracking::TrackerCounters,
+    ) {
+        use crate::tracking::TrackStatus;
+        for (status, name) in [
+            (TrackStatus::Tentative, "tentative"),
+            (TrackStatus::Confirmed, "confirmed"),
+            (TrackStatus::Lost, "lost"),
+        ] {
+            let n = tracks.iter().filter(|t| t.status == status).count();
+            self.tracks
+                .get_or_create(&Self::label("status", name))
+                .set(n as i64);
+        }
+        for (what, v) in [
+            ("bearings", c.bearings),
+            ("bearings_excluded_members", c.bearings_excluded_members),
+            ("bearings_associated", c.bearings_associated),
+            ("tracks_created", c.tracks_created),
+            ("tracks_confirmed", c.tracks_confirmed),
+            ("tracks_lost", c.tracks_lost),
+            ("tracks_deleted", c.tracks_deleted),
+        ] {
+            self.tracker_totals
+                .get_or_create(&Self::label("what", what))
+                .set(v as i64);
         }
     }
 

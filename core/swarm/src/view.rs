@@ -34,7 +34,8 @@ impl VehicleModel {
         }
     }
 
-    /// The `observation` model: a gimbal and a camera (the paper's ObservationUAVModel).
+    /// The `observation` model: a gimbal, a camera and a detector reading the camera's
+    /// frames (the paper's ObservationUAVModel).
     pub fn observation() -> Self {
         let slot = |kind: &str| PayloadSpec {
             slot: kind.into(),
@@ -46,7 +47,7 @@ impl VehicleModel {
         VehicleModel {
             name: "observation".into(),
             limits: MotionLimits::default(),
-            payloads: vec![slot("gimbal"), slot("camera")],
+            payloads: vec![slot("gimbal"), slot("camera"), slot("detector")],
         }
     }
 }

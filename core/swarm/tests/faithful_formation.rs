@@ -29,6 +29,7 @@ fn a_wedge_holds_its_slots_cruising_and_orbiting_at_5_m_s_with_estimator_noise()
         altitude_m: Some(12.0),
         frame: FormationFrame::World,
         offsets: vec![],
+        standoff_m: None,
     });
     assert!(
         r.run_until(120.0, |r| {

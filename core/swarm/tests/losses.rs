@@ -36,6 +36,7 @@ fn random_spec(rng: &mut SmallRng, leader: &str) -> FormationSpec {
         altitude_m: Some(rng.random_range(10.0..25.0)),
         frame: FormationFrame::World,
         offsets: vec![],
+        standoff_m: None,
     }
 }
 

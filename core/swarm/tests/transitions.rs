@@ -65,6 +65,7 @@ fn random_changes(leader: &str, changes: usize) {
                 FormationFrame::Leader
             },
             offsets: vec![],
+            standoff_m: None,
         };
         let t0 = r.time_s();
         r.set_formation(spec.clone());

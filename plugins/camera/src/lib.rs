@@ -4,8 +4,12 @@
 //! what the vehicle would see: the other aircraft of the swarm projected through a pinhole
 //! model from the vehicle's position and heading and the angles its gimbal publishes,
 //! drawn over a sky/ground background split by the horizon; the focal length is the zoom.
-//! Each tick captures a frame, encodes it as JPEG (`jpeg-encoder`) and publishes it with
-//! `publish_frame` (skein serves it as MJPEG and snapshots).
+//! The simulator's intruders (non-cooperative aircraft, `ctx.sim_aircraft()`) are drawn too,
+//! as the different airframe they are and without labels: only image processing tells them
+//! apart. Each tick captures a frame, encodes it as JPEG (`jpeg-encoder`) with the pose it
+//! was taken with as XMP metadata (`skein_plugin_sdk::frame_meta`, as drone cameras carry
+//! their gimbal angles) and publishes it with `publish_frame` (skein serves it as MJPEG and
+//! snapshots; the `detector` plugin reads it).
 //!
 //! # Configuration (all optional)
 //! `{"source": "simulated", "width_px": 640, "height_px": 480, "frame_rate_hz": 5,
@@ -38,11 +42,13 @@ pub mod source;
 
 use render::Pinhole;
 use skein_plugin_sdk::args::{Args, command_name};
+use skein_plugin_sdk::frame_meta::FrameMeta;
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::{Context, Plugin, export_plugin};
 use source::{CapturedFrame, FrameData, FrameSource, SimulatedSource};
 
-/// Encodes RGB8 pixels as a baseline JPEG.
+/// Encodes RGB8 pixels as a baseline JPEG, with the frame's pose as XMP metadata when
+/// given (see `skein_plugin_sdk::frame_meta`).
 ///
 /// # Errors
 /// A size the encoder refuses (above 65535 px) or a buffer of the wrong length.
@@ -51,13 +57,20 @@ pub fn encode_jpeg(
     height_px: u32,
     rgb: &[u8],
     quality: u8,
+    meta: Option<&FrameMeta>,
 ) -> Result<Vec<u8>, String> {
     let (w, h) = (
         u16::try_from(width_px).map_err(|_| "frame too wide for JPEG")?,
         u16::try_from(height_px).map_err(|_| "frame too tall for JPEG")?,
     );
     let mut out = Vec::with_capacity(rgb.len() / 8);
-    jpeg_encoder::Encoder::new(&mut out, quality)
+    let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
+    if let Some(m) = meta {
+        encoder
+            .add_app_segment(1, &m.to_app1())
+            .map_err(|e| format!("JPEG metadata refused: {e}"))?;
+    }
+    encoder
         .encode(rgb, w, h, jpeg_encoder::ColorType::Rgb)
         .map_err(|e| format!("JPEG encoding failed: {e}"))?;
     Ok(out)
@@ -109,10 +122,17 @@ impl Camera {
             height_px,
             data,
             info,
+            meta,
         } = self.source.capture(ctx, &self.optics)?;
+        let meta = meta.map(|m| FrameMeta {
+            frame: self.frames + 1,
+            ..m
+        });
         let jpeg = match data {
             FrameData::Jpeg(j) => j,
-            FrameData::Rgb8(rgb) => encode_jpeg(width_px, height_px, &rgb, self.jpeg_quality)?,
+            FrameData::Rgb8(rgb) => {
+                encode_jpeg(width_px, height_px, &rgb, self.jpeg_quality, meta.as_ref())?
+            }
         };
         ctx.publish_frame(&jpeg)?;
         self.frames += 1;

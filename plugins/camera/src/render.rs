@@ -1,5 +1,7 @@
-//! The simulated camera's renderer: a pinhole projection of the swarm from one vehicle's
-//! pose and gimbal angles, drawn over a sky/ground background split by the horizon.
+//! The simulated camera's renderer: a pinhole projection of the swarm (and the simulator's
+//! intruders, drawn as the different airframe they are, without any label) from one
+//! vehicle's pose and gimbal angles, drawn over a sky/ground background split by the
+//! horizon. An aircraft's drawn size follows its span and range.
 //!
 //! Frames: the camera looks along the optical axis given by an azimuth (degrees clockwise
 //! from north) and an elevation (degrees above the horizontal), without roll (a stabilised
@@ -87,17 +89,23 @@ pub fn project(cam: &Pinhole, pose: &CameraPose, point: Ned) -> Option<(f64, f64
 /// Another aircraft to draw.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Aircraft {
-    /// Its vehicle id.
+    /// Its vehicle id (or, for an intruder, its truth id: never drawn).
     pub id: String,
     /// Its position, swarm-frame NED, metres.
     pub position: Ned,
+    /// Its span, metres (`None`: the scene's `aircraft_span_m`).
+    pub span_m: Option<f64>,
+    /// A non-cooperative aircraft (an intruder): drawn as the different airframe it is.
+    pub intruder: bool,
 }
 
 /// An aircraft that appears in the frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Visible {
-    /// Its vehicle id.
+    /// Its vehicle id (an intruder's truth id).
     pub id: String,
+    /// An intruder.
+    pub intruder: bool,
     /// Projected centre, pixels from the left edge.
     pub x_px: f64,
     /// Projected centre, pixels from the top edge.
@@ -129,6 +137,9 @@ const GRID: [f64; 3] = [70.0, 100.0, 55.0];
 const HAZE: [f64; 3] = [180.0, 190.0, 195.0];
 const AIRFRAME: [u8; 3] = [35, 35, 40];
 const ROTOR: [u8; 3] = [220, 50, 30];
+/// Intruders: a dark grey airframe with black rotors (no swarm livery).
+const INTRUDER_AIRFRAME: [u8; 3] = [70, 70, 75];
+const INTRUDER_ROTOR: [u8; 3] = [20, 20, 22];
 
 fn mix(a: [f64; 3], b: [f64; 3], t: f64) -> [f64; 3] {
     let t = t.clamp(0.0, 1.0);
@@ -213,13 +224,15 @@ pub fn render(cam: &Pinhole, scene: &Scene) -> (Vec<u8>, Vec<Visible>) {
         .filter_map(|a| {
             let (u, v, z) = project(cam, &scene.pose, a.position)?;
             // At least 3 px, so a distant aircraft stays a visible dot.
-            let radius = (scene.aircraft_span_m / 2.0 * fpx / z).max(3.0);
+            let span = a.span_m.unwrap_or(scene.aircraft_span_m);
+            let radius = (span / 2.0 * fpx / z).max(3.0);
             let inside = u + radius >= 0.0
                 && u - radius < f64::from(w)
                 && v + radius >= 0.0
                 && v - radius < f64::from(h);
             inside.then(|| Visible {
                 id: a.id.clone(),
+                intruder: a.intruder,
                 x_px: u,
                 y_px: v,
                 depth_m: z,
@@ -231,9 +244,14 @@ pub fn render(cam: &Pinhole, scene: &Scene) -> (Vec<u8>, Vec<Visible>) {
     visible.sort_by(|a, b| b.depth_m.total_cmp(&a.depth_m));
     for a in &visible {
         let rr = a.radius_px;
+        let (rotor, airframe) = if a.intruder {
+            (INTRUDER_ROTOR, INTRUDER_AIRFRAME)
+        } else {
+            (ROTOR, AIRFRAME)
+        };
         if rr < 6.0 {
-            fill_disc(&mut px, w, h, a.x_px, a.y_px, rr, ROTOR);
-            fill_disc(&mut px, w, h, a.x_px, a.y_px, rr * 0.5, AIRFRAME);
+            fill_disc(&mut px, w, h, a.x_px, a.y_px, rr, rotor);
+            fill_disc(&mut px, w, h, a.x_px, a.y_px, rr * 0.5, airframe);
         } else {
             // A quadcopter seen from its side or above: four rotors around a body.
             for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
@@ -245,10 +263,10 @@ pub fn render(cam: &Pinhole, scene: &Scene) -> (Vec<u8>, Vec<Visible>) {
                     a.x_px + sx * off,
                     a.y_px + sy * off * 0.5,
                     rr * 0.4,
-                    ROTOR,
+                    rotor,
                 );
             }
-            fill_disc(&mut px, w, h, a.x_px, a.y_px, rr * 0.38, AIRFRAME);
+            fill_disc(&mut px, w, h, a.x_px, a.y_px, rr * 0.38, airframe);
         }
     }
     (px, visible)

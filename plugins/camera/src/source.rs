@@ -4,6 +4,7 @@
 
 use crate::render::{Aircraft, CameraPose, Pinhole, Scene, render};
 use skein_plugin_sdk::Context;
+use skein_plugin_sdk::frame_meta::FrameMeta;
 use skein_plugin_sdk::geometry::wrap_deg_360;
 use skein_plugin_sdk::serde_json::{Value, json};
 
@@ -27,8 +28,11 @@ pub struct CapturedFrame {
     /// The pixels.
     pub data: FrameData,
     /// Source-specific metadata merged into the camera's state (the simulated source:
-    /// `pointing` and `visible`).
+    /// `pointing`, `position`, `stamp_us` and `visible`).
     pub info: Value,
+    /// The pose the frame was taken with, written into the JPEG (XMP) for whoever
+    /// processes the frame; the camera sets the frame number.
+    pub meta: Option<FrameMeta>,
 }
 
 /// A source of frames for the camera.
@@ -44,8 +48,9 @@ pub trait FrameSource: Send {
     fn capture(&mut self, ctx: &Context, optics: &Pinhole) -> Result<CapturedFrame, String>;
 }
 
-/// Renders what the vehicle would see: the other aircraft of the swarm through a pinhole
-/// model, from the vehicle's position and heading and the gimbal's angles.
+/// Renders what the vehicle would see: the other aircraft of the swarm and the
+/// simulator's intruders ([`Context::sim_aircraft`]) through a pinhole model, from the
+/// vehicle's position and heading and the gimbal's angles.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimulatedSource {
     /// Slot of the gimbal whose published `pitch_deg`/`yaw_deg` (yaw relative to the
@@ -88,7 +93,7 @@ impl FrameSource for SimulatedSource {
             azimuth_deg: wrap_deg_360(vehicle.heading_deg + yaw),
             elevation_deg: pitch.clamp(-90.0, 90.0),
         };
-        let aircraft = ctx
+        let mut aircraft: Vec<Aircraft> = ctx
             .swarm()?
             .into_iter()
             .filter(|v| v.id != vehicle.id)
@@ -96,9 +101,23 @@ impl FrameSource for SimulatedSource {
                 Some(Aircraft {
                     position: v.ned()?,
                     id: v.id,
+                    span_m: None,
+                    intruder: false,
                 })
             })
             .collect();
+        // The simulator's non-cooperative aircraft, only when this vehicle is simulated.
+        if ctx.simulated() {
+            aircraft.extend(ctx.sim_aircraft()?.into_iter().map(|a| Aircraft {
+                position: a.ned(),
+                span_m: Some(a.span_m),
+                id: a.id,
+                intruder: true,
+            }));
+        }
+        let stamp_us = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_micros() as u64);
         let scene = Scene {
             pose,
             ground_down_m: self.ground_down_m,
@@ -106,18 +125,38 @@ impl FrameSource for SimulatedSource {
             aircraft_span_m: self.aircraft_span_m,
         };
         let (pixels, visible) = render(optics, &scene);
+        let meta = FrameMeta {
+            frame: 0,
+            stamp_us,
+            north_m: position.north_m,
+            east_m: position.east_m,
+            down_m: position.down_m,
+            azimuth_deg: pose.azimuth_deg,
+            elevation_deg: pose.elevation_deg,
+            focal_px: optics.focal_px(),
+            width_px: optics.width_px,
+            height_px: optics.height_px,
+        };
         Ok(CapturedFrame {
             width_px: optics.width_px,
             height_px: optics.height_px,
             data: FrameData::Rgb8(pixels),
+            meta: Some(meta),
             info: json!({
                 "pointing": {
                     "azimuth_deg": pose.azimuth_deg,
                     "elevation_deg": pose.elevation_deg,
                     "from": from,
                 },
+                "position": {
+                    "north_m": position.north_m,
+                    "east_m": position.east_m,
+                    "down_m": position.down_m,
+                },
+                "stamp_us": stamp_us,
+                // What was drawn, for evaluation (the simulator's truth, never in the image).
                 "visible": visible.iter().map(|v| json!({
-                    "id": v.id, "x_px": v.x_px, "y_px": v.y_px,
+                    "id": v.id, "intruder": v.intruder, "x_px": v.x_px, "y_px": v.y_px,
                     "depth_m": v.depth_m, "radius_px": v.radius_px,
                 })).collect::<Vec<_>>(),
             }),

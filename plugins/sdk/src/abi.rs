@@ -48,7 +48,7 @@
 use std::ffi::c_void;
 
 /// Version of this ABI (layouts and meanings of everything in this module).
-pub const ABI_VERSION: u32 = 1;
+pub const ABI_VERSION: u32 = 2;
 
 /// Generation of the message formats (the JSON the host sends: vehicle snapshots, swarm
 /// lists, payload states; the MAVLink dialect). Part of the build stamp.
@@ -292,10 +292,19 @@ pub struct HostApi {
         unsafe extern "C" fn(ctx: *const c_void, loss_fraction: f64, latency_ms: f64) -> u32,
     /// A log line (UTF-8) at a [`log_level`], attributed to the instance.
     pub log: unsafe extern "C" fn(ctx: *const c_void, level: u32, message: RawBytes),
+    /// The simulated non-cooperative aircraft (intruders) near a simulated vehicle, a JSON
+    /// array of `{"id", "north_m", "east_m", "down_m", "velocity": {"north_m_s", "east_m_s",
+    /// "down_m_s"}, "span_m"}` (swarm-frame NED), to `out`; `[]` for a real vehicle or
+    /// without intruders. What a simulated camera renders besides the swarm (ABI 2).
+    pub sim_aircraft: unsafe extern "C" fn(ctx: *const c_void, out: RawSink) -> u32,
+    /// The latest video frame (JPEG) another payload of the same vehicle published, by slot
+    /// (UTF-8), to `out`; nothing written when that slot has published none (ABI 2).
+    pub payload_frame:
+        unsafe extern "C" fn(ctx: *const c_void, slot: RawBytes, out: RawSink) -> u32,
 }
 
 /// The build stamp of this SDK: `key=value` pairs joined by `;`, e.g.
-/// `abi=1;messages=1;dialect=common;arch=x86_64;os=linux;pointer_width=64;endian=little`.
+/// `abi=2;messages=1;dialect=common;arch=x86_64;os=linux;pointer_width=64;endian=little`.
 /// Host and plugin must have equal stamps (see the module docs for what is in it and why).
 pub fn build_stamp() -> String {
     format!(

@@ -194,6 +194,37 @@ impl<'a> Context<'a> {
         unsafe { (self.api.set_simulated_link)(self.api.ctx, loss_fraction, latency_ms) == 1 }
     }
 
+    /// The simulated non-cooperative aircraft (intruders) of the simulator this vehicle
+    /// flies in, swarm-frame NED: what a simulated camera draws besides the swarm. Empty
+    /// for a real vehicle or a simulation without intruders. Never use it for detection:
+    /// it is the simulator's truth.
+    ///
+    /// # Errors
+    /// When the host failed or sent an unexpected shape.
+    pub fn sim_aircraft(&self) -> Result<Vec<crate::vehicle::SimAircraft>, String> {
+        let api = self.api;
+        // SAFETY: as in `vehicle_id`.
+        let bytes = self.with_out("sim_aircraft", |out| unsafe {
+            (api.sim_aircraft)(api.ctx, out)
+        })?;
+        serde_json::from_slice(&bytes)
+            .map_err(|e| format!("host sent invalid simulated aircraft: {e}"))
+    }
+
+    /// The latest video frame (a JPEG image) the payload in `slot` of the same vehicle
+    /// published (a detector reads the camera's), `None` when it has published none.
+    ///
+    /// # Errors
+    /// When the host failed.
+    pub fn payload_frame(&self, slot: &str) -> Result<Option<Vec<u8>>, String> {
+        let api = self.api;
+        // SAFETY: `api` valid for this call; `slot` outlives the callback.
+        let bytes = self.with_out("payload_frame", |out| unsafe {
+            (api.payload_frame)(api.ctx, RawBytes::from_slice(slot.as_bytes()), out)
+        })?;
+        Ok((!bytes.is_empty()).then_some(bytes))
+    }
+
     fn log(&self, level: u32, message: &str) {
         // SAFETY: `api` valid for this call; `message` outlives the callback.
         unsafe {

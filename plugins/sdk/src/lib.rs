@@ -50,6 +50,7 @@
 pub mod abi;
 pub mod args;
 mod context;
+pub mod frame_meta;
 pub mod geometry;
 #[doc(hidden)]
 pub mod glue;

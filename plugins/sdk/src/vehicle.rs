@@ -112,3 +112,29 @@ mod tests {
         assert!(v.link.connected);
     }
 }
+
+/// A simulated non-cooperative aircraft (an intruder) as [`crate::Context::sim_aircraft`]
+/// gives it: the simulator's truth, for simulated sensors to render.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SimAircraft {
+    /// Its truth id (`"intruder-1"`), for evaluation; a camera must not draw it.
+    pub id: String,
+    /// North of the swarm origin, metres.
+    pub north_m: f64,
+    /// East of the swarm origin, metres.
+    pub east_m: f64,
+    /// Down from the swarm origin, metres.
+    pub down_m: f64,
+    /// Velocity, NED.
+    pub velocity: Velocity,
+    /// Rotor-tip to rotor-tip span, metres.
+    pub span_m: f64,
+}
+
+impl SimAircraft {
+    /// The swarm-frame NED position.
+    pub fn ned(&self) -> Ned {
+        Ned::new(self.north_m, self.east_m, self.down_m)
+    }
+}

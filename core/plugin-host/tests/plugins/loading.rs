@@ -29,7 +29,7 @@ fn every_plugin_loads_and_mismatched_builds_are_refused_by_name() {
     m.subscribe(move |e| ev.lock().unwrap().push(e.clone()));
 
     let scan = m.scan().unwrap();
-    assert_eq!(scan.len(), 8, "{scan:#?}");
+    assert_eq!(scan.len(), 9, "{scan:#?}");
     let outcome = |file: &str| {
         scan.iter()
             .find(|e| e.file.file_name().unwrap() == file)
@@ -44,7 +44,7 @@ fn every_plugin_loads_and_mismatched_builds_are_refused_by_name() {
     assert!(text.contains("libskein_plugin_abi_mismatch.so"), "{text}");
     assert!(
         text.contains(
-            "ABI version mismatch: the plugin was built for ABI 999, this skein speaks ABI 1"
+            "ABI version mismatch: the plugin was built for ABI 999, this skein speaks ABI 2"
         ),
         "{text}"
     );
@@ -61,7 +61,10 @@ fn every_plugin_loads_and_mismatched_builds_are_refused_by_name() {
     // The good ones loaded, with their kinds and versions.
     let libs = m.libraries();
     let names: Vec<&str> = libs.iter().map(|l| l.name.as_str()).collect();
-    assert_eq!(names, ["camera", "example", "fault", "gimbal", "radio"]);
+    assert_eq!(
+        names,
+        ["camera", "detector", "example", "fault", "gimbal", "radio"]
+    );
     for l in &libs {
         assert_eq!(l.version, "0.1.0");
         assert_eq!(l.generation, 1);
@@ -72,7 +75,7 @@ fn every_plugin_loads_and_mismatched_builds_are_refused_by_name() {
         assert!(l.file.is_absolute());
     }
     let providers = m.providers();
-    assert_eq!(providers.len(), 5);
+    assert_eq!(providers.len(), 6);
 
     // Refusals were announced; the host carries on and instances work.
     let refused = events

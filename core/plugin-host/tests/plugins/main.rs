@@ -4,6 +4,7 @@
 
 mod bench;
 mod camera;
+mod detector;
 mod faults;
 mod gimbal;
 mod loading;

@@ -14,10 +14,11 @@ use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
 /// Every plugin crate of the workspace.
-pub const PLUGIN_PACKAGES: [&str; 6] = [
+pub const PLUGIN_PACKAGES: [&str; 7] = [
     "skein-plugin-example",
     "skein-plugin-gimbal",
     "skein-plugin-camera",
+    "skein-plugin-detector",
     "skein-plugin-radio",
     "skein-plugin-fault",
     "skein-plugin-abi-mismatch",
@@ -168,6 +169,8 @@ pub struct World {
     pub events: Mutex<Vec<(String, String, Value)>>,
     pub links: Mutex<Vec<(String, f64, f64)>>,
     pub mavlink: Mutex<Vec<(String, MavMessage)>>,
+    /// The simulator's intruders, as `sim_aircraft` gives them to simulated vehicles.
+    pub sim_aircraft: Mutex<Vec<skein_payload::SimAircraft>>,
 }
 
 impl World {
@@ -287,6 +290,17 @@ impl PayloadHost for FakeHost {
             .entry(self.vehicle_id.clone())
             .or_default()
             .push(jpeg);
+    }
+    fn sim_aircraft(&self) -> Vec<skein_payload::SimAircraft> {
+        if self.world.simulated {
+            self.world.sim_aircraft.lock().unwrap().clone()
+        } else {
+            Vec::new()
+        }
+    }
+    fn payload_frame(&self, _slot: &str) -> Option<Arc<Vec<u8>>> {
+        // Only cameras publish frames in these tests: the vehicle's latest one.
+        self.world.frames(&self.vehicle_id).pop().map(Arc::new)
     }
     fn set_simulated_link(&self, loss_fraction: f64, latency_ms: f64) -> bool {
         self.world

@@ -74,6 +74,7 @@ pub fn formation(args: &FormationBenchArgs) -> Result<Value, String> {
                 altitude_m: Some(12.0),
                 frame: FormationFrame::World,
                 offsets: vec![],
+                standoff_m: None,
             });
             let t0 = r.time_s();
             let settled = r.run_until(300.0, |r| {

@@ -4,6 +4,10 @@
 //! `skein bench formation [--vehicles 8,32]`: formation flight in virtual time, see
 //! [`formation`].
 //!
+//! `skein bench tracking [--seconds 120 --intruders 3 --seed 1]`: the counter-UAS chain
+//! (intruders, cameras, detectors, tracker) against the simulator's truth, see
+//! [`tracking`].
+//!
 //! `skein bench swarm --vehicles N --rate-hz R --seconds S` (issue 3's benchmark):
 //!
 //! 1. opens one `udpin` endpoint per vehicle on a free block of N consecutive local UDP
@@ -46,10 +50,12 @@
 mod formation;
 mod restart;
 mod swarm;
+mod tracking;
 
 pub use formation::{FormationBenchArgs, formation};
 pub use restart::{RestartBenchArgs, restart};
 pub use swarm::swarm;
+pub use tracking::{TrackingBenchArgs, tracking};
 
 use serde_json::{Value, json};
 use skein_link::{Identity, LinkSetup, TelemetryProfile};
@@ -90,6 +96,9 @@ pub enum BenchWhat {
     /// Payload plugins: message round trips in-process and process-isolated, load and
     /// reload times, restart times after a panic and after an abort.
     Plugins(PluginsBenchArgs),
+    /// Counter-UAS: 4 observation UAVs, seeded intruders; detection precision/recall, track
+    /// RMSE, time to confirm, identity switches, false tracks (see `bench/tracking.rs`).
+    Tracking(TrackingBenchArgs),
 }
 
 /// `skein bench plugins`.
@@ -159,6 +168,13 @@ pub async fn run(args: BenchArgs) -> Result<(), String> {
         }
         BenchWhat::Restart(a) => {
             let report = restart(a).await?;
+            println!("{report}");
+            Ok(())
+        }
+        BenchWhat::Tracking(a) => {
+            let report = tokio::task::spawn_blocking(move || tracking(&a))
+                .await
+                .map_err(|e| e.to_string())??;
             println!("{report}");
             Ok(())
         }

@@ -58,6 +58,9 @@ pub struct Health {
     pub fault_injection: bool,
 }
 
+/// The tracks now, and which vehicle observes which track (vehicle id, track id).
+pub type TracksAnswer = (Vec<crate::tracking::TrackView>, Vec<(String, String)>);
+
 /// Why a formation request was refused: the field and the reason.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FieldError {
@@ -195,6 +198,21 @@ pub enum CoordinatorMsg {
     GetSupervision(RpcReplyPort<TreeNode>),
     /// The metrics in Prometheus text format.
     RenderMetrics(RpcReplyPort<String>),
+    /// The counter-UAS tracks now and which vehicle observes which track
+    /// (`GET /api/v1/tracks`).
+    GetTracks(RpcReplyPort<TracksAnswer>),
+    /// Point the gimbals of the vehicles (default: all with a gimbal) at a track and keep
+    /// them on it; answers the observing vehicles.
+    ObserveTrack(
+        String,
+        Option<Vec<String>>,
+        RpcReplyPort<Result<Vec<String>, super::observe::ObserveRefusal>>,
+    ),
+    /// Stop observing a track; answers the vehicles released.
+    StopObserving(String, RpcReplyPort<Vec<String>>),
+    /// The in-process simulator's ground truth (`GET /api/v1/sim/truth`); `None` when no
+    /// simulator is embedded.
+    GetSimTruth(RpcReplyPort<Option<serde_json::Value>>),
     /// Start and supervise a service (the HTTP API).
     AddService(ServiceSpec, RpcReplyPort<Result<(), String>>),
     /// Inject a fault at an actor path (`"coordinator/uav-1/px4link"`).

@@ -32,8 +32,10 @@ pub mod escalation;
 pub mod formation_loop;
 pub mod hazards;
 pub mod messages;
+pub mod observe;
 pub mod proxy;
 pub mod swarm;
+pub mod track_leader;
 pub mod validation;
 
 pub use children::Node;
@@ -92,6 +94,10 @@ pub struct CoordinatorState {
     hazards: hazards::Hazards,
     started: Instant,
     last_formation_tick: Instant,
+    /// The counter-UAS tracker (its task stops with the coordinator).
+    tracking: crate::tracking::TrackingService,
+    /// Observing vehicle → (track id, gimbal slot), see [`observe`].
+    observing: BTreeMap<String, (String, String)>,
 }
 
 /// The `Coordinator` actor (see module docs).
@@ -260,8 +266,17 @@ impl Actor for Coordinator {
         let separation_m = args.config.setpoint_separation_m();
         let mut formation = FormationEngine::new(separation_m);
         formation.set_replan_after_s(args.config.hazards.replan_after_s);
+        let view = Arc::new(SwarmView::new(args.config, args.services));
+        let tracking = crate::tracking::TrackingService::spawn(
+            crate::tracking::TrackerConfig::default(),
+            view.clone(),
+            args.events.clone(),
+            args.metrics.clone(),
+        );
         Ok(CoordinatorState {
-            view: Arc::new(SwarmView::new(args.config, args.services)),
+            view,
+            tracking,
+            observing: BTreeMap::new(),
             endpoints: args.endpoints,
             gcs: None,
             vehicles: BTreeMap::new(),
@@ -323,13 +338,18 @@ impl Actor for Coordinator {
                     .iter()
                     .map(|(id, v)| (id.as_str(), v.state(), v.failed))
                     .collect();
-                match validation::validate_formation(&state.view.config, &spec, &vehicles) {
+                let tracks = state.tracking.shared().tracks();
+                let checked = track_leader::validate_track_leader(&spec, &tracks).and_then(|()| {
+                    validation::validate_formation(&state.view.config, &spec, &vehicles)
+                });
+                match checked {
                     Err(e) => {
                         let _ = reply.send(Err(e));
                     }
                     Ok(()) => {
                         state.formation.set(spec);
                         state.join_hovering();
+                        state.follow_track_tick();
                         state.formation_tick();
                         let status = state.formation_status();
                         state.emit(SwarmEvent::FormationChanged {
@@ -456,6 +476,23 @@ impl Actor for Coordinator {
             CoordinatorMsg::GetSupervision(reply) => {
                 let _ = reply.send(state.supervision.tree());
             }
+            CoordinatorMsg::GetTracks(reply) => {
+                let _ = reply.send((state.tracking.shared().tracks(), state.observations()));
+            }
+            CoordinatorMsg::ObserveTrack(track, vehicles, reply) => {
+                let _ = reply.send(state.observe_track(&track, vehicles));
+            }
+            CoordinatorMsg::StopObserving(track, reply) => {
+                let _ = reply.send(state.stop_observing(&track));
+            }
+            CoordinatorMsg::GetSimTruth(reply) => {
+                let truth = state
+                    .view
+                    .simulator()
+                    .map(|sim| sim.truth(state.view.frame().as_ref()))
+                    .filter(|v| !v.is_null());
+                let _ = reply.send(truth);
+            }
             CoordinatorMsg::RenderMetrics(reply) => {
                 let _ = reply.send(state.render_metrics());
             }
@@ -478,7 +515,11 @@ impl Actor for Coordinator {
             CoordinatorMsg::Ping(reply) => {
                 let _ = reply.send(());
             }
-            CoordinatorMsg::FormationTick => state.formation_tick(),
+            CoordinatorMsg::FormationTick => {
+                state.follow_track_tick();
+                state.formation_tick();
+                state.observe_tick();
+            }
             CoordinatorMsg::WatchTick => {
                 let me = myself.clone();
                 state.children.watch(move |node, id| {

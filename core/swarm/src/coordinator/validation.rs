@@ -121,11 +121,12 @@ pub fn validate_formation(
     }
     if let Some(leader) = &spec.leader
         && leader != VIRTUAL
+        && spec.track_leader().is_none()
         && !vehicles.iter().any(|(id, _, _)| id == leader)
     {
         return err(
             "leader",
-            format!("unknown leader `{leader}` (a vehicle id, or \"virtual\")"),
+            format!("unknown leader `{leader}` (a vehicle id, \"virtual\", or a track id)"),
         );
     }
     if spec.shape == skein_model::formation::Shape::Custom {
@@ -221,6 +222,7 @@ mod tests {
             altitude_m: None,
             frame: FormationFrame::World,
             offsets: vec![],
+            standoff_m: None,
         }
     }
 

@@ -9,6 +9,9 @@ use skein_model::geo::Ned;
 /// The name of the virtual leader in specs and status (`"leader": "virtual"`).
 pub const VIRTUAL: &str = "virtual";
 
+/// Leaders named `track-…` are tracks of the counter-UAS tracker.
+pub const TRACK_PREFIX: &str = "track-";
+
 /// How slot offsets are oriented.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -37,6 +40,10 @@ pub struct FormationSpec {
     pub frame: FormationFrame,
     /// Follower offsets of a [`Shape::Custom`] formation (forward, right, down), metres.
     pub offsets: Vec<Ned>,
+    /// With a track as leader (`"leader": "track-7"`): the horizontal distance the
+    /// formation's reference point keeps from the track, metres. `None` otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub standoff_m: Option<f64>,
 }
 
 impl FormationSpec {
@@ -57,9 +64,18 @@ impl FormationSpec {
         }
     }
 
-    /// True when the spec asks for the virtual leader.
+    /// True when the spec asks for the virtual leader (the operator's, or one that
+    /// follows a track).
     pub(super) fn wants_virtual(&self) -> bool {
-        self.leader.as_deref() == Some(VIRTUAL)
+        self.leader.as_deref() == Some(VIRTUAL) || self.track_leader().is_some()
+    }
+
+    /// The track the formation follows (`"leader": "track-7"`), if any: its virtual
+    /// leader is then driven to keep `standoff_m` from the track.
+    pub fn track_leader(&self) -> Option<&str> {
+        self.leader
+            .as_deref()
+            .filter(|l| l.starts_with(TRACK_PREFIX))
     }
 }
 
@@ -114,6 +130,7 @@ pub(super) mod tests {
             altitude_m: None,
             frame: FormationFrame::World,
             offsets: vec![],
+            standoff_m: None,
         }
     }
 

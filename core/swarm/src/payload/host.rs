@@ -7,17 +7,28 @@ use crate::vehicle::VehicleShared;
 use crate::view::SwarmView;
 use serde_json::Value;
 use skein_mavlink::MavMessage;
+use skein_model::geo::NedFrame;
 use skein_model::vehicle::VehicleSnapshot;
-use skein_payload::{PayloadHost, PayloadState};
+use skein_payload::{PayloadHost, PayloadState, SimAircraft};
 use std::sync::Arc;
 use tokio::sync::broadcast;
 
-/// Degrades a simulated vehicle's radio link (implemented by the binary for the
-/// in-process simulator).
+/// The in-process simulator as the swarm reaches it (implemented by the binary): the
+/// simulated radio link's quality, the non-cooperative aircraft the simulated cameras
+/// render, and the ground truth for evaluation.
 pub trait SimulatorControl: Send + Sync {
     /// Sets the fraction of datagrams lost (0..1) and the one-way latency (ms) of the
     /// simulated vehicle `sysid`. Returns false when there is no such vehicle.
     fn set_link_quality(&self, sysid: u8, loss_fraction: f64, latency_ms: f64) -> bool;
+    /// The simulator's intruders now, positions in `frame` (the swarm frame).
+    fn intruders(&self, _frame: &NedFrame) -> Vec<SimAircraft> {
+        Vec::new()
+    }
+    /// Ground truth of every simulated vehicle and intruder now, with swarm-frame
+    /// positions when `frame` is known (`GET /api/v1/sim/truth`).
+    fn truth(&self, _frame: Option<&NedFrame>) -> Value {
+        Value::Null
+    }
 }
 
 /// The vehicle side of [`PayloadHost`] for one payload slot.
@@ -108,5 +119,18 @@ impl PayloadHost for VehiclePayloadHost {
             }
             _ => false,
         }
+    }
+
+    fn sim_aircraft(&self) -> Vec<SimAircraft> {
+        match (self.view.simulator(), self.view.frame()) {
+            (Some(sim), Some(frame)) if self.vehicle.simulated => sim.intruders(&frame),
+            _ => Vec::new(),
+        }
+    }
+
+    fn payload_frame(&self, slot: &str) -> Option<Arc<Vec<u8>>> {
+        self.vehicle
+            .payload(slot)
+            .and_then(|p| p.frame.borrow().clone())
     }
 }

@@ -1,0 +1,168 @@
+//! Counter-UAS tracking on the coordinator: the detections of every observation UAV fused
+//! into 3D tracks of non-cooperative aircraft.
+//!
+//! - [`geometry`]: bearings and their least-squares fusion (triangulation);
+//! - [`filter`]: the constant-velocity Kalman filter of each track (`nalgebra`);
+//! - [`tracker`]: association (gated Hungarian), track start, lifecycle, stable ids;
+//! - [`detection`]: the detector plugin's `detections` events as bearings.
+//!
+//! [`TrackingService`] runs the tracker in a task of its own beside the coordinator: it
+//! reads the `detections` payload events off the event bus, steps the tracker at
+//! [`TRACKER_HZ`] with the swarm members' poses (so members are never tracks), raises the
+//! `track_*` events on the bus, and keeps the current tracks for `GET /api/v1/tracks` and
+//! the metrics. Not to be confused with `vehicle::tracking` (setpoint tracking of a
+//! formation member).
+
+pub mod detection;
+pub mod filter;
+pub mod geometry;
+#[cfg(test)]
+mod tests;
+pub mod tracker;
+
+use crate::events::SwarmEvent;
+use crate::metrics::Metrics;
+use crate::view::SwarmView;
+use nalgebra::Vector3;
+use std::sync::{Arc, PoisonError, RwLock};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use tokio::sync::broadcast;
+use tokio::task::JoinHandle;
+pub use tracker::{TrackEvent, TrackStatus, TrackView, Tracker, TrackerConfig, TrackerCounters};
+
+/// Rate of the tracker's steps, Hz.
+pub const TRACKER_HZ: f64 = 10.0;
+
+/// Wall-clock microseconds (the time base of detections and tracks).
+pub fn now_us() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64)
+}
+
+/// What the tracker task publishes.
+#[derive(Debug, Default)]
+pub struct TrackingShared {
+    tracks: RwLock<Vec<TrackView>>,
+    counters: RwLock<TrackerCounters>,
+    malformed: std::sync::atomic::AtomicU64,
+}
+
+impl TrackingShared {
+    /// The tracks as of the last step.
+    pub fn tracks(&self) -> Vec<TrackView> {
+        self.tracks
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// The tracker's counters as of the last step.
+    pub fn counters(&self) -> TrackerCounters {
+        *self.counters.read().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// `detections` events dropped as malformed.
+    pub fn malformed_events(&self) -> u64 {
+        self.malformed.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+/// The running tracker; the task stops when this is dropped.
+#[derive(Debug)]
+pub struct TrackingService {
+    shared: Arc<TrackingShared>,
+    task: JoinHandle<()>,
+}
+
+impl Drop for TrackingService {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
+
+impl TrackingService {
+    /// Starts the tracker task on the current runtime.
+    pub fn spawn(
+        config: TrackerConfig,
+        view: Arc<SwarmView>,
+        events: broadcast::Sender<SwarmEvent>,
+        metrics: Arc<Metrics>,
+    ) -> Self {
+        let shared = Arc::new(TrackingShared::default());
+        let task = tokio::spawn(run(
+            Tracker::new(config),
+            view,
+            events,
+            metrics,
+            shared.clone(),
+        ));
+        TrackingService { shared, task }
+    }
+
+    /// What the task publishes.
+    pub fn shared(&self) -> &Arc<TrackingShared> {
+        &self.shared
+    }
+}
+
+fn to_swarm_event(e: TrackEvent) -> SwarmEvent {
+    match e {
+        TrackEvent::Created(track) => SwarmEvent::TrackCreated { track },
+        TrackEvent::Confirmed(track) => SwarmEvent::TrackConfirmed { track },
+        TrackEvent::Lost(track) => SwarmEvent::TrackLost { track },
+        TrackEvent::Recovered(track) => SwarmEvent::TrackRecovered { track },
+        TrackEvent::Deleted(track) => SwarmEvent::TrackDeleted { track },
+    }
+}
+
+async fn run(
+    mut tracker: Tracker,
+    view: Arc<SwarmView>,
+    events: broadcast::Sender<SwarmEvent>,
+    metrics: Arc<Metrics>,
+    shared: Arc<TrackingShared>,
+) {
+    let mut rx = events.subscribe();
+    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / TRACKER_HZ));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut bearings = Vec::new();
+    loop {
+        tokio::select! {
+            ev = rx.recv() => match ev {
+                Ok(SwarmEvent::PayloadEvent { id, kind, data, .. }) if kind == detection::DETECTIONS_EVENT => {
+                    match detection::parse_detections(&id, &data) {
+                        Ok(rays) => bearings.extend(rays),
+                        Err(e) => {
+                            shared.malformed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            tracing::debug!(vehicle = %id, "dropped a detections event: {e}");
+                        }
+                    }
+                }
+                Ok(_) => {}
+                Err(broadcast::error::RecvError::Lagged(n)) => {
+                    tracing::warn!("tracker: {n} events missed (the bus overflowed)");
+                }
+                Err(broadcast::error::RecvError::Closed) => return,
+            },
+            _ = tick.tick() => {
+                let members: Vec<(String, Vector3<f64>)> = view
+                    .snapshots()
+                    .into_iter()
+                    .filter_map(|s| {
+                        let p = s.position?;
+                        Some((s.id, Vector3::new(p.north_m, p.east_m, p.down_m)))
+                    })
+                    .collect();
+                let now = now_us();
+                for e in tracker.step(now, std::mem::take(&mut bearings), &members) {
+                    let _ = events.send(to_swarm_event(e));
+                }
+                let tracks = tracker.tracks(now);
+                metrics.set_tracking(&tracks, &tracker.counters());
+                *shared.tracks.write().unwrap_or_else(PoisonError::into_inner) = tracks;
+                *shared.counters.write().unwrap_or_else(PoisonError::into_inner) = tracker.counters();
+            }
+        }
+    }
+}

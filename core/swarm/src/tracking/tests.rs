@@ -1,0 +1,192 @@
+//! Scenario tests of the tracker: bearings generated from known targets and observers.
+
+use super::geometry::Ray;
+use super::tracker::{TrackEvent, TrackStatus, Tracker, TrackerConfig};
+use nalgebra::{Rotation3, Vector3};
+
+const OBSERVERS: [(&str, [f64; 3]); 2] =
+    [("uav-2", [0.0, 0.0, -10.0]), ("uav-4", [0.0, 10.0, -10.0])];
+
+/// A bearing from `observer` at `o` to `target`, rotated by `noise_rad` about the vertical,
+/// with the range from size the detector would give (±10 %).
+fn bearing(
+    observer: &str,
+    o: Vector3<f64>,
+    target: Vector3<f64>,
+    t_us: u64,
+    noise_rad: f64,
+) -> Ray {
+    let rot = Rotation3::from_axis_angle(&Vector3::z_axis(), noise_rad);
+    let range = (target - o).norm();
+    Ray {
+        origin: o,
+        dir: rot * (target - o).normalize(),
+        range_from_size_m: Some(range * if noise_rad > 0.0 { 1.1 } else { 0.9 }),
+        stamp_us: t_us,
+        observer: observer.to_string(),
+        confidence: 0.9,
+    }
+}
+
+/// Runs the tracker at 10 Hz for `duration_s` with two cameras at 5 Hz (staggered by
+/// 0.1 s) seeing every target `targets(t)` returns; returns every event and the ids
+/// nearest each target at the end.
+fn fly(
+    tracker: &mut Tracker,
+    start_s: f64,
+    duration_s: f64,
+    targets: &dyn Fn(f64) -> Vec<Vector3<f64>>,
+) -> Vec<TrackEvent> {
+    let mut events = Vec::new();
+    let steps = (duration_s * 10.0).round() as u64;
+    for k in 0..steps {
+        let t = start_s + k as f64 * 0.1;
+        let t_us = (t * 1e6) as u64 + 1_000_000;
+        let cam = k % 2;
+        let (name, o) = OBSERVERS[cam as usize];
+        let o = Vector3::from(o);
+        let noise = if k % 4 < 2 { 0.001 } else { -0.001 };
+        let bearings = targets(t)
+            .into_iter()
+            .map(|p| bearing(name, o, p, t_us, noise))
+            .collect();
+        let members: Vec<(String, Vector3<f64>)> = OBSERVERS
+            .iter()
+            .map(|(n, p)| (n.to_string(), Vector3::from(*p)))
+            .collect();
+        events.extend(tracker.step(t_us, bearings, &members));
+    }
+    events
+}
+
+fn nearest_id(tracker: &Tracker, now_us: u64, p: Vector3<f64>) -> (String, f64) {
+    tracker
+        .tracks(now_us)
+        .into_iter()
+        .map(|t| {
+            let q = Vector3::new(t.position.north_m, t.position.east_m, t.position.down_m);
+            (t.id, (q - p).norm())
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("a track")
+}
+
+#[test]
+fn a_target_seen_by_two_cameras_is_confirmed_and_tracked() {
+    let mut tr = Tracker::new(TrackerConfig::default());
+    let target = |t: f64| vec![Vector3::new(60.0, -20.0 + 5.0 * t, -20.0)];
+    let events = fly(&mut tr, 0.0, 6.0, &target);
+    let confirmed: Vec<_> = events
+        .iter()
+        .filter_map(|e| match e {
+            TrackEvent::Confirmed(v) => Some(v.clone()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(confirmed.len(), 1, "{events:?}");
+    // Confirmed within a second of the first bearings.
+    assert!(confirmed[0].age_s < 1.0, "{:?}", confirmed[0]);
+    let tracks = tr.tracks(6_900_000);
+    assert_eq!(tracks.len(), 1, "{tracks:?}");
+    let t = &tracks[0];
+    assert_eq!(t.id, "track-1");
+    assert_eq!(t.status, TrackStatus::Confirmed);
+    let err = (Vector3::new(t.position.north_m, t.position.east_m, t.position.down_m)
+        - target(5.9)[0])
+        .norm();
+    assert!(err < 1.5, "position error {err} m: {t:?}");
+    assert!((t.velocity.east_m_s - 5.0).abs() < 1.0, "{t:?}");
+}
+
+#[test]
+fn crossing_targets_keep_their_ids() {
+    let mut tr = Tracker::new(TrackerConfig::default());
+    // Two targets crossing at t = 6 s, 70 m out, 2 m apart vertically.
+    let targets = |t: f64| {
+        vec![
+            Vector3::new(70.0, -30.0 + 5.0 * t, -20.0),
+            Vector3::new(70.0, 30.0 - 5.0 * t, -22.0),
+        ]
+    };
+    fly(&mut tr, 0.0, 3.0, &targets);
+    let now = |t: f64| (t * 1e6) as u64 + 1_000_000;
+    let (id_a, ea) = nearest_id(&tr, now(2.9), targets(2.9)[0]);
+    let (id_b, eb) = nearest_id(&tr, now(2.9), targets(2.9)[1]);
+    assert_ne!(id_a, id_b);
+    assert!(ea < 2.0 && eb < 2.0, "{ea} {eb}");
+    let events = fly(&mut tr, 3.0, 7.0, &targets);
+    let (after_a, ea) = nearest_id(&tr, now(9.9), targets(9.9)[0]);
+    let (after_b, eb) = nearest_id(&tr, now(9.9), targets(9.9)[1]);
+    assert_eq!((after_a, after_b), (id_a, id_b), "ids swapped: {events:?}");
+    assert!(ea < 2.0 && eb < 2.0, "{ea} {eb}");
+    assert!(
+        !events.iter().any(|e| matches!(e, TrackEvent::Created(_))),
+        "no new track through the crossing: {events:?}"
+    );
+}
+
+#[test]
+fn a_lost_track_ages_out() {
+    let cfg = TrackerConfig::default();
+    let mut tr = Tracker::new(cfg.clone());
+    let target = |t: f64| vec![Vector3::new(50.0, 10.0, -15.0 + 0.0 * t)];
+    fly(&mut tr, 0.0, 3.0, &target);
+    assert_eq!(tr.tracks(4_000_000)[0].status, TrackStatus::Confirmed);
+    // Nothing seen any more.
+    let events = fly(
+        &mut tr,
+        3.0,
+        cfg.lost_after_s + cfg.delete_after_s + 1.0,
+        &|_| vec![],
+    );
+    let kinds: Vec<&str> = events
+        .iter()
+        .map(|e| match e {
+            TrackEvent::Lost(_) => "lost",
+            TrackEvent::Deleted(_) => "deleted",
+            _ => "other",
+        })
+        .collect();
+    assert_eq!(kinds, ["lost", "deleted"]);
+    assert!(tr.tracks(20_000_000).is_empty());
+    assert_eq!(tr.counters().tracks_deleted, 1);
+}
+
+#[test]
+fn swarm_members_never_become_tracks() {
+    let mut tr = Tracker::new(TrackerConfig::default());
+    // Each camera sees the other observer (a swarm member) and nothing else.
+    let mut events = Vec::new();
+    for k in 0..40u64 {
+        let t_us = 1_000_000 + k * 100_000;
+        let (me, other) = if k % 2 == 0 { (0, 1) } else { (1, 0) };
+        let o = Vector3::from(OBSERVERS[me].1);
+        let p = Vector3::from(OBSERVERS[other].1);
+        let members: Vec<(String, Vector3<f64>)> = OBSERVERS
+            .iter()
+            .map(|(n, p)| (n.to_string(), Vector3::from(*p)))
+            .collect();
+        let b = bearing(OBSERVERS[me].0, o, p, t_us, 0.0);
+        events.extend(tr.step(t_us, vec![b], &members));
+    }
+    assert!(events.is_empty(), "{events:?}");
+    assert_eq!(tr.counters().bearings_excluded_members, 40);
+}
+
+#[test]
+fn a_target_only_one_camera_sees_starts_from_its_size_but_is_not_confirmed_alone() {
+    let mut tr = Tracker::new(TrackerConfig::default());
+    let mut events = Vec::new();
+    for k in 0..20u64 {
+        let t_us = 1_000_000 + k * 200_000;
+        let o = Vector3::from(OBSERVERS[0].1);
+        let b = bearing("uav-2", o, Vector3::new(40.0, 0.0, -12.0), t_us, 0.0);
+        events.extend(tr.step(t_us, vec![b], &[]));
+    }
+    assert!(events.iter().any(|e| matches!(e, TrackEvent::Created(_))));
+    assert!(!events.iter().any(|e| matches!(e, TrackEvent::Confirmed(_))));
+    let t = &tr.tracks(5_000_000)[0];
+    assert_eq!(t.status, TrackStatus::Tentative);
+    // 10 % short (the size range), straight along the bearing.
+    assert!((t.position.north_m - 36.0).abs() < 3.0, "{t:?}");
+}
