@@ -25,6 +25,9 @@ use tokio::sync::broadcast;
 /// API's 10 Hz).
 const VEHICLES_FRAME_S: f64 = 0.1;
 
+/// Latest JPEG per (vehicle id, payload slot).
+type Frames = BTreeMap<(String, String), Arc<Vec<u8>>>;
+
 /// A recording being played back; cheap to clone (shared).
 #[derive(Clone)]
 pub struct ReplayState {
@@ -39,8 +42,7 @@ struct Inner {
     vehicles: RwLock<BTreeMap<String, Value>>,
     /// Latest formation.
     formation: RwLock<Option<Value>>,
-    /// Latest JPEG per (vehicle id, payload slot).
-    frames: RwLock<BTreeMap<(String, String), Arc<Vec<u8>>>>,
+    frames: RwLock<Frames>,
     /// Stream frames (JSON text), as the live stream sends them.
     stream: broadcast::Sender<Arc<str>>,
     /// Recording time reached, s since its first message (f64 bits).
