@@ -8,7 +8,8 @@
 //! needs `Authorization: Bearer <token>` with a role (see [`auth::ROUTES`]).
 //!
 //! Routes (all JSON):
-//! - `GET /api/v1/health` (the only route that never needs a token)
+//! - `GET /api/v1/health`, `GET /api/v1/openapi.json` (the contract, OpenAPI 3.1, see
+//!   [`openapi`]): the routes that never need a token
 //! - `GET /api/v1/auth/whoami`: `{"auth", "name", "role"}` of the caller's token
 //! - `GET /api/v1/vehicles`, `GET /api/v1/vehicles/{id}`
 //! - `POST /api/v1/vehicles/{id}/commands`, `POST /api/v1/swarm/commands`: `202` with
@@ -38,10 +39,12 @@
 
 pub mod auth;
 pub mod error;
+pub mod openapi;
 pub mod params;
 pub mod payloads;
 pub mod plugins;
 pub mod requests;
+pub mod responses;
 pub mod server;
 pub mod tls;
 
@@ -177,6 +180,7 @@ async fn publish_telemetry(coordinator: ActorRef<CoordinatorMsg>, tx: broadcast:
 pub fn app(state: ApiState) -> Router {
     Router::new()
         .route("/api/v1/health", get(health))
+        .route("/api/v1/openapi.json", get(openapi::serve))
         .route("/api/v1/auth/whoami", get(auth::whoami))
         .route("/api/v1/vehicles", get(list_vehicles))
         .route("/api/v1/vehicles/{id}", get(get_vehicle))
@@ -276,15 +280,17 @@ async fn vehicle_command(
     Path(id): Path<String>,
     body: Bytes,
 ) -> Result<Response, ApiError> {
-    if requests::is_clear_hazard(&body)? {
-        let id2 = id.clone();
-        return match s.ask(move |r| CoordinatorMsg::ClearHazard(id2, r)).await? {
-            Ok(()) => Ok(Json(serde_json::json!({"cleared": id})).into_response()),
-            Err(None) => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
-            Err(Some(reason)) => Err(ApiError::conflict(reason, Some("command"))),
-        };
-    }
-    let cmd = requests::command(&body)?;
+    let cmd = match requests::commands::vehicle_command(&body)? {
+        requests::Command::Vehicle(cmd) => cmd,
+        requests::Command::ClearHazard => {
+            let id2 = id.clone();
+            return match s.ask(move |r| CoordinatorMsg::ClearHazard(id2, r)).await? {
+                Ok(()) => Ok(Json(responses::Cleared { cleared: id }).into_response()),
+                Err(None) => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
+                Err(Some(reason)) => Err(ApiError::conflict(reason, Some("command"))),
+            };
+        }
+    };
     let id2 = id.clone();
     match s
         .ask(move |r| CoordinatorMsg::VehicleCommand(id2, cmd, r))
@@ -297,7 +303,7 @@ async fn vehicle_command(
 }
 
 async fn swarm_command(State(s): State<ApiState>, body: Bytes) -> Result<Response, ApiError> {
-    let cmd: VehicleCommand = requests::command(&body)?;
+    let cmd: VehicleCommand = requests::commands::swarm_command(&body)?;
     let outcome = s.ask(move |r| CoordinatorMsg::SwarmCommand(cmd, r)).await?;
     if outcome.accepted.is_empty() {
         let error = if outcome.refused.is_empty() {
@@ -321,7 +327,7 @@ async fn get_formation(State(s): State<ApiState>) -> Result<Response, ApiError> 
 }
 
 async fn put_formation(State(s): State<ApiState>, body: Bytes) -> Result<Response, ApiError> {
-    let spec = requests::formation(&body)?;
+    let spec = requests::formation::formation(&body)?;
     match s
         .ask(move |r| CoordinatorMsg::SetFormation(spec, r))
         .await?
@@ -336,7 +342,7 @@ async fn leader_command(
     Path(command): Path<String>,
     body: Bytes,
 ) -> Result<Response, ApiError> {
-    let motion = requests::leader_motion(&command, &body)?;
+    let motion = requests::leader::leader_motion(&command, &body)?;
     match s
         .ask(move |r| CoordinatorMsg::LeaderMotion(motion, r))
         .await?
@@ -349,9 +355,12 @@ async fn leader_command(
 
 async fn shapes() -> Response {
     use skein_model::formation::Shape;
-    let list: Vec<serde_json::Value> = Shape::ALL
+    let list: Vec<responses::ShapeInfo> = Shape::ALL
         .iter()
-        .map(|s| serde_json::json!({"shape": s.name(), "min_vehicles": s.min_vehicles()}))
+        .map(|s| responses::ShapeInfo {
+            shape: *s,
+            min_vehicles: s.min_vehicles(),
+        })
         .collect();
     Json(list).into_response()
 }
@@ -401,7 +410,7 @@ async fn metrics(State(s): State<ApiState>) -> Result<Response, ApiError> {
 }
 
 async fn inject_fault(State(s): State<ApiState>, body: Bytes) -> Result<Response, ApiError> {
-    let (target, kind) = requests::fault(&body)?;
+    let (target, kind) = requests::faults::fault(&body)?;
     let t = target.clone();
     match s
         .ask(move |r| CoordinatorMsg::InjectFault(t, kind, r))
@@ -409,7 +418,7 @@ async fn inject_fault(State(s): State<ApiState>, body: Bytes) -> Result<Response
     {
         Ok(()) => Ok((
             StatusCode::ACCEPTED,
-            Json(serde_json::json!({"target": target, "kind": kind.name()})),
+            Json(responses::FaultInjected { target, kind }),
         )
             .into_response()),
         Err(skein_swarm::FaultError::Disabled) => Err(ApiError {

@@ -3,7 +3,7 @@
 //! once PX4's PARAM_VALUE arrives (resends included).
 
 use crate::error::ApiError;
-use crate::{ApiState, COORDINATOR_TIMEOUT, payloads, requests};
+use crate::{ApiState, COORDINATOR_TIMEOUT, payloads, requests, responses};
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::{Path, State};
@@ -31,11 +31,16 @@ async fn link_of(s: &ApiState, id: &str) -> Result<ActorRef<skein_link::Px4LinkM
 
 fn param_json(name: &str, v: skein_mavlink::param::ParamValue) -> Response {
     use skein_mavlink::param::ParamValue;
-    let (value, ty) = match v {
-        ParamValue::Int32(i) => (serde_json::json!(i), "int32"),
-        ParamValue::Real32(f) => (serde_json::json!(f64::from(f)), "real32"),
+    let (value, param_type) = match v {
+        ParamValue::Int32(i) => (f64::from(i), "int32"),
+        ParamValue::Real32(f) => (f64::from(f), "real32"),
     };
-    Json(serde_json::json!({"name": name, "value": value, "type": ty})).into_response()
+    Json(responses::ParamValue {
+        name: name.to_string(),
+        value,
+        param_type,
+    })
+    .into_response()
 }
 
 fn link_error(e: skein_link::LinkError) -> ApiError {
@@ -69,7 +74,10 @@ pub(crate) async fn list_params(
     {
         Ok(ractor::rpc::CallResult::Success(all)) => Ok(Json(
             all.into_iter()
-                .map(|(k, v)| serde_json::json!({"name": k, "value": v.as_f64()}))
+                .map(|(name, v)| responses::ParamEntry {
+                    name,
+                    value: v.as_f64(),
+                })
                 .collect::<Vec<_>>(),
         )
         .into_response()),
@@ -107,7 +115,7 @@ pub(crate) async fn put_param(
     body: Bytes,
 ) -> Result<Response, ApiError> {
     check_param_name(&name)?;
-    let value = requests::param_value(&body)?;
+    let value = requests::params::param_value(&body)?;
     let link = link_of(&s, &id).await?;
     let n = name.clone();
     match link

@@ -1,0 +1,743 @@
+//! The API contract: an OpenAPI 3.1 document generated from the request and response
+//! types, served at `GET /api/v1/openapi.json`.
+//!
+//! Schemas come from the types themselves (`utoipa::ToSchema` on the request types of
+//! [`crate::requests`], on [`crate::responses`] and on the swarm's view types); the
+//! operations from [`OPERATIONS`], one row per method and path, whose access is read
+//! from [`auth::ROUTES`] (a test checks that both tables name the same routes, and that
+//! `docs/api.md` lists every operation). Every operation but the public ones needs a
+//! bearer token (security scheme `bearer`) once tokens are configured.
+
+use crate::auth::{self, Access};
+use crate::requests::{
+    commands::CommandRequest,
+    faults::FaultRequest,
+    formation::{FormationRequest, OffsetRequest},
+    leader::{
+        LeaderGoToRequest, LeaderHoldRequest, LeaderOrbitRequest, LeaderWaypointsRequest,
+        PointRequest,
+    },
+    params::ParamValueRequest,
+    payloads::{AttachRequest, IsolationRequest},
+    plugins::{LoadRequest, ReloadRequest, UnloadRequest},
+};
+use crate::responses::{
+    Cleared, ErrorBody, FaultInjected, ParamEntry, ParamValue, PayloadView, PluginsListing,
+    ShapeInfo,
+};
+use std::sync::OnceLock;
+use utoipa::OpenApi;
+use utoipa::openapi::path::{HttpMethod, OperationBuilder, ParameterBuilder, ParameterIn};
+use utoipa::openapi::request_body::RequestBodyBuilder;
+use utoipa::openapi::schema::{ArrayBuilder, ObjectBuilder, Schema, Type};
+use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityRequirement, SecurityScheme};
+use utoipa::openapi::{Content, RefOr, Required, ResponseBuilder};
+
+/// The schemas of the contract (utoipa collects the types they refer to).
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "skein",
+        description = "The HTTP API of skein, a PX4 swarm orchestrator. Errors are JSON \
+                       `{\"error\", \"field\"}` with a 4xx status; `field` names the \
+                       request field at fault by its path. See docs/api.md."
+    ),
+    components(schemas(
+        ErrorBody,
+        CommandRequest,
+        FormationRequest,
+        OffsetRequest,
+        PointRequest,
+        LeaderGoToRequest,
+        LeaderWaypointsRequest,
+        LeaderOrbitRequest,
+        LeaderHoldRequest,
+        ParamValueRequest,
+        AttachRequest,
+        IsolationRequest,
+        LoadRequest,
+        UnloadRequest,
+        ReloadRequest,
+        FaultRequest,
+        Cleared,
+        FaultInjected,
+        ShapeInfo,
+        ParamEntry,
+        ParamValue,
+        PluginsListing,
+        PayloadView,
+        auth::Identity,
+        skein_model::vehicle::VehicleSnapshot,
+        skein_model::safety::Geofence,
+        skein_swarm::coordinator::messages::Health,
+        skein_swarm::CommandOutcome,
+        skein_swarm::FormationStatus,
+        skein_swarm::coordinator::messages::EndpointStats,
+        skein_swarm::supervision::TreeNode,
+    ))
+)]
+struct Schemas;
+
+/// What an operation answers on success.
+#[derive(Debug, Clone, Copy)]
+pub enum Answer {
+    /// JSON of the named schema.
+    Json(&'static str),
+    /// A JSON array of the named schema.
+    JsonArray(&'static str),
+    /// A JSON object of no fixed shape (a payload's own answer).
+    JsonObject,
+    /// Any JSON (the OpenAPI document itself).
+    AnyJson,
+    /// Text of this media type.
+    Text(&'static str),
+    /// Bytes of this media type.
+    Binary(&'static str),
+    /// `101 Switching Protocols` to a WebSocket.
+    WebSocket,
+}
+
+/// A request body.
+#[derive(Debug, Clone, Copy)]
+pub enum Body {
+    /// None.
+    None,
+    /// JSON of the named schema.
+    Json(&'static str),
+    /// JSON of the named schema, or no body at all.
+    OptionalJson(&'static str),
+    /// A JSON object of no fixed shape (a payload's own command).
+    JsonObject,
+}
+
+/// One operation of the contract.
+#[derive(Debug, Clone, Copy)]
+pub struct Operation {
+    /// HTTP method.
+    pub method: &'static str,
+    /// Path as the contract (and docs/api.md) write it.
+    pub path: &'static str,
+    /// One line on what it does.
+    pub summary: &'static str,
+    /// Its request body.
+    pub body: Body,
+    /// Success answers: status and body.
+    pub ok: &'static [(u16, Answer)],
+    /// Error statuses it may answer (401 / 403 / 429 of the authentication are added to
+    /// every operation that needs a token).
+    pub errors: &'static [u16],
+}
+
+const fn op(
+    method: &'static str,
+    path: &'static str,
+    summary: &'static str,
+    body: Body,
+    ok: &'static [(u16, Answer)],
+    errors: &'static [u16],
+) -> Operation {
+    Operation {
+        method,
+        path,
+        summary,
+        body,
+        ok,
+        errors,
+    }
+}
+
+use Answer::{Json, JsonArray, JsonObject};
+
+/// Every operation of the API.
+pub const OPERATIONS: &[Operation] = &[
+    op(
+        "GET",
+        "/api/v1/health",
+        "Swarm health (never needs a token)",
+        Body::None,
+        &[(200, Json("Health"))],
+        &[503],
+    ),
+    op(
+        "GET",
+        "/api/v1/openapi.json",
+        "This contract, OpenAPI 3.1 (never needs a token)",
+        Body::None,
+        &[(200, Answer::AnyJson)],
+        &[],
+    ),
+    op(
+        "GET",
+        "/api/v1/auth/whoami",
+        "The caller's token: name and role",
+        Body::None,
+        &[(200, Json("Identity"))],
+        &[],
+    ),
+    op(
+        "GET",
+        "/api/v1/vehicles",
+        "Every vehicle, sorted by id",
+        Body::None,
+        &[(200, JsonArray("VehicleSnapshot"))],
+        &[503],
+    ),
+    op(
+        "GET",
+        "/api/v1/vehicles/{id}",
+        "One vehicle",
+        Body::None,
+        &[(200, Json("VehicleSnapshot"))],
+        &[404, 503],
+    ),
+    op(
+        "POST",
+        "/api/v1/vehicles/{id}/commands",
+        "A command for one vehicle: 202 once its state machine accepted it (the outcome follows on the stream); clear_hazard answers 200",
+        Body::Json("CommandRequest"),
+        &[(202, Json("CommandOutcome")), (200, Json("Cleared"))],
+        &[400, 404, 409, 503],
+    ),
+    op(
+        "GET",
+        "/api/v1/vehicles/{id}/params",
+        "The PX4 parameters seen so far",
+        Body::None,
+        &[(200, JsonArray("ParamEntry"))],
+        &[404, 503],
+    ),
+    op(
+        "GET",
+        "/api/v1/vehicles/{id}/params/{name}",
+        "Read a PX4 parameter (PARAM_REQUEST_READ)",
+        Body::None,
+        &[(200, Json("ParamValue"))],
+        &[400, 404, 409, 503, 504],
+    ),
+    op(
+        "PUT",
+        "/api/v1/vehicles/{id}/params/{name}",
+        "Write a PX4 parameter (PARAM_SET), answered with the value PX4 confirms",
+        Body::Json("ParamValueRequest"),
+        &[(200, Json("ParamValue"))],
+        &[400, 404, 409, 503, 504],
+    ),
+    op(
+        "POST",
+        "/api/v1/swarm/commands",
+        "A command for every vehicle (409 when every vehicle refused)",
+        Body::Json("CommandRequest"),
+        &[(202, Json("CommandOutcome"))],
+        &[400, 409, 503],
+    ),
+    op(
+        "GET",
+        "/api/v1/formation",
+        "The formation status",
+        Body::None,
+        &[(200, Json("FormationStatus"))],
+        &[503],
+    ),
+    op(
+        "PUT",
+        "/api/v1/formation",
+        "Fly a formation",
+        Body::Json("FormationRequest"),
+        &[(200, Json("FormationStatus"))],
+        &[400, 503],
+    ),
+    op(
+        "DELETE",
+        "/api/v1/formation",
+        "Stop flying the formation (members hold where they are)",
+        Body::None,
+        &[(200, Json("FormationStatus"))],
+        &[503],
+    ),
+    op(
+        "POST",
+        "/api/v1/formation/leader/goto",
+        "Move the formation's reference to a point",
+        Body::Json("LeaderGoToRequest"),
+        &[(200, Json("FormationStatus"))],
+        &[400, 409, 503],
+    ),
+    op(
+        "POST",
+        "/api/v1/formation/leader/waypoints",
+        "Move the formation's reference along waypoints",
+        Body::Json("LeaderWaypointsRequest"),
+        &[(200, Json("FormationStatus"))],
+        &[400, 409, 503],
+    ),
+    op(
+        "POST",
+        "/api/v1/formation/leader/orbit",
+        "Orbit the formation's reference around a centre",
+        Body::Json("LeaderOrbitRequest"),
+        &[(200, Json("FormationStatus"))],
+        &[400, 409, 503],
+    ),
+    op(
+        "POST",
+        "/api/v1/formation/leader/hold",
+        "Stop the formation's reference",
+        Body::OptionalJson("LeaderHoldRequest"),
+        &[(200, Json("FormationStatus"))],
+        &[400, 409, 503],
+    ),
+    op(
+        "GET",
+        "/api/v1/formation/shapes",
+        "The shapes, with the fewest vehicles each needs",
+        Body::None,
+        &[(200, JsonArray("ShapeInfo"))],
+        &[],
+    ),
+    op(
+        "GET",
+        "/api/v1/vehicles/{id}/payloads",
+        "The vehicle's payload slots",
+        Body::None,
+        &[(200, Answer::JsonArray("PayloadView"))],
+        &[404, 503],
+    ),
+    op(
+        "POST",
+        "/api/v1/vehicles/{id}/payloads",
+        "Attach a payload (until restart): 201 with the payload as listed, once its driver exists",
+        Body::Json("AttachRequest"),
+        &[(201, Json("PayloadView"))],
+        &[400, 404, 409, 503],
+    ),
+    op(
+        "POST",
+        "/api/v1/vehicles/{id}/payloads/{slot}",
+        "A payload's own JSON command; answered with its answer",
+        Body::JsonObject,
+        &[(200, Answer::AnyJson)],
+        &[400, 404, 409, 503],
+    ),
+    op(
+        "DELETE",
+        "/api/v1/vehicles/{id}/payloads/{slot}",
+        "Detach a payload (until restart), after its driver's shutdown ran",
+        Body::None,
+        &[(200, JsonObject)],
+        &[404, 409, 503],
+    ),
+    op(
+        "GET",
+        "/api/v1/vehicles/{id}/payloads/{slot}/snapshot",
+        "The camera's last frame",
+        Body::None,
+        &[(200, Answer::Binary("image/jpeg"))],
+        &[404, 503],
+    ),
+    op(
+        "GET",
+        "/api/v1/vehicles/{id}/payloads/{slot}/stream",
+        "The camera's frames as MJPEG, every new one",
+        Body::None,
+        &[(200, Answer::Binary("multipart/x-mixed-replace"))],
+        &[404, 503],
+    ),
+    op(
+        "GET",
+        "/api/v1/plugins",
+        "Plugin libraries, their instances, payload providers and refused files",
+        Body::None,
+        &[(200, Json("PluginsListing"))],
+        &[],
+    ),
+    op(
+        "POST",
+        "/api/v1/plugins/load",
+        "Load a plugin library from the plugin directory",
+        Body::Json("LoadRequest"),
+        &[(200, JsonObject)],
+        &[400, 403, 409, 422, 503],
+    ),
+    op(
+        "POST",
+        "/api/v1/plugins/unload",
+        "Unload a plugin library (force: stop its instances first)",
+        Body::Json("UnloadRequest"),
+        &[(200, JsonObject)],
+        &[400, 404, 409, 503],
+    ),
+    op(
+        "POST",
+        "/api/v1/plugins/reload",
+        "Reload a plugin library from its file; its instances move to the new build",
+        Body::Json("ReloadRequest"),
+        &[(200, JsonObject)],
+        &[400, 404, 409, 422, 503],
+    ),
+    op(
+        "GET",
+        "/api/v1/supervision",
+        "The actor tree: status, restarts, failures",
+        Body::None,
+        &[(200, Json("TreeNode"))],
+        &[503],
+    ),
+    op(
+        "POST",
+        "/api/v1/faults",
+        "Inject a fault into an actor (only with --enable-fault-injection)",
+        Body::Json("FaultRequest"),
+        &[(202, Json("FaultInjected"))],
+        &[400, 403, 404, 503],
+    ),
+    op(
+        "GET",
+        "/metrics",
+        "Prometheus / OpenMetrics counters",
+        Body::None,
+        &[(200, Answer::Text("application/openmetrics-text"))],
+        &[503],
+    ),
+    op(
+        "GET",
+        "/api/v1/links",
+        "MAVLink counters per endpoint",
+        Body::None,
+        &[(200, JsonArray("EndpointStats"))],
+        &[503],
+    ),
+    op(
+        "GET",
+        "/api/v1/geofence",
+        "The geofence every setpoint is clamped into",
+        Body::None,
+        &[(200, Json("Geofence"))],
+        &[404],
+    ),
+    op(
+        "GET",
+        "/api/v1/stream",
+        "WebSocket of vehicle states (10 Hz) and events",
+        Body::None,
+        &[(101, Answer::WebSocket)],
+        &[],
+    ),
+];
+
+/// The route of [`auth::ROUTES`] (and of the router) that serves `path`: the leader
+/// commands and plugin operations are one route each with a path parameter.
+pub fn route_of(path: &str) -> &str {
+    if path.starts_with("/api/v1/formation/leader/") {
+        "/api/v1/formation/leader/{command}"
+    } else if path.starts_with("/api/v1/plugins/") {
+        "/api/v1/plugins/{op}"
+    } else {
+        path
+    }
+}
+
+fn method(m: &str) -> HttpMethod {
+    match m {
+        "GET" => HttpMethod::Get,
+        "PUT" => HttpMethod::Put,
+        "POST" => HttpMethod::Post,
+        "DELETE" => HttpMethod::Delete,
+        other => unreachable!("method {other} in OPERATIONS"),
+    }
+}
+
+fn schema_ref(name: &str) -> RefOr<Schema> {
+    RefOr::Ref(utoipa::openapi::Ref::from_schema_name(name))
+}
+
+fn object() -> Schema {
+    Schema::Object(ObjectBuilder::new().schema_type(Type::Object).build())
+}
+
+fn json(schema: impl Into<RefOr<Schema>>) -> Content {
+    Content::new(Some(schema))
+}
+
+fn status_text(status: u16) -> &'static str {
+    match status {
+        101 => "Switching to the WebSocket",
+        200 => "OK",
+        201 => "Created",
+        202 => "Accepted: the outcome follows on the stream",
+        400 => "Invalid request: `field` names the field at fault by its path",
+        401 => "No or invalid token (`field`: authorization)",
+        403 => {
+            "Forbidden: the token's role is too low (`required_role`), or the operation is refused"
+        }
+        404 => "No such vehicle, slot, plugin, target or parameter",
+        409 => "The swarm's or the vehicle's state forbids it (the error says why)",
+        422 => "Not a loadable plugin (the error names the file and what differs)",
+        429 => "Too many failed token attempts from this address (Retry-After)",
+        503 => "The coordinator, the vehicle's link or the payload is not available",
+        504 => "The vehicle did not answer in time",
+        _ => "",
+    }
+}
+
+/// The description of a path parameter.
+fn parameter_description(name: &str) -> &'static str {
+    match name {
+        "id" => "Vehicle id (`uav-1`)",
+        "name" => "PX4 parameter name, 1 to 16 ASCII characters (`MPC_XY_VEL_MAX`)",
+        "slot" => "Payload slot (`camera`)",
+        _ => "",
+    }
+}
+
+fn operation(o: &Operation) -> utoipa::openapi::path::Operation {
+    let http_method = axum::http::Method::from_bytes(o.method.as_bytes()).expect("a method");
+    let access = auth::required(&http_method, route_of(o.path));
+    let role = match access {
+        Access::Public => "none (public)".to_string(),
+        Access::Role(r) => r.as_str().to_string(),
+    };
+    let mut b = OperationBuilder::new()
+        .summary(Some(o.summary))
+        .description(Some(format!("Role: {role}.")))
+        .operation_id(Some(format!(
+            "{}{}",
+            o.method.to_lowercase(),
+            o.path.replace(['/', '.', '-'], "_").replace(['{', '}'], "")
+        )));
+    for name in o
+        .path
+        .split('/')
+        .filter_map(|s| s.strip_prefix('{').and_then(|s| s.strip_suffix('}')))
+    {
+        let mut schema = ObjectBuilder::new()
+            .schema_type(Type::String)
+            .min_length(Some(1));
+        if name == "name" {
+            schema = schema.max_length(Some(16));
+        }
+        b = b.parameter(
+            ParameterBuilder::new()
+                .name(name)
+                .parameter_in(ParameterIn::Path)
+                .required(Required::True)
+                .description(Some(parameter_description(name)))
+                .schema(Some(schema)),
+        );
+    }
+    let body = match o.body {
+        Body::None => None,
+        Body::Json(s) => Some((schema_ref(s), Required::True)),
+        Body::OptionalJson(s) => Some((schema_ref(s), Required::False)),
+        Body::JsonObject => Some((object().into(), Required::True)),
+    };
+    if let Some((schema, required)) = body {
+        b = b.request_body(Some(
+            RequestBodyBuilder::new()
+                .content("application/json", json(schema))
+                .required(Some(required))
+                .build(),
+        ));
+    }
+    for (status, answer) in o.ok {
+        let r = ResponseBuilder::new().description(status_text(*status));
+        let r = match answer {
+            Answer::Json(s) => r.content("application/json", json(schema_ref(s))),
+            Answer::JsonArray(s) => r.content(
+                "application/json",
+                json(ArrayBuilder::new().items(schema_ref(s)).build()),
+            ),
+            Answer::JsonObject => r.content("application/json", json(object())),
+            Answer::AnyJson => r.content(
+                "application/json",
+                json(Schema::Object(ObjectBuilder::new().build())),
+            ),
+            Answer::Text(mime) => r.content(
+                *mime,
+                json(ObjectBuilder::new().schema_type(Type::String).build()),
+            ),
+            Answer::Binary(mime) => r.content(
+                *mime,
+                json(
+                    ObjectBuilder::new()
+                        .schema_type(Type::String)
+                        .content_media_type(*mime)
+                        .build(),
+                ),
+            ),
+            Answer::WebSocket => r,
+        };
+        b = b.response(status.to_string(), r.build());
+    }
+    let mut errors: Vec<u16> = o.errors.to_vec();
+    if access != Access::Public {
+        errors.extend([401, 403, 429]);
+        b = b.security(SecurityRequirement::new("bearer", Vec::<String>::new()));
+    } else {
+        b = b.security(SecurityRequirement::default());
+    }
+    errors.sort_unstable();
+    errors.dedup();
+    for status in errors {
+        b = b.response(
+            status.to_string(),
+            ResponseBuilder::new()
+                .description(status_text(status))
+                .content("application/json", json(schema_ref("ErrorBody")))
+                .build(),
+        );
+    }
+    b.build()
+}
+
+fn build() -> utoipa::openapi::OpenApi {
+    let mut doc = Schemas::openapi();
+    doc.info.version = env!("CARGO_PKG_VERSION").to_string();
+    doc.info.license = None;
+    for o in OPERATIONS {
+        doc.paths
+            .add_path_operation(o.path, vec![method(o.method)], operation(o));
+    }
+    let components = doc.components.get_or_insert_with(Default::default);
+    components.add_security_scheme(
+        "bearer",
+        SecurityScheme::Http(
+            HttpBuilder::new()
+                .scheme(HttpAuthScheme::Bearer)
+                .description(Some(
+                    "A token of `skein token create`; GET requests may give it as the \
+                     `token` query parameter instead",
+                ))
+                .build(),
+        ),
+    );
+    crate::responses::add_schemas(components);
+    doc
+}
+
+/// The contract as JSON (built once).
+pub fn document() -> &'static str {
+    static DOC: OnceLock<String> = OnceLock::new();
+    DOC.get_or_init(|| build().to_json().expect("the OpenAPI document serialises"))
+}
+
+/// `GET /api/v1/openapi.json`.
+pub async fn serve() -> axum::response::Response {
+    use axum::response::IntoResponse;
+    (
+        [(axum::http::header::CONTENT_TYPE, "application/json")],
+        document(),
+    )
+        .into_response()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::Value;
+
+    fn spec() -> Value {
+        serde_json::from_str(document()).unwrap()
+    }
+
+    #[test]
+    fn the_document_is_openapi_3_1_with_every_operation() {
+        let v = spec();
+        assert!(
+            v["openapi"].as_str().unwrap().starts_with("3.1"),
+            "{}",
+            v["openapi"]
+        );
+        for o in OPERATIONS {
+            let op = &v["paths"][o.path][o.method.to_lowercase()];
+            assert!(op.is_object(), "{} {} missing", o.method, o.path);
+            for (status, _) in o.ok {
+                assert!(op["responses"][status.to_string()].is_object());
+            }
+        }
+        // Every schema referred to exists.
+        let text = document();
+        for part in text.split("\"$ref\":\"#/components/schemas/").skip(1) {
+            let name = part.split('"').next().unwrap();
+            assert!(
+                v["components"]["schemas"][name].is_object(),
+                "schema {name} referred to but missing"
+            );
+        }
+        assert_eq!(
+            v["components"]["securitySchemes"]["bearer"]["scheme"],
+            "bearer"
+        );
+        assert_eq!(
+            v["paths"]["/api/v1/vehicles/{id}/commands"]["post"]["responses"]["401"]["content"]["application/json"]
+                ["schema"]["$ref"],
+            "#/components/schemas/ErrorBody"
+        );
+    }
+
+    #[test]
+    fn operations_and_the_auth_table_name_the_same_routes() {
+        for o in OPERATIONS {
+            let route = route_of(o.path);
+            assert!(
+                auth::ROUTES
+                    .iter()
+                    .any(|(m, p, _)| *m == o.method && *p == route),
+                "{} {} is not in auth::ROUTES",
+                o.method,
+                o.path
+            );
+        }
+        for (m, p, _) in auth::ROUTES {
+            assert!(
+                OPERATIONS
+                    .iter()
+                    .any(|o| o.method == *m && route_of(o.path) == *p),
+                "{m} {p} of auth::ROUTES is not in the contract"
+            );
+        }
+    }
+
+    /// The method + path pairs of the first table of docs/api.md.
+    fn documented() -> Vec<(String, String)> {
+        let text =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/api.md"))
+                .unwrap();
+        let mut rows = Vec::new();
+        let table = text
+            .lines()
+            .skip_while(|l| !l.starts_with("| method | path |"))
+            .skip(2)
+            .take_while(|l| l.starts_with('|'));
+        for line in table {
+            let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+            let path = cells[2].trim_matches('`');
+            for m in cells[1].split('/').map(str::trim) {
+                rows.push((m.to_string(), path.to_string()));
+            }
+        }
+        rows
+    }
+
+    #[test]
+    fn docs_api_md_lists_every_operation_and_nothing_else() {
+        let docs = documented();
+        assert!(docs.len() > 20, "{docs:?}");
+        let spec = spec();
+        for (m, p) in &docs {
+            assert!(
+                spec["paths"][p.as_str()][m.to_lowercase()].is_object(),
+                "docs/api.md lists {m} {p}, which the contract has not"
+            );
+        }
+        let paths = spec["paths"].as_object().unwrap();
+        for (p, item) in paths {
+            for m in item.as_object().unwrap().keys() {
+                let m = m.to_uppercase();
+                assert!(
+                    docs.iter().any(|(dm, dp)| *dm == m && dp == p),
+                    "the contract has {m} {p}, which docs/api.md does not list"
+                );
+            }
+        }
+    }
+}
