@@ -127,7 +127,8 @@ fn a_plugin_loaded_at_run_time_reaches_waiting_slots_and_payloads_attach_in_flig
         "/api/v1/vehicles/uav-1/payloads/lamp",
         json!({"command": "ping"}),
     );
-    assert_eq!(status, 503, "{body}");
+    assert_eq!(status, 409, "{body}");
+    assert_eq!(body["field"], "slot", "{body}");
     assert!(
         body["error"].as_str().unwrap().contains("kind `lamp`"),
         "{body}"

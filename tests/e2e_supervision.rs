@@ -245,7 +245,8 @@ fn spent_budgets_escalate_a_payload_is_disabled_and_a_vehicle_is_held() {
         "/api/v1/vehicles/uav-1/payloads/fixture",
         json!({"action": "echo"}),
     );
-    assert_eq!(status, 503, "a disabled payload is refused: {body}");
+    assert_eq!(status, 409, "a disabled payload is refused: {body}");
+    assert_eq!(body["field"], "slot", "{body}");
 
     // A Vehicle actor failing faster than its budget: commanded HOLD through a
     // safe-mode link, marked failed. The CLI form of fault injection does the second.

@@ -212,7 +212,7 @@ pub const OPERATIONS: &[Operation] = &[
         "Read a PX4 parameter (PARAM_REQUEST_READ)",
         Body::None,
         &[(200, Json("ParamValue"))],
-        &[400, 404, 409, 503, 504],
+        &[400, 404, 409, 503],
     ),
     op(
         "PUT",
@@ -220,7 +220,7 @@ pub const OPERATIONS: &[Operation] = &[
         "Write a PX4 parameter (PARAM_SET), answered with the value PX4 confirms",
         Body::Json("ParamValueRequest"),
         &[(200, Json("ParamValue"))],
-        &[400, 404, 409, 503, 504],
+        &[400, 404, 409, 503],
     ),
     op(
         "POST",
@@ -474,18 +474,21 @@ fn status_text(status: u16) -> &'static str {
         422 => "Not a loadable plugin (the error names the file and what differs)",
         429 => "Too many failed token attempts from this address (Retry-After)",
         503 => "The coordinator, the vehicle's link or the payload is not available",
-        504 => "The vehicle did not answer in time",
         _ => "",
     }
 }
 
-/// The description of a path parameter.
-fn parameter_description(name: &str) -> &'static str {
+/// The description and an example of a path parameter (the examples name what a
+/// `skein up --sim 3` has: uav-2 is an observation vehicle with a gimbal).
+fn parameter_description(name: &str) -> (&'static str, &'static str) {
     match name {
-        "id" => "Vehicle id (`uav-1`)",
-        "name" => "PX4 parameter name, 1 to 16 ASCII characters (`MPC_XY_VEL_MAX`)",
-        "slot" => "Payload slot (`camera`)",
-        _ => "",
+        "id" => ("Vehicle id (`uav-1`)", "uav-2"),
+        "name" => (
+            "PX4 parameter name, 1 to 16 ASCII characters (`MPC_XY_VEL_MAX`)",
+            "MPC_XY_VEL_MAX",
+        ),
+        "slot" => ("Payload slot (`camera`)", "gimbal"),
+        _ => ("", ""),
     }
 }
 
@@ -509,9 +512,11 @@ fn operation(o: &Operation) -> utoipa::openapi::path::Operation {
         .split('/')
         .filter_map(|s| s.strip_prefix('{').and_then(|s| s.strip_suffix('}')))
     {
+        let (description, example) = parameter_description(name);
         let mut schema = ObjectBuilder::new()
             .schema_type(Type::String)
-            .min_length(Some(1));
+            .min_length(Some(1))
+            .examples([example]);
         if name == "name" {
             schema = schema.max_length(Some(16));
         }
@@ -520,7 +525,7 @@ fn operation(o: &Operation) -> utoipa::openapi::path::Operation {
                 .name(name)
                 .parameter_in(ParameterIn::Path)
                 .required(Required::True)
-                .description(Some(parameter_description(name)))
+                .description(Some(description))
                 .schema(Some(schema)),
         );
     }

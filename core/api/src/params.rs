@@ -43,10 +43,22 @@ fn param_json(name: &str, v: skein_mavlink::param::ParamValue) -> Response {
     .into_response()
 }
 
-fn link_error(e: skein_link::LinkError) -> ApiError {
+/// A parameter exchange that failed. The link answers [`LinkError::NoLink`] when the
+/// vehicle is not heard; a timeout with the vehicle heard means it did not answer for
+/// this name after every resend, which is what PX4 does for a parameter it does not have:
+/// 404 naming `name`.
+fn link_error(name: &str, e: skein_link::LinkError) -> ApiError {
     use skein_link::LinkError;
     let status = match &e {
-        LinkError::Timeout { .. } => StatusCode::GATEWAY_TIMEOUT,
+        LinkError::Timeout { .. } => {
+            return ApiError {
+                status: StatusCode::NOT_FOUND,
+                error: format!(
+                    "the vehicle did not answer for parameter `{name}` ({e}): PX4 answers nothing for a parameter it does not have"
+                ),
+                field: Some("name".into()),
+            };
+        }
         LinkError::Rejected { .. } | LinkError::ModeNotConfirmed { .. } => StatusCode::CONFLICT,
         LinkError::NoLink | LinkError::Send(_) => StatusCode::SERVICE_UNAVAILABLE,
     };
@@ -102,7 +114,7 @@ pub(crate) async fn get_param(
         .await
     {
         Ok(ractor::rpc::CallResult::Success(Ok(v))) => Ok(param_json(&name, v)),
-        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(e)),
+        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(&name, e)),
         _ => Err(ApiError::unavailable(format!(
             "the link of `{id}` did not answer"
         ))),
@@ -126,7 +138,7 @@ pub(crate) async fn put_param(
         .await
     {
         Ok(ractor::rpc::CallResult::Success(Ok(v))) => Ok(param_json(&name, v)),
-        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(e)),
+        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(&name, e)),
         _ => Err(ApiError::unavailable(format!(
             "the link of `{id}` did not answer"
         ))),

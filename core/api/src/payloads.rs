@@ -19,13 +19,15 @@ use skein_swarm::payload::PayloadCommandError;
 
 pub use crate::requests::payloads::parse_attach;
 
-/// The HTTP answer for a payload request that got no answer from the payload: 404, 503,
-/// 400 (a plugin's refusal names the field as `"field: message"` by convention), 400 or
-/// 409 naming the field.
+/// The HTTP answer for a payload request that got no answer from the payload: 404; 409
+/// naming `slot` when the payload (or its vehicle) is not running, a state of the
+/// resource, not a fault of the server (failed, disabled, restarting, waiting for a
+/// plugin; the message says which); 400 (a plugin's refusal names the field as
+/// `"field: message"` by convention); 400 or 409 naming the field.
 pub fn payload_error(e: PayloadCommandError) -> ApiError {
     match e {
         PayloadCommandError::NotFound(why) => ApiError::not_found(why),
-        PayloadCommandError::Unavailable(why) => ApiError::unavailable(why),
+        PayloadCommandError::Unavailable(why) => ApiError::conflict(why, Some("slot")),
         PayloadCommandError::Refused(why) => {
             let field = why
                 .split_once(':')
@@ -70,6 +72,9 @@ mod tests {
         let e = payload_error(PayloadCommandError::Refused("on: must be a boolean".into()));
         assert_eq!(e.field.as_deref(), Some("on"));
         let e = payload_error(PayloadCommandError::Unavailable("waiting".into()));
-        assert_eq!(e.status, StatusCode::SERVICE_UNAVAILABLE);
+        assert_eq!(
+            (e.status, e.field.as_deref()),
+            (StatusCode::CONFLICT, Some("slot"))
+        );
     }
 }

@@ -130,8 +130,8 @@ pub struct PayloadView {
     pub status: Option<skein_model::supervision::ChildStatus>,
     /// The kind it waits for a provider of, while it waits.
     pub waiting_for: Option<String>,
-    /// The payload's own published state.
-    #[schema(value_type = Object)]
+    /// The payload's own published state; null while no driver runs.
+    #[schema(value_type = Option<Object>)]
     pub state: serde_json::Value,
     /// Frames published so far.
     pub frames: u64,

@@ -9,6 +9,13 @@ use skein_swarm::FormationSpec;
 use skein_swarm::formation::FormationFrame;
 use utoipa::ToSchema;
 
+/// Largest slot spacing and custom offset, metres: a formation wider than a kilometre is
+/// a typo (and distances to slots at 1e300 m overflow).
+pub const MAX_FORMATION_M: f64 = 1000.0;
+
+/// Largest formation altitude above or below the swarm origin, metres.
+pub const MAX_ALTITUDE_M: f64 = 10_000.0;
+
 /// A formation request; only `shape` is always required (`spacing_m` too, except for
 /// `custom`).
 #[derive(Debug, Clone, PartialEq, Deserialize, ToSchema)]
@@ -19,14 +26,15 @@ pub struct FormationRequest {
     pub shape: Shape,
     /// Distance between neighbouring slots, metres, above 0 (at least √2 × (minimum
     /// separation + tracking margin), 4.95 m by default); required except for `custom`.
-    #[schema(exclusive_minimum = 0.0)]
+    #[schema(exclusive_minimum = 0.0, maximum = 1000.0)]
     pub spacing_m: Option<f64>,
     /// A vehicle id, `"virtual"` (a point the operator drives), or absent (the first
     /// member by id).
     pub leader: Option<String>,
     /// Formation heading, degrees clockwise from north (`world` frame); default 0.
     pub heading_deg: Option<f64>,
-    /// Altitude above the swarm origin, metres; default: the leader's.
+    /// Altitude above the swarm origin, metres, within ±10 000; default: the leader's.
+    #[schema(minimum = -10000.0, maximum = 10000.0)]
     pub altitude_m: Option<f64>,
     /// `world` (fixed at `heading_deg`, the default) or `leader` (turns with the
     /// leader's heading).
@@ -40,11 +48,14 @@ pub struct FormationRequest {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct OffsetRequest {
-    /// Ahead of the leader, metres (negative: behind).
+    /// Ahead of the leader, metres (negative: behind), within ±1000.
+    #[schema(minimum = -1000.0, maximum = 1000.0)]
     pub forward_m: f64,
-    /// Right of the leader, metres (negative: left).
+    /// Right of the leader, metres (negative: left), within ±1000.
+    #[schema(minimum = -1000.0, maximum = 1000.0)]
     pub right_m: f64,
-    /// Below the leader, metres (negative: above); default 0.
+    /// Below the leader, metres (negative: above), within ±1000; default 0.
+    #[schema(minimum = -1000.0, maximum = 1000.0)]
     pub down_m: Option<f64>,
 }
 
@@ -54,9 +65,36 @@ impl FormationRequest {
     ///
     /// # Errors
     /// 400 naming `spacing_m` when it is missing or not above 0 for a shape other than
-    /// `custom`.
+    /// `custom`, or above [`MAX_FORMATION_M`]; `altitude_m` beyond [`MAX_ALTITUDE_M`];
+    /// `offsets[i].forward_m` (…) beyond [`MAX_FORMATION_M`].
     pub fn into_spec(self) -> Result<FormationSpec, ApiError> {
         let custom = self.shape == Shape::Custom;
+        if let Some(s) = self.spacing_m.filter(|s| *s > MAX_FORMATION_M) {
+            return Err(ApiError::field(
+                "spacing_m",
+                format!("spacing_m must be at most {MAX_FORMATION_M} m, got {s}"),
+            ));
+        }
+        if let Some(a) = self.altitude_m.filter(|a| a.abs() > MAX_ALTITUDE_M) {
+            return Err(ApiError::field(
+                "altitude_m",
+                format!("altitude_m must be within ±{MAX_ALTITUDE_M} m, got {a}"),
+            ));
+        }
+        for (i, o) in self.offsets.iter().flatten().enumerate() {
+            let parts = [
+                ("forward_m", o.forward_m),
+                ("right_m", o.right_m),
+                ("down_m", o.down_m.unwrap_or(0.0)),
+            ];
+            if let Some((name, v)) = parts.iter().find(|(_, v)| v.abs() > MAX_FORMATION_M) {
+                let field = format!("offsets[{i}].{name}");
+                return Err(ApiError::field(
+                    &field,
+                    format!("{field} must be within ±{MAX_FORMATION_M} m, got {v}"),
+                ));
+            }
+        }
         let spacing_m = match (self.spacing_m, custom) {
             (Some(s), false) if s <= 0.0 => {
                 return Err(ApiError::field(
@@ -158,6 +196,23 @@ mod tests {
         assert_eq!(
             field_of(formation(br#"{"shape":"line","spacing_m":5,"spacing":3}"#)),
             "spacing"
+        );
+        // Found by schemathesis: slots at 1e303 m made the status's distances overflow.
+        assert_eq!(
+            field_of(formation(br#"{"shape":"line","spacing_m":5.7e303}"#)),
+            "spacing_m"
+        );
+        assert_eq!(
+            field_of(formation(
+                br#"{"shape":"line","spacing_m":5,"altitude_m":-1e20}"#
+            )),
+            "altitude_m"
+        );
+        assert_eq!(
+            field_of(formation(
+                br#"{"shape":"custom","offsets":[{"forward_m":1,"right_m":3},{"forward_m":1,"right_m":3,"down_m":2e9}]}"#
+            )),
+            "offsets[1].down_m"
         );
     }
 }
