@@ -22,7 +22,7 @@ use crate::requests::{
     plugins::{LoadRequest, ReloadRequest, UnloadRequest},
 };
 use crate::responses::{
-    Cleared, ErrorBody, FaultInjected, ParamEntry, ParamValue, PayloadView, PluginsListing,
+    Cleared, Detached, ErrorBody, FaultInjected, ParamEntry, ParamValue, PayloadView, PluginsListing,
     ShapeInfo,
 };
 use std::sync::OnceLock;
@@ -66,6 +66,7 @@ use utoipa::openapi::{Content, RefOr, Required, ResponseBuilder};
         ParamValue,
         PluginsListing,
         PayloadView,
+        Detached,
         auth::Identity,
         skein_model::vehicle::VehicleSnapshot,
         skein_model::safety::Geofence,
@@ -323,7 +324,7 @@ pub const OPERATIONS: &[Operation] = &[
         "/api/v1/vehicles/{id}/payloads/{slot}",
         "Detach a payload (until restart), after its driver's shutdown ran",
         Body::None,
-        &[(200, JsonObject)],
+        &[(200, Json("Detached"))],
         &[404, 409, 503],
     ),
     op(

@@ -29,18 +29,30 @@ async fn link_of(s: &ApiState, id: &str) -> Result<ActorRef<skein_link::Px4LinkM
     }
 }
 
-fn param_json(name: &str, v: skein_mavlink::param::ParamValue) -> Response {
+/// The answer for a parameter value: an integer for `int32`, a number for `real32`.
+///
+/// # Errors
+/// 502 for a non-finite `real32` (JSON has no NaN; PX4 sends none).
+fn param_json(name: &str, v: skein_mavlink::param::ParamValue) -> Result<Response, ApiError> {
     use skein_mavlink::param::ParamValue;
     let (value, param_type) = match v {
-        ParamValue::Int32(i) => (f64::from(i), "int32"),
-        ParamValue::Real32(f) => (f64::from(f), "real32"),
+        ParamValue::Int32(i) => (serde_json::Number::from(i), "int32"),
+        ParamValue::Real32(f) => (
+            serde_json::Number::from_f64(f64::from(f)).ok_or_else(|| {
+                ApiError::status(
+                    StatusCode::BAD_GATEWAY,
+                    format!("the vehicle sent `{name}` = {f}, not a finite number"),
+                )
+            })?,
+            "real32",
+        ),
     };
-    Json(responses::ParamValue {
+    Ok(Json(responses::ParamValue {
         name: name.to_string(),
         value,
         param_type,
     })
-    .into_response()
+    .into_response())
 }
 
 /// A parameter exchange that failed. The link answers [`LinkError::NoLink`] when the
@@ -113,7 +125,7 @@ pub(crate) async fn get_param(
         )
         .await
     {
-        Ok(ractor::rpc::CallResult::Success(Ok(v))) => Ok(param_json(&name, v)),
+        Ok(ractor::rpc::CallResult::Success(Ok(v))) => param_json(&name, v),
         Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(&name, e)),
         _ => Err(ApiError::unavailable(format!(
             "the link of `{id}` did not answer"
@@ -137,7 +149,7 @@ pub(crate) async fn put_param(
         )
         .await
     {
-        Ok(ractor::rpc::CallResult::Success(Ok(v))) => Ok(param_json(&name, v)),
+        Ok(ractor::rpc::CallResult::Success(Ok(v))) => param_json(&name, v),
         Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(&name, e)),
         _ => Err(ApiError::unavailable(format!(
             "the link of `{id}` did not answer"

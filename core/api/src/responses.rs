@@ -50,7 +50,8 @@ pub struct ParamValue {
     /// Parameter name.
     pub name: String,
     /// Its value (an integer for `int32`).
-    pub value: f64,
+    #[schema(value_type = f64)]
+    pub value: serde_json::Number,
     /// `int32` or `real32` (MAV_PARAM_TYPE).
     #[serde(rename = "type")]
     #[schema(pattern = "^(int32|real32)$")]
@@ -175,4 +176,14 @@ pub fn add_schemas(components: &mut utoipa::openapi::Components) {
             *item = RefOr::T(Schema::Object(optional.clone()));
         }
     }
+}
+
+/// A payload detached (`DELETE …/payloads/{slot}`). Built by `skein_swarm`'s vehicle;
+/// documented here for the contract.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct Detached {
+    /// The slot that is gone.
+    pub detached: String,
+    /// Its payload kind.
+    pub kind: Option<String>,
 }
