@@ -416,7 +416,17 @@ pub fn run_peer(script: &str, args: &[&str], timeout: Duration) -> (Option<i32>,
 /// Runs the peers' Python ([`python`]) with `args` (a script, or `-m module ...`);
 /// returns (exit code, stdout, stderr). Kills it after `timeout`.
 pub fn run_python(args: &[&str], timeout: Duration) -> (Option<i32>, String, String) {
+    run_python_in(Path::new("."), args, timeout)
+}
+
+/// [`run_python`] in the directory `cwd` (for tools that leave caches where they run).
+pub fn run_python_in(
+    cwd: &Path,
+    args: &[&str],
+    timeout: Duration,
+) -> (Option<i32>, String, String) {
     let mut child = Command::new(python())
+        .current_dir(cwd)
         .args(args)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

@@ -22,8 +22,8 @@ use crate::requests::{
     plugins::{LoadRequest, ReloadRequest, UnloadRequest},
 };
 use crate::responses::{
-    Cleared, Detached, ErrorBody, FaultInjected, ParamEntry, ParamValue, PayloadView, PluginsListing,
-    ShapeInfo,
+    Cleared, Detached, ErrorBody, FaultInjected, ParamEntry, ParamValue, PayloadView,
+    PluginsListing, ShapeInfo,
 };
 use std::sync::OnceLock;
 use utoipa::OpenApi;
