@@ -452,6 +452,7 @@ async fn payload_command(
     body: Bytes,
 ) -> Result<Response, ApiError> {
     let cmd = serde_json::Value::Object(requests::object(&body)?);
+    payloads::require_running(&s, &id, &slot).await?;
     match s
         .ask(move |r| CoordinatorMsg::PayloadCommand(id, slot, cmd, r))
         .await?

@@ -13,21 +13,52 @@
 //! Both last until skein restarts: the vehicle model (`skein up --config`) is what a
 //! restart starts from.
 
+use crate::ApiState;
 use crate::error::ApiError;
 use axum::http::StatusCode;
+use skein_swarm::CoordinatorMsg;
 use skein_swarm::payload::PayloadCommandError;
 
 pub use crate::requests::payloads::parse_attach;
 
-/// The HTTP answer for a payload request that got no answer from the payload: 404; 409
-/// naming `slot` when the payload (or its vehicle) is not running, a state of the
-/// resource, not a fault of the server (failed, disabled, restarting, waiting for a
-/// plugin; the message says which); 400 (a plugin's refusal names the field as
-/// `"field: message"` by convention); 400 or 409 naming the field.
+/// Refuses a command to a payload that is not running (`waiting_for_plugin`, `failed`,
+/// `stopped`, `restarting`): 409 naming `slot`, a state of the resource the caller can
+/// see in `GET …/payloads` (and the message says which), not a failure of the server.
+/// A payload that fails or hangs on the command itself is a 503 ([`payload_error`]).
+///
+/// # Errors
+/// 404 for an unknown vehicle, 409 as above, 503 without an answer from the coordinator.
+pub async fn require_running(s: &ApiState, id: &str, slot: &str) -> Result<(), ApiError> {
+    let id2 = id.to_string();
+    let Some(vehicle) = s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r)).await? else {
+        return Err(ApiError::not_found(format!("no vehicle `{id}`")));
+    };
+    let Some(p) = vehicle.payloads.iter().find(|p| p["slot"] == slot) else {
+        return Ok(()); // the vehicle answers 404 naming its slots
+    };
+    match p["status"].as_str() {
+        None | Some("running") => Ok(()),
+        Some(status) => {
+            let why = p["waiting_for"]
+                .as_str()
+                .map(|w| format!(": {w}"))
+                .unwrap_or_default();
+            Err(ApiError::conflict(
+                format!("payload `{slot}` of {id} is not running ({status}){why}"),
+                Some("slot"),
+            ))
+        }
+    }
+}
+
+/// The HTTP answer for a payload request that got no answer from the payload: 404, 503
+/// (it failed or hung handling the command, or stopped running meanwhile; a payload known
+/// not to be running is refused before, see [`require_running`]), 400 (a plugin's refusal names the field as `"field: message"`
+/// by convention), 400 or 409 naming the field.
 pub fn payload_error(e: PayloadCommandError) -> ApiError {
     match e {
         PayloadCommandError::NotFound(why) => ApiError::not_found(why),
-        PayloadCommandError::Unavailable(why) => ApiError::conflict(why, Some("slot")),
+        PayloadCommandError::Unavailable(why) => ApiError::unavailable(why),
         PayloadCommandError::Refused(why) => {
             let field = why
                 .split_once(':')
@@ -72,9 +103,6 @@ mod tests {
         let e = payload_error(PayloadCommandError::Refused("on: must be a boolean".into()));
         assert_eq!(e.field.as_deref(), Some("on"));
         let e = payload_error(PayloadCommandError::Unavailable("waiting".into()));
-        assert_eq!(
-            (e.status, e.field.as_deref()),
-            (StatusCode::CONFLICT, Some("slot"))
-        );
+        assert_eq!(e.status, StatusCode::SERVICE_UNAVAILABLE);
     }
 }
