@@ -25,7 +25,7 @@
 
 use crate::error::ApiError;
 use crate::requests;
-use crate::responses::{PluginsListing, ProviderEntry, RefusedFile};
+use crate::responses::{PluginsListing, ProviderEntry, RefusedFile, Reloaded};
 use axum::http::StatusCode;
 use serde_json::{Value, json};
 use skein_payload::PayloadFactory;
@@ -242,12 +242,13 @@ pub async fn reload(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Val
     let pl = plugins.ok_or_else(no_host)?;
     let m = pl.manager.clone();
     match blocking(move || m.reload(&name)).await? {
-        Ok(report) => Ok(json!({
-            "library": library_json(&report.library, Some(report.library.generation)),
-            "previous_version": report.previous_version,
-            "previous_generation": report.previous_generation,
-            "stale_instances": report.stale_instances,
-        })),
+        Ok(report) => Ok(serde_json::to_value(Reloaded {
+            library: library_json(&report.library, Some(report.library.generation)),
+            previous_version: report.previous_version,
+            previous_generation: report.previous_generation,
+            stale_instances: report.stale_instances,
+        })
+        .unwrap_or(Value::Null)),
         Err(e) => {
             if let HostError::Load { file, .. }
             | HostError::NotAPlugin { file, .. }

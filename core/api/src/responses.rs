@@ -96,10 +96,9 @@ pub struct PluginsListing {
     /// The plugin directory; null without a plugin host.
     #[schema(value_type = Option<String>)]
     pub plugin_dir: Option<std::path::PathBuf>,
-    /// Loaded libraries: `name`, `version`, `kinds`, `file`, `generation`, `status`
-    /// (`loaded` | `superseded` | `unloading`), `instances` (each with `status`
-    /// `running` | `stale`), `abi_version`, `build_stamp`, `loaded_at_unix_ms`.
-    #[schema(value_type = Vec<Object>)]
+    /// Loaded libraries; each instance also has a `status`: `running`, or `stale` while
+    /// it runs a replaced generation.
+    #[schema(value_type = Vec<skein_plugin_host::LibraryInfo>)]
     pub libraries: Vec<serde_json::Value>,
     /// Every payload provider the vehicles use.
     pub providers: Vec<ProviderEntry>,
@@ -125,7 +124,7 @@ pub struct PayloadView {
     /// Its build generation (0: built-in).
     pub generation: Option<u64>,
     /// `in_process` or `process`.
-    pub isolation: IsolationName,
+    pub isolation: skein_payload::Isolation,
     /// Supervision status (`running`, `restarting`, `failed`, `stopped`,
     /// `waiting_for_plugin`); null before the first report.
     pub status: Option<skein_model::supervision::ChildStatus>,
@@ -136,16 +135,6 @@ pub struct PayloadView {
     pub state: serde_json::Value,
     /// Frames published so far.
     pub frames: u64,
-}
-
-/// How a payload is hosted, as listed.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, ToSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum IsolationName {
-    /// In the skein process.
-    InProcess,
-    /// In a `skein plugin-host` child process.
-    Process,
 }
 
 /// Adds what the derives cannot say to the contract's schemas.
@@ -186,4 +175,18 @@ pub struct Detached {
     pub detached: String,
     /// Its payload kind.
     pub kind: Option<String>,
+}
+
+/// `POST /api/v1/plugins/reload`.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct Reloaded {
+    /// The library, on its new build (instances as in the listing).
+    #[schema(value_type = skein_plugin_host::LibraryInfo)]
+    pub library: serde_json::Value,
+    /// The replaced version.
+    pub previous_version: String,
+    /// The replaced generation.
+    pub previous_generation: u64,
+    /// Instances still running the replaced generation (the vehicles re-create them).
+    pub stale_instances: Vec<skein_plugin_host::InstanceRecord>,
 }

@@ -22,12 +22,12 @@ use crate::requests::{
         PointRequest,
     },
     params::ParamValueRequest,
-    payloads::{AttachRequest, IsolationRequest},
+    payloads::AttachRequest,
     plugins::{LoadRequest, ReloadRequest, UnloadRequest},
 };
 use crate::responses::{
     Cleared, Detached, ErrorBody, FaultInjected, ParamEntry, ParamValue, PayloadView,
-    PluginsListing, ShapeInfo,
+    PluginsListing, Reloaded, ShapeInfo,
 };
 use std::sync::OnceLock;
 use utoipa::OpenApi;
@@ -58,7 +58,6 @@ use utoipa::openapi::{Content, RefOr, Required, ResponseBuilder};
         LeaderHoldRequest,
         ParamValueRequest,
         AttachRequest,
-        IsolationRequest,
         LoadRequest,
         UnloadRequest,
         ReloadRequest,
@@ -71,6 +70,8 @@ use utoipa::openapi::{Content, RefOr, Required, ResponseBuilder};
         PluginsListing,
         PayloadView,
         Detached,
+        Reloaded,
+        skein_plugin_host::LibraryInfo,
         auth::Identity,
         skein_model::vehicle::VehicleSnapshot,
         skein_model::safety::Geofence,
@@ -198,7 +199,6 @@ fn operation(o: &Operation) -> utoipa::openapi::path::Operation {
                 "application/json",
                 json(ArrayBuilder::new().items(schema_ref(s)).build()),
             ),
-            Answer::JsonObject => r.content("application/json", json(object())),
             Answer::AnyJson => r.content(
                 "application/json",
                 json(Schema::Object(ObjectBuilder::new().build())),

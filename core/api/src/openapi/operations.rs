@@ -8,8 +8,6 @@ pub enum Answer {
     Json(&'static str),
     /// A JSON array of the named schema.
     JsonArray(&'static str),
-    /// A JSON object of no fixed shape (a payload's own answer).
-    JsonObject,
     /// Any JSON (the OpenAPI document itself).
     AnyJson,
     /// Text of this media type.
@@ -69,7 +67,7 @@ const fn op(
     }
 }
 
-use Answer::{Json, JsonArray, JsonObject};
+use Answer::{Json, JsonArray};
 
 /// Every operation of the API.
 pub const OPERATIONS: &[Operation] = &[
@@ -278,7 +276,7 @@ pub const OPERATIONS: &[Operation] = &[
         "/api/v1/plugins/load",
         "Load a plugin library from the plugin directory",
         Body::Json("LoadRequest"),
-        &[(200, JsonObject)],
+        &[(200, Json("LibraryInfo"))],
         &[400, 403, 409, 422, 503],
     ),
     op(
@@ -286,7 +284,7 @@ pub const OPERATIONS: &[Operation] = &[
         "/api/v1/plugins/unload",
         "Unload a plugin library (force: stop its instances first)",
         Body::Json("UnloadRequest"),
-        &[(200, JsonObject)],
+        &[(200, Json("LibraryInfo"))],
         &[400, 404, 409, 503],
     ),
     op(
@@ -294,7 +292,7 @@ pub const OPERATIONS: &[Operation] = &[
         "/api/v1/plugins/reload",
         "Reload a plugin library from its file; its instances move to the new build",
         Body::Json("ReloadRequest"),
-        &[(200, JsonObject)],
+        &[(200, Json("Reloaded"))],
         &[400, 404, 409, 422, 503],
     ),
     op(

@@ -7,25 +7,6 @@ use serde_json::{Map, Value};
 use skein_payload::{Isolation, PayloadSpec};
 use utoipa::ToSchema;
 
-/// How an attached payload is hosted.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, ToSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum IsolationRequest {
-    /// Loaded into the skein process (the default).
-    InProcess,
-    /// In a `skein plugin-host` child process.
-    Process,
-}
-
-impl From<IsolationRequest> for Isolation {
-    fn from(i: IsolationRequest) -> Isolation {
-        match i {
-            IsolationRequest::InProcess => Isolation::InProcess,
-            IsolationRequest::Process => Isolation::Process,
-        }
-    }
-}
-
 /// An attach request.
 #[derive(Debug, Clone, PartialEq, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -39,7 +20,7 @@ pub struct AttachRequest {
     /// The plugin to take it from; default: any that provides `kind`.
     pub plugin: Option<String>,
     /// Hosting; default `in_process`.
-    pub isolation: Option<IsolationRequest>,
+    pub isolation: Option<Isolation>,
     /// The plugin's configuration (a JSON object, passed at creation).
     #[schema(value_type = Option<Object>)]
     pub config: Option<Map<String, Value>>,
@@ -62,7 +43,7 @@ impl AttachRequest {
             slot,
             kind: non_empty("kind", self.kind)?,
             plugin: self.plugin.map(|p| non_empty("plugin", p)).transpose()?,
-            isolation: self.isolation.map(Isolation::from).unwrap_or_default(),
+            isolation: self.isolation.unwrap_or_default(),
             config: self.config.map_or(Value::Null, Value::Object),
         })
     }
