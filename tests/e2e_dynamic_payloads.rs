@@ -127,7 +127,12 @@ fn a_plugin_loaded_at_run_time_reaches_waiting_slots_and_payloads_attach_in_flig
         "/api/v1/vehicles/uav-1/payloads/lamp",
         json!({"command": "ping"}),
     );
-    assert_eq!(status, 503, "{body}");
+    // Not running: a state of the payload, refused naming the slot (and why).
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (409, Some("slot")),
+        "{body}"
+    );
     assert!(
         body["error"].as_str().unwrap().contains("kind `lamp`"),
         "{body}"

@@ -245,7 +245,11 @@ fn spent_budgets_escalate_a_payload_is_disabled_and_a_vehicle_is_held() {
         "/api/v1/vehicles/uav-1/payloads/fixture",
         json!({"action": "echo"}),
     );
-    assert_eq!(status, 503, "a disabled payload is refused: {body}");
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (409, Some("slot")),
+        "a disabled payload is refused: {body}"
+    );
 
     // A Vehicle actor failing faster than its budget: commanded HOLD through a
     // safe-mode link, marked failed. The CLI form of fault injection does the second.

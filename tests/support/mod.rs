@@ -407,13 +407,31 @@ pub fn python() -> PathBuf {
 /// Runs a peer script `tests/peers/<script>` with `args`; returns (exit code, stdout,
 /// stderr). Kills it after `timeout`.
 pub fn run_peer(script: &str, args: &[&str], timeout: Duration) -> (Option<i32>, String, String) {
+    let script = workspace().join("tests/peers").join(script);
+    let mut all = vec![script.to_str().expect("UTF-8 path")];
+    all.extend_from_slice(args);
+    run_python(&all, timeout)
+}
+
+/// Runs the peers' Python ([`python`]) with `args` (a script, or `-m module ...`);
+/// returns (exit code, stdout, stderr). Kills it after `timeout`.
+pub fn run_python(args: &[&str], timeout: Duration) -> (Option<i32>, String, String) {
+    run_python_in(Path::new("."), args, timeout)
+}
+
+/// [`run_python`] in the directory `cwd` (for tools that leave caches where they run).
+pub fn run_python_in(
+    cwd: &Path,
+    args: &[&str],
+    timeout: Duration,
+) -> (Option<i32>, String, String) {
     let mut child = Command::new(python())
-        .arg(workspace().join("tests/peers").join(script))
+        .current_dir(cwd)
         .args(args)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .expect("run python peer");
+        .expect("run python");
     let out = child.stdout.take().expect("stdout");
     let err = child.stderr.take().expect("stderr");
     let out_t = std::thread::spawn(move || std::io::read_to_string(out).unwrap_or_default());

@@ -32,9 +32,12 @@ use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 use subtle::ConstantTimeEq;
+use utoipa::ToSchema;
 
 /// What a token may do. Ordered: each role can do what the ones below it can.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize, ToSchema,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum Role {
     /// Reads (every GET) and the WebSocket stream.
@@ -94,6 +97,8 @@ const ADMIN: Access = Access::Role(Role::Admin);
 /// tests read this one table; `docs/api.md` reproduces it.
 pub const ROUTES: &[(&str, &str, Access)] = &[
     ("GET", "/api/v1/health", Public),
+    // The contract holds no swarm data: tools read it without a token.
+    ("GET", "/api/v1/openapi.json", Public),
     ("GET", "/api/v1/auth/whoami", VIEWER),
     ("GET", "/api/v1/vehicles", VIEWER),
     ("GET", "/api/v1/vehicles/{id}", VIEWER),
@@ -133,6 +138,9 @@ pub const ROUTES: &[(&str, &str, Access)] = &[
     ("POST", "/api/v1/tracks/{id}/observe", OPERATOR),
     ("DELETE", "/api/v1/tracks/{id}/observe", OPERATOR),
     ("GET", "/api/v1/sim/truth", VIEWER),
+    ("GET", "/api/v1/recording", VIEWER),
+    ("POST", "/api/v1/recording/start", OPERATOR),
+    ("POST", "/api/v1/recording/stop", OPERATOR),
 ];
 
 /// The access a request needs: its (method, matched route) in [`ROUTES`]; `HEAD` as `GET`;
@@ -196,7 +204,7 @@ pub struct Auth {
 }
 
 /// Who made a request (an extension of authenticated requests).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, ToSchema)]
 pub struct Identity {
     /// Whether tokens are required at all.
     pub auth: bool,
@@ -363,11 +371,12 @@ pub fn verify(token: &str, hash: &str) -> bool {
     parse_hash(hash).is_some_and(|(salt, d)| bool::from(digest(&salt, token).ct_eq(&d)))
 }
 
-fn auth_error(status: StatusCode, error: String, extra: Option<(&str, &str)>) -> Response {
-    let mut body = serde_json::json!({"error": error, "field": "authorization"});
-    if let Some((k, v)) = extra {
-        body[k] = serde_json::Value::from(v);
-    }
+fn auth_error(status: StatusCode, error: String, required_role: Option<Role>) -> Response {
+    let body = crate::responses::ErrorBody {
+        error,
+        field: Some("authorization".into()),
+        required_role: required_role.map(|r| r.as_str().to_string()),
+    };
     let mut r = (status, Json(body)).into_response();
     if status == StatusCode::UNAUTHORIZED {
         r.headers_mut().insert(
@@ -454,7 +463,7 @@ pub async fn require(State(s): State<ApiState>, mut req: Request, next: Next) ->
                 "this needs the {needed} role; the token `{}` is {}",
                 t.name, t.role
             ),
-            Some(("required_role", needed.as_str())),
+            Some(needed),
         );
     }
     req.extensions_mut().insert(Identity {

@@ -1,9 +1,9 @@
-//! API errors: a status code and `{"error": "...", "field": "..."}`.
+//! API errors: a status code and `{"error": "...", "field": "..."}`
+//! ([`crate::responses::ErrorBody`]).
 
 use axum::Json;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
-use serde::Serialize;
 
 /// An error answered as JSON with a 4xx (or 5xx) status.
 #[derive(Debug, Clone, PartialEq)]
@@ -14,13 +14,6 @@ pub struct ApiError {
     pub error: String,
     /// The request field at fault, when there is one.
     pub field: Option<String>,
-}
-
-#[derive(Serialize)]
-struct Body<'a> {
-    error: &'a str,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    field: Option<&'a str>,
 }
 
 impl ApiError {
@@ -81,9 +74,10 @@ impl ApiError {
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        let body = Body {
-            error: &self.error,
-            field: self.field.as_deref(),
+        let body = crate::responses::ErrorBody {
+            error: self.error,
+            field: self.field,
+            required_role: None,
         };
         (self.status, Json(body)).into_response()
     }

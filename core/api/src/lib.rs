@@ -8,7 +8,8 @@
 //! needs `Authorization: Bearer <token>` with a role (see [`auth::ROUTES`]).
 //!
 //! Routes (all JSON):
-//! - `GET /api/v1/health` (the only route that never needs a token)
+//! - `GET /api/v1/health`, `GET /api/v1/openapi.json` (the contract, OpenAPI 3.1, see
+//!   [`openapi`]): the routes that never need a token
 //! - `GET /api/v1/auth/whoami`: `{"auth", "name", "role"}` of the caller's token
 //! - `GET /api/v1/vehicles`, `GET /api/v1/vehicles/{id}`
 //! - `POST /api/v1/vehicles/{id}/commands`, `POST /api/v1/swarm/commands`: `202` with
@@ -40,11 +41,14 @@
 
 pub mod auth;
 pub mod error;
+pub mod openapi;
 pub mod params;
 pub mod payloads;
 pub mod plugins;
+pub mod recording;
 pub mod replay;
 pub mod requests;
+pub mod responses;
 pub mod server;
 pub mod tls;
 pub mod tracks;
@@ -84,6 +88,7 @@ pub struct ApiState {
     geofence: Option<Arc<skein_model::safety::Geofence>>,
     auth: Arc<auth::Auth>,
     tls: Option<Arc<rustls::ServerConfig>>,
+    recorder: Option<Arc<skein_record::Recorder>>,
 }
 
 impl ApiState {
@@ -103,12 +108,20 @@ impl ApiState {
             geofence: None,
             auth: Arc::new(auth::Auth::disabled()),
             tls: None,
+            recorder: None,
         }
     }
 
     /// Serves HTTPS with this configuration (see [`tls::server_config`]) in [`ApiServer`].
     pub fn with_tls(mut self, config: Arc<rustls::ServerConfig>) -> Self {
         self.tls = Some(config);
+        self
+    }
+
+    /// Serves `/api/v1/recording` with this recorder (without it those answer 503), and
+    /// records the commands the API accepts while it records.
+    pub fn with_recorder(mut self, recorder: Arc<skein_record::Recorder>) -> Self {
+        self.recorder = Some(recorder);
         self
     }
 
@@ -134,6 +147,14 @@ impl ApiState {
     ) -> Self {
         self.plugins = Some(plugins::PluginsApi::new(manager, refused));
         self
+    }
+
+    /// Keeps an accepted command in the running recording, if any.
+    fn record_command(&self, command_id: u64, target: &str, body: &[u8]) {
+        if let Some(r) = &self.recorder {
+            let request = serde_json::from_slice(body).unwrap_or(serde_json::Value::Null);
+            r.record_command(Some(command_id), target, &request);
+        }
     }
 
     async fn ask<T: Send + 'static>(
@@ -181,6 +202,7 @@ async fn publish_telemetry(coordinator: ActorRef<CoordinatorMsg>, tx: broadcast:
 pub fn app(state: ApiState) -> Router {
     Router::new()
         .route("/api/v1/health", get(health))
+        .route("/api/v1/openapi.json", get(openapi::serve))
         .route("/api/v1/auth/whoami", get(auth::whoami))
         .route("/api/v1/vehicles", get(list_vehicles))
         .route("/api/v1/vehicles/{id}", get(get_vehicle))
@@ -229,6 +251,9 @@ pub fn app(state: ApiState) -> Router {
             post(tracks::observe).delete(tracks::stop_observing),
         )
         .route("/api/v1/sim/truth", get(tracks::sim_truth))
+        .route("/api/v1/recording", get(recording::status))
+        .route("/api/v1/recording/start", post(recording::start))
+        .route("/api/v1/recording/stop", post(recording::stop))
         .route("/api/{*rest}", axum::routing::any(api_not_found))
         // Every route above (not the dashboard's static files below) goes through auth.
         .route_layer(axum::middleware::from_fn_with_state(
@@ -286,28 +311,33 @@ async fn vehicle_command(
     Path(id): Path<String>,
     body: Bytes,
 ) -> Result<Response, ApiError> {
-    if requests::is_clear_hazard(&body)? {
-        let id2 = id.clone();
-        return match s.ask(move |r| CoordinatorMsg::ClearHazard(id2, r)).await? {
-            Ok(()) => Ok(Json(serde_json::json!({"cleared": id})).into_response()),
-            Err(None) => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
-            Err(Some(reason)) => Err(ApiError::conflict(reason, Some("command"))),
-        };
-    }
-    let cmd = requests::command(&body)?;
+    let cmd = match requests::commands::vehicle_command(&body)? {
+        requests::Command::Vehicle(cmd) => cmd,
+        requests::Command::ClearHazard => {
+            let id2 = id.clone();
+            return match s.ask(move |r| CoordinatorMsg::ClearHazard(id2, r)).await? {
+                Ok(()) => Ok(Json(responses::Cleared { cleared: id }).into_response()),
+                Err(None) => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
+                Err(Some(reason)) => Err(ApiError::conflict(reason, Some("command"))),
+            };
+        }
+    };
     let id2 = id.clone();
     match s
         .ask(move |r| CoordinatorMsg::VehicleCommand(id2, cmd, r))
         .await?
     {
-        Ok(outcome) => Ok(accepted(outcome)),
+        Ok(outcome) => {
+            s.record_command(outcome.command_id, &id, &body);
+            Ok(accepted(outcome))
+        }
         Err(None) => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
         Err(Some(reason)) => Err(ApiError::conflict(reason, Some("command"))),
     }
 }
 
 async fn swarm_command(State(s): State<ApiState>, body: Bytes) -> Result<Response, ApiError> {
-    let cmd: VehicleCommand = requests::command(&body)?;
+    let cmd: VehicleCommand = requests::commands::swarm_command(&body)?;
     let outcome = s.ask(move |r| CoordinatorMsg::SwarmCommand(cmd, r)).await?;
     if outcome.accepted.is_empty() {
         let error = if outcome.refused.is_empty() {
@@ -322,6 +352,7 @@ async fn swarm_command(State(s): State<ApiState>, body: Bytes) -> Result<Respons
         };
         return Err(ApiError::conflict(error, Some("command")));
     }
+    s.record_command(outcome.command_id, "swarm", &body);
     Ok(accepted(outcome))
 }
 
@@ -331,7 +362,7 @@ async fn get_formation(State(s): State<ApiState>) -> Result<Response, ApiError> 
 }
 
 async fn put_formation(State(s): State<ApiState>, body: Bytes) -> Result<Response, ApiError> {
-    let spec = requests::formation(&body)?;
+    let spec = requests::formation::formation(&body)?;
     match s
         .ask(move |r| CoordinatorMsg::SetFormation(spec, r))
         .await?
@@ -346,7 +377,7 @@ async fn leader_command(
     Path(command): Path<String>,
     body: Bytes,
 ) -> Result<Response, ApiError> {
-    let motion = requests::leader_motion(&command, &body)?;
+    let motion = requests::leader::leader_motion(&command, &body)?;
     match s
         .ask(move |r| CoordinatorMsg::LeaderMotion(motion, r))
         .await?
@@ -359,9 +390,12 @@ async fn leader_command(
 
 async fn shapes() -> Response {
     use skein_model::formation::Shape;
-    let list: Vec<serde_json::Value> = Shape::ALL
+    let list: Vec<responses::ShapeInfo> = Shape::ALL
         .iter()
-        .map(|s| serde_json::json!({"shape": s.name(), "min_vehicles": s.min_vehicles()}))
+        .map(|s| responses::ShapeInfo {
+            shape: *s,
+            min_vehicles: s.min_vehicles(),
+        })
         .collect();
     Json(list).into_response()
 }
@@ -411,7 +445,7 @@ async fn metrics(State(s): State<ApiState>) -> Result<Response, ApiError> {
 }
 
 async fn inject_fault(State(s): State<ApiState>, body: Bytes) -> Result<Response, ApiError> {
-    let (target, kind) = requests::fault(&body)?;
+    let (target, kind) = requests::faults::fault(&body)?;
     let t = target.clone();
     match s
         .ask(move |r| CoordinatorMsg::InjectFault(t, kind, r))
@@ -419,7 +453,7 @@ async fn inject_fault(State(s): State<ApiState>, body: Bytes) -> Result<Response
     {
         Ok(()) => Ok((
             StatusCode::ACCEPTED,
-            Json(serde_json::json!({"target": target, "kind": kind.name()})),
+            Json(responses::FaultInjected { target, kind }),
         )
             .into_response()),
         Err(skein_swarm::FaultError::Disabled) => Err(ApiError {
@@ -453,6 +487,7 @@ async fn payload_command(
     body: Bytes,
 ) -> Result<Response, ApiError> {
     let cmd = serde_json::Value::Object(requests::object(&body)?);
+    payloads::require_running(&s, &id, &slot).await?;
     match s
         .ask(move |r| CoordinatorMsg::PayloadCommand(id, slot, cmd, r))
         .await?

@@ -3,7 +3,7 @@
 //! once PX4's PARAM_VALUE arrives (resends included).
 
 use crate::error::ApiError;
-use crate::{ApiState, COORDINATOR_TIMEOUT, payloads, requests};
+use crate::{ApiState, COORDINATOR_TIMEOUT, payloads, requests, responses};
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::{Path, State};
@@ -29,19 +29,48 @@ async fn link_of(s: &ApiState, id: &str) -> Result<ActorRef<skein_link::Px4LinkM
     }
 }
 
-fn param_json(name: &str, v: skein_mavlink::param::ParamValue) -> Response {
+/// The answer for a parameter value: an integer for `int32`, a number for `real32`.
+///
+/// # Errors
+/// 502 for a non-finite `real32` (JSON has no NaN; PX4 sends none).
+fn param_json(name: &str, v: skein_mavlink::param::ParamValue) -> Result<Response, ApiError> {
     use skein_mavlink::param::ParamValue;
-    let (value, ty) = match v {
-        ParamValue::Int32(i) => (serde_json::json!(i), "int32"),
-        ParamValue::Real32(f) => (serde_json::json!(f64::from(f)), "real32"),
+    let (value, param_type) = match v {
+        ParamValue::Int32(i) => (serde_json::Number::from(i), "int32"),
+        ParamValue::Real32(f) => (
+            serde_json::Number::from_f64(f64::from(f)).ok_or_else(|| {
+                ApiError::status(
+                    StatusCode::BAD_GATEWAY,
+                    format!("the vehicle sent `{name}` = {f}, not a finite number"),
+                )
+            })?,
+            "real32",
+        ),
     };
-    Json(serde_json::json!({"name": name, "value": value, "type": ty})).into_response()
+    Ok(Json(responses::ParamValue {
+        name: name.to_string(),
+        value,
+        param_type,
+    })
+    .into_response())
 }
 
-fn link_error(e: skein_link::LinkError) -> ApiError {
+/// A parameter exchange that failed. The link answers [`LinkError::NoLink`] when the
+/// vehicle is not heard; a timeout with the vehicle heard means it did not answer for
+/// this name after every resend, which is what PX4 does for a parameter it does not have:
+/// 404 naming `name`.
+fn link_error(name: &str, e: skein_link::LinkError) -> ApiError {
     use skein_link::LinkError;
     let status = match &e {
-        LinkError::Timeout { .. } => StatusCode::GATEWAY_TIMEOUT,
+        LinkError::Timeout { .. } => {
+            return ApiError {
+                status: StatusCode::NOT_FOUND,
+                error: format!(
+                    "the vehicle did not answer for parameter `{name}` ({e}): PX4 answers nothing for a parameter it does not have"
+                ),
+                field: Some("name".into()),
+            };
+        }
         LinkError::Rejected { .. } | LinkError::ModeNotConfirmed { .. } => StatusCode::CONFLICT,
         LinkError::NoLink | LinkError::Send(_) => StatusCode::SERVICE_UNAVAILABLE,
     };
@@ -69,7 +98,10 @@ pub(crate) async fn list_params(
     {
         Ok(ractor::rpc::CallResult::Success(all)) => Ok(Json(
             all.into_iter()
-                .map(|(k, v)| serde_json::json!({"name": k, "value": v.as_f64()}))
+                .map(|(name, v)| responses::ParamEntry {
+                    name,
+                    value: v.as_f64(),
+                })
                 .collect::<Vec<_>>(),
         )
         .into_response()),
@@ -93,8 +125,8 @@ pub(crate) async fn get_param(
         )
         .await
     {
-        Ok(ractor::rpc::CallResult::Success(Ok(v))) => Ok(param_json(&name, v)),
-        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(e)),
+        Ok(ractor::rpc::CallResult::Success(Ok(v))) => param_json(&name, v),
+        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(&name, e)),
         _ => Err(ApiError::unavailable(format!(
             "the link of `{id}` did not answer"
         ))),
@@ -107,7 +139,7 @@ pub(crate) async fn put_param(
     body: Bytes,
 ) -> Result<Response, ApiError> {
     check_param_name(&name)?;
-    let value = requests::param_value(&body)?;
+    let value = requests::params::param_value(&body)?;
     let link = link_of(&s, &id).await?;
     let n = name.clone();
     match link
@@ -117,8 +149,8 @@ pub(crate) async fn put_param(
         )
         .await
     {
-        Ok(ractor::rpc::CallResult::Success(Ok(v))) => Ok(param_json(&name, v)),
-        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(e)),
+        Ok(ractor::rpc::CallResult::Success(Ok(v))) => param_json(&name, v),
+        Ok(ractor::rpc::CallResult::Success(Err(e))) => Err(link_error(&name, e)),
         _ => Err(ApiError::unavailable(format!(
             "the link of `{id}` did not answer"
         ))),

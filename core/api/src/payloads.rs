@@ -13,90 +13,48 @@
 //! Both last until skein restarts: the vehicle model (`skein up --config`) is what a
 //! restart starts from.
 
+use crate::ApiState;
 use crate::error::ApiError;
-use crate::requests;
 use axum::http::StatusCode;
-use serde_json::Value;
-use skein_payload::{Isolation, PayloadSpec};
+use skein_swarm::CoordinatorMsg;
 use skein_swarm::payload::PayloadCommandError;
 
-/// The fields of an attach request.
-const ATTACH_FIELDS: [&str; 5] = ["slot", "kind", "plugin", "isolation", "config"];
+pub use crate::requests::payloads::parse_attach;
 
-/// Reads an attach request body into a [`PayloadSpec`].
+/// Refuses a command to a payload that is not running (`waiting_for_plugin`, `failed`,
+/// `stopped`, `restarting`): 409 naming `slot`, a state of the resource the caller can
+/// see in `GET …/payloads` (and the message says which), not a failure of the server.
+/// A payload that fails or hangs on the command itself is a 503 ([`payload_error`]).
 ///
 /// # Errors
-/// 400 naming the field: not a JSON object, an unknown field, `slot` or `kind` missing,
-/// empty or not a string, `slot` containing `/`, `plugin` not a string, `isolation` not
-/// `"in_process"` or `"process"`, `config` neither an object nor null.
-pub fn parse_attach(body: &[u8]) -> Result<PayloadSpec, ApiError> {
-    let m = requests::object(body)?;
-    if let Some(k) = m.keys().find(|k| !ATTACH_FIELDS.contains(&k.as_str())) {
-        return Err(ApiError::field(
-            k,
-            format!(
-                "unknown field `{k}` (expected one of: {})",
-                ATTACH_FIELDS.join(", ")
-            ),
-        ));
+/// 404 for an unknown vehicle, 409 as above, 503 without an answer from the coordinator.
+pub async fn require_running(s: &ApiState, id: &str, slot: &str) -> Result<(), ApiError> {
+    let id2 = id.to_string();
+    let Some(vehicle) = s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r)).await? else {
+        return Err(ApiError::not_found(format!("no vehicle `{id}`")));
+    };
+    let Some(p) = vehicle.payloads.iter().find(|p| p["slot"] == slot) else {
+        return Ok(()); // the vehicle answers 404 naming its slots
+    };
+    match p["status"].as_str() {
+        None | Some("running") => Ok(()),
+        Some(status) => {
+            let why = p["waiting_for"]
+                .as_str()
+                .map(|w| format!(": {w}"))
+                .unwrap_or_default();
+            Err(ApiError::conflict(
+                format!("payload `{slot}` of {id} is not running ({status}){why}"),
+                Some("slot"),
+            ))
+        }
     }
-    let text = |field: &str, required: bool| -> Result<Option<String>, ApiError> {
-        match m.get(field) {
-            None | Some(Value::Null) if required => {
-                Err(ApiError::field(field, format!("missing field `{field}`")))
-            }
-            None | Some(Value::Null) => Ok(None),
-            Some(Value::String(s)) if s.trim().is_empty() => {
-                Err(ApiError::field(field, format!("{field} is empty")))
-            }
-            Some(Value::String(s)) => Ok(Some(s.clone())),
-            Some(other) => Err(ApiError::field(
-                field,
-                format!("{field} must be a string, got {other}"),
-            )),
-        }
-    };
-    let slot = text("slot", true)?.unwrap_or_default();
-    if slot.contains('/') {
-        return Err(ApiError::field(
-            "slot",
-            format!("slot `{slot}` contains `/`"),
-        ));
-    }
-    let kind = text("kind", true)?.unwrap_or_default();
-    let plugin = text("plugin", false)?;
-    let isolation = match text("isolation", false)?.as_deref() {
-        None | Some("in_process") => Isolation::InProcess,
-        Some("process") => Isolation::Process,
-        Some(other) => {
-            return Err(ApiError::field(
-                "isolation",
-                format!("isolation `{other}`: expected `in_process` or `process`"),
-            ));
-        }
-    };
-    let config = match m.get("config") {
-        None | Some(Value::Null) => Value::Null,
-        Some(v @ Value::Object(_)) => v.clone(),
-        Some(other) => {
-            return Err(ApiError::field(
-                "config",
-                format!("config must be a JSON object, got {other}"),
-            ));
-        }
-    };
-    Ok(PayloadSpec {
-        slot,
-        kind,
-        plugin,
-        isolation,
-        config,
-    })
 }
 
-/// The HTTP answer for a payload request that got no answer from the payload: 404, 503,
-/// 400 (a plugin's refusal names the field as `"field: message"` by convention), 400 or
-/// 409 naming the field.
+/// The HTTP answer for a payload request that got no answer from the payload: 404, 503
+/// (it failed or hung handling the command, or stopped running meanwhile; a payload known
+/// not to be running is refused before, see [`require_running`]), 400 (a plugin's refusal names the field as `"field: message"`
+/// by convention), 400 or 409 naming the field.
 pub fn payload_error(e: PayloadCommandError) -> ApiError {
     match e {
         PayloadCommandError::NotFound(why) => ApiError::not_found(why),
@@ -123,57 +81,6 @@ pub fn payload_error(e: PayloadCommandError) -> ApiError {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use serde_json::json;
-
-    fn field_of(body: Value) -> (StatusCode, Option<String>) {
-        let e = parse_attach(body.to_string().as_bytes()).unwrap_err();
-        (e.status, e.field)
-    }
-
-    #[test]
-    fn attach_bodies_are_read_or_refused_naming_the_field() {
-        let s = parse_attach(br#"{"slot": "lamp", "kind": "lamp"}"#).unwrap();
-        assert_eq!((s.slot.as_str(), s.kind.as_str()), ("lamp", "lamp"));
-        assert_eq!(
-            (s.plugin, s.isolation, s.config),
-            (None, Isolation::InProcess, Value::Null)
-        );
-        let s = parse_attach(
-            json!({"slot": "l", "kind": "lamp", "plugin": "lamps", "isolation": "process",
-                   "config": {"on": true}})
-            .to_string()
-            .as_bytes(),
-        )
-        .unwrap();
-        assert_eq!(s.plugin.as_deref(), Some("lamps"));
-        assert_eq!(s.isolation, Isolation::Process);
-        assert_eq!(s.config, json!({"on": true}));
-
-        let bad = StatusCode::BAD_REQUEST;
-        let f = |s: &str| (bad, Some(s.to_string()));
-        assert_eq!(
-            field_of(json!({"slot": "l", "kind": "k", "colour": 1})),
-            f("colour")
-        );
-        assert_eq!(field_of(json!({"kind": "k"})), f("slot"));
-        assert_eq!(field_of(json!({"slot": "", "kind": "k"})), f("slot"));
-        assert_eq!(field_of(json!({"slot": "a/b", "kind": "k"})), f("slot"));
-        assert_eq!(field_of(json!({"slot": "l"})), f("kind"));
-        assert_eq!(field_of(json!({"slot": "l", "kind": 3})), f("kind"));
-        assert_eq!(
-            field_of(json!({"slot": "l", "kind": "k", "plugin": 1})),
-            f("plugin")
-        );
-        assert_eq!(
-            field_of(json!({"slot": "l", "kind": "k", "isolation": "thread"})),
-            f("isolation")
-        );
-        assert_eq!(
-            field_of(json!({"slot": "l", "kind": "k", "config": [1]})),
-            f("config")
-        );
-        assert!(parse_attach(b"[]").unwrap_err().field.is_none());
-    }
 
     #[test]
     fn payload_errors_map_to_statuses_and_fields() {

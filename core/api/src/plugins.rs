@@ -18,12 +18,14 @@
 //!   "previous_generation", "stale_instances"}`; the vehicles re-create the stale
 //!   instances on the new build.
 //!
-//! Errors: 400 for a bad body (naming the field), 404 unknown plugin, 409 conflicts, 403
+//! Errors: 400 for a bad body (naming the field; the bodies are
+//! [`requests::plugins`]), 404 unknown plugin, 409 conflicts, 403
 //! outside the plugin directory, 422 a file that is not a loadable plugin (the message
 //! names the file and, for an ABI mismatch, what differs), 503 without a plugin host.
 
 use crate::error::ApiError;
 use crate::requests;
+use crate::responses::{PluginsListing, ProviderEntry, RefusedFile, Reloaded};
 use axum::http::StatusCode;
 use serde_json::{Value, json};
 use skein_payload::PayloadFactory;
@@ -85,16 +87,21 @@ fn library_json(info: &LibraryInfo, current_generation: Option<u64>) -> Value {
 }
 
 /// The listing of `GET /api/v1/plugins`.
-pub fn list(plugins: Option<&PluginsApi>) -> Value {
+pub fn list(plugins: Option<&PluginsApi>) -> PluginsListing {
     let builtin = skein_swarm::payload::BuiltinPayloads.providers();
-    let provider = |p: &skein_payload::ProviderInfo, source: &str| json!({"name": p.name, "version": p.version, "kinds": p.kinds, "source": source});
+    let provider = |p: &skein_payload::ProviderInfo, source: &'static str| ProviderEntry {
+        name: p.name.clone(),
+        version: p.version.clone(),
+        kinds: p.kinds.clone(),
+        source,
+    };
     let Some(pl) = plugins else {
-        return json!({
-            "plugin_dir": null,
-            "libraries": [],
-            "providers": builtin.iter().map(|p| provider(p, "builtin")).collect::<Vec<_>>(),
-            "refused": [],
-        });
+        return PluginsListing {
+            plugin_dir: None,
+            libraries: vec![],
+            providers: builtin.iter().map(|p| provider(p, "builtin")).collect(),
+            refused: vec![],
+        };
     };
     let m = &pl.manager;
     let libraries: Vec<Value> = m
@@ -102,25 +109,28 @@ pub fn list(plugins: Option<&PluginsApi>) -> Value {
         .iter()
         .map(|l| library_json(l, m.generation(&l.name)))
         .collect();
-    let mut providers: Vec<Value> = m
+    let mut providers: Vec<ProviderEntry> = m
         .providers()
         .iter()
         .map(|p| provider(p, "plugin"))
         .collect();
     providers.extend(builtin.iter().map(|p| provider(p, "builtin")));
-    let refused: Vec<Value> = pl
+    let refused = pl
         .refused
         .lock()
         .unwrap_or_else(PoisonError::into_inner)
         .iter()
-        .map(|(f, r)| json!({"file": f, "reason": r}))
+        .map(|(f, r)| RefusedFile {
+            file: f.clone(),
+            reason: r.clone(),
+        })
         .collect();
-    json!({
-        "plugin_dir": m.config().plugin_dir,
-        "libraries": libraries,
-        "providers": providers,
-        "refused": refused,
-    })
+    PluginsListing {
+        plugin_dir: Some(m.config().plugin_dir.clone()),
+        libraries,
+        providers,
+        refused,
+    }
 }
 
 fn host_error(e: &HostError) -> ApiError {
@@ -136,26 +146,6 @@ fn host_error(e: &HostError) -> ApiError {
         status: StatusCode::from_u16(e.http_status()).unwrap_or(StatusCode::BAD_REQUEST),
         error: e.to_string(),
         field: Some(field.to_string()),
-    }
-}
-
-/// A required non-empty string field of a body that has no other field.
-fn only_string(body: &[u8], field: &str) -> Result<String, ApiError> {
-    let m = requests::object(body)?;
-    if let Some(k) = m.keys().find(|k| k.as_str() != field) {
-        return Err(ApiError::field(
-            k,
-            format!("unknown field `{k}` (expected `{field}`)"),
-        ));
-    }
-    match m.get(field) {
-        Some(Value::String(s)) if !s.trim().is_empty() => Ok(s.clone()),
-        Some(Value::String(_)) => Err(ApiError::field(field, format!("{field} is empty"))),
-        Some(other) => Err(ApiError::field(
-            field,
-            format!("{field} must be a string, got {other}"),
-        )),
-        None => Err(ApiError::field(field, format!("missing field `{field}`"))),
     }
 }
 
@@ -177,7 +167,7 @@ async fn blocking<T: Send + 'static>(
 /// # Errors
 /// See the module docs.
 pub async fn load(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value, ApiError> {
-    let file = only_string(body, "file")?;
+    let file = requests::plugins::load(body)?;
     let pl = plugins.ok_or_else(no_host)?;
     let m = pl.manager.clone();
     let f = PathBuf::from(&file);
@@ -199,37 +189,12 @@ pub async fn load(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value
     }
 }
 
-/// Reads an unload body: `{"name": "x", "force": true|false}` (`force` optional).
-fn unload_body(body: &[u8]) -> Result<(String, bool), ApiError> {
-    let mut m = requests::object(body)?;
-    let force = match m.remove("force") {
-        None | Some(Value::Null) => false,
-        Some(Value::Bool(b)) => b,
-        Some(other) => {
-            return Err(ApiError::field(
-                "force",
-                format!("force must be true or false, got {other}"),
-            ));
-        }
-    };
-    let rest = serde_json::to_vec(&Value::Object(m)).unwrap_or_default();
-    let name = only_string(&rest, "name").map_err(|mut e| {
-        if e.error.starts_with("unknown field") {
-            e.error = e
-                .error
-                .replace("(expected `name`)", "(expected `name`, `force`)");
-        }
-        e
-    })?;
-    Ok((name, force))
-}
-
 /// `POST /api/v1/plugins/unload`.
 ///
 /// # Errors
 /// See the module docs.
 pub async fn unload(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value, ApiError> {
-    let (name, force) = unload_body(body)?;
+    let (name, force) = requests::plugins::unload(body)?;
     let pl = plugins.ok_or_else(no_host)?;
     let m = pl.manager.clone();
     if !force {
@@ -273,16 +238,17 @@ pub async fn unload(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Val
 /// # Errors
 /// See the module docs.
 pub async fn reload(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value, ApiError> {
-    let name = only_string(body, "name")?;
+    let name = requests::plugins::reload(body)?;
     let pl = plugins.ok_or_else(no_host)?;
     let m = pl.manager.clone();
     match blocking(move || m.reload(&name)).await? {
-        Ok(report) => Ok(json!({
-            "library": library_json(&report.library, Some(report.library.generation)),
-            "previous_version": report.previous_version,
-            "previous_generation": report.previous_generation,
-            "stale_instances": report.stale_instances,
-        })),
+        Ok(report) => Ok(serde_json::to_value(Reloaded {
+            library: library_json(&report.library, Some(report.library.generation)),
+            previous_version: report.previous_version,
+            previous_generation: report.previous_generation,
+            stale_instances: report.stale_instances,
+        })
+        .unwrap_or(Value::Null)),
         Err(e) => {
             if let HostError::Load { file, .. }
             | HostError::NotAPlugin { file, .. }
@@ -298,42 +264,6 @@ pub async fn reload(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Val
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn bodies_name_the_field() {
-        assert_eq!(
-            only_string(br#"{"file": "libx.so"}"#, "file").unwrap(),
-            "libx.so"
-        );
-        let e = only_string(br#"{"fil": "libx.so"}"#, "file").unwrap_err();
-        assert_eq!(e.field.as_deref(), Some("fil"), "{e:?}");
-        let e = only_string(br#"{"file": 3}"#, "file").unwrap_err();
-        assert_eq!(e.field.as_deref(), Some("file"), "{e:?}");
-        let e = only_string(br#"{"file": " "}"#, "file").unwrap_err();
-        assert_eq!(e.field.as_deref(), Some("file"), "{e:?}");
-        let e = only_string(b"{}", "name").unwrap_err();
-        assert_eq!(e.field.as_deref(), Some("name"), "{e:?}");
-        assert_eq!(e.status, StatusCode::BAD_REQUEST);
-    }
-
-    #[test]
-    fn unload_bodies_take_an_optional_force() {
-        assert_eq!(
-            unload_body(br#"{"name": "lamp"}"#).unwrap(),
-            ("lamp".into(), false)
-        );
-        assert_eq!(
-            unload_body(br#"{"name": "lamp", "force": true}"#).unwrap(),
-            ("lamp".into(), true)
-        );
-        let e = unload_body(br#"{"name": "lamp", "force": "yes"}"#).unwrap_err();
-        assert_eq!(e.field.as_deref(), Some("force"), "{e:?}");
-        let e = unload_body(br#"{"name": "lamp", "forse": true}"#).unwrap_err();
-        assert_eq!(e.field.as_deref(), Some("forse"), "{e:?}");
-        assert!(e.error.contains("`force`"), "{e:?}");
-        let e = unload_body(br#"{"force": true}"#).unwrap_err();
-        assert_eq!(e.field.as_deref(), Some("name"), "{e:?}");
-    }
 
     #[test]
     fn host_errors_map_to_statuses_and_fields() {
@@ -361,7 +291,7 @@ mod tests {
 
     #[test]
     fn without_a_host_only_the_builtin_provider_is_listed() {
-        let v = list(None);
+        let v = serde_json::to_value(list(None)).unwrap();
         assert_eq!(v["libraries"], json!([]));
         assert_eq!(v["providers"][0]["source"], "builtin");
         assert_eq!(v["providers"][0]["kinds"][0], "fault-fixture");

@@ -129,6 +129,10 @@ impl Inner {
     fn apply(&self, topic: &str, schema: &str, value: &Value) -> bool {
         match (topic, schema) {
             (EVENTS, _) => {
+                if value["type"] == "formation_changed" && value["formation"].is_object() {
+                    *self.formation.write().expect("formation lock") =
+                        Some(value["formation"].clone());
+                }
                 let _ = self.stream.send(Arc::from(value.to_string()));
                 false
             }

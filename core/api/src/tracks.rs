@@ -19,64 +19,67 @@
 
 use crate::ApiState;
 use crate::error::ApiError;
+use crate::requests::tracks::ObserveRequest;
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
+use serde::Serialize;
 use skein_swarm::CoordinatorMsg;
+use skein_swarm::tracking::TrackView;
+use utoipa::ToSchema;
+
+/// `GET /api/v1/tracks`.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct TracksListing {
+    /// The tracks, tentative, confirmed and lost.
+    pub tracks: Vec<TrackEntry>,
+}
+
+/// A track and the vehicles whose gimbals follow it.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct TrackEntry {
+    /// The track (swarm frame).
+    #[serde(flatten)]
+    pub track: TrackView,
+    /// Vehicles observing it (`POST /api/v1/tracks/{id}/observe`).
+    pub observed_by: Vec<String>,
+}
+
+/// `POST /api/v1/tracks/{id}/observe`.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct Observing {
+    /// The track.
+    pub track: String,
+    /// The vehicles now keeping it in view.
+    pub vehicles: Vec<String>,
+}
+
+/// `DELETE /api/v1/tracks/{id}/observe`.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct Released {
+    /// The track.
+    pub track: String,
+    /// The vehicles that stopped observing it (their gimbals hold their angles).
+    pub released: Vec<String>,
+}
 
 /// `GET /api/v1/tracks`.
 pub async fn list_tracks(State(s): State<ApiState>) -> Result<Response, ApiError> {
     let (tracks, observing) = s.ask(CoordinatorMsg::GetTracks).await?;
-    let tracks: Vec<serde_json::Value> = tracks
+    let tracks = tracks
         .into_iter()
-        .map(|t| {
-            let by: Vec<&String> = observing
+        .map(|track| TrackEntry {
+            observed_by: observing
                 .iter()
-                .filter(|(_, track)| *track == t.id)
-                .map(|(v, _)| v)
-                .collect();
-            let mut v = serde_json::to_value(&t).unwrap_or_default();
-            v["observed_by"] = serde_json::json!(by);
-            v
+                .filter(|(_, t)| *t == track.id)
+                .map(|(v, _)| v.clone())
+                .collect(),
+            track,
         })
         .collect();
-    Ok(Json(serde_json::json!({ "tracks": tracks })).into_response())
-}
-
-/// The `vehicles` of an observe request (`None`: all); errors name the field.
-fn observe_vehicles(body: &[u8]) -> Result<Option<Vec<String>>, ApiError> {
-    if body.iter().all(u8::is_ascii_whitespace) {
-        return Ok(None);
-    }
-    let v: serde_json::Value = serde_json::from_slice(body)
-        .map_err(|e| ApiError::bad_request(format!("body is not JSON: {e}")))?;
-    let obj = v
-        .as_object()
-        .ok_or_else(|| ApiError::bad_request("body must be a JSON object"))?;
-    if let Some(k) = obj.keys().find(|k| *k != "vehicles") {
-        return Err(ApiError::field(
-            k,
-            format!("unknown field `{k}` (known: vehicles)"),
-        ));
-    }
-    match obj.get("vehicles") {
-        None | Some(serde_json::Value::Null) => Ok(None),
-        Some(serde_json::Value::Array(list)) => list
-            .iter()
-            .map(|x| {
-                x.as_str()
-                    .map(str::to_string)
-                    .ok_or_else(|| ApiError::field("vehicles", "must be an array of vehicle ids"))
-            })
-            .collect::<Result<Vec<_>, _>>()
-            .map(Some),
-        Some(_) => Err(ApiError::field(
-            "vehicles",
-            "must be an array of vehicle ids",
-        )),
-    }
+    Ok(Json(TracksListing { tracks }).into_response())
 }
 
 /// `POST /api/v1/tracks/{id}/observe`.
@@ -85,15 +88,17 @@ pub async fn observe(
     Path(id): Path<String>,
     body: Bytes,
 ) -> Result<Response, ApiError> {
-    let vehicles = observe_vehicles(&body)?;
+    let vehicles = crate::requests::parse_or_empty::<ObserveRequest>(&body)?.vehicles;
     let track = id.clone();
     match s
         .ask(move |r| CoordinatorMsg::ObserveTrack(track, vehicles, r))
         .await?
     {
-        Ok(vehicles) => {
-            Ok(Json(serde_json::json!({"track": id, "vehicles": vehicles})).into_response())
-        }
+        Ok(vehicles) => Ok(Json(Observing {
+            track: id,
+            vehicles,
+        })
+        .into_response()),
         Err(refusal) => {
             use skein_swarm::coordinator::observe::ObserveRefusal as R;
             let status = match refusal {
@@ -119,7 +124,11 @@ pub async fn stop_observing(
     let released = s
         .ask(move |r| CoordinatorMsg::StopObserving(track, r))
         .await?;
-    Ok(Json(serde_json::json!({"track": id, "released": released})).into_response())
+    Ok(Json(Released {
+        track: id,
+        released,
+    })
+    .into_response())
 }
 
 /// `GET /api/v1/sim/truth`.

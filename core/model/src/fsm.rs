@@ -20,7 +20,7 @@ use crate::px4::{LandedState, Px4Mode};
 use serde::{Deserialize, Serialize};
 
 /// The state of one vehicle as skein sees it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, utoipa::ToSchema)]
 pub enum VehicleState {
     /// Never heard from (configured but no heartbeat yet).
     Disconnected,

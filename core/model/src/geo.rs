@@ -15,7 +15,7 @@ use std::ops::{Add, Mul, Sub};
 /// `alt_amsl_m` is the altitude above mean sea level as PX4 reports it in
 /// `GLOBAL_POSITION_INT.alt` (treated as ellipsoid height for the tangent-plane maths: the
 /// geoid offset is a constant over a swarm's extent and cancels out).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GeoPoint {
     /// Latitude, degrees, positive north.
@@ -58,7 +58,7 @@ impl GeoPoint {
 
 /// A vector in a north-east-down frame, metres (positions) or metres per second
 /// (velocities, where the field names keep `_m` for brevity and the type says which).
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Ned {
     /// North component, metres.
     pub north_m: f64,

@@ -202,7 +202,9 @@ impl std::fmt::Display for Px4Mode {
 }
 
 /// `MAV_LANDED_STATE` as reported in `EXTENDED_SYS_STATE.landed_state`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default, utoipa::ToSchema,
+)]
 pub enum LandedState {
     /// `MAV_LANDED_STATE_UNDEFINED` (0), also used before the first report.
     #[default]

@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 /// A cylinder around the swarm origin (swarm frame): horizontal radius, an altitude band
 /// above the origin, and optionally a polygon the vehicles must stay inside too.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Geofence {
     /// Largest horizontal distance from the swarm origin, metres.

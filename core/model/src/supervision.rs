@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 /// A fault to inject into an actor (`POST /api/v1/faults`, only with
 /// `--enable-fault-injection`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum FaultKind {
     /// The actor panics while handling a message.
@@ -59,7 +59,7 @@ pub enum RestartPolicy {
 }
 
 /// What kind of actor a supervised child is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ChildKind {
     /// The root supervisor.
@@ -97,7 +97,7 @@ impl ChildKind {
 }
 
 /// A supervised child's status.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ChildStatus {
     /// Running and answering.

@@ -6,7 +6,7 @@ use crate::geo::{GeoPoint, Ned, NedFrame};
 use serde::{Deserialize, Serialize};
 
 /// Position of a vehicle: swarm-frame NED plus its geodetic position.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Position {
     /// North of the swarm origin, metres.
     pub north_m: f64,
@@ -47,7 +47,7 @@ impl Position {
 }
 
 /// Velocity, NED, metres per second (`GLOBAL_POSITION_INT.vx/vy/vz`).
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Velocity {
     /// North, m/s.
     pub north_m_s: f64,
@@ -58,7 +58,7 @@ pub struct Velocity {
 }
 
 /// Battery (`BATTERY_STATUS` / `SYS_STATUS`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Battery {
     /// Remaining charge, percent (0–100).
     pub percent: f64,
@@ -67,7 +67,7 @@ pub struct Battery {
 }
 
 /// Link health.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct LinkStatus {
     /// False after the link timeout (3 s) without a valid message.
     pub connected: bool,
@@ -76,7 +76,7 @@ pub struct LinkStatus {
 }
 
 /// The vehicle's place in the formation.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct FormationSlot {
     /// Slot index (0 is the leader's slot).
     pub slot: usize,
@@ -89,7 +89,7 @@ pub struct FormationSlot {
 }
 
 /// One vehicle as the API shows it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct VehicleSnapshot {
     /// User-facing id (`uav-<sysid>` by default).
     pub id: String,

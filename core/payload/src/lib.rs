@@ -20,7 +20,7 @@ use skein_model::vehicle::VehicleSnapshot;
 use std::sync::Arc;
 
 /// How a payload is hosted.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Isolation {
     /// The plugin library is loaded into the skein process (fast; a segfault or abort in

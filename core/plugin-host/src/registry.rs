@@ -34,7 +34,7 @@ pub enum StalePolicy {
 }
 
 /// One live payload instance of a library.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct InstanceRecord {
     /// Instance id, unique in the manager.
     pub id: u64,
@@ -53,7 +53,7 @@ pub struct InstanceRecord {
 }
 
 /// Whether a listed library is the current one.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum LibraryStatus {
     /// Loaded and used for new instances.
@@ -66,7 +66,7 @@ pub enum LibraryStatus {
 }
 
 /// One library as `GET /api/v1/plugins` shows it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct LibraryInfo {
     /// Plugin name.
     pub name: String,
@@ -75,6 +75,7 @@ pub struct LibraryInfo {
     /// Payload kinds it provides.
     pub kinds: Vec<String>,
     /// The file it was loaded from.
+    #[schema(value_type = String)]
     pub file: PathBuf,
     /// Generation: 1 at the first load of this name, +1 at each reload (and each load after
     /// an unload). Instances record the generation they run.

@@ -157,6 +157,10 @@ struct UpArgs {
     /// reach the port can fly the swarm. Refused without this flag.
     #[arg(long)]
     insecure_no_auth: bool,
+    /// Record the whole run to this MCAP file (never overwritten; Foxglove and
+    /// `skein replay` read it). `POST /api/v1/recording/start` records on demand.
+    #[arg(long, value_name = "FILE.mcap")]
+    record: Option<PathBuf>,
     /// Forward every vehicle's MAVLink to a ground station and its commands back
     /// (overrides `[gcs] forward`), e.g. `udpout:127.0.0.1:14550` for QGroundControl;
     /// setpoints from it are dropped.
@@ -582,10 +586,28 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
 
     let listener = std::net::TcpListener::bind(http).map_err(|e| format!("--http {http}: {e}"))?;
     let local = listener.local_addr().map_err(|e| e.to_string())?;
+    let recorder = skein_record::Recorder::new(
+        skein_record::Sources {
+            coordinator: swarm.coordinator.clone(),
+            events: swarm.events.clone(),
+            endpoints: swarm.endpoints.clone(),
+        },
+        file.recording
+            .dir
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("recordings")),
+    );
+    if let Some(path) = &args.record {
+        let info = recorder
+            .start(None, Some(path))
+            .map_err(|e| format!("--record {}: {e}", path.display()))?;
+        println!("skein: recording to {}", info.path.display());
+    }
     let state = skein_api::ApiState::new(swarm.coordinator.clone(), swarm.events.clone())
         .with_plugins(plugins, refused)
         .with_geofence(geofence)
-        .with_auth(auth);
+        .with_auth(auth)
+        .with_recorder(recorder.clone());
     let scheme = if tls.is_some() { "https" } else { "http" };
     let state = match tls {
         Some(t) => state.with_tls(t),
@@ -625,6 +647,18 @@ async fn up(args: UpArgs) -> Result<ExitCode, String> {
             ExitCode::from(EXIT_COORDINATOR_FAILED)
         }
     };
+    if recorder.status().is_some() {
+        match recorder.stop().await {
+            Ok(s) => println!(
+                "skein: recording {} finished: {} messages on {} channels, {:.1} s",
+                s.path.display(),
+                s.messages,
+                s.channels,
+                s.duration_s
+            ),
+            Err(e) => eprintln!("skein: the recording could not be finished: {e}"),
+        }
+    }
     if swarm.is_running() {
         swarm.stop().await;
     }

@@ -183,6 +183,16 @@ pub struct VehicleEntry {
     pub signing_link_id: Option<u8>,
 }
 
+/// `[recording]`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordingSection {
+    /// Where `POST /api/v1/recording/start` writes its MCAP files (relative paths are
+    /// relative to the config file's directory); default `recordings` in the working
+    /// directory.
+    pub dir: Option<std::path::PathBuf>,
+}
+
 /// `[gcs]`.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -211,6 +221,9 @@ pub struct ConfigFile {
     /// `[gcs]`.
     #[serde(default)]
     pub gcs: GcsSection,
+    /// `[recording]`.
+    #[serde(default)]
+    pub recording: RecordingSection,
     /// `[supervision]`.
     pub supervision: Option<skein_swarm::supervision::SupervisionConfig>,
     /// `[hazards]`.
@@ -240,9 +253,13 @@ impl ConfigFile {
         }
         if let Some(base) = path.parent() {
             let keys = cfg.vehicles.iter_mut().map(|v| &mut v.signing_key_file);
-            for p in [&mut cfg.http.tls_cert, &mut cfg.http.tls_key]
-                .into_iter()
-                .chain(keys)
+            for p in [
+                &mut cfg.http.tls_cert,
+                &mut cfg.http.tls_key,
+                &mut cfg.recording.dir,
+            ]
+            .into_iter()
+            .chain(keys)
             {
                 if let Some(f) = p.as_mut()
                     && f.is_relative()

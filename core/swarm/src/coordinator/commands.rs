@@ -18,7 +18,7 @@ pub const VEHICLE_ACK_TIMEOUT: Duration = Duration::from_secs(2);
 pub const PAYLOAD_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// The outcome of a command accepted for processing (HTTP 202).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct CommandOutcome {
     /// Id of the command; results arrive on the stream as `command_result` events.
     pub command_id: u64,
@@ -29,7 +29,7 @@ pub struct CommandOutcome {
 }
 
 /// A vehicle's refusal.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct Refused {
     /// Vehicle id.
     pub id: String,

@@ -20,29 +20,33 @@ use std::sync::Arc;
 use std::time::Instant;
 
 /// Per-endpoint link statistics.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
 pub struct EndpointStats {
     /// Connection string.
     pub connection: String,
     /// Bound local address (UDP).
     pub local_addr: Option<String>,
-    /// Decoder counters (malformed input).
+    /// Decoder counters (malformed input), by name (`bad_crc`, `unknown_message` …).
+    #[schema(value_type = std::collections::BTreeMap<String, u64>)]
     pub decode: DecodeCounts,
-    /// Send counters.
+    /// Send counters, by name (`frames_sent`, `send_errors`, `no_route`).
+    #[schema(value_type = std::collections::BTreeMap<String, u64>)]
     pub send: skein_link::endpoint::SendCounts,
     /// MAVLink 2 signing counters summed over the endpoint's signing vehicles (frames
     /// accepted signed, dropped unsigned / badly signed / replayed / too old, sent signed);
     /// absent when no vehicle there signs.
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<std::collections::BTreeMap<String, u64>>)]
     pub signing: Option<skein_mavlink::signing::SigningCounts>,
     /// On the ground-station forwarder's entry (`[gcs] forward`): frames forwarded each
     /// way and dropped (setpoints, unknown target sysid).
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<std::collections::BTreeMap<String, u64>>)]
     pub gcs_forward: Option<skein_link::gcs::ForwardCounts>,
 }
 
 /// Swarm health for `GET /api/v1/health`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
 pub struct Health {
     /// Always `"ok"` while the coordinator answers.
     pub status: &'static str,

@@ -47,7 +47,7 @@ impl HazardConfig {
 }
 
 /// A vehicle that may still be flying where the formation is not steering it.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct Hazard {
     /// The vehicle's id.
     pub id: String,

@@ -13,7 +13,7 @@ pub const VIRTUAL: &str = "virtual";
 pub const TRACK_PREFIX: &str = "track-";
 
 /// How slot offsets are oriented.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum FormationFrame {
     /// Fixed in the swarm frame at `heading_deg`.
@@ -24,7 +24,7 @@ pub enum FormationFrame {
 }
 
 /// A formation as the operator asks for it (`PUT /api/v1/formation`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct FormationSpec {
     /// The shape.
     pub shape: Shape,
@@ -80,7 +80,7 @@ impl FormationSpec {
 }
 
 /// How the reference point moves.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(tag = "motion", rename_all = "snake_case")]
 pub enum LeaderMotion {
     /// Stay where it is.

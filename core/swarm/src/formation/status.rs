@@ -45,7 +45,7 @@ pub struct SlotCommand {
 }
 
 /// One member's place.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct MemberStatus {
     /// Vehicle id.
     pub id: String,
@@ -58,7 +58,7 @@ pub struct MemberStatus {
 }
 
 /// The formation as `GET /api/v1/formation` shows it.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct FormationStatus {
     /// The spec in force, if any.
     #[serde(flatten)]

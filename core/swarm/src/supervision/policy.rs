@@ -143,7 +143,7 @@ pub enum Decision {
 }
 
 /// One recorded failure.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct FailureRecord {
     /// When, Unix time in ms.
     pub at_unix_ms: u64,
@@ -156,7 +156,7 @@ pub struct FailureRecord {
 }
 
 /// A supervised child's record.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
 pub struct ChildRecord {
     /// Kind of actor.
     pub kind: ChildKind,

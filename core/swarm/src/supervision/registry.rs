@@ -12,7 +12,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use tokio::sync::broadcast;
 
 /// A node of the supervision tree (`GET /api/v1/supervision`).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
 pub struct TreeNode {
     /// Last path element (`"px4link"`).
     pub name: String,
@@ -22,6 +22,7 @@ pub struct TreeNode {
     #[serde(flatten)]
     pub record: ChildRecord,
     /// Children.
+    #[schema(no_recursion)]
     pub children: Vec<TreeNode>,
 }
 

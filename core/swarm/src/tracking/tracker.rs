@@ -84,7 +84,7 @@ impl Default for TrackerConfig {
 }
 
 /// Where a track is in its life.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum TrackStatus {
     /// Seen, not yet confirmed.
@@ -96,7 +96,7 @@ pub enum TrackStatus {
 }
 
 /// A track as the API and the stream show it (swarm frame).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct TrackView {
     /// `track-<n>`.
     pub id: String,
@@ -123,7 +123,7 @@ pub struct TrackView {
 }
 
 /// A swarm-frame NED position as JSON.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct NedJson {
     /// North, metres.
     pub north_m: f64,
@@ -134,7 +134,7 @@ pub struct NedJson {
 }
 
 /// A NED velocity as JSON.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct VelocityJson {
     /// North, m/s.
     pub north_m_s: f64,
