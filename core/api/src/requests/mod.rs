@@ -78,7 +78,10 @@ fn field_error(e: &serde_path_to_error::Error<serde_json::Error>) -> ApiError {
     let inner = e.inner().to_string();
     let mut segments: Vec<String> = Vec::new();
     let path = e.path().to_string();
-    if path != "." {
+    if path.is_empty() {
+        // A key that is the empty string (`{"": 1}`): name it as JSON writes it.
+        segments.push("\"\"".to_string());
+    } else if path != "." {
         segments.push(path);
     }
     let named = inner
@@ -108,6 +111,20 @@ pub fn non_empty(field: &str, value: String) -> Result<String, ApiError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Found by the api_requests fuzz target: an unknown key that is the empty string
+    /// was answered with an empty `field`.
+    #[test]
+    fn an_empty_key_is_named() {
+        #[derive(Debug, serde::Deserialize)]
+        #[serde(deny_unknown_fields)]
+        #[allow(dead_code)]
+        struct Body {
+            name: Option<String>,
+        }
+        let e = parse::<Body>(br#"{"": 5}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("\"\""), "{e:?}");
+    }
     use serde::Deserialize;
 
     #[derive(Debug, Deserialize)]
