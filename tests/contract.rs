@@ -24,6 +24,14 @@ fn schemathesis_finds_nothing_against_a_live_swarm() {
     // The observation vehicles' gimbal and camera, so that their payloads run.
     let dir = scratch("contract-plugins");
     build_into(&["skein-plugin-gimbal", "skein-plugin-camera"], &[], &dir);
+    // schemathesis starts recordings: into a scratch directory, not the working one.
+    let recordings = scratch("contract-recordings");
+    let cfg = dir.join("skein.toml");
+    std::fs::write(
+        &cfg,
+        format!("[recording]\ndir = \"{}\"\n", recordings.display()),
+    )
+    .unwrap();
     let skein = Skein::up(&[
         "--sim",
         "3",
@@ -31,6 +39,8 @@ fn schemathesis_finds_nothing_against_a_live_swarm() {
         "0",
         "--plugin-dir",
         dir.to_str().unwrap(),
+        "--config",
+        cfg.to_str().unwrap(),
     ]);
     skein.wait_all("connected", 3, Duration::from_secs(60), |v| {
         v["link"]["connected"] == true

@@ -17,7 +17,7 @@ mod support;
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
 use support::plugins::{build_into, scratch};
-use support::{EventLog, Skein, eventually, one_at_a_time};
+use support::{EventLog, Skein, one_at_a_time};
 
 const OBSERVERS: [&str; 2] = ["uav-2", "uav-4"];
 
@@ -142,29 +142,7 @@ fn a_passing_intruder_becomes_a_confirmed_track_that_follows_the_truth() {
     skein.take_off(4, 10.0);
     // The intruder is not a vehicle: no link, no listing.
     assert_eq!(skein.vehicles().len(), 4);
-    for v in OBSERVERS {
-        let (status, body) = skein.post(
-            &format!("/api/v1/vehicles/{v}/payloads/gimbal"),
-            json!({"command": "set_angles", "pitch_deg": 3.0, "yaw_deg": 90.0, "yaw_frame": "earth"}),
-        );
-        assert_eq!(status, 200, "{body}");
-    }
-    eventually("both gimbals east", Duration::from_secs(20), || {
-        let vs = skein.vehicles();
-        let ok = OBSERVERS.iter().all(|id| {
-            vs.iter()
-                .find(|v| v["id"] == *id)
-                .and_then(|v| v["payloads"].as_array())
-                .and_then(|ps| ps.iter().find(|p| p["slot"] == "camera"))
-                .and_then(|p| p["state"]["pointing"]["azimuth_deg"].as_f64())
-                .is_some_and(|az| (az - 90.0).abs() < 2.0)
-        });
-        if ok {
-            Ok(())
-        } else {
-            Err("cameras not yet east".to_string())
-        }
-    });
+    skein.point_gimbals(&OBSERVERS, 90.0, 3.0);
 
     // Watch for the intruder to enter both views (from out of view), then for a confirmed
     // track; compare the track with the truth while it stays in view.

@@ -264,3 +264,107 @@ fn the_ground_station_drives_payloads_supervision_and_plugins_in_chromium() {
         "ground_station_selenium.py failed (exit {code:?})\n--- stdout\n{out}\n--- stderr\n{err}"
     );
 }
+
+/// The counter-UAS views in Chromium: an intruder passes east of four vehicles whose
+/// observation UAVs (uav-2, uav-4) look east; the dashboard lists and draws the confirmed
+/// track, observes it on a click, and shows the detector's boxes over uav-2's video.
+#[test]
+fn the_dashboard_shows_tracks_and_observes_one_in_chromium() {
+    let _serial = support::one_at_a_time();
+    let dir = support::plugins::scratch("tracks-dashboard");
+    support::plugins::build_into(
+        &[
+            "skein-plugin-gimbal",
+            "skein-plugin-camera",
+            "skein-plugin-detector",
+        ],
+        &[],
+        &dir,
+    );
+    let skein = support::Skein::up_sim(
+        4,
+        &[
+            "--plugin-dir",
+            dir.to_str().unwrap(),
+            "--intruders",
+            "1",
+            "--intruder-pattern",
+            "straight",
+            // Southward 60 m east of home, 14 m up, 4 m/s: about 45 s in view.
+            "--intruder-heading-deg",
+            "180",
+            "--intruder-cpa-m",
+            "60",
+            "--intruder-range-m",
+            "90",
+            "--intruder-altitude-m",
+            "14",
+            "--intruder-speed-m-s",
+            "4",
+        ],
+    );
+    skein.take_off(4, 10.0);
+    skein.point_gimbals(&["uav-2", "uav-4"], 90.0, 3.0);
+    // The intruder's pass (back and forth, about 20 s of every 45 s in view): the browser
+    // starts once the tracker has a confirmed track, so the page has one to show.
+    support::eventually("a confirmed track", Duration::from_secs(150), || {
+        let (_, tracks) = skein.get("/api/v1/tracks");
+        let confirmed = tracks["tracks"]
+            .as_array()
+            .is_some_and(|t| t.iter().any(|t| t["status"] == "confirmed"));
+        if confirmed {
+            return Ok(());
+        }
+        let (_, uav2) = skein.get("/api/v1/vehicles/uav-2");
+        let detector = uav2["payloads"]
+            .as_array()
+            .and_then(|p| p.iter().find(|p| p["kind"] == "detector").cloned());
+        let (_, truth) = skein.get("/api/v1/sim/truth");
+        Err(format!(
+            "tracks {tracks}; intruder {}; uav-2 detector {}",
+            truth["intruders"][0],
+            detector.unwrap_or_default()
+        ))
+    });
+    let url = format!("{}/", skein.base);
+    let shot = support::workspace()
+        .join("target")
+        .join("screenshots")
+        .join("tracks.png");
+    let _ = std::fs::create_dir_all(shot.parent().unwrap());
+    // What the API says while the browser looks (printed on failure).
+    let watching = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let watcher = {
+        let (base, watching) = (skein.base.clone(), watching.clone());
+        std::thread::spawn(move || {
+            let mut seen = Vec::new();
+            while watching.load(std::sync::atomic::Ordering::Relaxed) {
+                let tracks = ureq::get(format!("{base}/api/v1/tracks"))
+                    .call()
+                    .ok()
+                    .and_then(|mut r| r.body_mut().read_to_string().ok())
+                    .unwrap_or_default();
+                seen.push(tracks);
+                std::thread::sleep(Duration::from_secs(3));
+            }
+            seen
+        })
+    };
+    let (code, out, err) = run_peer(
+        "tracks_selenium.py",
+        &["--url", &url, "--screenshot", shot.to_str().unwrap()],
+        Duration::from_secs(240),
+    );
+    watching.store(false, std::sync::atomic::Ordering::Relaxed);
+    let api_log = watcher.join().unwrap().join("\n");
+    println!("{out}");
+    if code != Some(0) {
+        println!("GET /api/v1/tracks every 3 s meanwhile:\n{api_log}");
+    }
+    assert_eq!(
+        code,
+        Some(0),
+        "tracks_selenium.py failed (exit {code:?})\n--- stdout\n{out}\n--- stderr\n{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -17,6 +17,7 @@ import { PayloadsView } from './payloads.js';
 import { SupervisionView } from './supervision.js';
 import { PluginsView } from './plugins.js';
 import { ChartsView } from './charts.js';
+import { TracksView } from './tracks.js';
 import { installShortcuts } from './keys.js';
 
 const $ = (id) => document.getElementById(id);
@@ -58,6 +59,7 @@ const payloads = new PayloadsView($('view-payloads'), deps);
 const supervision = new SupervisionView($('view-supervision'), deps);
 new PluginsView($('view-plugins'), deps);
 new ChartsView($('view-charts'), deps);
+new TracksView($('view-tracks'), deps);
 const table = new VehicleTable($('vehicle-rows'), $('table-empty'), {
   onCommand: (id, command, button) => controls.vehicleCommand(id, command, button),
   onSelect: select,

@@ -3,7 +3,8 @@
 // camera reports seeing (`visible`: other aircraft in pixels) drawn over it, the pointing
 // and optics, and zoom / capture controls.
 // Test hooks: img[data-testid=camera-video], [data-field=frames] (data-frames), the
-// widget's data-visible (ids of the aircraft in view), canvas.overlay.
+// widget's data-visible (ids of the aircraft in view), data-detections (boxes the
+// vehicle's `detector` payload found in this camera's last processed frame), canvas.overlay.
 
 import * as api from './api.js';
 import { fmt } from './model.js';
@@ -82,9 +83,14 @@ export class CameraCard {
     this.retryTimer = setTimeout(() => this.connect(), delay);
   }
 
-  update(p) {
+  update(p, v) {
     const s = p.state || {};
     this.state = s;
+    // The detector that reads this camera (same vehicle): its boxes are drawn over the video.
+    const det = ((v && v.payloads) || []).find((x) => x.kind === 'detector' && x.state && x.state.camera_slot === this.slot);
+    this.detections = (det && det.state.last && det.state.last.detections) || [];
+    const nDet = String(this.detections.length);
+    if (this.el.dataset.detections !== nDet) this.el.dataset.detections = nDet;
     const put = (k, t) => { const e = this.el.querySelector(`[data-field="${k}"]`); if (e.textContent !== t) e.textContent = t; };
     const frames = s.frames ?? p.frames;
     put('frames', `frame ${frames ?? '–'} · ${fmt(s.frame_rate_hz, 0)} Hz · ${s.width_px ?? '?'}×${s.height_px ?? '?'}`);
@@ -127,6 +133,16 @@ export class CameraCard {
       ctx.fillRect(x - r, y - r - 15, ctx.measureText(label).width + 6, 14);
       ctx.fillStyle = '#3ecf8e';
       ctx.fillText(label, x - r + 3, y - r - 4);
+    }
+    // The detector's boxes (camera pixels): what image processing found, not the truth.
+    ctx.strokeStyle = '#ff8a5b';
+    for (const d of this.detections || []) {
+      const b = d.box_px;
+      if (!b) continue;
+      const pad = 3;
+      ctx.strokeRect(b.x * kx - pad, b.y * ky - pad, b.width * kx + 2 * pad, b.height * ky + 2 * pad);
+      ctx.fillStyle = '#ff8a5b';
+      ctx.fillText(`${fmt((d.confidence ?? 0) * 100, 0)} % · az ${fmt(d.azimuth_deg, 0)}°`, b.x * kx - pad, (b.y + b.height) * ky + pad + 11);
     }
     // Centre reticle.
     ctx.strokeStyle = 'rgba(255,255,255,0.5)';

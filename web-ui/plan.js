@@ -1,5 +1,5 @@
 // Plan view: a top-down canvas map of the swarm frame (north up, east right).
-// The view fits all vehicles and formation slots with a margin and eases towards that fit
+// The view fits all vehicles, formation slots and live tracks with a margin and eases towards that fit
 // (the wheel zooms around it, `follow` centres it on one vehicle, `fit` goes back);
 // `pickPoint` turns the next click into a point of the swarm frame (go-to, gimbal ROI);
 // vehicle markers ease towards each new 10 Hz fix, so motion looks continuous. Drawing runs
@@ -12,6 +12,7 @@
 
 import { stateClass, CLASS_COLOUR, compareIds, fmt } from './model.js';
 import { drawGeofence, drawHazards, drawMarks, drawScale, drawNorth, drawCursor } from './plan-overlays.js';
+import { drawTargets } from './plan-targets.js';
 
 const MIN_SPAN_M = 16;        // never zoom in further than this many metres across
 const PAD_PX = 48;            // room for labels around the fitted area
@@ -52,6 +53,8 @@ export class PlanView {
     this.picking = null;     // {resolve} while a click is awaited as a point
     this.marks = new Map();  // key → {n, e, label}: go-to targets, gimbal ROIs …
     this.geofence = null;    // GET /api/v1/geofence
+    this.targets = [];       // counter-UAS tracks (GET /api/v1/tracks)
+    this.targetPx = new Map(); // track id → [x, y] where it was last drawn (CSS px)
     this.banner = document.createElement('div');
     this.banner.className = 'plan-banner';
     this.banner.dataset.testid = 'plan-banner';
@@ -105,6 +108,12 @@ export class PlanView {
         this.tracks.delete(id);
       }
     }
+    this.kick();
+  }
+
+  /** The counter-UAS tracks as GET /api/v1/tracks lists them (swarm frame). */
+  setTargets(tracks) {
+    this.targets = Array.isArray(tracks) ? tracks : [];
     this.kick();
   }
 
@@ -224,7 +233,7 @@ export class PlanView {
     return this.formation && this.formation.active ? this.formation.leader_id : null;
   }
 
-  /** The view that fits every vehicle and slot. */
+  /** The view that fits every vehicle, slot and live (not lost) counter-UAS track. */
   fitView(slots) {
     let minN = Infinity, maxN = -Infinity, minE = Infinity, maxE = -Infinity;
     const add = (n, e) => {
@@ -236,6 +245,10 @@ export class PlanView {
       if (t.has && p) add(p.north_m, p.east_m);
     }
     for (const s of slots) add(s.n, s.e);
+    for (const t of this.targets) {
+      const p = t.position;
+      if (t.status !== 'lost' && p && Number.isFinite(p.north_m) && Number.isFinite(p.east_m)) add(p.north_m, p.east_m);
+    }
     if (minN === Infinity) return null;
     const cn = (minN + maxN) / 2;
     const ce = (minE + maxE) / 2;
@@ -343,6 +356,7 @@ export class PlanView {
 
     drawGeofence(this);
     drawHazards(this);
+    drawTargets(this);
 
     // Trails.
     ctx.lineWidth = 1.5;

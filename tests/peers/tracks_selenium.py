@@ -1,0 +1,117 @@
+#!/usr/bin/env python3
+"""Drives the dashboard's counter-UAS views in real headless Chromium against a running
+`skein up --sim 4 --intruders 1` whose observation UAVs look at the intruder's pass:
+
+1. the Tracks tab lists a confirmed track, drawn on the plan (data-x / data-y inside
+   the canvas);
+2. its Observe button makes the observation UAVs follow it (data-observed-by);
+3. the Payloads tab of uav-2 shows its camera with the detector's boxes over the video
+   (data-detections >= 1);
+4. no severe error in the browser console.
+
+Prints one JSON summary line; exits 0 only on success.
+
+    python3 tests/peers/tracks_selenium.py --url http://127.0.0.1:PORT/ [--screenshot out.png]
+"""
+
+import argparse
+import json
+import sys
+import time
+
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import Select
+
+from dashboard_selenium import Dashboard, Failure, make_driver
+
+TRACKS_JS = """
+return [...document.querySelectorAll('[data-testid="track-list"] li[data-track-id]')].map(li => ({
+  id: li.dataset.trackId, status: li.dataset.status, by: li.dataset.observedBy,
+  x: li.dataset.x === '' ? null : +li.dataset.x, y: li.dataset.y === '' ? null : +li.dataset.y,
+}));
+"""
+
+
+def parse_args():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--url", required=True)
+    p.add_argument("--screenshot")
+    p.add_argument("--timeout", type=float, default=90.0)
+    p.add_argument("--chromium", default="/usr/bin/chromium")
+    p.add_argument("--chromedriver", default="/usr/bin/chromedriver")
+    p.add_argument("--headed", action="store_true")
+    return p.parse_args()
+
+
+def run(args, driver, summary):
+    ui = Dashboard(driver, args.timeout)
+    t0 = time.monotonic()
+    driver.get(args.url)
+    ui.wait("connected", lambda d: d.find_element(By.CSS_SELECTOR, '[data-testid="connection"]').text.strip() == "connected")
+    ui.click("tab-tracks")
+    size = driver.execute_script(
+        "const c = document.getElementById('plan'); return [c.clientWidth, c.clientHeight];")
+
+    def confirmed_on_plan(_):
+        ui.last = driver.execute_script(TRACKS_JS)
+        for t in ui.last:
+            if t["status"] == "confirmed" and t["x"] is not None and 0 <= t["x"] <= size[0] and 0 <= t["y"] <= size[1]:
+                return t
+        return None
+
+    track = ui.wait("a confirmed track listed and drawn on the plan", confirmed_on_plan)
+    summary["track"] = track
+    summary["confirmed_after_s"] = round(time.monotonic() - t0, 1)
+    driver.find_element(
+        By.CSS_SELECTOR, f'li[data-track-id="{track["id"]}"] button[data-act="observe"]').click()
+
+    def observed(_):
+        ui.last = driver.execute_script(TRACKS_JS)
+        return next((t for t in ui.last if t["id"] == track["id"] and t["by"]), None)
+
+    summary["observed"] = ui.wait("the track observed after the click", observed)
+    if args.screenshot:
+        driver.save_screenshot(args.screenshot)
+        summary["screenshot"] = args.screenshot
+    ui.click("tab-payloads")
+    Select(driver.find_element(By.CSS_SELECTOR, '[data-testid="payload-vehicle"]')).select_by_value("uav-2")
+
+    def detections(_):
+        ui.last = driver.execute_script(
+            "const c = document.querySelector('[data-testid=\"payload-card\"][data-slot=\"camera\"] .widget');"
+            "return c ? (c.dataset.detections || '0') : null;")
+        return ui.last is not None and int(ui.last) >= 1
+    ui.wait("the detector's boxes over uav-2's video", detections)
+    summary["detections"] = int(ui.last)
+    severe = [e for e in driver.get_log("browser") if e.get("level") == "SEVERE"]
+    if severe:
+        raise Failure(f"browser console errors: {severe}")
+
+
+def main():
+    args = parse_args()
+    summary = {"ok": False}
+    driver = make_driver(args)
+    try:
+        run(args, driver, summary)
+        summary["ok"] = True
+    except (Failure, Exception) as e:  # noqa: BLE001 - reported in the summary
+        summary["error"] = str(e)
+        try:
+            summary["console"] = [e["message"] for e in driver.get_log("browser")][-10:]
+            summary["tracks_api"] = driver.execute_script(
+                "return fetch('/api/v1/tracks').then(r => r.text())")
+            summary["tracks_view"] = driver.execute_script(
+                "const v = document.getElementById('view-tracks'); return v ? v.outerHTML.slice(0, 1500) : null")
+            if args.screenshot:
+                driver.save_screenshot(args.screenshot)
+        except Exception:  # noqa: BLE001
+            pass
+    finally:
+        driver.quit()
+    print(json.dumps(summary))
+    return 0 if summary["ok"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
