@@ -60,7 +60,20 @@ async fn setup_signing_replaces_the_key_only_when_signed_with_the_current_one() 
 
     // Signed with the current key: the key is replaced.
     c.send(&setup_signing(&new)).await;
-    tokio::time::sleep(Duration::from_millis(200)).await;
+    // The key is installed once the vehicle's own frames verify with it.
+    let installed = LinkSigning::new(new.clone(), 0);
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    loop {
+        let datagram = c.next_raw(Duration::from_secs(5)).await.expect("a frame");
+        let first = &datagram[..usize::from(datagram[1]) + 12 + 13];
+        if installed.verify(first) == skein_mavlink::signing::Verdict::Valid {
+            break;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the vehicle never signed with the new key"
+        );
+    }
     let before = sim.stats()[0].signing.bad_signature;
     let old_cmd = c.command_long_msg(
         MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
