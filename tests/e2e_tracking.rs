@@ -16,10 +16,9 @@ mod support;
 
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
+use support::counter_uas::{OBSERVERS, up_with_intruder_pass};
 use support::plugins::{build_into, scratch};
 use support::{EventLog, Skein, one_at_a_time};
-
-const OBSERVERS: [&str; 2] = ["uav-2", "uav-4"];
 
 /// True when the camera of `vehicle` drew an intruder in its last frame (the simulated
 /// camera's own account of what it drew, for evaluation).
@@ -111,28 +110,8 @@ fn a_passing_intruder_becomes_a_confirmed_track_that_follows_the_truth() {
         &[],
         &dir,
     );
-    let skein = Skein::up_sim(
-        4,
-        &[
-            "--plugin-dir",
-            dir.to_str().unwrap(),
-            "--intruders",
-            "1",
-            "--intruder-pattern",
-            "straight",
-            // Southward along a line 60 m east of home, 14 m up, 5 m/s; 180 m passes.
-            "--intruder-heading-deg",
-            "180",
-            "--intruder-cpa-m",
-            "60",
-            "--intruder-range-m",
-            "90",
-            "--intruder-altitude-m",
-            "14",
-            "--intruder-speed-m-s",
-            "5",
-        ],
-    );
+    // Southward along a line 60 m east of home, 14 m up, 5 m/s; 180 m passes.
+    let skein = up_with_intruder_pass(&dir, 5.0);
     // Ground truth exists: the intruder, and the vehicles.
     let (status, truth) = skein.get("/api/v1/sim/truth");
     assert_eq!(status, 200, "{truth}");

@@ -281,30 +281,10 @@ fn the_dashboard_shows_tracks_and_observes_one_in_chromium() {
         &[],
         &dir,
     );
-    let skein = support::Skein::up_sim(
-        4,
-        &[
-            "--plugin-dir",
-            dir.to_str().unwrap(),
-            "--intruders",
-            "1",
-            "--intruder-pattern",
-            "straight",
-            // Southward 60 m east of home, 14 m up, 4 m/s: about 45 s in view.
-            "--intruder-heading-deg",
-            "180",
-            "--intruder-cpa-m",
-            "60",
-            "--intruder-range-m",
-            "90",
-            "--intruder-altitude-m",
-            "14",
-            "--intruder-speed-m-s",
-            "4",
-        ],
-    );
+    // About 20 s of every 45 s pass in the cameras' view at 4 m/s.
+    let skein = support::counter_uas::up_with_intruder_pass(&dir, 4.0);
     skein.take_off(4, 10.0);
-    skein.point_gimbals(&["uav-2", "uav-4"], 90.0, 3.0);
+    skein.point_gimbals(&support::counter_uas::OBSERVERS, 90.0, 3.0);
     // The intruder's pass (back and forth, about 20 s of every 45 s in view): the browser
     // starts once the tracker has a confirmed track, so the page has one to show.
     support::eventually("a confirmed track", Duration::from_secs(150), || {

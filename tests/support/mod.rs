@@ -11,6 +11,7 @@ use std::sync::mpsc;
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
+pub mod counter_uas;
 pub mod payloads;
 mod plugin_build;
 
@@ -610,34 +611,6 @@ impl Skein {
         assert_eq!(status, 202, "{body}");
         self.wait_all("hovering", n, Duration::from_secs(90), |v| {
             v["state"] == "Hovering"
-        });
-    }
-
-    /// Points the gimbals of `ids` at `yaw_deg` (earth frame), `pitch_deg` up, and waits
-    /// until their cameras report that azimuth.
-    pub fn point_gimbals(&self, ids: &[&str], yaw_deg: f64, pitch_deg: f64) {
-        for v in ids {
-            let (status, body) = self.post(
-                &format!("/api/v1/vehicles/{v}/payloads/gimbal"),
-                json!({"command": "set_angles", "pitch_deg": pitch_deg, "yaw_deg": yaw_deg, "yaw_frame": "earth"}),
-            );
-            assert_eq!(status, 200, "{body}");
-        }
-        eventually("the gimbals pointed", Duration::from_secs(20), || {
-            let vs = self.vehicles();
-            let ok = ids.iter().all(|id| {
-                vs.iter()
-                    .find(|v| v["id"] == *id)
-                    .and_then(|v| v["payloads"].as_array())
-                    .and_then(|ps| ps.iter().find(|p| p["slot"] == "camera"))
-                    .and_then(|p| p["state"]["pointing"]["azimuth_deg"].as_f64())
-                    .is_some_and(|az| (az - yaw_deg).abs() < 2.0)
-            });
-            if ok {
-                Ok(())
-            } else {
-                Err("cameras not pointed yet".to_string())
-            }
         });
     }
 

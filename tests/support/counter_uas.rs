@@ -1,0 +1,68 @@
+//! Counter-UAS scenes: a swarm of four with an intruder passing east of it, and the
+//! observation UAVs' cameras pointed at its pass.
+
+use super::{Skein, eventually};
+use serde_json::json;
+use std::path::Path;
+use std::time::Duration;
+
+/// The observation UAVs of `skein up --sim 4` (gimbal, camera, detector).
+pub const OBSERVERS: [&str; 2] = ["uav-2", "uav-4"];
+
+/// `skein up --sim 4` with the plugins of `plugin_dir` and one intruder flying straight
+/// passes southward (and back) along a line 60 m east of home, 14 m up, at
+/// `speed_m_s`: 90 m either side of its closest point of approach.
+pub fn up_with_intruder_pass(plugin_dir: &Path, speed_m_s: f64) -> Skein {
+    let speed = speed_m_s.to_string();
+    Skein::up_sim(
+        4,
+        &[
+            "--plugin-dir",
+            plugin_dir.to_str().unwrap(),
+            "--intruders",
+            "1",
+            "--intruder-pattern",
+            "straight",
+            "--intruder-heading-deg",
+            "180",
+            "--intruder-cpa-m",
+            "60",
+            "--intruder-range-m",
+            "90",
+            "--intruder-altitude-m",
+            "14",
+            "--intruder-speed-m-s",
+            &speed,
+        ],
+    )
+}
+
+impl Skein {
+    /// Points the gimbals of `ids` at `yaw_deg` (earth frame), `pitch_deg` up, and waits
+    /// until their cameras report that azimuth.
+    pub fn point_gimbals(&self, ids: &[&str], yaw_deg: f64, pitch_deg: f64) {
+        for v in ids {
+            let (status, body) = self.post(
+                &format!("/api/v1/vehicles/{v}/payloads/gimbal"),
+                json!({"command": "set_angles", "pitch_deg": pitch_deg, "yaw_deg": yaw_deg, "yaw_frame": "earth"}),
+            );
+            assert_eq!(status, 200, "{body}");
+        }
+        eventually("the gimbals pointed", Duration::from_secs(20), || {
+            let vs = self.vehicles();
+            let ok = ids.iter().all(|id| {
+                vs.iter()
+                    .find(|v| v["id"] == *id)
+                    .and_then(|v| v["payloads"].as_array())
+                    .and_then(|ps| ps.iter().find(|p| p["slot"] == "camera"))
+                    .and_then(|p| p["state"]["pointing"]["azimuth_deg"].as_f64())
+                    .is_some_and(|az| (az - yaw_deg).abs() < 2.0)
+            });
+            if ok {
+                Ok(())
+            } else {
+                Err("cameras not pointed yet".to_string())
+            }
+        });
+    }
+}
