@@ -66,6 +66,8 @@ pub enum ChildKind {
     Coordinator,
     /// The HTTP API server.
     Api,
+    /// The DDS link (ROS 2 topics, `skein up --dds`).
+    Dds,
     /// A Vehicle actor.
     Vehicle,
     /// A vehicle's MAVLink link actor.
@@ -76,9 +78,10 @@ pub enum ChildKind {
 
 impl ChildKind {
     /// Every kind.
-    pub const ALL: [ChildKind; 5] = [
+    pub const ALL: [ChildKind; 6] = [
         ChildKind::Coordinator,
         ChildKind::Api,
+        ChildKind::Dds,
         ChildKind::Vehicle,
         ChildKind::Px4Link,
         ChildKind::Payload,
@@ -89,6 +92,7 @@ impl ChildKind {
         match self {
             ChildKind::Coordinator => "coordinator",
             ChildKind::Api => "api",
+            ChildKind::Dds => "dds",
             ChildKind::Vehicle => "vehicle",
             ChildKind::Px4Link => "px4link",
             ChildKind::Payload => "payload",

@@ -43,6 +43,9 @@ pub struct Metrics {
     /// Payload driver threads given up because a call did not return in time (set from
     /// [`crate::payload::abandoned_driver_threads`] at every render).
     payload_threads_abandoned: Gauge,
+    /// DDS link samples since the start (`what` label: published, publish_errors,
+    /// commands, malformed), set by the DDS link.
+    pub dds_samples: Family<Labels, Gauge>,
     /// Tracks by status (`status` label: tentative, confirmed, lost).
     tracks: Family<Labels, Gauge>,
     /// Tracker totals since the start (`what` label: bearings, bearings_excluded_members,
@@ -85,6 +88,13 @@ impl Metrics {
         let gcs_forward_frames = Family::<Labels, Gauge>::default();
         let payload_threads_abandoned = Gauge::default();
         let tracks = Family::<Labels, Gauge>::default();
+        let dds_samples = Family::<Labels, Gauge>::default();
+        registry.register(
+            "dds_samples",
+            "DDS link samples since the start: published, failed writes, commands taken, \
+             malformed samples dropped",
+            dds_samples.clone(),
+        );
         let tracker_totals = Family::<Labels, Gauge>::default();
         registry.register(
             "tracks",
@@ -181,6 +191,7 @@ impl Metrics {
             mavlink_signing_dropped,
             gcs_forward_frames,
             payload_threads_abandoned,
+            dds_samples,
             tracks,
             tracker_totals,
         }

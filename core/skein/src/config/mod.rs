@@ -202,6 +202,27 @@ pub struct GcsSection {
     pub forward: Option<Connection>,
 }
 
+/// `[dds]`: the swarm on ROS 2 topics (`skein up --dds`, see `skein_dds::topics`).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DdsSection {
+    /// Publish the topics (as `--dds`).
+    #[serde(default)]
+    pub enabled: bool,
+    /// DDS domain, 0 to 232 (`--domain-id` wins; default `ROS_DOMAIN_ID`, else 0).
+    pub domain_id: Option<u16>,
+    /// Pose, navsat and state publications per second (default 10, at most 100).
+    pub publish_rate_hz: Option<f64>,
+    /// Obey `skein_msgs/Command`s from the domain (as `--dds-commands`). DDS has no
+    /// authentication: turn this on only on a trusted network.
+    #[serde(default)]
+    pub accept_commands: bool,
+    /// Addresses of the local interfaces DDS uses (`["192.168.1.20"]` for the swarm's
+    /// WLAN; `["127.0.0.1"]` keeps it on this host); default every interface.
+    #[serde(default)]
+    pub networks: Vec<std::net::IpAddr>,
+}
+
 /// The whole file.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -224,6 +245,9 @@ pub struct ConfigFile {
     /// `[recording]`.
     #[serde(default)]
     pub recording: RecordingSection,
+    /// `[dds]`.
+    #[serde(default)]
+    pub dds: DdsSection,
     /// `[supervision]`.
     pub supervision: Option<skein_swarm::supervision::SupervisionConfig>,
     /// `[hazards]`.

@@ -20,6 +20,8 @@ pub struct Swarm {
     pub events: broadcast::Sender<SwarmEvent>,
     /// The opened endpoints, in configuration order.
     pub endpoints: Vec<Arc<Endpoint>>,
+    /// The metrics registry (`GET /metrics`), for services that add to it.
+    pub metrics: Arc<Metrics>,
     handle: ractor::concurrency::JoinHandle<()>,
 }
 
@@ -61,6 +63,7 @@ impl Swarm {
         }
         let (events, _) = broadcast::channel(4096);
         let endpoints = opened.iter().map(|(e, _)| e.clone()).collect();
+        let metrics = Arc::new(Metrics::new());
         let (coordinator, handle) = Actor::spawn(
             None,
             Coordinator,
@@ -69,7 +72,7 @@ impl Swarm {
                 services,
                 endpoints: opened,
                 events: events.clone(),
-                metrics: Arc::new(Metrics::new()),
+                metrics: metrics.clone(),
             },
         )
         .await
@@ -78,6 +81,7 @@ impl Swarm {
             coordinator,
             events,
             endpoints,
+            metrics,
             handle,
         })
     }

@@ -57,6 +57,8 @@ pub struct SupervisionConfig {
     pub payload: PolicyConfig,
     /// Policy of the API server actor.
     pub api: PolicyConfig,
+    /// Policy of the DDS link actor.
+    pub dds: PolicyConfig,
     /// What a vehicle is commanded when its actor's budget is spent.
     pub vehicle_escalation: VehicleEscalation,
     /// How often supervisors ping their children, ms.
@@ -72,6 +74,7 @@ impl Default for SupervisionConfig {
             px4link: PolicyConfig::default(),
             payload: PolicyConfig::default(),
             api: PolicyConfig::default(),
+            dds: PolicyConfig::default(),
             vehicle_escalation: VehicleEscalation::Hold,
             watchdog_period_ms: 250,
             watchdog_deadline_ms: 2_000,
@@ -87,6 +90,7 @@ impl SupervisionConfig {
             ChildKind::Px4Link => &self.px4link,
             ChildKind::Payload => &self.payload,
             ChildKind::Api | ChildKind::Coordinator => &self.api,
+            ChildKind::Dds => &self.dds,
         }
     }
 

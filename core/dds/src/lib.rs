@@ -1,0 +1,52 @@
+//! The DDS link: skein's swarm on ROS 2 topics, through `ros2-client` on RustDDS (no ROS
+//! installation needed; any ROS 2 node, `ros2 topic echo` or a plain DDS peer such as
+//! CycloneDDS sees it).
+//!
+//! - [`topics`]: names and QoS of every topic (the table there is the contract);
+//! - [`msgs`]: the message types, standard ROS 2 ones and skein's own (`core/dds/msg/*.msg`);
+//! - [`convert`]: skein's NED swarm frame to the ENU of REP 103, commands back;
+//! - [`link`]: the supervised `DdsLink` service of `skein up --dds`.
+//!
+//! The domain is `--domain-id`, else `ROS_DOMAIN_ID`, else 0 ([`domain_id_from_env`]).
+#![warn(missing_docs)]
+
+pub mod convert;
+pub mod link;
+pub mod msgs;
+pub mod topics;
+
+pub use link::{DdsConfig, DdsCounters, DdsError, DdsLink, DdsShared};
+
+/// The frame of positions on skein's topics: ENU about the swarm origin (its geodetic
+/// point is the `[swarm] origin` of the config, or the first vehicle's home).
+pub const FRAME_ID: &str = "skein_swarm";
+
+/// The highest DDS domain id RTPS port mapping allows with default port parameters.
+pub const MAX_DOMAIN_ID: u16 = 232;
+
+/// The domain given by `ROS_DOMAIN_ID`, if set.
+///
+/// # Errors
+/// `ROS_DOMAIN_ID` is set but not an integer in `0..=232`.
+pub fn domain_id_from_env() -> Result<Option<u16>, String> {
+    match std::env::var("ROS_DOMAIN_ID") {
+        Ok(s) if s.trim().is_empty() => Ok(None),
+        Ok(s) => parse_domain_id(s.trim())
+            .map(Some)
+            .map_err(|e| format!("ROS_DOMAIN_ID: {e}")),
+        Err(_) => Ok(None),
+    }
+}
+
+/// A domain id from text.
+///
+/// # Errors
+/// Not an integer in `0..=232`.
+pub fn parse_domain_id(s: &str) -> Result<u16, String> {
+    match s.parse::<u16>() {
+        Ok(d) if d <= MAX_DOMAIN_ID => Ok(d),
+        _ => Err(format!(
+            "`{s}` is not a DDS domain id (0 to {MAX_DOMAIN_ID})"
+        )),
+    }
+}

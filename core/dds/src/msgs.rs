@@ -1,0 +1,273 @@
+//! The messages on skein's DDS topics, as serde types in field order: RustDDS writes
+//! them as CDR (XCDR1, little-endian) exactly as a ROS 2 node generated from the `.msg`
+//! files would.
+//!
+//! - ROS 2 standard messages skein publishes: `std_msgs/Header`,
+//!   `geometry_msgs/{Point, Vector3, Quaternion, Pose, PoseStamped}`,
+//!   `sensor_msgs/{NavSatStatus, NavSatFix, BatteryState}` (Jazzy definitions).
+//! - skein's own messages (`skein_msgs/*`), defined by the `.msg` files in
+//!   `core/dds/msg/`: [`VehicleState`], [`Command`], [`CommandResult`], [`Track`],
+//!   [`Tracks`]. A field added there is added here at the same place.
+//!
+//! Fixed-size arrays (`float64[9]`) are Rust arrays (CDR writes no length); sequences
+//! (`float32[]`, `Track[]`) are `Vec`s (CDR writes a `u32` length first).
+
+use ros2_client::MessageTypeName;
+use ros2_client::builtin_interfaces::Time;
+use serde::{Deserialize, Serialize};
+
+/// A ROS message type with its `package/Type` name.
+pub trait RosMessage: Serialize + 'static {
+    /// `(package, type)`, e.g. `("geometry_msgs", "PoseStamped")`; the DDS type name is
+    /// `geometry_msgs::msg::dds_::PoseStamped_`.
+    const TYPE: (&'static str, &'static str);
+
+    /// The type name ros2-client puts on the topic.
+    fn type_name() -> MessageTypeName {
+        MessageTypeName::new(Self::TYPE.0, Self::TYPE.1)
+    }
+}
+
+/// `std_msgs/Header`: stamp and coordinate frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    /// When the data was valid (wall clock, `builtin_interfaces/Time`).
+    pub stamp: Time,
+    /// Frame of the data: [`crate::FRAME_ID`] for skein's swarm frame.
+    pub frame_id: String,
+}
+
+/// `geometry_msgs/Point`, metres.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Point {
+    /// x (ENU: east), metres.
+    pub x: f64,
+    /// y (ENU: north), metres.
+    pub y: f64,
+    /// z (ENU: up), metres.
+    pub z: f64,
+}
+
+/// `geometry_msgs/Vector3`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Vector3 {
+    /// x (ENU: east).
+    pub x: f64,
+    /// y (ENU: north).
+    pub y: f64,
+    /// z (ENU: up).
+    pub z: f64,
+}
+
+/// `geometry_msgs/Quaternion` (x, y, z, w).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Quaternion {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+    /// w.
+    pub w: f64,
+}
+
+/// `geometry_msgs/Pose`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    /// Position, metres.
+    pub position: Point,
+    /// Orientation of the body (FLU per REP 103) in the frame.
+    pub orientation: Quaternion,
+}
+
+/// `geometry_msgs/PoseStamped`: `/skein/<vehicle>/pose`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PoseStamped {
+    /// Stamp and frame ([`crate::FRAME_ID`], ENU).
+    pub header: Header,
+    /// The pose.
+    pub pose: Pose,
+}
+
+impl RosMessage for PoseStamped {
+    const TYPE: (&'static str, &'static str) = ("geometry_msgs", "PoseStamped");
+}
+
+/// `sensor_msgs/NavSatStatus`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct NavSatStatus {
+    /// `STATUS_NO_FIX` (-1) or `STATUS_FIX` (0).
+    pub status: i8,
+    /// `SERVICE_GPS` (1).
+    pub service: u16,
+}
+
+/// `sensor_msgs/NavSatFix`: `/skein/<vehicle>/navsat`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NavSatFix {
+    /// Stamp; frame_id is the vehicle id.
+    pub header: Header,
+    /// Fix status.
+    pub status: NavSatStatus,
+    /// Latitude, degrees (WGS 84).
+    pub latitude: f64,
+    /// Longitude, degrees (WGS 84).
+    pub longitude: f64,
+    /// Altitude, metres above mean sea level (PX4's `GLOBAL_POSITION_INT.alt`).
+    pub altitude: f64,
+    /// Row-major ENU covariance, m² (unknown: zeros with type 0).
+    pub position_covariance: [f64; 9],
+    /// `COVARIANCE_TYPE_UNKNOWN` (0).
+    pub position_covariance_type: u8,
+}
+
+impl RosMessage for NavSatFix {
+    const TYPE: (&'static str, &'static str) = ("sensor_msgs", "NavSatFix");
+}
+
+/// `sensor_msgs/BatteryState` (Jazzy): `/skein/<vehicle>/battery`. Unmeasured
+/// quantities are NaN, as the message's definition asks.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BatteryState {
+    /// Stamp; frame_id is the vehicle id.
+    pub header: Header,
+    /// Pack voltage, volts.
+    pub voltage: f32,
+    /// Temperature, °C (NaN).
+    pub temperature: f32,
+    /// Current, A, negative when discharging (NaN).
+    pub current: f32,
+    /// Charge, Ah (NaN).
+    pub charge: f32,
+    /// Capacity, Ah (NaN).
+    pub capacity: f32,
+    /// Design capacity, Ah (NaN).
+    pub design_capacity: f32,
+    /// Charge remaining, 0 to 1.
+    pub percentage: f32,
+    /// `POWER_SUPPLY_STATUS_DISCHARGING` (2).
+    pub power_supply_status: u8,
+    /// `POWER_SUPPLY_HEALTH_UNKNOWN` (0).
+    pub power_supply_health: u8,
+    /// `POWER_SUPPLY_TECHNOLOGY_UNKNOWN` (0).
+    pub power_supply_technology: u8,
+    /// True: the battery is there.
+    pub present: bool,
+    /// Cell voltages, volts (empty: not reported).
+    pub cell_voltage: Vec<f32>,
+    /// Cell temperatures, °C (empty).
+    pub cell_temperature: Vec<f32>,
+    /// Where the battery is (empty).
+    pub location: String,
+    /// Serial number (empty).
+    pub serial_number: String,
+}
+
+impl RosMessage for BatteryState {
+    const TYPE: (&'static str, &'static str) = ("sensor_msgs", "BatteryState");
+}
+
+/// `skein_msgs/VehicleState` (`msg/VehicleState.msg`): `/skein/<vehicle>/state`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VehicleState {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Vehicle id (`"uav-1"`).
+    pub id: String,
+    /// MAVLink system id.
+    pub sysid: u8,
+    /// Model name.
+    pub model: String,
+    /// skein FSM state (`"Hovering"`).
+    pub state: String,
+    /// PX4 mode (`"OFFBOARD"`).
+    pub px4_mode: String,
+    /// Armed flag.
+    pub armed: bool,
+    /// MAVLink link up.
+    pub link_connected: bool,
+    /// Formation slot, -1 when none.
+    pub slot: i32,
+    /// Leader slot.
+    pub leader: bool,
+}
+
+impl RosMessage for VehicleState {
+    const TYPE: (&'static str, &'static str) = ("skein_msgs", "VehicleState");
+}
+
+/// `skein_msgs/Command` (`msg/Command.msg`): `/skein/<vehicle>/command`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Command {
+    /// Who sends it (logged).
+    pub source: String,
+    /// The sender's id for it, echoed in the [`CommandResult`].
+    pub request_id: u64,
+    /// Command name as the API spells it (`"takeoff"`).
+    pub command: String,
+    /// Takeoff altitude above home, metres; NaN = the configured default.
+    pub altitude_m: f64,
+    /// Disarm: emergency.
+    pub force: bool,
+    /// Goto: swarm-frame ENU metres.
+    pub target: Point,
+}
+
+impl RosMessage for Command {
+    const TYPE: (&'static str, &'static str) = ("skein_msgs", "Command");
+}
+
+/// `skein_msgs/CommandResult` (`msg/CommandResult.msg`):
+/// `/skein/<vehicle>/command_result`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CommandResult {
+    /// The command's `request_id`.
+    pub request_id: u64,
+    /// skein's command id; 0 when refused before reaching the vehicle.
+    pub command_id: u64,
+    /// Taken by the vehicle's FSM.
+    pub accepted: bool,
+    /// Why not; empty when accepted.
+    pub reason: String,
+}
+
+impl RosMessage for CommandResult {
+    const TYPE: (&'static str, &'static str) = ("skein_msgs", "CommandResult");
+}
+
+/// `skein_msgs/Track` (`msg/Track.msg`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Track {
+    /// `"track-7"`.
+    pub id: String,
+    /// `tentative` | `confirmed` | `lost`.
+    pub status: String,
+    /// Swarm-frame ENU metres.
+    pub position: Point,
+    /// ENU m/s.
+    pub velocity: Vector3,
+    /// Root of the position covariance's trace, metres.
+    pub position_sigma_m: f64,
+    /// Horizontal covariance `[ee, en, ne, nn]`, m².
+    pub covariance_en_m2: [f64; 4],
+    /// Updates so far.
+    pub hits: u32,
+    /// Seconds since the track started.
+    pub age_s: f64,
+    /// Seconds since its last update.
+    pub unseen_s: f64,
+}
+
+/// `skein_msgs/Tracks` (`msg/Tracks.msg`): `/skein/tracks`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Tracks {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Every track now.
+    pub tracks: Vec<Track>,
+}
+
+impl RosMessage for Tracks {
+    const TYPE: (&'static str, &'static str) = ("skein_msgs", "Tracks");
+}

@@ -1,0 +1,94 @@
+//! Topic names and their QoS.
+//!
+//! | topic | type | QoS | rate |
+//! |---|---|---|---|
+//! | `/skein/<vehicle>/pose` | `geometry_msgs/PoseStamped` | best-effort, volatile, keep-last 1 | publish rate |
+//! | `/skein/<vehicle>/navsat` | `sensor_msgs/NavSatFix` | best-effort, volatile, keep-last 1 | publish rate |
+//! | `/skein/<vehicle>/battery` | `sensor_msgs/BatteryState` | best-effort, volatile, keep-last 1 | publish rate / 10 |
+//! | `/skein/<vehicle>/state` | `skein_msgs/VehicleState` | reliable, volatile, keep-last 1 | publish rate |
+//! | `/skein/<vehicle>/command` | `skein_msgs/Command` | reliable, volatile, keep-last 16 | on demand |
+//! | `/skein/<vehicle>/command_result` | `skein_msgs/CommandResult` | reliable, volatile, keep-last 16 | per command |
+//! | `/skein/tracks` | `skein_msgs/Tracks` | reliable, volatile, keep-last 1 | publish rate / 2 |
+//!
+//! Poses are sensor data (REP 2003): a lost sample is replaced by the next one, so
+//! retransmitting it only delays the newer. State is reliable keep-last 1: a reader
+//! always ends with the newest state, but never waits for an old one. Commands and their
+//! results are reliable with a queue, so a burst of commands is neither lost nor merged.
+//!
+//! Names: a ROS 2 name holds letters, digits and underscores only, so a vehicle id is
+//! written with every other character as `_` ([`ros_name`]): `uav-1` publishes on
+//! `/skein/uav_1/pose`, the DDS topic `rt/skein/uav_1/pose`.
+
+use ros2_client::QosProfile;
+use ros2_client::qos::{Durability, History, WhenFull};
+
+/// Namespace of every topic.
+pub const NAMESPACE: &str = "/skein";
+
+/// A vehicle id as a ROS 2 name token: letters, digits and `_` kept, anything else
+/// becomes `_`, and a leading digit gets a `v` before it (`"uav-1"` → `"uav_1"`).
+pub fn ros_name(id: &str) -> String {
+    let mut s: String = id
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if s.is_empty() || s.starts_with(|c: char| c.is_ascii_digit()) {
+        s.insert(0, 'v');
+    }
+    s
+}
+
+/// The namespace of a vehicle's topics (`/skein/uav_1`).
+pub fn vehicle_namespace(id: &str) -> String {
+    format!("{NAMESPACE}/{}", ros_name(id))
+}
+
+/// Sensor data (pose, navsat, battery): best-effort, volatile, keep-last 1.
+pub fn sensor() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_best_effort()
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 1 })
+}
+
+/// Latest state (vehicle state, tracks): reliable, volatile, keep-last 1.
+pub fn latest_state() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Fail)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 1 })
+}
+
+/// Commands and their results: reliable, volatile, keep-last 16.
+pub fn commands() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Wait(std::time::Duration::from_millis(20)))
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 16 })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vehicle_ids_become_ros_names() {
+        assert_eq!(ros_name("uav-1"), "uav_1");
+        assert_eq!(ros_name("scout.7"), "scout_7");
+        assert_eq!(ros_name("7"), "v7");
+        assert_eq!(vehicle_namespace("uav-12"), "/skein/uav_12");
+        for id in ["uav-1", "a b", "x/y", "ü"] {
+            let n = ros_name(id);
+            assert!(
+                n.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'),
+                "{n}"
+            );
+        }
+    }
+}

@@ -1,0 +1,148 @@
+//! The swarm on ROS 2 topics (`skein up --dds`), read and commanded by an independent
+//! DDS implementation: CycloneDDS's Python binding (`tests/peers/dds_peer.py`), with type
+//! definitions written from the `.msg` files and the ROS 2 standard messages alone.
+//!
+//! Both sides are kept on loopback (`--dds-network 127.0.0.1`; the peer's
+//! `CYCLONEDDS_URI` names 127.0.0.1 with unicast discovery), each test on its own
+//! domain, so nothing leaves the host and parallel tests do not hear each other.
+
+mod support;
+
+use serde_json::Value;
+use std::time::Duration;
+use support::{Skein, eventually, run_peer};
+
+/// A DDS domain of this test process's own (`offset` tells the tests apart).
+fn domain(offset: u32) -> String {
+    (100 + (std::process::id() % 60) * 2 + offset).to_string()
+}
+
+/// The value of `skein_dds_samples{what="..."}` in `/metrics`.
+fn dds_samples(skein: &Skein, what: &str) -> u64 {
+    let (_, _, body) = skein.get_bytes("/metrics");
+    let text = String::from_utf8_lossy(&body).to_string();
+    let needle = format!("skein_dds_samples{{what=\"{what}\"}} ");
+    text.lines()
+        .find_map(|l| l.strip_prefix(&needle))
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no {needle} in /metrics:\n{text}"))
+}
+
+fn vehicle(skein: &Skein, id: &str) -> Value {
+    skein.get(&format!("/api/v1/vehicles/{id}")).1
+}
+
+#[test]
+fn a_cyclonedds_peer_reads_poses_and_commands_a_vehicle() {
+    let d = domain(0);
+    let mut skein = Skein::up_sim(
+        2,
+        &[
+            "--dds",
+            "--dds-commands",
+            "--domain-id",
+            &d,
+            "--dds-network",
+            "127.0.0.1",
+        ],
+    );
+    skein
+        .process
+        .wait_line("ROS 2 topics under /skein", Duration::from_secs(30));
+    skein.wait_all(
+        "connected with positions",
+        2,
+        Duration::from_secs(60),
+        |v| v["link"]["connected"] == true && v["position"].is_object(),
+    );
+    // The vehicle away from the swarm origin (the first home heard), so that a swapped or
+    // unturned axis would show.
+    let horizontal = |v: &Value| {
+        let p = &v["position"];
+        p["north_m"]
+            .as_f64()
+            .unwrap()
+            .hypot(p["east_m"].as_f64().unwrap())
+    };
+    let mut vs = skein.vehicles();
+    vs.sort_by(|a, b| horizontal(a).total_cmp(&horizontal(b)));
+    let (other, target) = (vs[0]["id"].as_str().unwrap(), vs[1]["id"].as_str().unwrap());
+    assert!(horizontal(&vs[1]) > 2.0, "{vs:?}");
+    let (code, out, err) = run_peer(
+        "dds_peer.py",
+        &[
+            "--domain",
+            &d,
+            "--vehicle",
+            target,
+            "--api",
+            &skein.base,
+            "--loopback",
+        ],
+        Duration::from_secs(120),
+    );
+    assert_eq!(code, Some(0), "peer failed:\n{out}\n{err}");
+    let report: Value = serde_json::from_str(out.trim()).expect("one JSON line");
+    assert!(
+        report["worst_pose_error_m"].as_f64().unwrap() < 0.5,
+        "{report}"
+    );
+    assert!(report["climbed_to_m"].as_f64().unwrap() >= 5.0, "{report}");
+    let land = report["land_refused"].as_str().unwrap();
+    assert!(
+        land.contains("Landed"),
+        "the refusal names the state: {land}"
+    );
+    assert!(
+        report["in_flight_worst_pose_error_m"].as_f64().unwrap() < 0.5,
+        "{report}"
+    );
+    // The takeoff went to that vehicle alone, through the same path as the API's.
+    let flown = vehicle(&skein, target);
+    assert!(
+        ["TakingOff", "Hovering"].contains(&flown["state"].as_str().unwrap()),
+        "{flown}"
+    );
+    assert_eq!(vehicle(&skein, other)["state"], "Landed");
+    assert_eq!(dds_samples(&skein, "commands"), 3);
+    // The unknown command was malformed; the land was well-formed and refused.
+    assert_eq!(dds_samples(&skein, "malformed"), 1);
+    eventually(
+        "samples counted",
+        Duration::from_secs(5),
+        || match dds_samples(&skein, "published") {
+            n if n > 20 => Ok(()),
+            n => Err(format!("{n} published")),
+        },
+    );
+    let (_, tree) = skein.get("/api/v1/supervision");
+    assert!(tree.to_string().contains("coordinator/dds"), "{tree}");
+}
+
+#[test]
+fn without_dds_commands_nothing_on_the_domain_can_command_a_vehicle() {
+    let d = domain(1);
+    let mut skein = Skein::up_sim(
+        1,
+        &["--dds", "--domain-id", &d, "--dds-network", "127.0.0.1"],
+    );
+    skein
+        .process
+        .wait_line("ROS 2 topics under /skein", Duration::from_secs(30));
+    let (code, out, err) = run_peer(
+        "dds_peer.py",
+        &[
+            "--domain",
+            &d,
+            "--vehicle",
+            "uav-1",
+            "--api",
+            &skein.base,
+            "--loopback",
+            "--expect-no-command-reader",
+        ],
+        Duration::from_secs(90),
+    );
+    assert_eq!(code, Some(0), "peer failed:\n{out}\n{err}");
+    assert_eq!(vehicle(&skein, "uav-1")["state"], "Landed");
+}

@@ -1,0 +1,254 @@
+"""A ROS 2 peer without ROS: CycloneDDS (PyPI `cyclonedds`) reads skein's topics and
+commands a vehicle, with type definitions written here from the .msg files alone.
+
+Usage: dds_peer.py --domain D --vehicle uav-1 --api http://127.0.0.1:PORT
+                   [--loopback] [--expect-no-command-reader]
+
+1. Subscribes to rt/skein/<vehicle>/pose as geometry_msgs::msg::dds_::PoseStamped_
+   (best-effort, as skein publishes it) and compares 10 poses with the vehicle's position
+   from skein's HTTP API, converted to ENU (x east, y north, z up): each must match within
+   0.5 m.
+2. Once skein's command reader has matched, publishes three skein_msgs Commands on
+   rt/skein/<vehicle>/command and reads each CommandResult: an unknown command (refused,
+   naming the field `command`), a land on the ground (refused by the vehicle's state),
+   and a takeoff to 6 m (accepted); then watches the poses until the vehicle is 5 m up.
+   With --expect-no-command-reader, checks instead that no command reader matches in 5 s
+   (skein without --dds-commands).
+
+--loopback keeps CycloneDDS on 127.0.0.1 with unicast discovery (no multicast leaves
+the host), matching `skein up --dds-network 127.0.0.1`.
+
+Prints one JSON line with what it saw; exits non-zero with the reason on any failure.
+"""
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+import urllib.request
+from dataclasses import dataclass
+
+from cyclonedds.core import Policy, Qos
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl.types import float64, int32, uint32, uint64
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+
+
+@dataclass
+class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
+    sec: int32
+    nanosec: uint32
+
+
+@dataclass
+class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
+    stamp: Time
+    frame_id: str
+
+
+@dataclass
+class Point(IdlStruct, typename="geometry_msgs::msg::dds_::Point_"):
+    x: float64
+    y: float64
+    z: float64
+
+
+@dataclass
+class Quaternion(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
+    x: float64
+    y: float64
+    z: float64
+    w: float64
+
+
+@dataclass
+class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
+    position: Point
+    orientation: Quaternion
+
+
+@dataclass
+class PoseStamped(IdlStruct, typename="geometry_msgs::msg::dds_::PoseStamped_"):
+    header: Header
+    pose: Pose
+
+
+@dataclass
+class Command(IdlStruct, typename="skein_msgs::msg::dds_::Command_"):
+    source: str
+    request_id: uint64
+    command: str
+    altitude_m: float64
+    force: bool
+    target: Point
+
+
+@dataclass
+class CommandResult(IdlStruct, typename="skein_msgs::msg::dds_::CommandResult_"):
+    request_id: uint64
+    command_id: uint64
+    accepted: bool
+    reason: str
+
+
+def fail(why):
+    print(json.dumps({"ok": False, "error": why}), flush=True)
+    sys.exit(1)
+
+
+def api_position(api, vehicle):
+    with urllib.request.urlopen(f"{api}/api/v1/vehicles/{vehicle}", timeout=5) as r:
+        v = json.load(r)
+    p = v.get("position")
+    if p is None:
+        return None
+    # skein's swarm frame is NED; the topic is ENU (REP 103).
+    return (p["east_m"], p["north_m"], -p["down_m"])
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--domain", type=int, required=True)
+    ap.add_argument("--vehicle", required=True)
+    ap.add_argument("--api", required=True)
+    ap.add_argument("--timeout", type=float, default=60.0)
+    ap.add_argument("--loopback", action="store_true")
+    ap.add_argument("--expect-no-command-reader", action="store_true")
+    args = ap.parse_args()
+    if args.loopback:
+        os.environ["CYCLONEDDS_URI"] = (
+            "<CycloneDDS><Domain Id='any'><General><Interfaces>"
+            "<NetworkInterface address='127.0.0.1'/></Interfaces>"
+            "<AllowMulticast>false</AllowMulticast></General>"
+            "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
+            "<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex>"
+            "<Peers><Peer address='127.0.0.1'/></Peers></Discovery></Domain></CycloneDDS>"
+        )
+    ros = args.vehicle.replace("-", "_")
+    deadline = time.monotonic() + args.timeout
+
+    # ROS 2's rmw_cyclonedds writes XCDR1; so does skein (RustDDS).
+    xcdr1 = Policy.DataRepresentation(use_cdrv0_representation=True)
+    dp = DomainParticipant(args.domain)
+    pose_reader = DataReader(
+        dp,
+        Topic(dp, f"rt/skein/{ros}/pose", PoseStamped),
+        qos=Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(1), xcdr1),
+    )
+    reliable = Qos(
+        Policy.Reliability.Reliable(duration(milliseconds=100)),
+        Policy.History.KeepLast(16),
+        xcdr1,
+    )
+    cmd_writer = DataWriter(dp, Topic(dp, f"rt/skein/{ros}/command", Command), qos=reliable)
+    result_reader = DataReader(
+        dp, Topic(dp, f"rt/skein/{ros}/command_result", CommandResult), qos=reliable
+    )
+
+    # 1. Poses against the API.
+    compared = []
+    while len(compared) < 10:
+        if time.monotonic() > deadline:
+            fail(f"only {len(compared)} poses in {args.timeout} s")
+        for s in pose_reader.take(N=1):
+            api = api_position(args.api, args.vehicle)
+            if api is None:
+                continue
+            p = s.pose.position
+            err = math.dist((p.x, p.y, p.z), api)
+            if s.header.frame_id != "skein_swarm":
+                fail(f"frame_id {s.header.frame_id!r}, expected 'skein_swarm'")
+            compared.append(err)
+        time.sleep(0.05)
+    worst = max(compared)
+    if worst > 0.5:
+        fail(f"a pose was {worst:.3f} m from the API's position (limit 0.5 m)")
+
+    # 2. Commands, once skein's reader has matched our writer.
+    if args.expect_no_command_reader:
+        until = time.monotonic() + 5.0
+        while time.monotonic() < until:
+            if cmd_writer.get_matched_subscriptions():
+                fail("skein has a command reader although commands are off")
+            time.sleep(0.1)
+        print(json.dumps({"ok": True, "poses_compared": len(compared),
+                          "worst_pose_error_m": worst, "command_reader": False}), flush=True)
+        return
+    while not cmd_writer.get_matched_subscriptions():
+        if time.monotonic() > deadline:
+            fail("skein's command reader never matched (is --dds-commands on?)")
+        time.sleep(0.05)
+
+    def command(request_id, name, altitude_m=math.nan):
+        cmd_writer.write(
+            Command(
+                source="dds_peer.py",
+                request_id=request_id,
+                command=name,
+                altitude_m=altitude_m,
+                force=False,
+                target=Point(0.0, 0.0, 0.0),
+            )
+        )
+        while True:
+            if time.monotonic() > deadline:
+                fail(f"no CommandResult for request {request_id} ({name})")
+            for r in result_reader.take(N=16):
+                if r.request_id == request_id:
+                    return r
+            time.sleep(0.05)
+
+    unknown = command(1, "explode")
+    if unknown.accepted or "command" not in unknown.reason:
+        fail(f"an unknown command was answered {unknown}")
+    land = command(2, "land")
+    if land.accepted:
+        fail("a land on the ground was accepted")
+    result = command(3, "takeoff", 6.0)
+    if not result.accepted:
+        fail(f"takeoff refused: {result.reason}")
+    top = -math.inf
+    while top < 5.0:
+        if time.monotonic() > deadline:
+            fail(f"the vehicle rose only to {top:.2f} m after takeoff")
+        for s in pose_reader.take(N=1):
+            top = max(top, s.pose.position.z)
+        time.sleep(0.05)
+    # 3. Poses in flight against the API (z up, non-zero).
+    in_flight = []
+    while len(in_flight) < 5:
+        if time.monotonic() > deadline:
+            fail(f"only {len(in_flight)} poses compared in flight")
+        for s in pose_reader.take(N=1):
+            api = api_position(args.api, args.vehicle)
+            p = s.pose.position
+            in_flight.append(math.dist((p.x, p.y, p.z), api))
+        time.sleep(0.05)
+    if max(in_flight) > 0.5:
+        fail(f"a pose in flight was {max(in_flight):.3f} m from the API's (limit 0.5 m)")
+    print(
+        json.dumps(
+            {
+                "ok": True,
+                "in_flight_worst_pose_error_m": max(in_flight),
+                "ground_position_enu_m": list(api_position(args.api, args.vehicle) or []),
+                "poses_compared": len(compared),
+                "worst_pose_error_m": worst,
+                "command_id": result.command_id,
+                "unknown_refused": unknown.reason,
+                "land_refused": land.reason,
+                "climbed_to_m": top,
+            }
+        ),
+        flush=True,
+    )
+
+
+if __name__ == "__main__":
+    main()
