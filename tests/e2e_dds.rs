@@ -10,6 +10,8 @@ mod support;
 
 use serde_json::Value;
 use std::time::Duration;
+use support::counter_uas::{OBSERVERS, up_with_intruder_pass_and};
+use support::plugins::{build_into, scratch};
 use support::{Skein, eventually, run_peer};
 
 /// A DDS domain of this test process's own (`offset` tells the tests apart).
@@ -145,4 +147,53 @@ fn without_dds_commands_nothing_on_the_domain_can_command_a_vehicle() {
     );
     assert_eq!(code, Some(0), "peer failed:\n{out}\n{err}");
     assert_eq!(vehicle(&skein, "uav-1")["state"], "Landed");
+}
+
+#[test]
+fn counter_uas_tracks_reach_a_cyclonedds_peer() {
+    let dir = scratch("dds-tracking-plugins");
+    build_into(
+        &[
+            "skein-plugin-gimbal",
+            "skein-plugin-camera",
+            "skein-plugin-detector",
+        ],
+        &[],
+        &dir,
+    );
+    let d = domain(2);
+    let skein = up_with_intruder_pass_and(
+        &dir,
+        5.0,
+        &["--dds", "--domain-id", &d, "--dds-network", "127.0.0.1"],
+    );
+    skein.take_off(4, 10.0);
+    skein.point_gimbals(&OBSERVERS, 90.0, 3.0);
+    eventually("a confirmed track", Duration::from_secs(120), || {
+        let (_, t) = skein.get("/api/v1/tracks");
+        match t["tracks"].as_array() {
+            Some(ts) if ts.iter().any(|t| t["status"] == "confirmed") => Ok(()),
+            _ => Err(t.to_string()),
+        }
+    });
+    let (code, out, err) = run_peer(
+        "dds_peer.py",
+        &[
+            "--domain",
+            &d,
+            "--vehicle",
+            "uav-1",
+            "--api",
+            &skein.base,
+            "--loopback",
+            "--tracks",
+        ],
+        Duration::from_secs(60),
+    );
+    assert_eq!(code, Some(0), "peer failed:\n{out}\n{err}");
+    let report: Value = serde_json::from_str(out.trim()).expect("one JSON line");
+    assert!(
+        report["worst_track_error_m"].as_f64().unwrap() < 3.0,
+        "{report}"
+    );
 }

@@ -2,7 +2,7 @@
 commands a vehicle, with type definitions written here from the .msg files alone.
 
 Usage: dds_peer.py --domain D --vehicle uav-1 --api http://127.0.0.1:PORT
-                   [--loopback] [--expect-no-command-reader]
+                   [--loopback] [--expect-no-command-reader] [--tracks]
 
 1. Subscribes to rt/skein/<vehicle>/pose as geometry_msgs::msg::dds_::PoseStamped_
    (best-effort, as skein publishes it) and compares 10 poses with the vehicle's position
@@ -14,6 +14,9 @@ Usage: dds_peer.py --domain D --vehicle uav-1 --api http://127.0.0.1:PORT
    and a takeoff to 6 m (accepted); then watches the poses until the vehicle is 5 m up.
    With --expect-no-command-reader, checks instead that no command reader matches in 5 s
    (skein without --dds-commands).
+
+With --tracks, reads rt/skein/tracks (skein_msgs Tracks) instead and compares 5
+samples' confirmed tracks with skein's GET /api/v1/tracks by id (within 3 m, ENU).
 
 --loopback keeps CycloneDDS on 127.0.0.1 with unicast discovery (no multicast leaves
 the host), matching `skein up --dds-network 127.0.0.1`.
@@ -33,7 +36,7 @@ from dataclasses import dataclass
 from cyclonedds.core import Policy, Qos
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.idl import IdlStruct
-from cyclonedds.idl.types import float64, int32, uint32, uint64
+from cyclonedds.idl.types import array, float64, int32, sequence, uint32, uint64
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
@@ -97,6 +100,60 @@ class CommandResult(IdlStruct, typename="skein_msgs::msg::dds_::CommandResult_")
     reason: str
 
 
+@dataclass
+class Vector3(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):
+    x: float64
+    y: float64
+    z: float64
+
+
+@dataclass
+class Track(IdlStruct, typename="skein_msgs::msg::dds_::Track_"):
+    id: str
+    status: str
+    position: Point
+    velocity: Vector3
+    position_sigma_m: float64
+    covariance_en_m2: array[float64, 4]
+    hits: uint32
+    age_s: float64
+    unseen_s: float64
+
+
+@dataclass
+class Tracks(IdlStruct, typename="skein_msgs::msg::dds_::Tracks_"):
+    header: Header
+    tracks: sequence[Track]
+
+
+def compare_tracks(args, dp, qos, deadline):
+    """--tracks: 5 samples of rt/skein/tracks with a confirmed track, each matched by id
+    to skein's GET /api/v1/tracks and within 3 m of its position (ENU)."""
+    reader = DataReader(dp, Topic(dp, "rt/skein/tracks", Tracks), qos=qos)
+    errors = []
+    while len(errors) < 5:
+        if time.monotonic() > deadline:
+            fail(f"only {len(errors)} track samples compared")
+        for s in reader.take(N=1):
+            confirmed = [t for t in s.tracks if t.status == "confirmed"]
+            if not confirmed:
+                continue
+            with urllib.request.urlopen(f"{args.api}/api/v1/tracks", timeout=5) as r:
+                api = {t["id"]: t for t in json.load(r)["tracks"]}
+            for t in confirmed:
+                a = api.get(t.id)
+                if a is None:
+                    continue
+                p = a["position"]
+                enu = (p["east_m"], p["north_m"], -p["down_m"])
+                errors.append(math.dist((t.position.x, t.position.y, t.position.z), enu))
+        time.sleep(0.05)
+    if max(errors) > 3.0:
+        fail(f"a track was {max(errors):.2f} m from the API's (limit 3 m)")
+    print(json.dumps({"ok": True, "tracks_compared": len(errors),
+                      "worst_track_error_m": max(errors)}), flush=True)
+
+
 def fail(why):
     print(json.dumps({"ok": False, "error": why}), flush=True)
     sys.exit(1)
@@ -120,6 +177,7 @@ def main():
     ap.add_argument("--timeout", type=float, default=60.0)
     ap.add_argument("--loopback", action="store_true")
     ap.add_argument("--expect-no-command-reader", action="store_true")
+    ap.add_argument("--tracks", action="store_true")
     args = ap.parse_args()
     if args.loopback:
         os.environ["CYCLONEDDS_URI"] = (
@@ -150,6 +208,10 @@ def main():
     result_reader = DataReader(
         dp, Topic(dp, f"rt/skein/{ros}/command_result", CommandResult), qos=reliable
     )
+
+    if args.tracks:
+        compare_tracks(args, dp, reliable, deadline)
+        return
 
     # 1. Poses against the API.
     compared = []

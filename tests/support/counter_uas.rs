@@ -13,28 +13,32 @@ pub const OBSERVERS: [&str; 2] = ["uav-2", "uav-4"];
 /// passes southward (and back) along a line 60 m east of home, 14 m up, at
 /// `speed_m_s`: 90 m either side of its closest point of approach.
 pub fn up_with_intruder_pass(plugin_dir: &Path, speed_m_s: f64) -> Skein {
+    up_with_intruder_pass_and(plugin_dir, speed_m_s, &[])
+}
+
+/// [`up_with_intruder_pass`] with `extra` arguments for `skein up`.
+pub fn up_with_intruder_pass_and(plugin_dir: &Path, speed_m_s: f64, extra: &[&str]) -> Skein {
     let speed = speed_m_s.to_string();
-    Skein::up_sim(
-        4,
-        &[
-            "--plugin-dir",
-            plugin_dir.to_str().unwrap(),
-            "--intruders",
-            "1",
-            "--intruder-pattern",
-            "straight",
-            "--intruder-heading-deg",
-            "180",
-            "--intruder-cpa-m",
-            "60",
-            "--intruder-range-m",
-            "90",
-            "--intruder-altitude-m",
-            "14",
-            "--intruder-speed-m-s",
-            &speed,
-        ],
-    )
+    let mut args = vec![
+        "--plugin-dir",
+        plugin_dir.to_str().unwrap(),
+        "--intruders",
+        "1",
+        "--intruder-pattern",
+        "straight",
+        "--intruder-heading-deg",
+        "180",
+        "--intruder-cpa-m",
+        "60",
+        "--intruder-range-m",
+        "90",
+        "--intruder-altitude-m",
+        "14",
+        "--intruder-speed-m-s",
+        &speed,
+    ];
+    args.extend_from_slice(extra);
+    Skein::up_sim(4, &args)
 }
 
 impl Skein {
