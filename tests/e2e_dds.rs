@@ -2,6 +2,8 @@
 //! DDS implementation: CycloneDDS's Python binding (`tests/peers/dds_peer.py`), with type
 //! definitions written from the `.msg` files and the ROS 2 standard messages alone.
 //!
+//! Last, `skein bench dds` small (its report's shape; never its timing).
+//!
 //! Both sides are kept on loopback (`--dds-network 127.0.0.1`; the peer's
 //! `CYCLONEDDS_URI` names 127.0.0.1 with unicast discovery), each test on its own
 //! domain, so nothing leaves the host and parallel tests do not hear each other.
@@ -12,11 +14,11 @@ use serde_json::Value;
 use std::time::Duration;
 use support::counter_uas::{OBSERVERS, up_with_intruder_pass_and};
 use support::plugins::{build_into, scratch};
-use support::{Skein, eventually, run_peer};
+use support::{Process, Skein, eventually, run_peer};
 
-/// A DDS domain of this test process's own (`offset` tells the tests apart).
+/// A DDS domain of this test process's own (`offset`, 0 to 3, tells the tests apart).
 fn domain(offset: u32) -> String {
-    (100 + (std::process::id() % 60) * 2 + offset).to_string()
+    (100 + (std::process::id() % 30) * 4 + offset).to_string()
 }
 
 /// The value of `skein_dds_samples{what="..."}` in `/metrics`.
@@ -194,6 +196,48 @@ fn counter_uas_tracks_reach_a_cyclonedds_peer() {
     let report: Value = serde_json::from_str(out.trim()).expect("one JSON line");
     assert!(
         report["worst_track_error_m"].as_f64().unwrap() < 3.0,
+        "{report}"
+    );
+}
+
+#[test]
+fn bench_dds_reports_cpu_and_pose_latency() {
+    let d = domain(3);
+    let mut p = Process::start(&[
+        "bench",
+        "dds",
+        "--vehicles",
+        "2",
+        "--seconds",
+        "2",
+        "--domain-id",
+        &d,
+    ]);
+    let line = p.wait_line("\"vehicles\"", Duration::from_secs(180));
+    assert_eq!(
+        p.wait_exit(Duration::from_secs(30)),
+        Some(0),
+        "{}",
+        p.stderr_text()
+    );
+    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+    for key in [
+        "cpu_cores_without_dds",
+        "cpu_cores_with_dds",
+        "dds_cpu_per_vehicle",
+    ] {
+        assert!(report[key].is_number(), "{key}: {report}");
+    }
+    // Best-effort on loopback may lose a sample; most arrive, each with a latency.
+    let expected = report["poses_expected"].as_f64().unwrap();
+    assert_eq!(expected, 40.0, "{report}");
+    assert!(
+        report["poses_received"].as_f64().unwrap() >= 0.8 * expected,
+        "{report}"
+    );
+    let lat = &report["pose_latency_ms"];
+    assert!(
+        lat["p50"].as_f64().unwrap() <= lat["max"].as_f64().unwrap(),
         "{report}"
     );
 }

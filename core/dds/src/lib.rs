@@ -5,7 +5,8 @@
 //! - [`topics`]: names and QoS of every topic (the table there is the contract);
 //! - [`msgs`]: the message types, standard ROS 2 ones and skein's own (`core/dds/msg/*.msg`);
 //! - [`convert`]: skein's NED swarm frame to the ENU of REP 103, commands back;
-//! - [`link`]: the supervised `DdsLink` service of `skein up --dds`.
+//! - [`link`]: the supervised `DdsLink` service of `skein up --dds`;
+//! - [`probe`]: a listener of the pose topics (`skein bench dds`).
 //!
 //! The domain is `--domain-id`, else `ROS_DOMAIN_ID`, else 0 ([`domain_id_from_env`]).
 #![warn(missing_docs)]
@@ -13,6 +14,7 @@
 pub mod convert;
 pub mod link;
 pub mod msgs;
+pub mod probe;
 pub mod topics;
 
 pub use link::{DdsConfig, DdsCounters, DdsError, DdsLink, DdsShared};

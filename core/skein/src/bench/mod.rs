@@ -8,6 +8,9 @@
 //! (intruders, cameras, detectors, tracker) against the simulator's truth, see
 //! [`tracking`].
 //!
+//! `skein bench dds [--vehicles 8 --seconds 20]`: CPU of the ROS 2 topics per vehicle and
+//! pose latency to a subscriber, see [`dds`].
+//!
 //! `skein bench swarm --vehicles N --rate-hz R --seconds S` (issue 3's benchmark):
 //!
 //! 1. opens one `udpin` endpoint per vehicle on a free block of N consecutive local UDP
@@ -47,11 +50,14 @@
 //! task ticking at the setpoint period on this process's runtime, whose lateness is the
 //! runtime's own scheduling latency.
 
+mod dds;
 mod formation;
 mod restart;
 mod swarm;
 mod tracking;
+mod up_process;
 
+pub use dds::{DdsBenchArgs, dds};
 pub use formation::{FormationBenchArgs, formation};
 pub use restart::{RestartBenchArgs, restart};
 pub use swarm::swarm;
@@ -99,6 +105,9 @@ pub enum BenchWhat {
     /// Counter-UAS: 4 observation UAVs, seeded intruders; detection precision/recall, track
     /// RMSE, time to confirm, identity switches, false tracks (see `bench/tracking.rs`).
     Tracking(TrackingBenchArgs),
+    /// ROS 2 topics: CPU of the DDS link per vehicle and pose latency to a subscriber on
+    /// this host (see `bench/dds.rs`).
+    Dds(DdsBenchArgs),
 }
 
 /// `skein bench plugins`.
@@ -176,6 +185,10 @@ pub async fn run(args: BenchArgs) -> Result<(), String> {
                 .await
                 .map_err(|e| e.to_string())??;
             println!("{report}");
+            Ok(())
+        }
+        BenchWhat::Dds(a) => {
+            println!("{}", dds(a).await?);
             Ok(())
         }
         BenchWhat::Plugins(a) => {

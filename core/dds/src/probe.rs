@@ -1,0 +1,101 @@
+//! A listener of skein's pose topics, for `skein bench dds`: it subscribes to
+//! `/skein/<vehicle>/pose` of the given vehicles as any ROS 2 node would and records, for
+//! each sample, the time from its header stamp (set by the publisher just before it
+//! writes) to its arrival here. Both clocks are the same host's wall clock when the probe
+//! runs beside skein.
+
+use crate::msgs::{PoseStamped, RosMessage};
+use crate::topics;
+use crate::{DdsError, FRAME_ID};
+use ros2_client::builtin_interfaces::Time;
+use ros2_client::dds::rustdds::DomainParticipantBuilder;
+use ros2_client::{Context, Name, NodeName, NodeOptions};
+use std::net::IpAddr;
+use std::sync::{Arc, Mutex, PoisonError};
+use tokio::task::JoinSet;
+
+/// One received pose: the vehicle and its latency, seconds.
+pub type Arrival = (String, f64);
+
+/// Subscriptions to the poses of some vehicles (see the module docs). Dropping it leaves
+/// the domain.
+pub struct PoseProbe {
+    _context: Context,
+    arrivals: Arc<Mutex<Vec<Arrival>>>,
+    tasks: JoinSet<()>,
+}
+
+impl PoseProbe {
+    /// Joins `domain_id` (on `networks` only, when not empty) and subscribes to the poses
+    /// of `vehicles` (ids as the API names them), best-effort as they are published.
+    ///
+    /// # Errors
+    /// The participant, node or a subscription could not be created.
+    pub fn start(
+        domain_id: u16,
+        networks: &[IpAddr],
+        vehicles: &[String],
+    ) -> Result<Self, DdsError> {
+        let mut participant = DomainParticipantBuilder::new(domain_id);
+        if !networks.is_empty() {
+            participant = participant.with_only_networks(networks.iter().copied());
+        }
+        let participant = participant
+            .build()
+            .map_err(|e| DdsError(format!("DDS participant: {e:?}")))?;
+        let context = Context::from_domain_participant(participant)
+            .map_err(|e| DdsError(format!("ROS 2 context: {e:?}")))?;
+        let mut node = context
+            .new_node(
+                NodeName::new("/skein", &format!("skein_probe_{}", std::process::id()))
+                    .map_err(|e| DdsError(format!("node name: {e:?}")))?,
+                NodeOptions::new().enable_rosout(false),
+            )
+            .map_err(|e| DdsError(format!("ROS 2 node: {e:?}")))?;
+        let arrivals = Arc::new(Mutex::new(Vec::new()));
+        let mut tasks = JoinSet::new();
+        for id in vehicles {
+            let topic = node
+                .create_topic(
+                    &Name::new(&topics::vehicle_namespace(id), "pose")
+                        .map_err(|e| DdsError(format!("{e:?}")))?,
+                    PoseStamped::type_name(),
+                    &topics::sensor(),
+                )
+                .map_err(|e| DdsError(format!("pose topic: {e:?}")))?;
+            let sub = node
+                .create_subscription::<PoseStamped>(&topic, None)
+                .map_err(|e| DdsError(format!("pose subscription: {e:?}")))?;
+            let (id, arrivals) = (id.clone(), arrivals.clone());
+            tasks.spawn(async move {
+                while let Ok((pose, _)) = sub.async_take().await {
+                    if pose.header.frame_id != FRAME_ID {
+                        continue;
+                    }
+                    let latency_s =
+                        (Time::now().to_nanos() - pose.header.stamp.to_nanos()) as f64 * 1e-9;
+                    arrivals
+                        .lock()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .push((id.clone(), latency_s));
+                }
+            });
+        }
+        Ok(PoseProbe {
+            _context: context,
+            arrivals,
+            tasks,
+        })
+    }
+
+    /// The arrivals since the last call (or the start).
+    pub fn take(&self) -> Vec<Arrival> {
+        std::mem::take(&mut *self.arrivals.lock().unwrap_or_else(PoisonError::into_inner))
+    }
+}
+
+impl Drop for PoseProbe {
+    fn drop(&mut self) {
+        self.tasks.abort_all();
+    }
+}

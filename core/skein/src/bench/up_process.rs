@@ -1,0 +1,113 @@
+//! A `skein up` child process of a benchmark: this same executable, its API on a free
+//! port, killed when dropped.
+
+use serde_json::Value;
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A running `skein up` (see the module docs).
+pub struct UpProcess {
+    child: Child,
+    /// `http://127.0.0.1:PORT`.
+    pub base: String,
+    agent: ureq::Agent,
+}
+
+impl Drop for UpProcess {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl UpProcess {
+    /// `skein up --http 127.0.0.1:0 <args>`; returns once it serves its API.
+    ///
+    /// # Errors
+    /// The executable cannot be started, or it ends before printing its dashboard line.
+    pub fn start(args: &[&str]) -> Result<UpProcess, String> {
+        let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+        let mut child = Command::new(exe)
+            .args(["up", "--http", "127.0.0.1:0"])
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .map_err(|e| format!("cannot start skein up: {e}"))?;
+        let stdout = child.stdout.take().ok_or("no stdout")?;
+        let mut lines = BufReader::new(stdout).lines();
+        let base = loop {
+            match lines.next() {
+                Some(Ok(l)) if l.contains("dashboard at") => {
+                    break l
+                        .split_whitespace()
+                        .find(|w| w.starts_with("http://"))
+                        .ok_or("no URL in the dashboard line")?
+                        .trim_end_matches('/')
+                        .to_string();
+                }
+                Some(Ok(_)) => {}
+                _ => return Err("skein up ended before serving its API".into()),
+            }
+        };
+        // Keep draining stdout so the child never blocks on a full pipe.
+        std::thread::spawn(move || for _ in lines {});
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .timeout_global(Some(Duration::from_secs(10)))
+            .build()
+            .into();
+        Ok(UpProcess { child, base, agent })
+    }
+
+    /// The process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// `GET path` as JSON.
+    ///
+    /// # Errors
+    /// The request failed or was answered with a status of 300 or more.
+    pub fn get(&self, path: &str) -> Result<Value, String> {
+        let mut r = self
+            .agent
+            .get(format!("{}{path}", self.base))
+            .call()
+            .map_err(|e| format!("GET {path}: {e}"))?;
+        let status = r.status().as_u16();
+        let v: Value = r.body_mut().read_json().unwrap_or(Value::Null);
+        if status >= 300 {
+            return Err(format!("GET {path}: {status} {v}"));
+        }
+        Ok(v)
+    }
+
+    /// Waits until `n` vehicles are listed and every one satisfies `ok`.
+    ///
+    /// # Errors
+    /// `limit` passed first (naming `what`), or the API failed.
+    pub fn wait_vehicles(
+        &self,
+        n: usize,
+        what: &str,
+        limit: Duration,
+        ok: impl Fn(&Value) -> bool,
+    ) -> Result<(), String> {
+        let deadline = Instant::now() + limit;
+        loop {
+            let vs = self.get("/api/v1/vehicles")?;
+            if vs
+                .as_array()
+                .is_some_and(|a| a.len() == n && a.iter().all(&ok))
+            {
+                return Ok(());
+            }
+            if Instant::now() > deadline {
+                return Err(format!("timed out waiting for {what}"));
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+    }
+}
