@@ -6,8 +6,9 @@
 //!   `SET_POSITION_TARGET_LOCAL_NED` type masks.
 //! - [`fsm`]: the vehicle state machine (GenericUAVModel) as a plain transition function.
 //! - [`formation`]: formation shapes, slot offsets and optimal slot assignment.
-//! - [`safety`]: geofence, setpoint speed limiting and separation checks that every
-//!   setpoint passes before it leaves skein.
+//! - [`geofence`]: the cylinder (and optional polygon) every setpoint is clamped into.
+//! - [`safety`]: the setpoint shaper: geofence clamp, speed and acceleration limiting and
+//!   separation checks that every setpoint passes before it leaves skein.
 //! - [`supervision`]: restart policies, child kinds and statuses, injectable faults.
 //! - [`vehicle`]: the vehicle snapshot the API and dashboard show.
 //!
@@ -18,6 +19,7 @@
 pub mod formation;
 pub mod fsm;
 pub mod geo;
+pub mod geofence;
 pub mod px4;
 pub mod safety;
 pub mod supervision;
