@@ -124,11 +124,18 @@ fn a_cyclonedds_peer_reads_poses_and_commands_a_vehicle() {
 }
 
 #[test]
-fn without_dds_commands_nothing_on_the_domain_can_command_a_vehicle() {
+fn without_dds_commands_nothing_can_command_and_a_panicked_link_restarts() {
     let d = domain(1);
     let mut skein = Skein::up_sim(
         1,
-        &["--dds", "--domain-id", &d, "--dds-network", "127.0.0.1"],
+        &[
+            "--dds",
+            "--domain-id",
+            &d,
+            "--dds-network",
+            "127.0.0.1",
+            "--enable-fault-injection",
+        ],
     );
     skein
         .process
@@ -149,6 +156,30 @@ fn without_dds_commands_nothing_on_the_domain_can_command_a_vehicle() {
     );
     assert_eq!(code, Some(0), "peer failed:\n{out}\n{err}");
     assert_eq!(vehicle(&skein, "uav-1")["state"], "Landed");
+
+    // The DDS link is supervised: a panic restarts it and it publishes on.
+    let (status, body) = skein.post(
+        "/api/v1/faults",
+        serde_json::json!({"target": "coordinator/dds", "kind": "panic"}),
+    );
+    assert_eq!(status, 202, "{body}");
+    eventually(
+        "the DDS link restarted",
+        Duration::from_secs(10),
+        || match skein.restarts("coordinator/dds") {
+            1 => Ok(()),
+            n => Err(format!("{n} restarts")),
+        },
+    );
+    let before = dds_samples(&skein, "published");
+    eventually(
+        "publishing after the restart",
+        Duration::from_secs(10),
+        || match dds_samples(&skein, "published") {
+            n if n >= before + 10 => Ok(()),
+            n => Err(format!("{n} published, {before} before")),
+        },
+    );
 }
 
 #[test]
