@@ -12,8 +12,7 @@ mod support;
 
 use serde_json::Value;
 use std::time::Duration;
-use support::counter_uas::{OBSERVERS, up_with_intruder_pass_and};
-use support::plugins::{build_into, scratch};
+use support::counter_uas::{OBSERVERS, build_plugins, up_with_intruder_pass_and};
 use support::{Process, Skein, eventually, run_peer};
 
 /// A DDS domain of this test process's own (`offset`, 0 to 3, tells the tests apart).
@@ -30,6 +29,25 @@ fn dds_samples(skein: &Skein, what: &str) -> u64 {
         .find_map(|l| l.strip_prefix(&needle))
         .and_then(|v| v.trim().parse().ok())
         .unwrap_or_else(|| panic!("no {needle} in /metrics:\n{text}"))
+}
+
+/// Runs `dds_peer.py` on domain `d` against `skein`'s API for `vehicle`, on loopback,
+/// with `extra` arguments; its one JSON line once it exits 0 (panics with its output
+/// otherwise).
+fn peer(skein: &Skein, d: &str, vehicle: &str, extra: &[&str], timeout: Duration) -> Value {
+    let mut args = vec![
+        "--domain",
+        d,
+        "--vehicle",
+        vehicle,
+        "--api",
+        &skein.base,
+        "--loopback",
+    ];
+    args.extend_from_slice(extra);
+    let (code, out, err) = run_peer("dds_peer.py", &args, timeout);
+    assert_eq!(code, Some(0), "peer failed:\n{out}\n{err}");
+    serde_json::from_str(out.trim()).expect("one JSON line")
 }
 
 fn vehicle(skein: &Skein, id: &str) -> Value {
@@ -72,21 +90,7 @@ fn a_cyclonedds_peer_reads_poses_and_commands_a_vehicle() {
     vs.sort_by(|a, b| horizontal(a).total_cmp(&horizontal(b)));
     let (other, target) = (vs[0]["id"].as_str().unwrap(), vs[1]["id"].as_str().unwrap());
     assert!(horizontal(&vs[1]) > 2.0, "{vs:?}");
-    let (code, out, err) = run_peer(
-        "dds_peer.py",
-        &[
-            "--domain",
-            &d,
-            "--vehicle",
-            target,
-            "--api",
-            &skein.base,
-            "--loopback",
-        ],
-        Duration::from_secs(120),
-    );
-    assert_eq!(code, Some(0), "peer failed:\n{out}\n{err}");
-    let report: Value = serde_json::from_str(out.trim()).expect("one JSON line");
+    let report = peer(&skein, &d, target, &[], Duration::from_secs(120));
     assert!(
         report["worst_pose_error_m"].as_f64().unwrap() < 0.5,
         "{report}"
@@ -140,21 +144,14 @@ fn without_dds_commands_nothing_can_command_and_a_panicked_link_restarts() {
     skein
         .process
         .wait_line("ROS 2 topics under /skein", Duration::from_secs(30));
-    let (code, out, err) = run_peer(
-        "dds_peer.py",
-        &[
-            "--domain",
-            &d,
-            "--vehicle",
-            "uav-1",
-            "--api",
-            &skein.base,
-            "--loopback",
-            "--expect-no-command-reader",
-        ],
+    let report = peer(
+        &skein,
+        &d,
+        "uav-1",
+        &["--expect-no-command-reader"],
         Duration::from_secs(90),
     );
-    assert_eq!(code, Some(0), "peer failed:\n{out}\n{err}");
+    assert_eq!(report["command_reader"], false, "{report}");
     assert_eq!(vehicle(&skein, "uav-1")["state"], "Landed");
 
     // The DDS link is supervised: a panic restarts it and it publishes on.
@@ -184,16 +181,7 @@ fn without_dds_commands_nothing_can_command_and_a_panicked_link_restarts() {
 
 #[test]
 fn counter_uas_tracks_reach_a_cyclonedds_peer() {
-    let dir = scratch("dds-tracking-plugins");
-    build_into(
-        &[
-            "skein-plugin-gimbal",
-            "skein-plugin-camera",
-            "skein-plugin-detector",
-        ],
-        &[],
-        &dir,
-    );
+    let dir = build_plugins("dds-tracking-plugins");
     let d = domain(2);
     let skein = up_with_intruder_pass_and(
         &dir,
@@ -209,22 +197,7 @@ fn counter_uas_tracks_reach_a_cyclonedds_peer() {
             _ => Err(t.to_string()),
         }
     });
-    let (code, out, err) = run_peer(
-        "dds_peer.py",
-        &[
-            "--domain",
-            &d,
-            "--vehicle",
-            "uav-1",
-            "--api",
-            &skein.base,
-            "--loopback",
-            "--tracks",
-        ],
-        Duration::from_secs(60),
-    );
-    assert_eq!(code, Some(0), "peer failed:\n{out}\n{err}");
-    let report: Value = serde_json::from_str(out.trim()).expect("one JSON line");
+    let report = peer(&skein, &d, "uav-1", &["--tracks"], Duration::from_secs(60));
     assert!(
         report["worst_track_error_m"].as_f64().unwrap() < 3.0,
         "{report}"

@@ -16,8 +16,7 @@ mod support;
 
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
-use support::counter_uas::{OBSERVERS, up_with_intruder_pass};
-use support::plugins::{build_into, scratch};
+use support::counter_uas::{OBSERVERS, build_plugins, up_with_intruder_pass};
 use support::{EventLog, Skein, one_at_a_time};
 
 /// True when the camera of `vehicle` drew an intruder in its last frame (the simulated
@@ -100,16 +99,7 @@ fn sample(skein: &Skein) -> Sample {
 #[test]
 fn a_passing_intruder_becomes_a_confirmed_track_that_follows_the_truth() {
     let _serial = one_at_a_time();
-    let dir = scratch("tracking-plugins");
-    build_into(
-        &[
-            "skein-plugin-gimbal",
-            "skein-plugin-camera",
-            "skein-plugin-detector",
-        ],
-        &[],
-        &dir,
-    );
+    let dir = build_plugins("tracking-plugins");
     // Southward along a line 60 m east of home, 14 m up, 5 m/s; 180 m passes.
     let skein = up_with_intruder_pass(&dir, 5.0);
     // Ground truth exists: the intruder, and the vehicles.

@@ -271,16 +271,7 @@ fn the_ground_station_drives_payloads_supervision_and_plugins_in_chromium() {
 #[test]
 fn the_dashboard_shows_tracks_and_observes_one_in_chromium() {
     let _serial = support::one_at_a_time();
-    let dir = support::plugins::scratch("tracks-dashboard");
-    support::plugins::build_into(
-        &[
-            "skein-plugin-gimbal",
-            "skein-plugin-camera",
-            "skein-plugin-detector",
-        ],
-        &[],
-        &dir,
-    );
+    let dir = support::counter_uas::build_plugins("tracks-dashboard");
     // About 20 s of every 45 s pass in the cameras' view at 4 m/s.
     let skein = support::counter_uas::up_with_intruder_pass(&dir, 4.0);
     skein.take_off(4, 10.0);

@@ -3,11 +3,27 @@
 
 use super::{Skein, eventually};
 use serde_json::json;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// The observation UAVs of `skein up --sim 4` (gimbal, camera, detector).
 pub const OBSERVERS: [&str; 2] = ["uav-2", "uav-4"];
+
+/// Builds the counter-UAS plugins (gimbal, camera, detector) into a fresh scratch
+/// directory `name` of this test process; returns it.
+pub fn build_plugins(name: &str) -> PathBuf {
+    let dir = super::plugins::scratch(name);
+    super::plugins::build_into(
+        &[
+            "skein-plugin-gimbal",
+            "skein-plugin-camera",
+            "skein-plugin-detector",
+        ],
+        &[],
+        &dir,
+    );
+    dir
+}
 
 /// `skein up --sim 4` with the plugins of `plugin_dir` and one intruder flying straight
 /// passes southward (and back) along a line 60 m east of home, 14 m up, at

@@ -150,14 +150,6 @@ impl Actor for ApiServer {
         msg: Self::Msg,
         _state: &mut Self::State,
     ) -> Result<(), ActorProcessingErr> {
-        match msg {
-            ServiceMsg::Ping(reply) => {
-                let _ = reply.send(());
-            }
-            ServiceMsg::Fault(kind) => {
-                skein_link::fault::inject(kind, &myself, "coordinator/api").await?;
-            }
-        }
-        Ok(())
+        msg.serve(&myself, "coordinator/api").await
     }
 }

@@ -429,14 +429,6 @@ impl Actor for DdsLink {
         msg: Self::Msg,
         _state: &mut Self::State,
     ) -> Result<(), ActorProcessingErr> {
-        match msg {
-            ServiceMsg::Ping(reply) => {
-                let _ = reply.send(());
-            }
-            ServiceMsg::Fault(kind) => {
-                skein_link::fault::inject(kind, &myself, "coordinator/dds").await?;
-            }
-        }
-        Ok(())
+        msg.serve(&myself, "coordinator/dds").await
     }
 }

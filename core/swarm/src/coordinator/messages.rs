@@ -94,6 +94,27 @@ pub enum ServiceMsg {
     Fault(FaultKind),
 }
 
+impl ServiceMsg {
+    /// What every service does with its messages: answers the watchdog's `Ping`, and
+    /// carries out an injected `Fault` as the actor at `path` (`"coordinator/api"`).
+    ///
+    /// # Errors
+    /// The injected fault, when it is an error (a panic panics; a hang never returns).
+    pub async fn serve(
+        self,
+        myself: &ActorRef<ServiceMsg>,
+        path: &str,
+    ) -> Result<(), ActorProcessingErr> {
+        match self {
+            ServiceMsg::Ping(reply) => {
+                let _ = reply.send(());
+                Ok(())
+            }
+            ServiceMsg::Fault(kind) => skein_link::fault::inject(kind, myself, path).await,
+        }
+    }
+}
+
 /// Starts a service actor linked under the given supervisor.
 pub type ServiceSpawner = Arc<
     dyn Fn(
