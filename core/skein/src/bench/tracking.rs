@@ -16,11 +16,17 @@
 //!      the detector's last frame is the camera's last frame), over swarm members and
 //!      intruders alike (`frames`, `true_positives`, `false_positives`, `misses`);
 //!    - `tracks`: `rmse_m` of the confirmed track nearest each intruder within 100 m of
-//!      the swarm (gate 10 m; `samples`), `time_to_confirm_s` (from the first sample with
-//!      the intruder in two cameras' view to the first with a confirmed track within 5 m
-//!      of it; per intruder, `null` when never), `id_switches` (changes of the track id
-//!      matched to an intruder), `false_tracks` (confirmed tracks never within 10 m of an
-//!      intruder) and `false_track_longest_s`.
+//!      the swarm (gate 10 m; `samples`), `time_to_confirm_s` (from the
+//!      first sample with the intruder in two cameras' view to the first with a confirmed
+//!      track within 5 m of it, the clock restarting when the intruder leaves every
+//!      camera's view unconfirmed; per intruder, `null` when never),
+//!      `id_switches` (changes of the track id matched to an intruder), of them
+//!      `id_switches_in_view` (the intruder was in some camera's view at every sample since
+//!      its previous match: the tracker had bearings to keep its id) and
+//!      `reacquisitions` (it was out of every camera's view in between: a new id after a
+//!      blind spot), both also per path kind in `id_switches_by_pattern`,
+//!      `false_tracks` (confirmed tracks never the nearest within 10 m of an intruder,
+//!      duplicates included) and `false_track_longest_s`.
 
 use serde_json::{Value, json};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -43,6 +49,10 @@ pub struct TrackingBenchArgs {
     /// Plugin directory of the `skein up` it starts (default: this executable's).
     #[arg(long, value_name = "DIR")]
     pub plugin_dir: Option<std::path::PathBuf>,
+    /// Also write every sample (the truth's intruders, the tracks) as JSON lines to this
+    /// file, to see where a metric comes from.
+    #[arg(long, value_name = "FILE")]
+    pub trace: Option<std::path::PathBuf>,
 }
 
 struct Up {
@@ -269,8 +279,18 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
     let mut confirmed_after: BTreeMap<String, Option<f64>> = BTreeMap::new();
     let mut matched: BTreeMap<String, Option<String>> = BTreeMap::new();
     let mut switches = 0u64;
+    // Per intruder: out of every camera's view since its last match.
+    let mut unseen_since_match: BTreeMap<String, bool> = BTreeMap::new();
+    // Per path kind: (switches in view, reacquisitions).
+    let mut by_pattern: BTreeMap<String, (u64, u64)> = BTreeMap::new();
     let mut confirmed_seen: BTreeMap<String, (f64, f64)> = BTreeMap::new();
     let mut near_intruder: BTreeSet<String> = BTreeSet::new();
+    let mut trace = match &args.trace {
+        Some(p) => Some(std::io::BufWriter::new(
+            std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?,
+        )),
+        None => None,
+    };
     while start.elapsed().as_secs_f64() < args.seconds {
         let t = start.elapsed().as_secs_f64();
         let vehicles = up.get("/api/v1/vehicles")?;
@@ -341,14 +361,27 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
             {
                 near_intruder.insert(id.clone());
             }
-            if viewers.get(iid).copied().unwrap_or(0) >= 2 {
-                in_view_since.entry(iid.to_string()).or_insert(t);
-            }
-            if let Some(&t_in) = in_view_since.get(iid) {
-                let slot = confirmed_after.entry(iid.to_string()).or_insert(None);
-                if slot.is_none() && nearest.is_some_and(|(_, d)| d <= 5.0) {
-                    *slot = Some(t - t_in);
+            let views = viewers.get(iid).copied().unwrap_or(0);
+            let pattern = i["pattern"].as_str().unwrap_or("?").to_string();
+            let kind = by_pattern.entry(pattern).or_default();
+            if confirmed_after.get(iid).is_none_or(Option::is_none) {
+                if views >= 2 {
+                    in_view_since.entry(iid.to_string()).or_insert(t);
+                    confirmed_after.entry(iid.to_string()).or_insert(None);
+                } else if views == 0 {
+                    // Out of every camera's view, still unconfirmed: the clock restarts
+                    // when it is next in two views.
+                    in_view_since.remove(iid);
                 }
+                if let Some(&t_in) = in_view_since.get(iid)
+                    && nearest.is_some_and(|(_, d)| d <= 5.0)
+                {
+                    confirmed_after.insert(iid.to_string(), Some(t - t_in));
+                }
+            }
+            let unseen = unseen_since_match.entry(iid.to_string()).or_insert(false);
+            if views == 0 {
+                *unseen = true;
             }
             let within = dist(p, centre) <= 100.0;
             if let Some((id, d)) = nearest.filter(|(_, d)| *d <= 10.0) {
@@ -358,9 +391,21 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
                 let last = matched.entry(iid.to_string()).or_insert(None);
                 if last.as_ref().is_some_and(|l| l != id) {
                     switches += 1;
+                    if *unseen {
+                        kind.1 += 1;
+                    } else {
+                        kind.0 += 1;
+                    }
                 }
                 *last = Some(id.clone());
+                *unseen = false;
             }
+        }
+        if let Some(w) = trace.as_mut() {
+            use std::io::Write;
+            let line = json!({"t_s": t, "intruders": truth["intruders"], "viewers": viewers,
+                "centre": centre, "tracks": tracks});
+            writeln!(w, "{line}").map_err(|e| format!("trace: {e}"))?;
         }
         std::thread::sleep(Duration::from_millis(200));
     }
@@ -394,8 +439,13 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
             "samples": sq_err.len(),
             "time_to_confirm_s": confirmed_after,
             "time_to_confirm_max_s": times.iter().cloned().reduce(f64::max),
-            "in_two_views": in_view_since.len(),
+            "in_two_views": confirmed_after.len(),
             "id_switches": switches,
+            "id_switches_in_view": by_pattern.values().map(|k| k.0).sum::<u64>(),
+            "reacquisitions": by_pattern.values().map(|k| k.1).sum::<u64>(),
+            "id_switches_by_pattern": by_pattern.iter().map(|(p, k)| {
+                (p.clone(), json!({"in_view": k.0, "reacquisitions": k.1}))
+            }).collect::<BTreeMap<_, _>>(),
             "confirmed_tracks": confirmed_seen.len(),
             "false_tracks": false_tracks.len(),
             "false_track_longest_s": false_tracks.iter().map(|f| f.1).reduce(f64::max),
