@@ -3,7 +3,9 @@
 //!
 //! - [`geometry`]: bearings and their least-squares fusion (triangulation);
 //! - [`filter`]: the constant-velocity Kalman filter of each track (`nalgebra`);
-//! - [`tracker`]: association (gated Hungarian), track start, lifecycle, stable ids;
+//! - [`tracker`]: association (gated Hungarian) and update; `management`: track start,
+//!   continuation through manoeuvres and blind spots, lifecycle, merging, stable ids;
+//! - [`track`]: the tuning, the tracks as the API shows them, track events, counters;
 //! - [`detection`]: the detector plugin's `detections` events as bearings.
 //!
 //! [`TrackingService`] runs the tracker in a task of its own beside the coordinator: it
@@ -16,8 +18,10 @@
 pub mod detection;
 pub mod filter;
 pub mod geometry;
+mod management;
 #[cfg(test)]
 mod tests;
+pub mod track;
 pub mod tracker;
 
 use crate::events::SwarmEvent;
