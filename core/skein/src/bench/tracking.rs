@@ -15,8 +15,12 @@
 //!      right when its centre lies within the drawn aircraft's radius + 3 px; frames where
 //!      the detector's last frame is the camera's last frame), over swarm members and
 //!      intruders alike (`frames`, `true_positives`, `false_positives`, `misses`);
-//!    - `tracks`: `rmse_m` of the confirmed track nearest each intruder within 100 m of
-//!      the swarm (gate 10 m; `samples`), `time_to_confirm_s` (from the
+//!    - intruders are matched to confirmed tracks one-to-one within 10 m, as CLEAR-MOT
+//!      does (an intruder keeps its previous track while that one stays within 10 m;
+//!      the rest go nearest first), so two intruders passing close by do not share one
+//!      track and a track is not counted as switching back and forth between them;
+//!    - `tracks`: `rmse_m` of the track matched to each intruder within 100 m of
+//!      the swarm (`samples`), `time_to_confirm_s` (from the
 //!      first sample with the intruder in two cameras' view to the first with a confirmed
 //!      track within 5 m of it, the clock restarting when the intruder leaves every
 //!      camera's view unconfirmed; per intruder, `null` when never),
@@ -25,8 +29,8 @@
 //!      its previous match: the tracker had bearings to keep its id) and
 //!      `reacquisitions` (it was out of every camera's view in between: a new id after a
 //!      blind spot), both also per path kind in `id_switches_by_pattern`,
-//!      `false_tracks` (confirmed tracks never the nearest within 10 m of an intruder,
-//!      duplicates included) and `false_track_longest_s`.
+//!      `false_tracks` (confirmed tracks never matched to an intruder, duplicates
+//!      included) and `false_track_longest_s`.
 
 use serde_json::{Value, json};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -236,6 +240,48 @@ impl Tally {
     }
 }
 
+/// Intruders matched one-to-one to confirmed tracks within 10 m, as CLEAR-MOT does: an
+/// intruder keeps its previous track while that one is still within the gate and not
+/// taken; the others go to the nearest free track, closest pairs first. Returns intruder
+/// id → (track id, distance m).
+fn assign(
+    intruders: &[(String, [f64; 3])],
+    confirmed: &[(String, [f64; 3])],
+    previous: &BTreeMap<String, Option<String>>,
+) -> BTreeMap<String, (String, f64)> {
+    const GATE_M: f64 = 10.0;
+    let mut out: BTreeMap<String, (String, f64)> = BTreeMap::new();
+    let mut taken: BTreeSet<&str> = BTreeSet::new();
+    for (iid, p) in intruders {
+        if let Some(Some(prev)) = previous.get(iid)
+            && let Some((tid, q)) = confirmed.iter().find(|(t, _)| t == prev)
+            && dist(*p, *q) <= GATE_M
+            && taken.insert(tid.as_str())
+        {
+            out.insert(iid.clone(), (tid.clone(), dist(*p, *q)));
+        }
+    }
+    let mut pairs: Vec<(f64, &String, &String)> = intruders
+        .iter()
+        .filter(|(iid, _)| !out.contains_key(iid))
+        .flat_map(|(iid, p)| {
+            confirmed
+                .iter()
+                .map(move |(tid, q)| (dist(*p, *q), iid, tid))
+        })
+        .filter(|(d, _, tid)| *d <= GATE_M && !taken.contains(tid.as_str()))
+        .collect();
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for (d, iid, tid) in pairs {
+        if out.contains_key(iid) || taken.contains(tid.as_str()) {
+            continue;
+        }
+        taken.insert(tid.as_str());
+        out.insert(iid.clone(), (tid.clone(), d));
+    }
+    out
+}
+
 /// Runs the benchmark (blocking: HTTP polling of a child `skein up`).
 pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
     let up = Up::start(args)?;
@@ -348,17 +394,19 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
             let e = confirmed_seen.entry(id.clone()).or_insert((t, t));
             e.1 = t;
         }
+        let intruders: Vec<(String, [f64; 3])> = truth["intruders"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(|i| Some((i["id"].as_str()?.to_string(), ned(i)?)))
+            .collect();
+        let assigned = assign(&intruders, &confirmed, &matched);
         for i in truth["intruders"].as_array().into_iter().flatten() {
             let (Some(iid), Some(p)) = (i["id"].as_str(), ned(i)) else {
                 continue;
             };
-            let nearest = confirmed
-                .iter()
-                .map(|(id, q)| (id, dist(*q, p)))
-                .min_by(|a, b| a.1.total_cmp(&b.1));
-            if let Some((id, d)) = nearest
-                && d <= 10.0
-            {
+            let nearest = assigned.get(iid).map(|(id, d)| (id, *d));
+            if let Some((id, _)) = nearest {
                 near_intruder.insert(id.clone());
             }
             let views = viewers.get(iid).copied().unwrap_or(0);
