@@ -83,7 +83,7 @@ fn confidence(b: &Blob, threshold: f64) -> f64 {
     (0.3 + 0.4 * contrast + 0.3 * size).min(1.0)
 }
 
-/// The `detections` event object of one decoded frame.
+/// The detections object of one decoded frame (the state's `last`).
 pub fn detections(meta: &FrameMeta, blobs: &[Blob], threshold: f64, camera_slot: &str) -> Value {
     let list: Vec<Value> = blobs
         .iter()

@@ -77,16 +77,16 @@ struct DetectionsEvent {
 /// A frame of another shape (named by serde), or a non-finite value.
 pub fn parse_detections(observer_id: &str, data: &serde_json::Value) -> Result<Vec<Ray>, String> {
     let ev: DetectionsEvent =
-        serde_json::from_value(data.clone()).map_err(|e| format!("detections event: {e}"))?;
+        serde_json::from_value(data.clone()).map_err(|e| format!("detector frame: {e}"))?;
     let origin = Vector3::new(ev.observer.north_m, ev.observer.east_m, ev.observer.down_m);
     if !origin.iter().all(|v| v.is_finite()) {
-        return Err("detections event: observer position is not finite".into());
+        return Err("detector frame: observer position is not finite".into());
     }
     ev.detections
         .into_iter()
         .map(|d| {
             if !(d.azimuth_deg.is_finite() && d.elevation_deg.is_finite()) {
-                return Err("detections event: bearing is not finite".to_string());
+                return Err("detector frame: bearing is not finite".to_string());
             }
             let range_from_size_m = d
                 .angular_size_deg
