@@ -216,6 +216,30 @@ impl SwarmView {
             .collect()
     }
 
+    /// The last published state of every payload of `kind` (e.g. `"detector"`), as
+    /// `(vehicle id, slot, state)`, by vehicle then slot; payloads that published nothing
+    /// yet are left out.
+    pub fn payload_states(&self, kind: &str) -> Vec<(String, String, serde_json::Value)> {
+        let vehicles: Vec<Arc<VehicleShared>> = self
+            .vehicles
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .values()
+            .cloned()
+            .collect();
+        let mut out = Vec::new();
+        for v in vehicles {
+            for (slot, p) in v.payloads().iter() {
+                if p.spec.kind == kind
+                    && let Some(state) = p.state()
+                {
+                    out.push((v.id.clone(), slot.clone(), state));
+                }
+            }
+        }
+        out
+    }
+
     /// The in-process simulator's controls, if any.
     pub fn simulator(&self) -> Option<&Arc<dyn SimulatorControl>> {
         self.services.simulator.as_ref()

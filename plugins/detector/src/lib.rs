@@ -16,9 +16,11 @@
 //!   "background_radius_px": 12, "max_size_px": 160, "max_aspect": 3.0, "min_fill": 0.3,
 //!   "max_detections": 20}`
 //!
-//! # Events and state
-//! Per processed frame, a payload event of kind `detections` (and the same object in the
-//! state's `last`):
+//! # State and events
+//! Each processed frame goes into the state (the tracker and the dashboard read it there),
+//! as `last` and at the end of `recent` (the frames of the last [`RECENT_S`] seconds, at
+//! least `last`, oldest first, so a reader polling slower than the frame rate misses no
+//! frame):
 //! ```json
 //! {"frame": 12, "stamp_us": 1700000000000000, "camera_slot": "camera",
 //!  "observer": {"north_m": 0.0, "east_m": 5.0, "down_m": -10.0},
@@ -30,11 +32,15 @@
 //! `angular_size_deg` (the blob's larger side as an angle) is `null` for blobs under
 //! [`MIN_SIZED_BLOB_PX`]: a distant aircraft is a blur of a few pixels whatever its size.
 //! State: `{"camera_slot", "frames", "detections_total", "last_frame", "last_error",
-//! "last": {…}}`.
+//! "last": {…}, "recent": [{…}]}`.
+//!
+//! A payload event (something that happened, for the event log) only when the number of
+//! aircraft in view changes: kind `detections_changed`,
+//! `{"frame": 12, "stamp_us": 1700000000000000, "count": 2, "previous": 1}`.
 //!
 //! # Commands
 //! `{"command": "status"}`, `{"command": "detect"}` (process the latest frame now, even if
-//! it was processed before; replies with the event object).
+//! it was processed before; replies with the frame's detections object).
 
 pub mod blobs;
 
@@ -48,8 +54,11 @@ use skein_plugin_sdk::{Context, Plugin, export_plugin};
 /// Blobs narrower than this (pixels) get no `angular_size_deg`: too small to measure.
 pub const MIN_SIZED_BLOB_PX: f64 = 8.0;
 
-/// Payload event kind of a processed frame.
-pub const DETECTIONS_EVENT: &str = "detections";
+/// Payload event kind raised when the number of detections changes.
+pub const DETECTIONS_CHANGED_EVENT: &str = "detections_changed";
+
+/// How far back the state's `recent` frames go, seconds.
+pub const RECENT_S: f64 = 0.5;
 
 /// The bearing through pixel `(u, v)` of a frame taken with `meta`: `(azimuth_deg,
 /// elevation_deg)` in the swarm frame. Pixel coordinates from the top-left corner (pixel
@@ -74,7 +83,7 @@ fn confidence(b: &Blob, threshold: f64) -> f64 {
     (0.3 + 0.4 * contrast + 0.3 * size).min(1.0)
 }
 
-/// The `detections` event object of one decoded frame.
+/// The detections object of one decoded frame (the state's `last`).
 pub fn detections(meta: &FrameMeta, blobs: &[Blob], threshold: f64, camera_slot: &str) -> Value {
     let list: Vec<Value> = blobs
         .iter()
@@ -137,6 +146,10 @@ pub struct Detector {
     detections_total: u64,
     last_frame: Option<u64>,
     last: Value,
+    /// The frames of the last [`RECENT_S`], oldest first.
+    recent: std::collections::VecDeque<Value>,
+    /// Detections in the last frame (`None` before the first).
+    last_count: Option<usize>,
     last_error: Option<String>,
 }
 
@@ -150,11 +163,35 @@ impl Detector {
             "last_frame": self.last_frame,
             "last_error": self.last_error,
             "last": self.last,
+            "recent": self.recent,
         })
     }
 
+    /// Keeps `frame` in `recent` and drops the frames older than [`RECENT_S`] before it.
+    /// A frame processed again (the `detect` command) replaces its first account.
+    fn remember(&mut self, frame: &Value, stamp_us: u64) {
+        if self
+            .recent
+            .back()
+            .is_some_and(|b| b["frame"] == frame["frame"])
+        {
+            self.recent.pop_back();
+        }
+        self.recent.push_back(frame.clone());
+        let horizon_us = (RECENT_S * 1e6) as u64;
+        while self.recent.len() > 1
+            && self
+                .recent
+                .front()
+                .and_then(|f| f["stamp_us"].as_u64())
+                .is_some_and(|s| stamp_us.saturating_sub(s) > horizon_us)
+        {
+            self.recent.pop_front();
+        }
+    }
+
     /// Processes the camera's latest frame (`force`: even when already processed).
-    /// Returns the event object, `None` when there is no new frame.
+    /// Returns the frame's detections object, `None` when there is no new frame.
     fn process(&mut self, ctx: &Context, force: bool) -> Result<Option<Value>, String> {
         let Some(jpeg) = ctx.payload_frame(&self.camera_slot)? else {
             return Err(format!(
@@ -169,7 +206,15 @@ impl Detector {
         let mut blobs = find_blobs(&pixels, meta.width_px, meta.height_px, &self.params);
         blobs.truncate(self.max_detections);
         let ev = detections(&meta, &blobs, self.params.threshold, &self.camera_slot);
-        ctx.emit_event(DETECTIONS_EVENT, &ev)?;
+        if self.last_count != Some(blobs.len()) {
+            ctx.emit_event(
+                DETECTIONS_CHANGED_EVENT,
+                &json!({"frame": meta.frame, "stamp_us": meta.stamp_us,
+                        "count": blobs.len(), "previous": self.last_count}),
+            )?;
+            self.last_count = Some(blobs.len());
+        }
+        self.remember(&ev, meta.stamp_us);
         self.frames += 1;
         self.detections_total += blobs.len() as u64;
         self.last_frame = Some(meta.frame);
@@ -222,6 +267,8 @@ impl Plugin for Detector {
             detections_total: 0,
             last_frame: None,
             last: Value::Null,
+            recent: std::collections::VecDeque::new(),
+            last_count: None,
             last_error: None,
         })
     }

@@ -70,14 +70,32 @@ impl Rig {
         });
     }
 
-    /// Captures a frame and runs the detector on it: the `detections` event object.
+    /// Captures a frame and runs the detector on it: the frame's detections object, which
+    /// is also the state's `last` and the newest of its `recent`. The first frame also
+    /// raises the one event, `detections_changed` with the count (events only say what
+    /// changed; the frames go to the state).
     fn detect(&mut self) -> Value {
         self.camera.handle(json!({"command": "capture"})).unwrap();
         let ev = self.detector.handle(json!({"command": "detect"})).unwrap();
+        let state = self.world.states.lock().unwrap()[&("uav-2".into(), "detector".into())].clone();
+        assert_eq!(state["last"], ev, "{state}");
+        assert_eq!(
+            state["recent"].as_array().and_then(|r| r.last()),
+            Some(&ev),
+            "{state}"
+        );
         let events = self.world.events.lock().unwrap();
-        let (vehicle, kind, data) = events.last().expect("a detections event");
-        assert_eq!((vehicle.as_str(), kind.as_str()), ("uav-2", "detections"));
-        assert_eq!(*data, ev);
+        let (vehicle, kind, data) = events.last().expect("a detections_changed event");
+        assert_eq!(
+            (vehicle.as_str(), kind.as_str()),
+            ("uav-2", "detections_changed")
+        );
+        assert_eq!(
+            data["count"],
+            ev["detections"].as_array().unwrap().len(),
+            "{data}"
+        );
+        assert_eq!(data["frame"], ev["frame"], "{data}");
         ev
     }
 }

@@ -15,12 +15,22 @@
 //!      right when its centre lies within the drawn aircraft's radius + 3 px; frames where
 //!      the detector's last frame is the camera's last frame), over swarm members and
 //!      intruders alike (`frames`, `true_positives`, `false_positives`, `misses`);
-//!    - `tracks`: `rmse_m` of the confirmed track nearest each intruder within 100 m of
-//!      the swarm (gate 10 m; `samples`), `time_to_confirm_s` (from the first sample with
-//!      the intruder in two cameras' view to the first with a confirmed track within 5 m
-//!      of it; per intruder, `null` when never), `id_switches` (changes of the track id
-//!      matched to an intruder), `false_tracks` (confirmed tracks never within 10 m of an
-//!      intruder) and `false_track_longest_s`.
+//!    - intruders are matched to confirmed tracks one-to-one within 10 m, as CLEAR-MOT
+//!      does (an intruder keeps its previous track while that one stays within 10 m;
+//!      the rest go nearest first), so two intruders passing close by do not share one
+//!      track and a track is not counted as switching back and forth between them;
+//!    - `tracks`: `rmse_m` of the track matched to each intruder within 100 m of
+//!      the swarm (`samples`), `time_to_confirm_s` (from the
+//!      first sample with the intruder in two cameras' view to the first with a confirmed
+//!      track within 5 m of it, the clock restarting when the intruder leaves every
+//!      camera's view unconfirmed; per intruder, `null` when never),
+//!      `id_switches` (changes of the track id matched to an intruder), of them
+//!      `id_switches_in_view` (the intruder was in some camera's view at every sample since
+//!      its previous match: the tracker had bearings to keep its id) and
+//!      `reacquisitions` (it was out of every camera's view in between: a new id after a
+//!      blind spot), both also per path kind in `id_switches_by_pattern`,
+//!      `false_tracks` (confirmed tracks never matched to an intruder, duplicates
+//!      included) and `false_track_longest_s`.
 
 use serde_json::{Value, json};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -43,6 +53,10 @@ pub struct TrackingBenchArgs {
     /// Plugin directory of the `skein up` it starts (default: this executable's).
     #[arg(long, value_name = "DIR")]
     pub plugin_dir: Option<std::path::PathBuf>,
+    /// Also write every sample (the truth's intruders, the tracks) as JSON lines to this
+    /// file, to see where a metric comes from.
+    #[arg(long, value_name = "FILE")]
+    pub trace: Option<std::path::PathBuf>,
 }
 
 struct Up {
@@ -226,6 +240,48 @@ impl Tally {
     }
 }
 
+/// Intruders matched one-to-one to confirmed tracks within 10 m, as CLEAR-MOT does: an
+/// intruder keeps its previous track while that one is still within the gate and not
+/// taken; the others go to the nearest free track, closest pairs first. Returns intruder
+/// id → (track id, distance m).
+fn assign(
+    intruders: &[(String, [f64; 3])],
+    confirmed: &[(String, [f64; 3])],
+    previous: &BTreeMap<String, Option<String>>,
+) -> BTreeMap<String, (String, f64)> {
+    const GATE_M: f64 = 10.0;
+    let mut out: BTreeMap<String, (String, f64)> = BTreeMap::new();
+    let mut taken: BTreeSet<&str> = BTreeSet::new();
+    for (iid, p) in intruders {
+        if let Some(Some(prev)) = previous.get(iid)
+            && let Some((tid, q)) = confirmed.iter().find(|(t, _)| t == prev)
+            && dist(*p, *q) <= GATE_M
+            && taken.insert(tid.as_str())
+        {
+            out.insert(iid.clone(), (tid.clone(), dist(*p, *q)));
+        }
+    }
+    let mut pairs: Vec<(f64, &String, &String)> = intruders
+        .iter()
+        .filter(|(iid, _)| !out.contains_key(iid))
+        .flat_map(|(iid, p)| {
+            confirmed
+                .iter()
+                .map(move |(tid, q)| (dist(*p, *q), iid, tid))
+        })
+        .filter(|(d, _, tid)| *d <= GATE_M && !taken.contains(tid.as_str()))
+        .collect();
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for (d, iid, tid) in pairs {
+        if out.contains_key(iid) || taken.contains(tid.as_str()) {
+            continue;
+        }
+        taken.insert(tid.as_str());
+        out.insert(iid.clone(), (tid.clone(), d));
+    }
+    out
+}
+
 /// Runs the benchmark (blocking: HTTP polling of a child `skein up`).
 pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
     let up = Up::start(args)?;
@@ -269,8 +325,18 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
     let mut confirmed_after: BTreeMap<String, Option<f64>> = BTreeMap::new();
     let mut matched: BTreeMap<String, Option<String>> = BTreeMap::new();
     let mut switches = 0u64;
+    // Per intruder: out of every camera's view since its last match.
+    let mut unseen_since_match: BTreeMap<String, bool> = BTreeMap::new();
+    // Per path kind: (switches in view, reacquisitions).
+    let mut by_pattern: BTreeMap<String, (u64, u64)> = BTreeMap::new();
     let mut confirmed_seen: BTreeMap<String, (f64, f64)> = BTreeMap::new();
     let mut near_intruder: BTreeSet<String> = BTreeSet::new();
+    let mut trace = match &args.trace {
+        Some(p) => Some(std::io::BufWriter::new(
+            std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?,
+        )),
+        None => None,
+    };
     while start.elapsed().as_secs_f64() < args.seconds {
         let t = start.elapsed().as_secs_f64();
         let vehicles = up.get("/api/v1/vehicles")?;
@@ -328,27 +394,42 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
             let e = confirmed_seen.entry(id.clone()).or_insert((t, t));
             e.1 = t;
         }
+        let intruders: Vec<(String, [f64; 3])> = truth["intruders"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(|i| Some((i["id"].as_str()?.to_string(), ned(i)?)))
+            .collect();
+        let assigned = assign(&intruders, &confirmed, &matched);
         for i in truth["intruders"].as_array().into_iter().flatten() {
             let (Some(iid), Some(p)) = (i["id"].as_str(), ned(i)) else {
                 continue;
             };
-            let nearest = confirmed
-                .iter()
-                .map(|(id, q)| (id, dist(*q, p)))
-                .min_by(|a, b| a.1.total_cmp(&b.1));
-            if let Some((id, d)) = nearest
-                && d <= 10.0
-            {
+            let nearest = assigned.get(iid).map(|(id, d)| (id, *d));
+            if let Some((id, _)) = nearest {
                 near_intruder.insert(id.clone());
             }
-            if viewers.get(iid).copied().unwrap_or(0) >= 2 {
-                in_view_since.entry(iid.to_string()).or_insert(t);
-            }
-            if let Some(&t_in) = in_view_since.get(iid) {
-                let slot = confirmed_after.entry(iid.to_string()).or_insert(None);
-                if slot.is_none() && nearest.is_some_and(|(_, d)| d <= 5.0) {
-                    *slot = Some(t - t_in);
+            let views = viewers.get(iid).copied().unwrap_or(0);
+            let pattern = i["pattern"].as_str().unwrap_or("?").to_string();
+            let kind = by_pattern.entry(pattern).or_default();
+            if confirmed_after.get(iid).is_none_or(Option::is_none) {
+                if views >= 2 {
+                    in_view_since.entry(iid.to_string()).or_insert(t);
+                    confirmed_after.entry(iid.to_string()).or_insert(None);
+                } else if views == 0 {
+                    // Out of every camera's view, still unconfirmed: the clock restarts
+                    // when it is next in two views.
+                    in_view_since.remove(iid);
                 }
+                if let Some(&t_in) = in_view_since.get(iid)
+                    && nearest.is_some_and(|(_, d)| d <= 5.0)
+                {
+                    confirmed_after.insert(iid.to_string(), Some(t - t_in));
+                }
+            }
+            let unseen = unseen_since_match.entry(iid.to_string()).or_insert(false);
+            if views == 0 {
+                *unseen = true;
             }
             let within = dist(p, centre) <= 100.0;
             if let Some((id, d)) = nearest.filter(|(_, d)| *d <= 10.0) {
@@ -358,9 +439,21 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
                 let last = matched.entry(iid.to_string()).or_insert(None);
                 if last.as_ref().is_some_and(|l| l != id) {
                     switches += 1;
+                    if *unseen {
+                        kind.1 += 1;
+                    } else {
+                        kind.0 += 1;
+                    }
                 }
                 *last = Some(id.clone());
+                *unseen = false;
             }
+        }
+        if let Some(w) = trace.as_mut() {
+            use std::io::Write;
+            let line = json!({"t_s": t, "intruders": truth["intruders"], "viewers": viewers,
+                "centre": centre, "tracks": tracks});
+            writeln!(w, "{line}").map_err(|e| format!("trace: {e}"))?;
         }
         std::thread::sleep(Duration::from_millis(200));
     }
@@ -394,8 +487,13 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
             "samples": sq_err.len(),
             "time_to_confirm_s": confirmed_after,
             "time_to_confirm_max_s": times.iter().cloned().reduce(f64::max),
-            "in_two_views": in_view_since.len(),
+            "in_two_views": confirmed_after.len(),
             "id_switches": switches,
+            "id_switches_in_view": by_pattern.values().map(|k| k.0).sum::<u64>(),
+            "reacquisitions": by_pattern.values().map(|k| k.1).sum::<u64>(),
+            "id_switches_by_pattern": by_pattern.iter().map(|(p, k)| {
+                (p.clone(), json!({"in_view": k.0, "reacquisitions": k.1}))
+            }).collect::<BTreeMap<_, _>>(),
             "confirmed_tracks": confirmed_seen.len(),
             "false_tracks": false_tracks.len(),
             "false_track_longest_s": false_tracks.iter().map(|f| f.1).reduce(f64::max),

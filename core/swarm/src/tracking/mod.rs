@@ -3,12 +3,14 @@
 //!
 //! - [`geometry`]: bearings and their least-squares fusion (triangulation);
 //! - [`filter`]: the constant-velocity Kalman filter of each track (`nalgebra`);
-//! - [`tracker`]: association (gated Hungarian), track start, lifecycle, stable ids;
-//! - [`detection`]: the detector plugin's `detections` events as bearings.
+//! - [`tracker`]: association (gated Hungarian) and update; `management`: track start,
+//!   continuation through manoeuvres and blind spots, lifecycle, merging, stable ids;
+//! - [`track`]: the tuning, the tracks as the API shows them, track events, counters;
+//! - [`detection`]: the detector plugin's detections (its payload state) as bearings.
 //!
-//! [`TrackingService`] runs the tracker in a task of its own beside the coordinator: it
-//! reads the `detections` payload events off the event bus, steps the tracker at
-//! [`TRACKER_HZ`] with the swarm members' poses (so members are never tracks), raises the
+//! [`TrackingService`] runs the tracker in a task of its own beside the coordinator: at
+//! [`TRACKER_HZ`] it reads every frame the detectors processed since its last step from
+//! their payload states, steps the tracker with them and the swarm members' poses (so members are never tracks), raises the
 //! `track_*` events on the bus, and keeps the current tracks for `GET /api/v1/tracks` and
 //! the metrics. Not to be confused with `vehicle::tracking` (setpoint tracking of a
 //! formation member).
@@ -16,14 +18,17 @@
 pub mod detection;
 pub mod filter;
 pub mod geometry;
+mod management;
 #[cfg(test)]
 mod tests;
+pub mod track;
 pub mod tracker;
 
 use crate::events::SwarmEvent;
 use crate::metrics::Metrics;
 use crate::view::SwarmView;
 use nalgebra::Vector3;
+use std::collections::HashMap;
 use std::sync::{Arc, PoisonError, RwLock};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use tokio::sync::broadcast;
@@ -62,7 +67,7 @@ impl TrackingShared {
         *self.counters.read().unwrap_or_else(PoisonError::into_inner)
     }
 
-    /// `detections` events dropped as malformed.
+    /// Detector frames dropped as malformed.
     pub fn malformed_events(&self) -> u64 {
         self.malformed.load(std::sync::atomic::Ordering::Relaxed)
     }
@@ -123,46 +128,52 @@ async fn run(
     metrics: Arc<Metrics>,
     shared: Arc<TrackingShared>,
 ) {
-    let mut rx = events.subscribe();
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / TRACKER_HZ));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    let mut bearings = Vec::new();
+    // The newest frame read from each (vehicle, detector slot).
+    let mut seen: HashMap<(String, String), u64> = HashMap::new();
     loop {
-        tokio::select! {
-            ev = rx.recv() => match ev {
-                Ok(SwarmEvent::PayloadEvent { id, kind, data, .. }) if kind == detection::DETECTIONS_EVENT => {
-                    match detection::parse_detections(&id, &data) {
-                        Ok(rays) => bearings.extend(rays),
-                        Err(e) => {
-                            shared.malformed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                            tracing::debug!(vehicle = %id, "dropped a detections event: {e}");
-                        }
+        tick.tick().await;
+        let mut bearings = Vec::new();
+        for (id, slot, state) in view.payload_states(detection::DETECTOR_KIND) {
+            let key = (id, slot);
+            let frames = detection::new_frames(&state, seen.get(&key).copied());
+            for f in frames {
+                if let Some(n) = f["frame"].as_u64() {
+                    seen.insert(key.clone(), n);
+                }
+                match detection::parse_detections(&key.0, f) {
+                    Ok(rays) => bearings.extend(rays),
+                    Err(e) => {
+                        shared
+                            .malformed
+                            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        tracing::debug!(vehicle = %key.0, "dropped a detector frame: {e}");
                     }
                 }
-                Ok(_) => {}
-                Err(broadcast::error::RecvError::Lagged(n)) => {
-                    tracing::warn!("tracker: {n} events missed (the bus overflowed)");
-                }
-                Err(broadcast::error::RecvError::Closed) => return,
-            },
-            _ = tick.tick() => {
-                let members: Vec<(String, Vector3<f64>)> = view
-                    .snapshots()
-                    .into_iter()
-                    .filter_map(|s| {
-                        let p = s.position?;
-                        Some((s.id, Vector3::new(p.north_m, p.east_m, p.down_m)))
-                    })
-                    .collect();
-                let now = now_us();
-                for e in tracker.step(now, std::mem::take(&mut bearings), &members) {
-                    let _ = events.send(to_swarm_event(e));
-                }
-                let tracks = tracker.tracks(now);
-                metrics.set_tracking(&tracks, &tracker.counters());
-                *shared.tracks.write().unwrap_or_else(PoisonError::into_inner) = tracks;
-                *shared.counters.write().unwrap_or_else(PoisonError::into_inner) = tracker.counters();
             }
         }
+        let members: Vec<(String, Vector3<f64>)> = view
+            .snapshots()
+            .into_iter()
+            .filter_map(|s| {
+                let p = s.position?;
+                Some((s.id, Vector3::new(p.north_m, p.east_m, p.down_m)))
+            })
+            .collect();
+        let now = now_us();
+        for e in tracker.step(now, bearings, &members) {
+            let _ = events.send(to_swarm_event(e));
+        }
+        let tracks = tracker.tracks(now);
+        metrics.set_tracking(&tracks, &tracker.counters());
+        *shared
+            .tracks
+            .write()
+            .unwrap_or_else(PoisonError::into_inner) = tracks;
+        *shared
+            .counters
+            .write()
+            .unwrap_or_else(PoisonError::into_inner) = tracker.counters();
     }
 }

@@ -28,9 +28,8 @@ fn bearing(
     }
 }
 
-/// Runs the tracker at 10 Hz for `duration_s` with two cameras at 5 Hz (staggered by
-/// 0.1 s) seeing every target `targets(t)` returns; returns every event and the ids
-/// nearest each target at the end.
+/// Runs the tracker at 10 Hz from `start_s` for `duration_s` with two cameras at 5 Hz
+/// (staggered by 0.1 s) seeing every target `targets(t)` returns; returns every event.
 fn fly(
     tracker: &mut Tracker,
     start_s: f64,
@@ -42,10 +41,11 @@ fn fly(
     for k in 0..steps {
         let t = start_s + k as f64 * 0.1;
         let t_us = (t * 1e6) as u64 + 1_000_000;
-        let cam = k % 2;
-        let (name, o) = OBSERVERS[cam as usize];
+        // The cameras take turns by the absolute step, so runs can be chained.
+        let step = (t * 10.0).round() as u64;
+        let (name, o) = OBSERVERS[(step % 2) as usize];
         let o = Vector3::from(o);
-        let noise = if k % 4 < 2 { 0.001 } else { -0.001 };
+        let noise = if step % 4 < 2 { 0.001 } else { -0.001 };
         let bearings = targets(t)
             .into_iter()
             .map(|p| bearing(name, o, p, t_us, noise))
@@ -189,4 +189,204 @@ fn a_target_only_one_camera_sees_starts_from_its_size_but_is_not_confirmed_alone
     assert_eq!(t.status, TrackStatus::Tentative);
     // 10 % short (the size range), straight along the bearing.
     assert!((t.position.north_m - 36.0).abs() < 3.0, "{t:?}");
+}
+
+/// Ids of the confirmed tracks nearest the target at each step after `settle_s`.
+fn ids_along(
+    tracker: &mut Tracker,
+    duration_s: f64,
+    settle_s: f64,
+    target: &dyn Fn(f64) -> Vector3<f64>,
+) -> Vec<String> {
+    let mut ids = Vec::new();
+    let steps = (duration_s * 10.0).round() as u64;
+    for k in 0..steps {
+        let t = k as f64 * 0.1;
+        fly(tracker, t, 0.1, &|s| vec![target(s)]);
+        let now = (t * 1e6) as u64 + 1_000_000;
+        let nearest = tracker
+            .tracks(now)
+            .into_iter()
+            .filter(|v| v.status == TrackStatus::Confirmed)
+            .map(|v| {
+                let q = Vector3::new(v.position.north_m, v.position.east_m, v.position.down_m);
+                (v.id, (q - target(t)).norm())
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if t >= settle_s
+            && let Some((id, d)) = nearest
+            && d < 10.0
+            && ids.last() != Some(&id)
+        {
+            ids.push(id);
+        }
+    }
+    ids
+}
+
+#[test]
+fn a_zigzagging_target_keeps_its_id() {
+    // The simulator's zig-zag: 5 m/s along a weave of ±15 m every 40 m, each leg a sharp
+    // turn (the velocity across the cameras' line of sight flips by 8 m/s at once),
+    // coming in from 80 m.
+    let zigzag = |t: f64| {
+        let along = 2.77 * t;
+        let f = (along / 40.0 + 0.25).rem_euclid(1.0);
+        let tri = if f < 0.5 {
+            4.0 * f - 1.0
+        } else {
+            3.0 - 4.0 * f
+        };
+        Vector3::new(80.0 - along, 5.0 + 15.0 * tri, -18.0)
+    };
+    let mut tr = Tracker::new(TrackerConfig::default());
+    let ids = ids_along(&mut tr, 20.0, 2.0, &zigzag);
+    assert_eq!(ids.len(), 1, "one id through three turns: {ids:?}");
+}
+
+#[test]
+fn a_target_back_from_a_blind_spot_keeps_its_id() {
+    // A loiter (20 m radius, 5 m/s) that the cameras lose for 4 s of every lap: the
+    // track is lost, predicted straight on, and off the circle when the target returns.
+    let centre = Vector3::new(50.0, 0.0, -18.0);
+    let circle = |t: f64| {
+        let a = 0.25 * t;
+        centre + Vector3::new(20.0 * a.cos(), 20.0 * a.sin(), 0.0)
+    };
+    let mut tr = Tracker::new(TrackerConfig::default());
+    let mut ids: Vec<String> = Vec::new();
+    for k in 0..400u64 {
+        let t = k as f64 * 0.1;
+        // Blind while the target is on the far side (angle 2.4..3.4 rad of each lap).
+        let blind = (0.25 * t).rem_euclid(std::f64::consts::TAU);
+        let seen = !(2.4..3.4).contains(&blind);
+        fly(&mut tr, t, 0.1, &|s| {
+            if seen { vec![circle(s)] } else { vec![] }
+        });
+        let now = (t * 1e6) as u64 + 1_000_000;
+        if t > 2.0
+            && seen
+            && let Some((id, d)) = tr
+                .tracks(now)
+                .into_iter()
+                .filter(|v| v.status == TrackStatus::Confirmed)
+                .map(|v| {
+                    let q = Vector3::new(v.position.north_m, v.position.east_m, v.position.down_m);
+                    (v.id, (q - circle(t)).norm())
+                })
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+            && d < 10.0
+            && ids.last() != Some(&id)
+        {
+            ids.push(id);
+        }
+    }
+    assert_eq!(ids.len(), 1, "one id through the blind spots: {ids:?}");
+    let confirmed = tr.counters().tracks_confirmed;
+    assert_eq!(confirmed, 1, "no second confirmed track on the target");
+}
+
+#[test]
+fn two_tracks_of_one_target_are_merged_under_the_older_id() {
+    use super::filter::ConstantVelocity;
+    use super::tracker::Track;
+    use nalgebra::Matrix3;
+    let mut tr = Tracker::new(TrackerConfig::default());
+    let track = |id: &str, status, p: Vector3<f64>, v: Vector3<f64>, created_us, seen_us| {
+        let mut filter = ConstantVelocity::new(p, Matrix3::identity() * 0.5, 0.5, 2.0);
+        filter.x.fixed_rows_mut::<3>(3).copy_from(&v);
+        Track {
+            id: id.to_string(),
+            status,
+            filter,
+            t_us: seen_us,
+            created_us,
+            last_update_us: seen_us,
+            hits: 10,
+            triangulated_hits: 10,
+            observers: vec!["uav-1".into(), "uav-3".into()],
+        }
+    };
+    let v = Vector3::new(0.0, 5.0, 0.0);
+    // An old confirmed track coasting 0.5 s, and a younger one updated just now, 1 m off,
+    // at the same velocity: one aircraft.
+    tr.tracks.push(track(
+        "track-1",
+        TrackStatus::Confirmed,
+        Vector3::new(40.0, 0.0, -15.0),
+        v,
+        1_000_000,
+        9_500_000,
+    ));
+    tr.tracks.push(track(
+        "track-7",
+        TrackStatus::Confirmed,
+        Vector3::new(40.0, 3.5, -15.0),
+        v,
+        6_000_000,
+        10_000_000,
+    ));
+    // A third, crossing the first at 10 m/s: another aircraft.
+    tr.tracks.push(track(
+        "track-9",
+        TrackStatus::Confirmed,
+        Vector3::new(40.5, 3.0, -15.0),
+        Vector3::new(0.0, -5.0, 0.0),
+        6_000_000,
+        10_000_000,
+    ));
+    let events = tr.step(10_000_000, vec![], &[]);
+    let ids: Vec<String> = tr.tracks(10_000_000).into_iter().map(|t| t.id).collect();
+    assert_eq!(ids, ["track-1", "track-9"], "{events:?}");
+    assert!(
+        matches!(&events[..], [TrackEvent::Deleted(d)] if d.id == "track-7"),
+        "{events:?}"
+    );
+    // The survivor took the fresher state.
+    let t1 = &tr.tracks(10_000_000)[0];
+    assert!(
+        (t1.position.east_m - 3.5).abs() < 1e-9 && t1.unseen_s == 0.0,
+        "{t1:?}"
+    );
+}
+
+#[test]
+fn an_aircraft_split_over_two_cameras_tracks_is_joined_under_the_older_id() {
+    use super::filter::ConstantVelocity;
+    use super::tracker::Track;
+    use nalgebra::Matrix3;
+    let target = Vector3::new(30.0, 5.0, -12.0);
+    let (o2, o4) = (Vector3::from(OBSERVERS[0].1), Vector3::from(OBSERVERS[1].1));
+    // Each track sits on one camera's ray, 5 m off in range: each gate holds only that
+    // camera's bearing.
+    let on_ray =
+        |o: Vector3<f64>, off: f64| o + (target - o).normalize() * ((target - o).norm() + off);
+    let track = |id: &str, p: Vector3<f64>, created_us: u64| Track {
+        id: id.to_string(),
+        status: TrackStatus::Confirmed,
+        filter: ConstantVelocity::new(p, Matrix3::identity() * 0.1, 0.1, 2.0),
+        t_us: 9_900_000,
+        created_us,
+        last_update_us: 9_900_000,
+        hits: 20,
+        triangulated_hits: 5,
+        observers: vec![],
+    };
+    let mut tr = Tracker::new(TrackerConfig::default());
+    tr.tracks.push(track("track-1", on_ray(o2, 5.0), 1_000_000));
+    tr.tracks
+        .push(track("track-5", on_ray(o4, -5.0), 5_000_000));
+    let bearings = vec![
+        bearing("uav-2", o2, target, 10_000_000, 0.0),
+        bearing("uav-4", o4, target, 10_000_000, 0.0),
+    ];
+    let events = tr.step(10_000_000, bearings, &[]);
+    let tracks = tr.tracks(10_000_000);
+    assert_eq!(tracks.len(), 1, "{events:?}");
+    let t = &tracks[0];
+    assert_eq!(t.id, "track-1");
+    assert_eq!((t.triangulated_hits, t.observers.len()), (6, 2), "{t:?}");
+    let p = Vector3::new(t.position.north_m, t.position.east_m, t.position.down_m);
+    // The triangulated fix pulled it in from 5 m off (against its confident prior).
+    assert!((p - target).norm() < 3.0, "{t:?}");
 }

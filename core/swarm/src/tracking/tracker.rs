@@ -9,6 +9,9 @@
 //! 3. associates each observer's bearings with the tracks one-to-one by minimum total
 //!    Mahalanobis distance (Hungarian algorithm, `pathfinding::kuhn_munkres_min`, integer
 //!    weights), gated at χ² `gate_chi2` (or `gate_floor_m` across the ray);
+//!    two tracks that each got one lone bearing, from two observers whose rays meet
+//!    within reach (see 7) of the older, are one aircraft split over two cameras: the
+//!    older takes both bearings and the younger is deleted;
 //! 4. updates each track with the point its bearings fix ([`super::geometry::fuse_rays`]:
 //!    least-squares triangulation when two observers see it, the range from apparent size
 //!    along a lone ray);
@@ -19,192 +22,56 @@
 //!    of them triangulated; confirmed → lost after `lost_after_s` without an update (a lost
 //!    track that is seen again is recovered under its id); tentative tracks unseen for
 //!    `tentative_timeout_s` and lost tracks unseen for `delete_after_s` are deleted; a
-//!    track that comes within `merge_m` of an older one is merged into it.
+//!    track that comes within `merge_m` of an older one (at a velocity it cannot tell
+//!    from the older one's) is merged into it, under the older id;
+//! 7. keeps ids through manoeuvres and blind spots: a pair of bearings left over in step 5
+//!    whose point lies within `reacquire_m` of a confirmed or lost track that was not
+//!    updated in the step continues that track (its filter restarts at the point, keeping
+//!    its velocity with a widened uncertainty) rather than starting a second track on the
+//!    same aircraft; a lone leftover bearing passing that close to such a track starts
+//!    nothing.
+//!
+//! Step 5 and on live in [`super::management`]; the public types in [`super::track`].
 //!
 //! Ids are `track-<n>`, n from 1, never reused.
 
 use super::filter::ConstantVelocity;
-use super::geometry::{Ray, RayNoise, closest_approach, fuse_rays, perp};
-use nalgebra::{Matrix3, Vector3};
+use super::geometry::{Ray, RayNoise, fuse_rays, perp};
+use nalgebra::Vector3;
 use pathfinding::prelude::{Matrix, kuhn_munkres_min};
-use serde::Serialize;
 use std::collections::BTreeMap;
 
-/// Tuning of the tracker.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TrackerConfig {
-    /// Bearing noise, degrees (camera pointing and centroid).
-    pub bearing_sigma_deg: f64,
-    /// Relative noise of a range from apparent size.
-    pub size_range_rel_sigma: f64,
-    /// Unmodelled acceleration of a target, m/s².
-    pub accel_sigma_m_s2: f64,
-    /// Association gate, χ² (2 degrees of freedom across a ray).
-    pub gate_chi2: f64,
-    /// A bearing passing this close to a track is always in its gate, metres.
-    pub gate_floor_m: f64,
-    /// Two observers' rays pass within this of each other (plus 3 % of the range) to start
-    /// a track, metres.
-    pub init_gate_m: f64,
-    /// How long a bearing waits for another observer's before it starts a track alone, s.
-    pub pair_window_s: f64,
-    /// A bearing within this of a swarm member's pose (plus 2 % of the range) is that
-    /// member, metres.
-    pub member_exclusion_m: f64,
-    /// Updates before a track is confirmed.
-    pub confirm_hits: u32,
-    /// A confirmed track unseen this long is lost, s.
-    pub lost_after_s: f64,
-    /// A tentative track unseen this long is deleted, s.
-    pub tentative_timeout_s: f64,
-    /// A lost track unseen this long is deleted (ages out), s.
-    pub delete_after_s: f64,
-    /// Two tracks closer than this are one, metres.
-    pub merge_m: f64,
-}
+pub use super::track::{
+    NedJson, TrackEvent, TrackStatus, TrackView, TrackerConfig, TrackerCounters, VelocityJson,
+};
 
-impl Default for TrackerConfig {
-    fn default() -> Self {
-        TrackerConfig {
-            bearing_sigma_deg: 0.15,
-            size_range_rel_sigma: 0.35,
-            accel_sigma_m_s2: 2.0,
-            gate_chi2: 16.0,
-            gate_floor_m: 1.5,
-            init_gate_m: 2.0,
-            pair_window_s: 0.4,
-            member_exclusion_m: 2.0,
-            confirm_hits: 3,
-            lost_after_s: 1.5,
-            tentative_timeout_s: 1.0,
-            delete_after_s: 5.0,
-            merge_m: 2.0,
-        }
-    }
-}
-
-/// Where a track is in its life.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, utoipa::ToSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum TrackStatus {
-    /// Seen, not yet confirmed.
-    Tentative,
-    /// Confirmed and being updated.
-    Confirmed,
-    /// Confirmed once, not seen for `lost_after_s`: predicted on, until it ages out.
-    Lost,
-}
-
-/// A track as the API and the stream show it (swarm frame).
-#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
-pub struct TrackView {
-    /// `track-<n>`.
-    pub id: String,
-    /// Lifecycle state.
-    pub status: TrackStatus,
-    /// Estimated position, swarm-frame NED, metres.
-    pub position: NedJson,
-    /// Estimated velocity, NED, m/s.
-    pub velocity: VelocityJson,
-    /// Horizontal position covariance `[[nn, ne], [ne, ee]]`, m² (the uncertainty ellipse).
-    pub covariance_ne_m2: [[f64; 2]; 2],
-    /// Root of the position covariance's trace, metres.
-    pub position_sigma_m: f64,
-    /// Updates so far.
-    pub hits: u32,
-    /// Updates fixed by two or more observers.
-    pub triangulated_hits: u32,
-    /// Observers of the last update.
-    pub observers: Vec<String>,
-    /// Seconds since the track started.
-    pub age_s: f64,
-    /// Seconds since its last update.
-    pub unseen_s: f64,
-}
-
-/// A swarm-frame NED position as JSON.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema)]
-pub struct NedJson {
-    /// North, metres.
-    pub north_m: f64,
-    /// East, metres.
-    pub east_m: f64,
-    /// Down, metres.
-    pub down_m: f64,
-}
-
-/// A NED velocity as JSON.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema)]
-pub struct VelocityJson {
-    /// North, m/s.
-    pub north_m_s: f64,
-    /// East, m/s.
-    pub east_m_s: f64,
-    /// Down, m/s.
-    pub down_m_s: f64,
-}
-
-/// Something that happened to a track (the stream's `track_*` events).
-#[derive(Debug, Clone, PartialEq)]
-pub enum TrackEvent {
-    /// A tentative track started.
-    Created(TrackView),
-    /// A tentative track was confirmed.
-    Confirmed(TrackView),
-    /// A confirmed track was not seen for `lost_after_s`.
-    Lost(TrackView),
-    /// A lost track was seen again (same id).
-    Recovered(TrackView),
-    /// A track was deleted (aged out, never confirmed, or merged into another).
-    Deleted(TrackView),
-}
-
-/// Counters since the tracker started.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
-pub struct TrackerCounters {
-    /// Bearings received.
-    pub bearings: u64,
-    /// Bearings dropped as pointing at a swarm member.
-    pub bearings_excluded_members: u64,
-    /// Bearings that updated a track.
-    pub bearings_associated: u64,
-    /// Tracks started.
-    pub tracks_created: u64,
-    /// Tracks confirmed.
-    pub tracks_confirmed: u64,
-    /// Tracks lost.
-    pub tracks_lost: u64,
-    /// Tracks deleted.
-    pub tracks_deleted: u64,
-}
-
-struct Track {
-    id: String,
-    status: TrackStatus,
-    filter: ConstantVelocity,
+pub(super) struct Track {
+    pub(super) id: String,
+    pub(super) status: TrackStatus,
+    pub(super) filter: ConstantVelocity,
     /// Time of the filter's state, µs.
-    t_us: u64,
-    created_us: u64,
-    last_update_us: u64,
-    hits: u32,
-    triangulated_hits: u32,
-    observers: Vec<String>,
+    pub(super) t_us: u64,
+    pub(super) created_us: u64,
+    pub(super) last_update_us: u64,
+    pub(super) hits: u32,
+    pub(super) triangulated_hits: u32,
+    pub(super) observers: Vec<String>,
 }
 
 /// The tracker (see the module docs). Times are wall-clock microseconds.
 pub struct Tracker {
-    config: TrackerConfig,
-    tracks: Vec<Track>,
+    pub(super) config: TrackerConfig,
+    pub(super) tracks: Vec<Track>,
     /// Bearings not associated yet, waiting for a partner.
-    pending: Vec<Ray>,
-    next_id: u64,
-    counters: TrackerCounters,
+    pub(super) pending: Vec<Ray>,
+    pub(super) next_id: u64,
+    pub(super) counters: TrackerCounters,
 }
 
 const SCALE: f64 = 1000.0;
 const UNASSIGNED: i64 = 1 << 40;
 
-fn us_to_s(a: u64, b: u64) -> f64 {
+pub(super) fn us_to_s(a: u64, b: u64) -> f64 {
     (a as f64 - b as f64) / 1e6
 }
 
@@ -230,14 +97,14 @@ impl Tracker {
         self.counters
     }
 
-    fn noise(&self) -> RayNoise {
+    pub(super) fn noise(&self) -> RayNoise {
         RayNoise {
             bearing_sigma_rad: self.config.bearing_sigma_deg.to_radians(),
             size_range_rel_sigma: self.config.size_range_rel_sigma,
         }
     }
 
-    fn view(&self, t: &Track, now_us: u64) -> TrackView {
+    pub(super) fn view(&self, t: &Track, now_us: u64) -> TrackView {
         let mut f = t.filter.clone();
         f.predict(us_to_s(now_us, t.t_us));
         let (p, v, c) = (f.position(), f.velocity(), f.position_cov());
@@ -294,8 +161,21 @@ impl Tracker {
                 t.t_us = batch_us;
             }
         }
+        let before: BTreeMap<String, u32> = self
+            .tracks
+            .iter()
+            .map(|t| (t.id.clone(), t.triangulated_hits))
+            .collect();
         let leftover = self.associate_and_update(rays, &mut events);
+        // Tracks two observers fixed in this step are never continued by leftover
+        // bearings (those are another aircraft's).
+        let updated: Vec<bool> = self
+            .tracks
+            .iter()
+            .map(|t| before.get(&t.id).is_some_and(|b| *b != t.triangulated_hits))
+            .collect();
         self.pending.extend(leftover);
+        self.reacquire(&updated, &mut events);
         self.start_tracks(now_us, &mut events);
         self.lifecycle(now_us, &mut events);
         self.merge(now_us, &mut events);
@@ -371,6 +251,7 @@ impl Tracker {
                 }
             }
         }
+        let split = self.join_split(&rays, &mut assigned);
         let noise = self.noise();
         for (ti, ray_ids) in assigned.iter().enumerate() {
             if ray_ids.is_empty() {
@@ -436,153 +317,14 @@ impl Tracker {
                 events.push(TrackEvent::Recovered(self.view(&self.tracks[ti], t_us)));
             }
         }
+        for i in split.into_iter().rev() {
+            let t = self.tracks.remove(i);
+            self.counters.tracks_deleted += 1;
+            events.push(TrackEvent::Deleted(self.view(&t, t.t_us)));
+        }
         rays.into_iter()
             .zip(used)
             .filter_map(|(r, u)| (!u).then_some(r))
             .collect()
-    }
-
-    fn new_track(
-        &mut self,
-        z: Vector3<f64>,
-        cov: Matrix3<f64>,
-        t_us: u64,
-        observers: Vec<String>,
-    ) -> TrackEvent {
-        let id = format!("track-{}", self.next_id);
-        self.next_id += 1;
-        let triangulated = u32::from(observers.len() >= 2);
-        self.tracks.push(Track {
-            id,
-            status: TrackStatus::Tentative,
-            filter: ConstantVelocity::new(z, cov, 8.0, self.config.accel_sigma_m_s2),
-            t_us,
-            created_us: t_us,
-            last_update_us: t_us,
-            hits: 1,
-            triangulated_hits: triangulated,
-            observers,
-        });
-        self.counters.tracks_created += 1;
-        let t = self.tracks.last().expect("just pushed");
-        TrackEvent::Created(self.view(t, t_us))
-    }
-
-    fn start_tracks(&mut self, now_us: u64, events: &mut Vec<TrackEvent>) {
-        let noise = self.noise();
-        let mut pending = std::mem::take(&mut self.pending);
-        // Pairs of bearings from two observers whose rays meet: best pairs first.
-        let mut pairs = Vec::new();
-        for i in 0..pending.len() {
-            for j in i + 1..pending.len() {
-                let (a, b) = (&pending[i], &pending[j]);
-                if a.observer == b.observer {
-                    continue;
-                }
-                if let Some((t1, t2, miss)) = closest_approach(&a.origin, &a.dir, &b.origin, &b.dir)
-                    && t1 > 0.0
-                    && t2 > 0.0
-                    && miss <= self.config.init_gate_m + 0.03 * t1.max(t2)
-                {
-                    pairs.push((miss, i, j));
-                }
-            }
-        }
-        pairs.sort_by(|x, y| x.0.total_cmp(&y.0));
-        let mut taken = vec![false; pending.len()];
-        for (_, i, j) in pairs {
-            if taken[i] || taken[j] {
-                continue;
-            }
-            let (a, b) = (&pending[i], &pending[j]);
-            let rays = [
-                (a.origin, a.dir, a.range_from_size_m),
-                (b.origin, b.dir, b.range_from_size_m),
-            ];
-            if let Some((z, cov)) = fuse_rays(&rays, noise) {
-                taken[i] = true;
-                taken[j] = true;
-                let t_us = a.stamp_us.max(b.stamp_us);
-                let obs = vec![a.observer.clone(), b.observer.clone()];
-                let ev = self.new_track(z, cov, t_us, obs);
-                events.push(ev);
-            }
-        }
-        // Bearings nobody matched in time start tracks alone, from their size range.
-        let window_us = (self.config.pair_window_s * 1e6) as u64;
-        let mut keep = Vec::new();
-        for (r, t) in pending.drain(..).zip(taken) {
-            if t {
-                continue;
-            }
-            if now_us.saturating_sub(r.stamp_us) < window_us {
-                keep.push(r);
-                continue;
-            }
-            if let Some(rho) = r.range_from_size_m
-                && let Some((z, cov)) = fuse_rays(&[(r.origin, r.dir, Some(rho))], noise)
-            {
-                let ev = self.new_track(z, cov, r.stamp_us, vec![r.observer.clone()]);
-                events.push(ev);
-            }
-        }
-        self.pending = keep;
-    }
-
-    fn lifecycle(&mut self, now_us: u64, events: &mut Vec<TrackEvent>) {
-        let c = self.config.clone();
-        let mut i = 0;
-        while i < self.tracks.len() {
-            let unseen = us_to_s(now_us, self.tracks[i].last_update_us);
-            let status = self.tracks[i].status;
-            let delete = match status {
-                TrackStatus::Tentative => unseen > c.tentative_timeout_s,
-                TrackStatus::Lost => unseen > c.delete_after_s,
-                TrackStatus::Confirmed => false,
-            };
-            if delete {
-                let t = self.tracks.remove(i);
-                self.counters.tracks_deleted += 1;
-                events.push(TrackEvent::Deleted(self.view(&t, now_us)));
-                continue;
-            }
-            if status == TrackStatus::Confirmed && unseen > c.lost_after_s {
-                self.tracks[i].status = TrackStatus::Lost;
-                self.counters.tracks_lost += 1;
-                events.push(TrackEvent::Lost(self.view(&self.tracks[i], now_us)));
-            }
-            i += 1;
-        }
-    }
-
-    /// Two tracks on one target (as close as `merge_m`, velocities within 2 m/s): the
-    /// younger (or the unconfirmed) one goes.
-    fn merge(&mut self, now_us: u64, events: &mut Vec<TrackEvent>) {
-        let rank = |t: &Track| {
-            (
-                t.status == TrackStatus::Confirmed,
-                t.hits,
-                u64::MAX - t.created_us,
-            )
-        };
-        let mut doomed = Vec::new();
-        for i in 0..self.tracks.len() {
-            for j in i + 1..self.tracks.len() {
-                let (a, b) = (&self.tracks[i], &self.tracks[j]);
-                let d = (a.filter.position() - b.filter.position()).norm();
-                let dv = (a.filter.velocity() - b.filter.velocity()).norm();
-                // Crossing targets come close too, but not at the same velocity.
-                if d < self.config.merge_m && dv < 2.0 {
-                    doomed.push(if rank(a) >= rank(b) { j } else { i });
-                }
-            }
-        }
-        doomed.sort_unstable();
-        doomed.dedup();
-        for i in doomed.into_iter().rev() {
-            let t = self.tracks.remove(i);
-            self.counters.tracks_deleted += 1;
-            events.push(TrackEvent::Deleted(self.view(&t, now_us)));
-        }
     }
 }

@@ -1,0 +1,162 @@
+//! The tracker's public types: its tuning, a track as the API shows it, what happens to
+//! tracks, and its counters.
+
+use serde::Serialize;
+
+/// Tuning of the tracker.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackerConfig {
+    /// Bearing noise, degrees (camera pointing and centroid).
+    pub bearing_sigma_deg: f64,
+    /// Relative noise of a range from apparent size.
+    pub size_range_rel_sigma: f64,
+    /// Unmodelled acceleration of a target, m/s².
+    pub accel_sigma_m_s2: f64,
+    /// Association gate, χ² (2 degrees of freedom across a ray).
+    pub gate_chi2: f64,
+    /// A bearing passing this close to a track is always in its gate, metres.
+    pub gate_floor_m: f64,
+    /// Two observers' rays pass within this of each other (plus 3 % of the range) to start
+    /// a track, metres.
+    pub init_gate_m: f64,
+    /// How long a bearing waits for another observer's before it starts a track alone, s.
+    pub pair_window_s: f64,
+    /// A bearing within this of a swarm member's pose (plus 2 % of the range) is that
+    /// member, metres.
+    pub member_exclusion_m: f64,
+    /// Updates before a track is confirmed.
+    pub confirm_hits: u32,
+    /// A confirmed track unseen this long is lost, s.
+    pub lost_after_s: f64,
+    /// A tentative track unseen this long is deleted, s.
+    pub tentative_timeout_s: f64,
+    /// A lost track unseen this long is deleted (ages out), s.
+    pub delete_after_s: f64,
+    /// Two tracks closer than this are one, metres (when their velocities agree, see
+    /// [`Tracker`](super::tracker::Tracker)'s merge).
+    pub merge_m: f64,
+    /// Two observers' bearings that fix a point this close to a confirmed or lost track
+    /// not updated in the step continue that track (it manoeuvred out of its gate, or came
+    /// back from a blind spot) instead of starting a new one, metres; grows by
+    /// `reacquire_m_per_s` for every second the track went unseen.
+    pub reacquire_m: f64,
+    /// Growth of `reacquire_m` per second unseen, m/s (capped at twice `reacquire_m`).
+    pub reacquire_m_per_s: f64,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        TrackerConfig {
+            bearing_sigma_deg: 0.15,
+            size_range_rel_sigma: 0.35,
+            accel_sigma_m_s2: 3.0,
+            gate_chi2: 16.0,
+            gate_floor_m: 1.5,
+            init_gate_m: 2.0,
+            pair_window_s: 0.4,
+            member_exclusion_m: 2.0,
+            confirm_hits: 3,
+            lost_after_s: 1.0,
+            tentative_timeout_s: 1.0,
+            delete_after_s: 5.0,
+            merge_m: 2.0,
+            reacquire_m: 6.0,
+            reacquire_m_per_s: 1.5,
+        }
+    }
+}
+
+/// Where a track is in its life.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, utoipa::ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum TrackStatus {
+    /// Seen, not yet confirmed.
+    Tentative,
+    /// Confirmed and being updated.
+    Confirmed,
+    /// Confirmed once, not seen for `lost_after_s`: predicted on, until it ages out.
+    Lost,
+}
+
+/// A track as the API and the stream show it (swarm frame).
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct TrackView {
+    /// `track-<n>`.
+    pub id: String,
+    /// Lifecycle state.
+    pub status: TrackStatus,
+    /// Estimated position, swarm-frame NED, metres.
+    pub position: NedJson,
+    /// Estimated velocity, NED, m/s.
+    pub velocity: VelocityJson,
+    /// Horizontal position covariance `[[nn, ne], [ne, ee]]`, m² (the uncertainty ellipse).
+    pub covariance_ne_m2: [[f64; 2]; 2],
+    /// Root of the position covariance's trace, metres.
+    pub position_sigma_m: f64,
+    /// Updates so far.
+    pub hits: u32,
+    /// Updates fixed by two or more observers.
+    pub triangulated_hits: u32,
+    /// Observers of the last update.
+    pub observers: Vec<String>,
+    /// Seconds since the track started.
+    pub age_s: f64,
+    /// Seconds since its last update.
+    pub unseen_s: f64,
+}
+
+/// A swarm-frame NED position as JSON.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct NedJson {
+    /// North, metres.
+    pub north_m: f64,
+    /// East, metres.
+    pub east_m: f64,
+    /// Down, metres.
+    pub down_m: f64,
+}
+
+/// A NED velocity as JSON.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct VelocityJson {
+    /// North, m/s.
+    pub north_m_s: f64,
+    /// East, m/s.
+    pub east_m_s: f64,
+    /// Down, m/s.
+    pub down_m_s: f64,
+}
+
+/// Something that happened to a track (the stream's `track_*` events).
+#[derive(Debug, Clone, PartialEq)]
+pub enum TrackEvent {
+    /// A tentative track started.
+    Created(TrackView),
+    /// A tentative track was confirmed.
+    Confirmed(TrackView),
+    /// A confirmed track was not seen for `lost_after_s`.
+    Lost(TrackView),
+    /// A lost track was seen again (same id).
+    Recovered(TrackView),
+    /// A track was deleted (aged out, never confirmed, or merged into another).
+    Deleted(TrackView),
+}
+
+/// Counters since the tracker started.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct TrackerCounters {
+    /// Bearings received.
+    pub bearings: u64,
+    /// Bearings dropped as pointing at a swarm member.
+    pub bearings_excluded_members: u64,
+    /// Bearings that updated a track.
+    pub bearings_associated: u64,
+    /// Tracks started.
+    pub tracks_created: u64,
+    /// Tracks confirmed.
+    pub tracks_confirmed: u64,
+    /// Tracks lost.
+    pub tracks_lost: u64,
+    /// Tracks deleted.
+    pub tracks_deleted: u64,
+}
