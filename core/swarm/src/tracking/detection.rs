@@ -1,8 +1,8 @@
 //! The detector plugin's detections as the tracker reads them.
 //!
 //! The detector publishes each processed frame's detections in its payload state (see
-//! `plugins/detector`): `last` (the newest frame) and `recent` (the frames of its last
-//! last half second, oldest first), so the tracker, which reads the states at
+//! `plugins/detector`): `last` (the newest frame) and `recent` (the frames of the last
+//! half second, oldest first), so the tracker, which reads the states at
 //! each of its steps, gets every frame however the rates fall. One frame:
 //! `{"frame": 12, "stamp_us": 1700000000000000, "camera_slot": "camera",
 //!   "observer": {"north_m": 0.0, "east_m": 5.0, "down_m": -10.0},
