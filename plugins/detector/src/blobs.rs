@@ -2,16 +2,21 @@
 //! surroundings (an aircraft against the sky or the ground).
 //!
 //! 1. Luminance (Rec. 601) of each pixel.
-//! 2. The local background: the mean luminance over a `(2r+1)²` window, from a summed-area
-//!    table (so the cost does not depend on `r`).
+//! 2. The local background: the mean luminance over a `(2r+1)²` window
+//!    (`imageproc::filter::box_filter`, edges replicated).
 //! 3. Foreground: pixels darker than their background by more than `threshold`.
-//! 4. Connected components (8-connected) of the foreground, by breadth-first labelling.
+//! 4. Connected components (8-connected) of the foreground
+//!    (`imageproc::region_labelling::connected_components`).
 //! 5. Kept: components of at least `min_area_px` pixels whose bounding box is compact
 //!    (aspect ratio at most `max_aspect`, filled at least `min_fill`) and not larger than
 //!    `max_size_px`: lines (the horizon, field edges, grid lines) are long and thin,
 //!    aircraft are not.
 //!
 //! The centre of a blob is its contrast-weighted centroid (sub-pixel).
+
+use imageproc::filter::box_filter;
+use imageproc::image::{GrayImage, Luma};
+use imageproc::region_labelling::{Connectivity, connected_components};
 
 /// Detection tuning.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,30 +76,6 @@ pub fn luminance(rgb: &[u8]) -> Vec<f32> {
         .collect()
 }
 
-/// Mean of `l` over the window of half-size `r` around each pixel (clipped at the edges).
-pub fn box_mean(l: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
-    // Summed-area table with a zero row and column in front.
-    let mut sat = vec![0f64; (w + 1) * (h + 1)];
-    for y in 0..h {
-        let mut row = 0f64;
-        for x in 0..w {
-            row += f64::from(l[y * w + x]);
-            sat[(y + 1) * (w + 1) + x + 1] = sat[y * (w + 1) + x + 1] + row;
-        }
-    }
-    let mut out = vec![0f32; w * h];
-    for y in 0..h {
-        let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
-        for x in 0..w {
-            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
-            let s = sat[y1 * (w + 1) + x1] - sat[y0 * (w + 1) + x1] - sat[y1 * (w + 1) + x0]
-                + sat[y0 * (w + 1) + x0];
-            out[y * w + x] = (s / ((y1 - y0) * (x1 - x0)) as f64) as f32;
-        }
-    }
-    out
-}
-
 /// The aircraft-like blobs of an RGB8 frame (`width × height`), strongest first.
 pub fn find_blobs(rgb: &[u8], width: u32, height: u32, p: &BlobParams) -> Vec<Blob> {
     let (w, h) = (width as usize, height as usize);
@@ -102,62 +83,88 @@ pub fn find_blobs(rgb: &[u8], width: u32, height: u32, p: &BlobParams) -> Vec<Bl
         return Vec::new();
     }
     let l = luminance(&rgb[..w * h * 3]);
-    let bg = box_mean(&l, w, h, p.background_radius_px as usize);
-    let dark: Vec<f32> = l.iter().zip(&bg).map(|(v, b)| b - v).collect();
-    let fg: Vec<bool> = dark.iter().map(|d| f64::from(*d) > p.threshold).collect();
-    let mut seen = vec![false; w * h];
-    let mut blobs = Vec::new();
-    let mut queue = std::collections::VecDeque::new();
-    for start in 0..w * h {
-        if !fg[start] || seen[start] {
+    let gray: Vec<u8> = l
+        .iter()
+        .map(|v| v.round().clamp(0.0, 255.0) as u8)
+        .collect();
+    let Some(gray) = GrayImage::from_raw(width, height, gray) else {
+        return Vec::new();
+    };
+    let r = p.background_radius_px;
+    let bg = box_filter(&gray, r, r);
+    let dark: Vec<f32> = l
+        .iter()
+        .zip(bg.as_raw())
+        .map(|(v, b)| f32::from(*b) - v)
+        .collect();
+    let fg = GrayImage::from_fn(width, height, |x, y| {
+        Luma([u8::from(f64::from(dark[y as usize * w + x as usize]) > p.threshold) * 255])
+    });
+    let labels = connected_components(&fg, Connectivity::Eight, Luma([0u8]));
+    // Per label (0: background): box, area, darkness-weighted sums.
+    #[derive(Clone, Copy)]
+    struct Acc {
+        x0: u32,
+        y0: u32,
+        x1: u32,
+        y1: u32,
+        area: usize,
+        sw: f64,
+        sx: f64,
+        sy: f64,
+    }
+    let n = labels.as_raw().iter().copied().max().unwrap_or(0) as usize;
+    let empty = Acc {
+        x0: u32::MAX,
+        y0: u32::MAX,
+        x1: 0,
+        y1: 0,
+        area: 0,
+        sw: 0.0,
+        sx: 0.0,
+        sy: 0.0,
+    };
+    let mut acc = vec![empty; n + 1];
+    for (x, y, px) in labels.enumerate_pixels() {
+        let label = px[0] as usize;
+        if label == 0 {
             continue;
         }
-        seen[start] = true;
-        queue.push_back(start);
-        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-        let (mut area, mut sw, mut sx, mut sy) = (0usize, 0f64, 0f64, 0f64);
-        while let Some(i) = queue.pop_front() {
-            let (x, y) = (i % w, i / w);
-            let wgt = f64::from(dark[i]);
-            area += 1;
-            sw += wgt;
-            sx += wgt * (x as f64 + 0.5);
-            sy += wgt * (y as f64 + 0.5);
-            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
-            for dy in -1i64..=1 {
-                for dx in -1i64..=1 {
-                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                    if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
-                        continue;
-                    }
-                    let j = ny as usize * w + nx as usize;
-                    if fg[j] && !seen[j] {
-                        seen[j] = true;
-                        queue.push_back(j);
-                    }
-                }
-            }
-        }
-        let (bw, bh) = ((x1 - x0 + 1) as u32, (y1 - y0 + 1) as u32);
-        let aspect = f64::from(bw.max(bh)) / f64::from(bw.min(bh));
-        let fill = area as f64 / (f64::from(bw) * f64::from(bh));
-        if area >= p.min_area_px
-            && bw.max(bh) <= p.max_size_px
-            && aspect <= p.max_aspect
-            && fill >= p.min_fill
-        {
-            blobs.push(Blob {
-                x: x0 as u32,
-                y: y0 as u32,
-                width: bw,
-                height: bh,
-                cx: sx / sw,
-                cy: sy / sw,
-                area,
-                contrast: sw / area as f64,
-            });
-        }
+        let a = &mut acc[label];
+        let wgt = f64::from(dark[y as usize * w + x as usize]);
+        a.x0 = a.x0.min(x);
+        a.y0 = a.y0.min(y);
+        a.x1 = a.x1.max(x);
+        a.y1 = a.y1.max(y);
+        a.area += 1;
+        a.sw += wgt;
+        a.sx += wgt * (f64::from(x) + 0.5);
+        a.sy += wgt * (f64::from(y) + 0.5);
     }
+    let mut blobs: Vec<Blob> = acc
+        .into_iter()
+        .skip(1)
+        .filter(|a| a.area > 0)
+        .filter_map(|a| {
+            let (bw, bh) = (a.x1 - a.x0 + 1, a.y1 - a.y0 + 1);
+            let aspect = f64::from(bw.max(bh)) / f64::from(bw.min(bh));
+            let fill = a.area as f64 / (f64::from(bw) * f64::from(bh));
+            (a.area >= p.min_area_px
+                && bw.max(bh) <= p.max_size_px
+                && aspect <= p.max_aspect
+                && fill >= p.min_fill)
+                .then(|| Blob {
+                    x: a.x0,
+                    y: a.y0,
+                    width: bw,
+                    height: bh,
+                    cx: a.sx / a.sw,
+                    cy: a.sy / a.sw,
+                    area: a.area,
+                    contrast: a.sw / a.area as f64,
+                })
+        })
+        .collect();
     blobs.sort_by(|a, b| (b.contrast * b.area as f64).total_cmp(&(a.contrast * a.area as f64)));
     blobs
 }
