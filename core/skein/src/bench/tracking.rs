@@ -32,10 +32,9 @@
 //!      `false_tracks` (confirmed tracks never matched to an intruder, duplicates
 //!      included) and `false_track_longest_s`.
 
+use super::up_process::UpProcess;
 use serde_json::{Value, json};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
-use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Arguments of `skein bench tracking`.
@@ -59,113 +58,33 @@ pub struct TrackingBenchArgs {
     pub trace: Option<std::path::PathBuf>,
 }
 
-struct Up {
-    child: Child,
-    base: String,
-    agent: ureq::Agent,
-}
-
-impl Drop for Up {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+/// `skein up` with the bench's scene (4 observation UAVs, seeded intruders).
+fn start(args: &TrackingBenchArgs) -> Result<UpProcess, String> {
+    let (seed, intruders) = (args.seed.to_string(), args.intruders.to_string());
+    let mut a: Vec<&str> = vec![
+        "--sim",
+        "4",
+        "--sim-model",
+        "observation",
+        "--sim-base-port",
+        "0",
+        "--sim-seed",
+        &seed,
+        "--intruders",
+        &intruders,
+        "--intruder-range-m",
+        "80",
+        "--intruder-altitude-m",
+        "15",
+    ];
+    let dir = args
+        .plugin_dir
+        .as_ref()
+        .map(|d| d.to_string_lossy().into_owned());
+    if let Some(d) = &dir {
+        a.extend(["--plugin-dir", d]);
     }
-}
-
-impl Up {
-    fn start(args: &TrackingBenchArgs) -> Result<Up, String> {
-        let exe = std::env::current_exe().map_err(|e| e.to_string())?;
-        let mut cmd = Command::new(exe);
-        cmd.args([
-            "up",
-            "--sim",
-            "4",
-            "--sim-model",
-            "observation",
-            "--sim-base-port",
-            "0",
-            "--http",
-            "127.0.0.1:0",
-            "--sim-seed",
-            &args.seed.to_string(),
-            "--intruders",
-            &args.intruders.to_string(),
-            "--intruder-range-m",
-            "80",
-            "--intruder-altitude-m",
-            "15",
-        ]);
-        if let Some(dir) = &args.plugin_dir {
-            cmd.arg("--plugin-dir").arg(dir);
-        }
-        let mut child = cmd
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .map_err(|e| format!("cannot start skein up: {e}"))?;
-        let stdout = child.stdout.take().ok_or("no stdout")?;
-        let mut lines = BufReader::new(stdout).lines();
-        let base = loop {
-            match lines.next() {
-                Some(Ok(l)) if l.contains("dashboard at") => {
-                    break l
-                        .split_whitespace()
-                        .find(|w| w.starts_with("http://"))
-                        .ok_or("no URL in the dashboard line")?
-                        .trim_end_matches('/')
-                        .to_string();
-                }
-                Some(Ok(_)) => {}
-                _ => return Err("skein up ended before serving its API".into()),
-            }
-        };
-        // Keep draining stdout so the child never blocks on a full pipe.
-        std::thread::spawn(move || for _ in lines {});
-        let agent: ureq::Agent = ureq::Agent::config_builder()
-            .http_status_as_error(false)
-            .timeout_global(Some(Duration::from_secs(10)))
-            .build()
-            .into();
-        Ok(Up { child, base, agent })
-    }
-
-    fn call(&self, method: &str, path: &str, body: Option<Value>) -> Result<Value, String> {
-        let url = format!("{}{path}", self.base);
-        let r = match (method, body) {
-            ("GET", _) => self.agent.get(&url).call(),
-            ("POST", Some(b)) => self.agent.post(&url).send_json(b),
-            ("PUT", Some(b)) => self.agent.put(&url).send_json(b),
-            _ => return Err(format!("bad call {method} {path}")),
-        };
-        let mut r = r.map_err(|e| format!("{method} {path}: {e}"))?;
-        let status = r.status().as_u16();
-        let v: Value = r.body_mut().read_json().unwrap_or(Value::Null);
-        if status >= 300 {
-            return Err(format!("{method} {path}: {status} {v}"));
-        }
-        Ok(v)
-    }
-
-    fn get(&self, path: &str) -> Result<Value, String> {
-        self.call("GET", path, None)
-    }
-
-    fn wait(&self, what: &str, limit: Duration, ok: impl Fn(&Value) -> bool) -> Result<(), String> {
-        let deadline = Instant::now() + limit;
-        loop {
-            let vs = self.get("/api/v1/vehicles")?;
-            if vs
-                .as_array()
-                .is_some_and(|a| a.len() == 4 && a.iter().all(&ok))
-            {
-                return Ok(());
-            }
-            if Instant::now() > deadline {
-                return Err(format!("timed out waiting for {what}"));
-            }
-            std::thread::sleep(Duration::from_millis(200));
-        }
-    }
+    UpProcess::start(&a)
 }
 
 fn ned(v: &Value) -> Option<[f64; 3]> {
@@ -284,17 +203,20 @@ fn assign(
 
 /// Runs the benchmark (blocking: HTTP polling of a child `skein up`).
 pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
-    let up = Up::start(args)?;
+    let up = start(args)?;
     eprintln!("bench tracking: skein up at {}", up.base);
-    up.wait("4 vehicles with positions", Duration::from_secs(60), |v| {
-        v["link"]["connected"] == true && v["position"].is_object()
-    })?;
+    up.wait_vehicles(
+        4,
+        "4 vehicles with positions",
+        Duration::from_secs(60),
+        |v| v["link"]["connected"] == true && v["position"].is_object(),
+    )?;
     up.call(
         "POST",
         "/api/v1/swarm/commands",
         Some(json!({"command": "takeoff", "altitude_m": 10.0})),
     )?;
-    up.wait("4 vehicles hovering", Duration::from_secs(90), |v| {
+    up.wait_vehicles(4, "4 vehicles hovering", Duration::from_secs(90), |v| {
         v["state"] == "Hovering"
     })?;
     up.call(

@@ -66,22 +66,33 @@ impl UpProcess {
         self.child.id()
     }
 
-    /// `GET path` as JSON.
+    /// `METHOD path` (`GET`, or `POST` / `PUT` with a JSON body) as JSON.
     ///
     /// # Errors
-    /// The request failed or was answered with a status of 300 or more.
-    pub fn get(&self, path: &str) -> Result<Value, String> {
-        let mut r = self
-            .agent
-            .get(format!("{}{path}", self.base))
-            .call()
-            .map_err(|e| format!("GET {path}: {e}"))?;
+    /// A bad method, a failed request, or a status of 300 or more.
+    pub fn call(&self, method: &str, path: &str, body: Option<Value>) -> Result<Value, String> {
+        let url = format!("{}{path}", self.base);
+        let r = match (method, body) {
+            ("GET", _) => self.agent.get(&url).call(),
+            ("POST", Some(b)) => self.agent.post(&url).send_json(b),
+            ("PUT", Some(b)) => self.agent.put(&url).send_json(b),
+            _ => return Err(format!("bad call {method} {path}")),
+        };
+        let mut r = r.map_err(|e| format!("{method} {path}: {e}"))?;
         let status = r.status().as_u16();
         let v: Value = r.body_mut().read_json().unwrap_or(Value::Null);
         if status >= 300 {
-            return Err(format!("GET {path}: {status} {v}"));
+            return Err(format!("{method} {path}: {status} {v}"));
         }
         Ok(v)
+    }
+
+    /// `GET path` as JSON.
+    ///
+    /// # Errors
+    /// As [`UpProcess::call`].
+    pub fn get(&self, path: &str) -> Result<Value, String> {
+        self.call("GET", path, None)
     }
 
     /// Waits until `n` vehicles are listed and every one satisfies `ok`.
