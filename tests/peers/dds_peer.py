@@ -131,27 +131,39 @@ def compare_tracks(args, dp, qos, deadline):
     to skein's GET /api/v1/tracks and within 3 m of its position (ENU)."""
     reader = DataReader(dp, Topic(dp, "rt/skein/tracks", Tracks), qos=qos)
     errors = []
-    while len(errors) < 5:
-        if time.monotonic() > deadline:
-            fail(f"only {len(errors)} track samples compared")
-        for s in reader.take(N=1):
-            confirmed = [t for t in s.tracks if t.status == "confirmed"]
-            if not confirmed:
+    for s in arrivals(reader, deadline):
+        confirmed = [t for t in s.tracks if t.status == "confirmed"]
+        if not confirmed:
+            continue
+        with urllib.request.urlopen(f"{args.api}/api/v1/tracks", timeout=5) as r:
+            api = {t["id"]: t for t in json.load(r)["tracks"]}
+        for t in confirmed:
+            a = api.get(t.id)
+            if a is None:
                 continue
-            with urllib.request.urlopen(f"{args.api}/api/v1/tracks", timeout=5) as r:
-                api = {t["id"]: t for t in json.load(r)["tracks"]}
-            for t in confirmed:
-                a = api.get(t.id)
-                if a is None:
-                    continue
-                p = a["position"]
-                enu = (p["east_m"], p["north_m"], -p["down_m"])
-                errors.append(math.dist((t.position.x, t.position.y, t.position.z), enu))
-        time.sleep(0.05)
+            p = a["position"]
+            enu = (p["east_m"], p["north_m"], -p["down_m"])
+            errors.append(math.dist((t.position.x, t.position.y, t.position.z), enu))
+        if len(errors) >= 5:
+            break
+    if len(errors) < 5:
+        fail(f"only {len(errors)} track samples compared")
     if max(errors) > 3.0:
         fail(f"a track was {max(errors):.2f} m from the API's (limit 3 m)")
     print(json.dumps({"ok": True, "tracks_compared": len(errors),
                       "worst_track_error_m": max(errors)}), flush=True)
+
+
+def arrivals(reader, deadline):
+    """The samples of `reader` as they arrive (waiting on a DDS WaitSet, no polling), until
+    the monotonic `deadline`."""
+    remaining = deadline - time.monotonic()
+    if remaining <= 0:
+        return
+    for s in reader.take_iter(timeout=duration(seconds=remaining)):
+        yield s
+        if time.monotonic() > deadline:
+            return
 
 
 def fail(why):
@@ -215,19 +227,18 @@ def main():
 
     # 1. Poses against the API.
     compared = []
-    while len(compared) < 10:
-        if time.monotonic() > deadline:
-            fail(f"only {len(compared)} poses in {args.timeout} s")
-        for s in pose_reader.take(N=1):
-            api = api_position(args.api, args.vehicle)
-            if api is None:
-                continue
-            p = s.pose.position
-            err = math.dist((p.x, p.y, p.z), api)
-            if s.header.frame_id != "skein_swarm":
-                fail(f"frame_id {s.header.frame_id!r}, expected 'skein_swarm'")
-            compared.append(err)
-        time.sleep(0.05)
+    for s in arrivals(pose_reader, deadline):
+        api = api_position(args.api, args.vehicle)
+        if api is None:
+            continue
+        if s.header.frame_id != "skein_swarm":
+            fail(f"frame_id {s.header.frame_id!r}, expected 'skein_swarm'")
+        p = s.pose.position
+        compared.append(math.dist((p.x, p.y, p.z), api))
+        if len(compared) >= 10:
+            break
+    if len(compared) < 10:
+        fail(f"only {len(compared)} poses in {args.timeout} s")
     worst = max(compared)
     if worst > 0.5:
         fail(f"a pose was {worst:.3f} m from the API's position (limit 0.5 m)")
@@ -258,13 +269,10 @@ def main():
                 target=Point(0.0, 0.0, 0.0),
             )
         )
-        while True:
-            if time.monotonic() > deadline:
-                fail(f"no CommandResult for request {request_id} ({name})")
-            for r in result_reader.take(N=16):
-                if r.request_id == request_id:
-                    return r
-            time.sleep(0.05)
+        for r in arrivals(result_reader, deadline):
+            if r.request_id == request_id:
+                return r
+        fail(f"no CommandResult for request {request_id} ({name})")
 
     unknown = command(1, "explode")
     if unknown.accepted or "command" not in unknown.reason:
@@ -276,22 +284,21 @@ def main():
     if not result.accepted:
         fail(f"takeoff refused: {result.reason}")
     top = -math.inf
-    while top < 5.0:
-        if time.monotonic() > deadline:
-            fail(f"the vehicle rose only to {top:.2f} m after takeoff")
-        for s in pose_reader.take(N=1):
-            top = max(top, s.pose.position.z)
-        time.sleep(0.05)
+    for s in arrivals(pose_reader, deadline):
+        top = max(top, s.pose.position.z)
+        if top >= 5.0:
+            break
+    if top < 5.0:
+        fail(f"the vehicle rose only to {top:.2f} m after takeoff")
     # 3. Poses in flight against the API (z up, non-zero).
     in_flight = []
-    while len(in_flight) < 5:
-        if time.monotonic() > deadline:
-            fail(f"only {len(in_flight)} poses compared in flight")
-        for s in pose_reader.take(N=1):
-            api = api_position(args.api, args.vehicle)
-            p = s.pose.position
-            in_flight.append(math.dist((p.x, p.y, p.z), api))
-        time.sleep(0.05)
+    for s in arrivals(pose_reader, deadline):
+        p = s.pose.position
+        in_flight.append(math.dist((p.x, p.y, p.z), api_position(args.api, args.vehicle)))
+        if len(in_flight) >= 5:
+            break
+    if len(in_flight) < 5:
+        fail(f"only {len(in_flight)} poses compared in flight")
     if max(in_flight) > 0.5:
         fail(f"a pose in flight was {max(in_flight):.3f} m from the API's (limit 0.5 m)")
     print(
