@@ -43,9 +43,21 @@ const TOKENS: [(&str, Role, &str); 3] = [
 ];
 
 async fn router(auth: Auth) -> axum::Router {
+    router_of(auth, None).await
+}
+
+/// The router, as a coordinator candidate's with `election`.
+async fn router_of(
+    auth: Auth,
+    election: Option<tokio::sync::watch::Receiver<skein_swarm::election::ElectionStatus>>,
+) -> axum::Router {
     let (coordinator, _) = Actor::spawn(None, Mute, ()).await.unwrap();
     let (events, _) = broadcast::channel(4);
-    skein_api::app(skein_api::ApiState::new(coordinator, events).with_auth(auth))
+    let state = skein_api::ApiState::new(coordinator, events).with_auth(auth);
+    skein_api::app(match election {
+        Some(e) => state.with_election(e),
+        None => state,
+    })
 }
 
 fn configured() -> Auth {
@@ -243,4 +255,103 @@ async fn repeated_bad_tokens_are_answered_429_per_ip() {
     assert_eq!(status, StatusCode::OK, "{body}");
     let (status, _) = call(&app, request("GET", "/api/v1/health", None, bad)).await;
     assert_ne!(status, StatusCode::TOO_MANY_REQUESTS);
+}
+
+/// An election status of candidate `gcs-b`, standby under `gcs-a`, or active itself.
+fn election(role: skein_swarm::election::CoordinatorRole) -> skein_swarm::election::ElectionStatus {
+    use skein_swarm::election::{CoordinatorRole, ElectionStatus, Lease};
+    let a = Lease {
+        coordinator_id: "gcs-a".into(),
+        priority: 2,
+        epoch: 3,
+        active: true,
+        api_url: "http://10.0.0.2:8080".into(),
+    };
+    let mut b = Lease {
+        coordinator_id: "gcs-b".into(),
+        priority: 1,
+        epoch: 3,
+        active: role == CoordinatorRole::Active,
+        api_url: "http://10.0.0.3:8080".into(),
+    };
+    if role == CoordinatorRole::Active {
+        b.epoch = 4;
+    }
+    ElectionStatus {
+        active: Some(if role == CoordinatorRole::Active {
+            b.clone()
+        } else {
+            a
+        }),
+        this: b,
+        role,
+        peers: Vec::new(),
+    }
+}
+
+#[tokio::test]
+async fn a_standby_refuses_every_write_after_authentication_and_answers_reads() {
+    use skein_swarm::election::CoordinatorRole;
+    let (tx, rx) = tokio::sync::watch::channel(election(CoordinatorRole::Standby));
+    let app = router_of(configured(), Some(rx)).await;
+    let admin = Some(TOKENS[2].2);
+    for (method, path, access) in auth::ROUTES {
+        let uri = concrete(path);
+        let (status, body) = call(&app, request(method, &uri, admin, [10, 0, 0, 7])).await;
+        if *method == "GET" {
+            assert_ne!(status, StatusCode::CONFLICT, "{method} {uri}: {body}");
+            continue;
+        }
+        assert_eq!(status, StatusCode::CONFLICT, "{method} {uri}: {body}");
+        let e = body["error"].as_str().unwrap();
+        assert!(
+            e.contains("`gcs-b` is a standby") && e.contains("`gcs-a`") && e.contains("epoch 3"),
+            "{e}"
+        );
+        assert!(e.contains("http://10.0.0.2:8080"), "{e}");
+        // Authentication comes first: no token is a 401, not a 409.
+        if *access != Access::Public {
+            let (status, _) = call(&app, request(method, &uri, None, [10, 0, 0, 8])).await;
+            assert_eq!(status, StatusCode::UNAUTHORIZED, "{method} {uri}");
+        }
+    }
+    let (status, body) = call(
+        &app,
+        request("GET", "/api/v1/coordinator", admin, [10, 0, 0, 7]),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(body["role"], "standby");
+    assert_eq!(body["active"]["coordinator_id"], "gcs-a");
+    // Once active, writes pass to their handlers (the mute coordinator: 503).
+    tx.send_replace(election(CoordinatorRole::Active));
+    let (status, body) = call(
+        &app,
+        request("POST", "/api/v1/swarm/commands", admin, [10, 0, 0, 7]),
+    )
+    .await;
+    assert_ne!(status, StatusCode::CONFLICT, "{body}");
+}
+
+#[tokio::test]
+async fn skein_up_is_no_candidate_and_says_so() {
+    let app = router(configured()).await;
+    let (status, body) = call(
+        &app,
+        request(
+            "GET",
+            "/api/v1/coordinator",
+            Some(TOKENS[0].2),
+            [10, 0, 0, 9],
+        ),
+    )
+    .await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert!(
+        body["error"]
+            .as_str()
+            .unwrap()
+            .contains("not a coordinator candidate"),
+        "{body}"
+    );
 }

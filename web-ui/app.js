@@ -4,6 +4,7 @@
 
 import * as api from './api.js';
 import { initAuth } from './auth.js';
+import { initRole } from './role.js';
 import { PlanView } from './plan.js';
 import { VehicleTable } from './table.js';
 import { EventLog, describeFormation } from './log.js';
@@ -23,6 +24,7 @@ import { installShortcuts } from './keys.js';
 const $ = (id) => document.getElementById(id);
 
 initAuth();
+initRole($('coordinator-role'), $('standby-banner'));
 
 const toasts = new Toasts($('toasts'));
 const log = new EventLog($('event-log'), $('log-filter'), $('log-clear'));

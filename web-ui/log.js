@@ -47,6 +47,10 @@ export function describe(ev) {
       };
     case 'actor_escalated':
       return { level: 'error', label: 'escalation', text: `${ev.path}: ${ev.action}` };
+    case 'coordinator_role_changed':
+      return ev.role === 'active'
+        ? { level: 'ok', label: 'coordinator', text: `${ev.coordinator_id} is the active coordinator (epoch ${ev.epoch})` }
+        : { level: 'warn', label: 'coordinator', text: `${ev.coordinator_id} stands by: ${ev.reason || ''}` };
     case 'leader_changed':
       return { level: 'warn', label: 'leader', text: `leader ${ev.from || 'none'} → ${ev.to}: ${ev.reason}` };
     case 'hazard_added':

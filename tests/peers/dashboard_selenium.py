@@ -62,10 +62,37 @@ def parse_args():
     p.add_argument("--altitude", type=float, default=10.0, help="takeoff altitude, m")
     p.add_argument("--spacing", type=float, default=5.0, help="line spacing, m")
     p.add_argument("--timeout", type=float, default=45.0, help="deadline of each step, s")
+    add_browser_args(p)
+    return p.parse_args()
+
+
+def add_browser_args(p):
+    """The browser options of every dashboard script: --chromium, --chromedriver, --headed."""
     p.add_argument("--chromium", default="/usr/bin/chromium")
     p.add_argument("--chromedriver", default="/usr/bin/chromedriver")
     p.add_argument("--headed", action="store_true", help="show the browser window")
-    return p.parse_args()
+
+
+def drive(args, run, on_failure=None):
+    """Runs run(args, driver, summary) in a fresh browser, prints the summary as one JSON
+    line and returns the exit code (0 only on success). On a failure, on_failure(driver,
+    summary) may add what the browser shows before it closes."""
+    summary = {"ok": False}
+    driver = make_driver(args)
+    try:
+        run(args, driver, summary)
+        summary["ok"] = True
+    except Exception as e:  # noqa: BLE001 - reported in the summary
+        summary["error"] = str(e)
+        if on_failure is not None:
+            try:
+                on_failure(driver, summary)
+            except Exception:  # noqa: BLE001 - diagnostics only
+                pass
+    finally:
+        driver.quit()
+    print(json.dumps(summary))
+    return 0 if summary["ok"] else 1
 
 
 def make_driver(args):

@@ -33,7 +33,7 @@ import time
 import urllib.request
 from dataclasses import dataclass
 
-from cyclonedds.core import Policy, Qos
+from cyclonedds.core import DDSStatus, Policy, Qos, WaitSet
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.idl import IdlStruct
 from cyclonedds.idl.types import array, float64, int32, sequence, uint32, uint64
@@ -166,6 +166,24 @@ def arrivals(reader, deadline):
             return
 
 
+def wait_matched(participant, writer, deadline):
+    """True once `writer` has matched a reader, waiting on a DDS WaitSet for its
+    PublicationMatched status (no polling); False at the monotonic `deadline`."""
+    writer.set_status_mask(DDSStatus.PublicationMatched)
+    ws = WaitSet(participant)
+    ws.attach(writer)
+    try:
+        while not writer.get_matched_subscriptions():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            ws.wait(duration(seconds=remaining))
+            writer.take_status()
+        return True
+    finally:
+        ws.detach(writer)
+
+
 def fail(why):
     print(json.dumps({"ok": False, "error": why}), flush=True)
     sys.exit(1)
@@ -245,18 +263,13 @@ def main():
 
     # 2. Commands, once skein's reader has matched our writer.
     if args.expect_no_command_reader:
-        until = time.monotonic() + 5.0
-        while time.monotonic() < until:
-            if cmd_writer.get_matched_subscriptions():
-                fail("skein has a command reader although commands are off")
-            time.sleep(0.1)
+        if wait_matched(dp, cmd_writer, time.monotonic() + 5.0):
+            fail("skein has a command reader although commands are off")
         print(json.dumps({"ok": True, "poses_compared": len(compared),
                           "worst_pose_error_m": worst, "command_reader": False}), flush=True)
         return
-    while not cmd_writer.get_matched_subscriptions():
-        if time.monotonic() > deadline:
-            fail("skein's command reader never matched (is --dds-commands on?)")
-        time.sleep(0.05)
+    if not wait_matched(dp, cmd_writer, deadline):
+        fail("skein's command reader never matched (is --dds-commands on?)")
 
     def command(request_id, name, altitude_m=math.nan):
         cmd_writer.write(

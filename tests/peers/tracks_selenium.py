@@ -15,14 +15,13 @@ Prints one JSON summary line; exits 0 only on success.
 """
 
 import argparse
-import json
 import sys
 import time
 
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
-from dashboard_selenium import Dashboard, Failure, make_driver
+from dashboard_selenium import Dashboard, Failure, add_browser_args, drive
 
 TRACKS_JS = """
 return [...document.querySelectorAll('[data-testid="track-list"] li[data-track-id]')].map(li => ({
@@ -37,9 +36,7 @@ def parse_args():
     p.add_argument("--url", required=True)
     p.add_argument("--screenshot")
     p.add_argument("--timeout", type=float, default=90.0)
-    p.add_argument("--chromium", default="/usr/bin/chromium")
-    p.add_argument("--chromedriver", default="/usr/bin/chromedriver")
-    p.add_argument("--headed", action="store_true")
+    add_browser_args(p)
     return p.parse_args()
 
 
@@ -90,27 +87,17 @@ def run(args, driver, summary):
 
 def main():
     args = parse_args()
-    summary = {"ok": False}
-    driver = make_driver(args)
-    try:
-        run(args, driver, summary)
-        summary["ok"] = True
-    except (Failure, Exception) as e:  # noqa: BLE001 - reported in the summary
-        summary["error"] = str(e)
-        try:
-            summary["console"] = [e["message"] for e in driver.get_log("browser")][-10:]
-            summary["tracks_api"] = driver.execute_script(
-                "return fetch('/api/v1/tracks').then(r => r.text())")
-            summary["tracks_view"] = driver.execute_script(
-                "const v = document.getElementById('view-tracks'); return v ? v.outerHTML.slice(0, 1500) : null")
-            if args.screenshot:
-                driver.save_screenshot(args.screenshot)
-        except Exception:  # noqa: BLE001
-            pass
-    finally:
-        driver.quit()
-    print(json.dumps(summary))
-    return 0 if summary["ok"] else 1
+
+    def on_failure(driver, summary):
+        summary["console"] = [e["message"] for e in driver.get_log("browser")][-10:]
+        summary["tracks_api"] = driver.execute_script(
+            "return fetch('/api/v1/tracks').then(r => r.text())")
+        summary["tracks_view"] = driver.execute_script(
+            "const v = document.getElementById('view-tracks'); return v ? v.outerHTML.slice(0, 1500) : null")
+        if args.screenshot:
+            driver.save_screenshot(args.screenshot)
+
+    return drive(args, run, on_failure)
 
 
 if __name__ == "__main__":

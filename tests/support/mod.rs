@@ -12,6 +12,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 pub mod counter_uas;
+pub mod netns;
 pub mod payloads;
 mod plugin_build;
 mod python;
@@ -92,7 +93,21 @@ pub struct Process {
 impl Process {
     /// Starts `skein <args>`.
     pub fn start(args: &[&str]) -> Process {
-        let mut child = Command::new(skein_bin())
+        Process::start_in(None, args)
+    }
+
+    /// Starts `skein <args>` in network namespace `netns` (`ip netns exec`, which execs
+    /// skein itself: the child's pid is skein's), or here with `None`.
+    pub fn start_in(netns: Option<&str>, args: &[&str]) -> Process {
+        let mut cmd = match netns {
+            Some(ns) => {
+                let mut c = Command::new("ip");
+                c.args(["netns", "exec", ns, skein_bin()]);
+                c
+            }
+            None => Command::new(skein_bin()),
+        };
+        let mut child = cmd
             .args(args)
             .env("SKEIN_LOG", "info")
             .stdout(Stdio::piped())
@@ -201,9 +216,28 @@ pub struct Skein {
 impl Skein {
     /// `skein up <args> --http 127.0.0.1:0` and waits for the dashboard line.
     pub fn up(args: &[&str]) -> Skein {
-        let mut all = vec!["up", "--http", "127.0.0.1:0"];
+        Skein::launch("up", args)
+    }
+
+    /// `skein coordinator <args> --http 127.0.0.1:0` (a candidate of the election, no
+    /// vehicles) and waits for the dashboard line.
+    pub fn coordinator(args: &[&str]) -> Skein {
+        Skein::launch("coordinator", args)
+    }
+
+    /// `skein <subcommand> --http 127.0.0.1:0 <args>` and waits for the dashboard line.
+    fn launch(subcommand: &str, args: &[&str]) -> Skein {
+        let mut all = vec!["--http", "127.0.0.1:0"];
         all.extend_from_slice(args);
-        let mut process = Process::start(&all);
+        Skein::launch_in(None, subcommand, &all)
+    }
+
+    /// `skein <subcommand> <args>` in network namespace `netns` (`args` give `--http`),
+    /// and waits for the dashboard line.
+    pub fn launch_in(netns: Option<&str>, subcommand: &str, args: &[&str]) -> Skein {
+        let mut all = vec![subcommand];
+        all.extend_from_slice(args);
+        let mut process = Process::start_in(netns, &all);
         let line = process.wait_line("dashboard at", Duration::from_secs(60));
         let url = line
             .split_whitespace()

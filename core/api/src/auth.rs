@@ -134,6 +134,7 @@ pub const ROUTES: &[(&str, &str, Access)] = &[
     ("GET", "/api/v1/links", VIEWER),
     ("GET", "/api/v1/geofence", VIEWER),
     ("GET", "/api/v1/stream", VIEWER),
+    ("GET", "/api/v1/coordinator", VIEWER),
     ("GET", "/api/v1/tracks", VIEWER),
     ("POST", "/api/v1/tracks/{id}/observe", OPERATOR),
     ("DELETE", "/api/v1/tracks/{id}/observe", OPERATOR),

@@ -40,6 +40,7 @@
 #![warn(missing_docs)]
 
 pub mod auth;
+pub mod election;
 pub mod error;
 pub mod openapi;
 pub mod params;
@@ -50,28 +51,26 @@ pub mod replay;
 pub mod requests;
 pub mod responses;
 pub mod server;
+mod static_files;
+mod stream;
 pub mod tls;
 pub mod tracks;
+mod video;
 
 pub use server::ApiServer;
 
 use axum::body::Bytes;
-use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{Path, State};
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 use error::ApiError;
-use include_dir::{Dir, include_dir};
 use ractor::ActorRef;
 use skein_swarm::{CommandOutcome, CoordinatorMsg, SwarmEvent, VehicleCommand};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::broadcast;
-
-/// The dashboard, embedded from `web-ui/`.
-static WEB_UI: Dir<'static> = include_dir!("$CARGO_MANIFEST_DIR/../../web-ui");
 
 /// Rate of the `vehicles` frames on the stream, Hz.
 pub const TELEMETRY_HZ: f64 = 10.0;
@@ -89,6 +88,7 @@ pub struct ApiState {
     auth: Arc<auth::Auth>,
     tls: Option<Arc<rustls::ServerConfig>>,
     recorder: Option<Arc<skein_record::Recorder>>,
+    election: Option<tokio::sync::watch::Receiver<skein_swarm::election::ElectionStatus>>,
 }
 
 impl ApiState {
@@ -99,7 +99,10 @@ impl ApiState {
         events: broadcast::Sender<SwarmEvent>,
     ) -> Self {
         let (telemetry, _) = broadcast::channel(16);
-        tokio::spawn(publish_telemetry(coordinator.clone(), telemetry.clone()));
+        tokio::spawn(stream::publish_telemetry(
+            coordinator.clone(),
+            telemetry.clone(),
+        ));
         ApiState {
             coordinator,
             events,
@@ -109,6 +112,7 @@ impl ApiState {
             auth: Arc::new(auth::Auth::disabled()),
             tls: None,
             recorder: None,
+            election: None,
         }
     }
 
@@ -122,6 +126,16 @@ impl ApiState {
     /// records the commands the API accepts while it records.
     pub fn with_recorder(mut self, recorder: Arc<skein_record::Recorder>) -> Self {
         self.recorder = Some(recorder);
+        self
+    }
+
+    /// Makes this API a coordinator candidate's ([`election`]): `GET /api/v1/coordinator`
+    /// answers from `status`, and writes are refused (409) while it is a standby.
+    pub fn with_election(
+        mut self,
+        status: tokio::sync::watch::Receiver<skein_swarm::election::ElectionStatus>,
+    ) -> Self {
+        self.election = Some(status);
         self
     }
 
@@ -173,31 +187,6 @@ impl ApiState {
     }
 }
 
-async fn publish_telemetry(coordinator: ActorRef<CoordinatorMsg>, tx: broadcast::Sender<Arc<str>>) {
-    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / TELEMETRY_HZ));
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    loop {
-        tick.tick().await;
-        if tx.receiver_count() == 0 {
-            if coordinator.get_status() == ractor::ActorStatus::Stopped {
-                return;
-            }
-            continue;
-        }
-        let Ok(ractor::rpc::CallResult::Success(list)) = coordinator
-            .call(CoordinatorMsg::ListVehicles, Some(COORDINATOR_TIMEOUT))
-            .await
-        else {
-            if coordinator.get_status() == ractor::ActorStatus::Stopped {
-                return;
-            }
-            continue;
-        };
-        let frame = serde_json::json!({"type": "vehicles", "vehicles": list});
-        let _ = tx.send(Arc::from(frame.to_string()));
-    }
-}
-
 /// The router (no socket: tests call it directly).
 pub fn app(state: ApiState) -> Router {
     Router::new()
@@ -223,19 +212,19 @@ pub fn app(state: ApiState) -> Router {
         .route("/api/v1/formation/shapes", get(shapes))
         .route(
             "/api/v1/vehicles/{id}/payloads",
-            get(list_payloads).post(attach_payload),
+            get(payloads::list_payloads).post(payloads::attach_payload),
         )
         .route(
             "/api/v1/vehicles/{id}/payloads/{slot}",
-            post(payload_command).delete(detach_payload),
+            post(payloads::payload_command).delete(payloads::detach_payload),
         )
         .route(
             "/api/v1/vehicles/{id}/payloads/{slot}/snapshot",
-            get(payload_snapshot),
+            get(video::payload_snapshot),
         )
         .route(
             "/api/v1/vehicles/{id}/payloads/{slot}/stream",
-            get(payload_stream),
+            get(video::payload_stream),
         )
         .route("/api/v1/plugins", get(list_plugins))
         .route("/api/v1/plugins/{op}", post(plugin_op))
@@ -244,7 +233,7 @@ pub fn app(state: ApiState) -> Router {
         .route("/metrics", get(metrics))
         .route("/api/v1/links", get(links))
         .route("/api/v1/geofence", get(geofence))
-        .route("/api/v1/stream", get(stream))
+        .route("/api/v1/stream", get(stream::stream))
         .route("/api/v1/tracks", get(tracks::list_tracks))
         .route(
             "/api/v1/tracks/{id}/observe",
@@ -254,13 +243,19 @@ pub fn app(state: ApiState) -> Router {
         .route("/api/v1/recording", get(recording::status))
         .route("/api/v1/recording/start", post(recording::start))
         .route("/api/v1/recording/stop", post(recording::stop))
+        .route("/api/v1/coordinator", get(election::status))
         .route("/api/{*rest}", axum::routing::any(api_not_found))
+        // A standby coordinator refuses writes (inside auth: 401/403 come first).
+        .route_layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            election::standby_refuses_writes,
+        ))
         // Every route above (not the dashboard's static files below) goes through auth.
         .route_layer(axum::middleware::from_fn_with_state(
             state.clone(),
             auth::require,
         ))
-        .fallback(get(static_file))
+        .fallback(get(static_files::static_file))
         .with_state(state)
 }
 
@@ -282,7 +277,8 @@ pub async fn serve(
 }
 
 async fn health(State(s): State<ApiState>) -> Result<Response, ApiError> {
-    let h = s.ask(CoordinatorMsg::Health).await?;
+    let mut h = s.ask(CoordinatorMsg::Health).await?;
+    h.coordinator_role = s.election.as_ref().map(|e| e.borrow().role);
     Ok(Json(h).into_response())
 }
 
@@ -470,144 +466,6 @@ async fn inject_fault(State(s): State<ApiState>, body: Bytes) -> Result<Response
     }
 }
 
-async fn list_payloads(
-    State(s): State<ApiState>,
-    Path(id): Path<String>,
-) -> Result<Response, ApiError> {
-    let id2 = id.clone();
-    match s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r)).await? {
-        Some(v) => Ok(Json(v.payloads).into_response()),
-        None => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
-    }
-}
-
-async fn payload_command(
-    State(s): State<ApiState>,
-    Path((id, slot)): Path<(String, String)>,
-    body: Bytes,
-) -> Result<Response, ApiError> {
-    let cmd = serde_json::Value::Object(requests::object(&body)?);
-    payloads::require_running(&s, &id, &slot).await?;
-    match s
-        .ask(move |r| CoordinatorMsg::PayloadCommand(id, slot, cmd, r))
-        .await?
-    {
-        Ok(answer) => Ok(Json(answer).into_response()),
-        Err(e) => Err(payloads::payload_error(e)),
-    }
-}
-
-async fn attach_payload(
-    State(s): State<ApiState>,
-    Path(id): Path<String>,
-    body: Bytes,
-) -> Result<Response, ApiError> {
-    let spec = payloads::parse_attach(&body)?;
-    match s
-        .ask(move |r| CoordinatorMsg::AttachPayload(id, spec, r))
-        .await?
-    {
-        Ok(payload) => Ok((StatusCode::CREATED, Json(payload)).into_response()),
-        Err(e) => Err(payloads::payload_error(e)),
-    }
-}
-
-async fn detach_payload(
-    State(s): State<ApiState>,
-    Path((id, slot)): Path<(String, String)>,
-) -> Result<Response, ApiError> {
-    match s
-        .ask(move |r| CoordinatorMsg::DetachPayload(id, slot, r))
-        .await?
-    {
-        Ok(answer) => Ok(Json(answer).into_response()),
-        Err(e) => Err(payloads::payload_error(e)),
-    }
-}
-
-async fn payload_of(
-    s: &ApiState,
-    id: String,
-    slot: String,
-) -> Result<std::sync::Arc<skein_swarm::payload::PayloadShared>, ApiError> {
-    s.ask(move |r| CoordinatorMsg::GetPayload(id, slot, r))
-        .await?
-        .map_err(ApiError::not_found)
-}
-
-async fn payload_snapshot(
-    State(s): State<ApiState>,
-    Path((id, slot)): Path<(String, String)>,
-) -> Result<Response, ApiError> {
-    let p = payload_of(&s, id.clone(), slot.clone()).await?;
-    match p.frame() {
-        Some(jpeg) => Ok((
-            [
-                (header::CONTENT_TYPE, "image/jpeg"),
-                (header::CACHE_CONTROL, "no-store"),
-            ],
-            jpeg.as_ref().clone(),
-        )
-            .into_response()),
-        None => Err(ApiError::not_found(format!(
-            "payload `{slot}` of {id} has published no frame yet"
-        ))),
-    }
-}
-
-/// Boundary of the MJPEG multipart stream.
-const MJPEG_BOUNDARY: &str = "skeinframe";
-
-async fn payload_stream(
-    State(s): State<ApiState>,
-    Path((id, slot)): Path<(String, String)>,
-) -> Result<Response, ApiError> {
-    let p = payload_of(&s, id, slot).await?;
-    let rx = p.subscribe_frames();
-    // Each part is sent once: the current frame first, then every new one.
-    let frames = futures_util::stream::unfold((rx, true), |(mut rx, first)| async move {
-        loop {
-            if !first && rx.changed().await.is_err() {
-                return None; // the payload is gone
-            }
-            let frame = rx.borrow_and_update().clone();
-            let Some(jpeg) = frame else {
-                if first {
-                    // Nothing yet: wait for the first frame.
-                    if rx.changed().await.is_err() {
-                        return None;
-                    }
-                    continue;
-                }
-                continue;
-            };
-            let mut part = format!(
-                "--{MJPEG_BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",
-                jpeg.len()
-            )
-            .into_bytes();
-            part.extend_from_slice(&jpeg);
-            part.extend_from_slice(b"\r\n");
-            return Some((
-                Ok::<_, std::convert::Infallible>(Bytes::from(part)),
-                (rx, false),
-            ));
-        }
-    });
-    let body = axum::body::Body::from_stream(frames);
-    Ok((
-        [
-            (
-                header::CONTENT_TYPE,
-                format!("multipart/x-mixed-replace; boundary={MJPEG_BOUNDARY}"),
-            ),
-            (header::CACHE_CONTROL, "no-store".to_string()),
-        ],
-        body,
-    )
-        .into_response())
-}
-
 async fn links(State(s): State<ApiState>) -> Result<Response, ApiError> {
     let l = s.ask(CoordinatorMsg::LinkStats).await?;
     Ok(Json(l).into_response())
@@ -622,76 +480,4 @@ async fn geofence(State(s): State<ApiState>) -> Result<Response, ApiError> {
 
 async fn api_not_found(uri: axum::http::Uri) -> ApiError {
     ApiError::not_found(format!("no such endpoint: {}", uri.path()))
-}
-
-async fn stream(State(s): State<ApiState>, ws: WebSocketUpgrade) -> Response {
-    ws.on_upgrade(move |socket| stream_session(socket, s))
-}
-
-async fn stream_session(mut socket: WebSocket, s: ApiState) {
-    let mut events = s.events.subscribe();
-    let mut telemetry = s.telemetry.subscribe();
-    // Send the current picture at once so a new dashboard is never empty for a tick.
-    if let Ok(list) = s.ask(CoordinatorMsg::ListVehicles).await {
-        let frame = serde_json::json!({"type": "vehicles", "vehicles": list});
-        if socket
-            .send(Message::Text(frame.to_string().into()))
-            .await
-            .is_err()
-        {
-            return;
-        }
-    }
-    loop {
-        let text: String = tokio::select! {
-            t = telemetry.recv() => match t {
-                Ok(t) => t.to_string(),
-                Err(broadcast::error::RecvError::Lagged(_)) => continue,
-                Err(broadcast::error::RecvError::Closed) => return,
-            },
-            e = events.recv() => match e {
-                Ok(e) => match serde_json::to_string(&e) { Ok(s) => s, Err(_) => continue },
-                Err(broadcast::error::RecvError::Lagged(n)) => {
-                    serde_json::json!({"type": "events_dropped", "count": n}).to_string()
-                }
-                Err(broadcast::error::RecvError::Closed) => return,
-            },
-            incoming = socket.recv() => match incoming {
-                Some(Ok(Message::Close(_))) | None | Some(Err(_)) => return,
-                Some(Ok(_)) => continue,
-            },
-        };
-        if socket.send(Message::Text(text.into())).await.is_err() {
-            return;
-        }
-    }
-}
-
-fn content_type(path: &str) -> &'static str {
-    match path.rsplit('.').next() {
-        Some("html") => "text/html; charset=utf-8",
-        Some("js") => "text/javascript; charset=utf-8",
-        Some("css") => "text/css; charset=utf-8",
-        Some("svg") => "image/svg+xml",
-        Some("png") => "image/png",
-        Some("json") => "application/json",
-        Some("ico") => "image/x-icon",
-        _ => "application/octet-stream",
-    }
-}
-
-pub(crate) async fn static_file(uri: axum::http::Uri) -> Response {
-    let path = uri.path().trim_start_matches('/');
-    let path = if path.is_empty() { "index.html" } else { path };
-    match WEB_UI.get_file(path) {
-        Some(f) => (
-            [
-                (header::CONTENT_TYPE, content_type(path)),
-                (header::CACHE_CONTROL, "no-cache"),
-            ],
-            f.contents(),
-        )
-            .into_response(),
-        None => ApiError::not_found(format!("no such file: /{path}")).into_response(),
-    }
 }

@@ -13,9 +13,13 @@
 //! Both last until skein restarts: the vehicle model (`skein up --config`) is what a
 //! restart starts from.
 
-use crate::ApiState;
 use crate::error::ApiError;
+use crate::{ApiState, requests};
+use axum::Json;
+use axum::body::Bytes;
+use axum::extract::{Path, State};
 use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
 use skein_swarm::CoordinatorMsg;
 use skein_swarm::payload::PayloadCommandError;
 
@@ -75,6 +79,65 @@ pub fn payload_error(e: PayloadCommandError) -> ApiError {
         }
         PayloadCommandError::Invalid { field, error } => ApiError::field(&field, error),
         PayloadCommandError::Conflict { field, error } => ApiError::conflict(error, Some(&field)),
+    }
+}
+
+/// `GET /api/v1/vehicles/{id}/payloads`.
+pub(crate) async fn list_payloads(
+    State(s): State<ApiState>,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let id2 = id.clone();
+    match s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r)).await? {
+        Some(v) => Ok(Json(v.payloads).into_response()),
+        None => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
+    }
+}
+
+/// `POST /api/v1/vehicles/{id}/payloads/{slot}`: the payload's own command.
+pub(crate) async fn payload_command(
+    State(s): State<ApiState>,
+    Path((id, slot)): Path<(String, String)>,
+    body: Bytes,
+) -> Result<Response, ApiError> {
+    let cmd = serde_json::Value::Object(requests::object(&body)?);
+    require_running(&s, &id, &slot).await?;
+    match s
+        .ask(move |r| CoordinatorMsg::PayloadCommand(id, slot, cmd, r))
+        .await?
+    {
+        Ok(answer) => Ok(Json(answer).into_response()),
+        Err(e) => Err(payload_error(e)),
+    }
+}
+
+/// `POST /api/v1/vehicles/{id}/payloads`.
+pub(crate) async fn attach_payload(
+    State(s): State<ApiState>,
+    Path(id): Path<String>,
+    body: Bytes,
+) -> Result<Response, ApiError> {
+    let spec = parse_attach(&body)?;
+    match s
+        .ask(move |r| CoordinatorMsg::AttachPayload(id, spec, r))
+        .await?
+    {
+        Ok(payload) => Ok((StatusCode::CREATED, Json(payload)).into_response()),
+        Err(e) => Err(payload_error(e)),
+    }
+}
+
+/// `DELETE /api/v1/vehicles/{id}/payloads/{slot}`.
+pub(crate) async fn detach_payload(
+    State(s): State<ApiState>,
+    Path((id, slot)): Path<(String, String)>,
+) -> Result<Response, ApiError> {
+    match s
+        .ask(move |r| CoordinatorMsg::DetachPayload(id, slot, r))
+        .await?
+    {
+        Ok(answer) => Ok(Json(answer).into_response()),
+        Err(e) => Err(payload_error(e)),
     }
 }
 

@@ -212,7 +212,7 @@ pub fn app(state: ReplayState) -> Router {
         .route("/api/v1/vehicles/{id}/payloads/{slot}/frame", get(frame))
         .route("/api/v1/stream", get(stream))
         .route("/api/{*rest}", axum::routing::any(not_replayed))
-        .fallback(get(crate::static_file))
+        .fallback(get(crate::static_files::static_file))
         .with_state(state)
 }
 

@@ -4,6 +4,7 @@
 //!
 //! - [`topics`]: names and QoS of every topic (the table there is the contract);
 //! - [`msgs`]: the message types, standard ROS 2 ones and skein's own (`core/dds/msg/*.msg`);
+//! - [`lease`]: the coordinator election on `/skein/coordinator` (`skein coordinator`);
 //! - [`convert`]: skein's NED swarm frame to the ENU of REP 103, commands back;
 //! - [`link`]: the supervised `DdsLink` service of `skein up --dds`;
 //! - [`probe`]: a listener of the pose topics (`skein bench dds`).
@@ -12,6 +13,7 @@
 #![warn(missing_docs)]
 
 pub mod convert;
+pub mod lease;
 pub mod link;
 pub mod msgs;
 pub mod probe;

@@ -14,6 +14,7 @@
 //!   state forbids is refused with the FSM's reason).
 
 use crate::convert;
+use crate::lease::ElectionLink;
 use crate::msgs::{self, CommandResult, RosMessage};
 use crate::topics;
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
@@ -23,6 +24,7 @@ use ros2_client::{Context, Name, Node, NodeName, NodeOptions, QosProfile};
 use ros2_client::{Publisher, Subscription};
 use skein_model::supervision::ChildKind;
 use skein_model::vehicle::VehicleSnapshot;
+use skein_swarm::election::ElectionStatus;
 use skein_swarm::metrics::Metrics;
 use skein_swarm::{CoordinatorMsg, ServiceMsg, ServiceSpec};
 use std::collections::BTreeMap;
@@ -50,6 +52,9 @@ pub struct DdsConfig {
     /// advertise to peers (RustDDS `with_only_networks`); empty = every interface.
     /// `127.0.0.1` alone keeps DDS on this host (unicast discovery over loopback).
     pub networks: Vec<std::net::IpAddr>,
+    /// With `skein coordinator`: this process is a candidate in the coordinator election
+    /// on `/skein/coordinator` ([`crate::lease`]).
+    pub candidate: Option<crate::lease::Candidate>,
 }
 
 /// Counters of the DDS link (in `/metrics` as `skein_dds_samples{what="published"}` …).
@@ -90,6 +95,7 @@ pub struct DdsShared {
     node: Mutex<Node>,
     tracks: Publisher<msgs::Tracks>,
     vehicles: Mutex<BTreeMap<String, Arc<VehicleTopics>>>,
+    election: Option<ElectionLink>,
     /// The link's counters.
     pub counters: DdsCounters,
 }
@@ -106,12 +112,13 @@ impl std::fmt::Display for DdsError {
 
 impl std::error::Error for DdsError {}
 
-fn err<E: std::fmt::Debug>(what: &str) -> impl FnOnce(E) -> DdsError + '_ {
+pub(crate) fn err<E: std::fmt::Debug>(what: &str) -> impl FnOnce(E) -> DdsError + '_ {
     move |e| DdsError(format!("{what}: {e:?}"))
 }
 
 impl DdsShared {
-    /// Joins the domain and creates the node and the swarm-wide topics.
+    /// Joins the domain and creates the node and the swarm-wide topics; `events` carries
+    /// the election's `coordinator_role_changed` (with a candidate).
     ///
     /// # Errors
     /// The participant, node or a topic could not be created (sockets, names).
@@ -119,6 +126,7 @@ impl DdsShared {
         config: DdsConfig,
         coordinator: ActorRef<CoordinatorMsg>,
         metrics: Arc<Metrics>,
+        events: tokio::sync::broadcast::Sender<skein_swarm::SwarmEvent>,
     ) -> Result<Arc<DdsShared>, DdsError> {
         let mut participant = DomainParticipantBuilder::new(config.domain_id);
         if !config.networks.is_empty() {
@@ -140,7 +148,12 @@ impl DdsShared {
             "tracks",
             &topics::latest_state(),
         )?;
+        let election = match config.candidate.clone() {
+            Some(c) => Some(ElectionLink::new(&mut node, c, events)?),
+            None => None,
+        };
         Ok(Arc::new(DdsShared {
+            election,
             config,
             coordinator,
             metrics,
@@ -150,6 +163,11 @@ impl DdsShared {
             vehicles: Mutex::new(BTreeMap::new()),
             counters: DdsCounters::default(),
         }))
+    }
+
+    /// The coordinator election's status, when this process is a candidate.
+    pub fn election(&self) -> Option<tokio::sync::watch::Receiver<ElectionStatus>> {
+        self.election.as_ref().map(ElectionLink::subscribe)
     }
 
     /// The service the coordinator starts and supervises as `coordinator/dds`.
@@ -169,10 +187,22 @@ impl DdsShared {
     }
 
     /// The topics of vehicle `id`, created on first use.
-    fn vehicle(&self, id: &str) -> Result<(Arc<VehicleTopics>, bool), DdsError> {
+    ///
+    /// # Errors
+    /// A topic could not be created, or another vehicle already publishes under the
+    /// same ROS name (`uav-1` and `uav.1` are both `uav_1`): the second is not published,
+    /// and the error names both.
+    fn vehicle(&self, id: &str) -> Result<Arc<VehicleTopics>, DdsError> {
         let mut map = self.vehicles.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(t) = map.get(id) {
-            return Ok((t.clone(), false));
+            return Ok(t.clone());
+        }
+        if let Some(other) = topics::same_ros_name(map.keys().map(String::as_str), id) {
+            return Err(DdsError(format!(
+                "vehicle `{id}` is not published: `{other}` already publishes under the ROS \
+                 name `{}` (rename one of them)",
+                topics::ros_name(id)
+            )));
         }
         let ns = topics::vehicle_namespace(id);
         let mut node = self.node.lock().unwrap_or_else(PoisonError::into_inner);
@@ -202,7 +232,7 @@ impl DdsShared {
             command,
         });
         map.insert(id.to_string(), t.clone());
-        Ok((t, true))
+        Ok(t)
     }
 
     /// Copies the counters into `/metrics` (`skein_dds_samples{what=...}`).
@@ -365,6 +395,8 @@ impl DdsLink {
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut n: u64 = 0;
         let mut serving: std::collections::BTreeSet<String> = Default::default();
+        // Vehicles whose topics could not be made: logged once each.
+        let mut refused: std::collections::BTreeSet<String> = Default::default();
         loop {
             tick.tick().await;
             n += 1;
@@ -373,9 +405,11 @@ impl DdsLink {
             };
             for v in &vehicles {
                 let topics = match shared.vehicle(&v.id) {
-                    Ok((t, _)) => t,
+                    Ok(t) => t,
                     Err(e) => {
-                        tracing::error!("dds: no topics for {}: {e}", v.id);
+                        if refused.insert(v.id.clone()) {
+                            tracing::error!("dds: no topics for {}: {e}", v.id);
+                        }
                         continue;
                     }
                 };
@@ -410,6 +444,12 @@ impl Actor for DdsLink {
         shared: Arc<DdsShared>,
     ) -> Result<Self::State, ActorProcessingErr> {
         let mut tasks = JoinSet::new();
+        let s = shared.clone();
+        tasks.spawn(async move {
+            if let Some(e) = &s.election {
+                e.run(&s.counters).await;
+            }
+        });
         tasks.spawn(Self::run(shared));
         Ok(DdsLinkState { tasks })
     }

@@ -271,3 +271,24 @@ pub struct Tracks {
 impl RosMessage for Tracks {
     const TYPE: (&'static str, &'static str) = ("skein_msgs", "Tracks");
 }
+
+/// `skein_msgs/CoordinatorLease` (`msg/CoordinatorLease.msg`): `/skein/coordinator`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CoordinatorLease {
+    /// When it was sent.
+    pub header: Header,
+    /// The candidate's id.
+    pub coordinator_id: String,
+    /// Its priority (the higher wins).
+    pub priority: u32,
+    /// The epoch it holds the role in (active), or the highest it has seen.
+    pub epoch: u64,
+    /// True while it holds the role.
+    pub active: bool,
+    /// Where its HTTP API listens.
+    pub api_url: String,
+}
+
+impl RosMessage for CoordinatorLease {
+    const TYPE: (&'static str, &'static str) = ("skein_msgs", "CoordinatorLease");
+}

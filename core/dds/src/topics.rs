@@ -9,11 +9,16 @@
 //! | `/skein/<vehicle>/command` | `skein_msgs/Command` | reliable, volatile, keep-last 16 | on demand |
 //! | `/skein/<vehicle>/command_result` | `skein_msgs/CommandResult` | reliable, volatile, keep-last 16 | per command |
 //! | `/skein/tracks` | `skein_msgs/Tracks` | reliable, volatile, keep-last 1 | publish rate / 2 |
+//! | `/skein/coordinator` | `skein_msgs/CoordinatorLease` | best-effort, volatile, keep-last 32 | 5 Hz per candidate |
 //!
 //! Poses are sensor data (REP 2003): a lost sample is replaced by the next one, so
 //! retransmitting it only delays the newer. State is reliable keep-last 1: a reader
 //! always ends with the newest state, but never waits for an old one. Commands and their
 //! results are reliable with a queue, so a burst of commands is neither lost nor merged.
+//! Leases are liveness: a lost one is replaced 200 ms later, and a retransmitted old one
+//! would only make a dead candidate look alive longer; every candidate writes the one
+//! topic, so readers keep 32 samples, not 1 (a keyless topic has one instance, and depth 1
+//! would keep only the last writer's).
 //!
 //! Names: a ROS 2 name holds letters, digits and underscores only, so a vehicle id is
 //! written with every other character as `_` ([`ros_name`]): `uav-1` publishes on
@@ -44,6 +49,13 @@ pub fn ros_name(id: &str) -> String {
     s
 }
 
+/// The first of `ids` (other than `id` itself) that has `id`'s ROS name: two such
+/// vehicles cannot both publish.
+pub fn same_ros_name<'a>(ids: impl IntoIterator<Item = &'a str>, id: &str) -> Option<&'a str> {
+    let name = ros_name(id);
+    ids.into_iter().find(|k| *k != id && ros_name(k) == name)
+}
+
 /// The namespace of a vehicle's topics (`/skein/uav_1`).
 pub fn vehicle_namespace(id: &str) -> String {
     format!("{NAMESPACE}/{}", ros_name(id))
@@ -65,6 +77,14 @@ pub fn latest_state() -> QosProfile {
         .history(History::KeepLast { depth: 1 })
 }
 
+/// Coordinator leases: best-effort, volatile, keep-last 32.
+pub fn leases() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_best_effort()
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 32 })
+}
+
 /// Commands and their results: reliable, volatile, keep-last 16.
 pub fn commands() -> QosProfile {
     QosProfile::publisher_default()
@@ -83,6 +103,9 @@ mod tests {
         assert_eq!(ros_name("scout.7"), "scout_7");
         assert_eq!(ros_name("7"), "v7");
         assert_eq!(vehicle_namespace("uav-12"), "/skein/uav_12");
+        assert_eq!(same_ros_name(["uav-1", "uav-2"], "uav.1"), Some("uav-1"));
+        assert_eq!(same_ros_name(["uav-1", "uav-2"], "uav-1"), None);
+        assert_eq!(same_ros_name(["uav-1"], "uav-3"), None);
         for id in ["uav-1", "a b", "x/y", "ü"] {
             let n = ros_name(id);
             assert!(

@@ -4,6 +4,9 @@
 //!   the dashboard (prints its URL).
 //! - `skein up --config FILE`: the same for real vehicles (one `[[vehicles]]` table per
 //!   vehicle, see [`config`]).
+//! - `skein coordinator --priority P`: a coordinator candidate with no vehicles of its
+//!   own (API, dashboard, DDS); the live candidate of highest priority is active, the
+//!   others stand by (see [`coordinator`]).
 //! - `skein sim --vehicles N`: the simulator alone, for any MAVLink client.
 //! - `skein fault --target PATH --kind panic|hang|stop|error`: inject a fault through the
 //!   API of a running `skein up --enable-fault-injection`.
@@ -20,6 +23,7 @@
 
 mod bench;
 mod config;
+mod coordinator;
 mod keys;
 mod plugin_new;
 mod replay;
@@ -48,6 +52,9 @@ struct Cli {
 enum Commands {
     /// Run the coordinator, the HTTP API and the dashboard (with simulated and/or real vehicles).
     Up(UpArgs),
+    /// A coordinator candidate with no vehicles of its own: API, dashboard, DDS, and the
+    /// election (`--priority P`; the live candidate with the highest is active).
+    Coordinator(coordinator::CoordinatorArgs),
     /// Run the PX4 SITL-like simulator alone (instance i: sysid i+1, binds 14580+i, sends to 14540+i).
     Sim(skein_sim::cli::SimArgs),
     /// Benchmarks printing one JSON object (`skein bench swarm --vehicles N --rate-hz 50 --seconds S`).
@@ -153,6 +160,7 @@ fn main() -> ExitCode {
     let result = runtime.block_on(async {
         match cli.command {
             Commands::Up(args) => up::up(args).await,
+            Commands::Coordinator(args) => coordinator::coordinator(args).await,
             Commands::Sim(args) => skein_sim::cli::run(args)
                 .await
                 .map(|()| ExitCode::SUCCESS)

@@ -22,10 +22,10 @@ pub struct UpArgs {
     sim: Option<usize>,
     /// Configuration file (TOML) with real vehicles and swarm settings.
     #[arg(long, value_name = "FILE")]
-    config: Option<PathBuf>,
+    pub(crate) config: Option<PathBuf>,
     /// Listen address of the HTTP API and dashboard (port 0 picks a free port).
     #[arg(long, value_name = "ADDR:PORT")]
-    http: Option<SocketAddr>,
+    pub(crate) http: Option<SocketAddr>,
     /// With --sim: links listen on PORT+i and simulated vehicle i binds PORT+40+i (the
     /// PX4 SITL layout for 14540); 0 = free ports for both.
     #[arg(long, value_name = "PORT", default_value_t = 14540)]
@@ -52,7 +52,7 @@ pub struct UpArgs {
     /// Listen on a non-loopback address without any `[[http.tokens]]`: anyone who can
     /// reach the port can fly the swarm. Refused without this flag.
     #[arg(long)]
-    insecure_no_auth: bool,
+    pub(crate) insecure_no_auth: bool,
     /// Record the whole run to this MCAP file (never overwritten; Foxglove and
     /// `skein replay` read it). `POST /api/v1/recording/start` records on demand.
     #[arg(long, value_name = "FILE.mcap")]
@@ -73,7 +73,7 @@ pub struct UpArgs {
     /// With --dds: the DDS domain, 0 to 232 (default `[dds] domain_id`, else
     /// `ROS_DOMAIN_ID`, else 0).
     #[arg(long, value_name = "D", value_parser = skein_dds::parse_domain_id)]
-    domain_id: Option<u16>,
+    pub(crate) domain_id: Option<u16>,
     /// With --dds: obey `skein_msgs/Command`s on `/skein/<vehicle>/command` (as `[dds]
     /// accept_commands`). DDS has no authentication: use on a trusted network only.
     #[arg(long)]
@@ -81,10 +81,14 @@ pub struct UpArgs {
     /// With --dds: use only the interface with this local address (repeatable; as `[dds]
     /// networks`); `127.0.0.1` keeps DDS on this host.
     #[arg(long, value_name = "ADDR")]
-    dds_network: Vec<IpAddr>,
+    pub(crate) dds_network: Vec<IpAddr>,
     /// With --sim: intruders, non-cooperative aircraft the simulated cameras see.
     #[command(flatten)]
     intruders: skein_sim::intruders::IntruderArgs,
+    /// Set by `skein coordinator`: this process is a candidate of the coordinator
+    /// election (no vehicles of its own; DDS on).
+    #[arg(skip)]
+    pub(crate) candidate: Option<crate::coordinator::CandidateArgs>,
 }
 
 pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
@@ -106,7 +110,7 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
     if args.sim.is_none() && args.intruders.intruders > 0 {
         return Err("--intruders needs --sim N (intruders fly in the simulator)".into());
     }
-    if args.sim.is_none() && file.vehicles.is_empty() {
+    if args.sim.is_none() && file.vehicles.is_empty() && args.candidate.is_none() {
         return Err("nothing to fly: give --sim N or a --config file with [[vehicles]]".into());
     }
     let mut endpoints: Vec<EndpointSpec> = file.endpoints()?;
@@ -308,12 +312,38 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
             .map_err(|e| format!("--record {}: {e}", path.display()))?;
         println!("skein: recording to {}", info.path.display());
     }
+    let scheme = if tls.is_some() { "https" } else { "http" };
+    let dds = match dds_config(&args, &file, &format!("{scheme}://{local}"))? {
+        Some(dds) => {
+            let summary = format!(
+                "skein: ROS 2 topics under /skein on DDS domain {}{}",
+                dds.domain_id,
+                if dds.accept_commands {
+                    ", commands accepted (unauthenticated: trusted network only)"
+                } else {
+                    ""
+                }
+            );
+            let shared = skein_dds::DdsShared::new(
+                dds,
+                swarm.coordinator.clone(),
+                swarm.metrics.clone(),
+                swarm.events.clone(),
+            )
+            .map_err(|e| format!("--dds: {e}"))?;
+            Some((shared, summary))
+        }
+        None => None,
+    };
     let state = skein_api::ApiState::new(swarm.coordinator.clone(), swarm.events.clone())
         .with_plugins(plugins, refused)
         .with_geofence(geofence)
         .with_auth(auth)
         .with_recorder(recorder.clone());
-    let scheme = if tls.is_some() { "https" } else { "http" };
+    let state = match dds.as_ref().and_then(|(d, _)| d.election()) {
+        Some(election) => state.with_election(election),
+        None => state,
+    };
     let state = match tls {
         Some(t) => state.with_tls(t),
         None => state,
@@ -325,21 +355,15 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
     )
     .await?;
     println!("skein: dashboard at {scheme}://{local}/");
-    if let Some(dds) = dds_config(&args, &file)? {
-        let summary = format!(
-            "skein: ROS 2 topics under /skein on DDS domain {}{}",
-            dds.domain_id,
-            if dds.accept_commands {
-                ", commands accepted (unauthenticated: trusted network only)"
-            } else {
-                ""
-            }
-        );
-        let shared =
-            skein_dds::DdsShared::new(dds, swarm.coordinator.clone(), swarm.metrics.clone())
-                .map_err(|e| format!("--dds: {e}"))?;
+    if let Some((shared, summary)) = dds {
         add_service(&swarm, shared.service(), "the DDS link").await?;
         println!("{summary}");
+        if let Some(c) = &args.candidate {
+            println!(
+                "skein: coordinator candidate `{}`, priority {} (GET /api/v1/coordinator)",
+                c.id, c.priority
+            );
+        }
     }
     spawn_process_watchdog(
         swarm.coordinator.clone(),
@@ -406,8 +430,12 @@ async fn add_service(
 ///
 /// # Errors
 /// A bad `ROS_DOMAIN_ID`, `[dds] domain_id` or `publish_rate_hz`.
-fn dds_config(args: &UpArgs, file: &ConfigFile) -> Result<Option<skein_dds::DdsConfig>, String> {
-    if !(args.dds || file.dds.enabled) {
+fn dds_config(
+    args: &UpArgs,
+    file: &ConfigFile,
+    api_url: &str,
+) -> Result<Option<skein_dds::DdsConfig>, String> {
+    if !(args.dds || file.dds.enabled || args.candidate.is_some()) {
         if args.domain_id.is_some() || args.dds_commands || !args.dds_network.is_empty() {
             return Err("--domain-id, --dds-commands and --dds-network go with --dds".into());
         }
@@ -427,7 +455,19 @@ fn dds_config(args: &UpArgs, file: &ConfigFile) -> Result<Option<skein_dds::DdsC
     }
     Ok(Some(skein_dds::DdsConfig {
         domain_id,
-        node_name: format!("skein_up_{}", std::process::id()),
+        node_name: match &args.candidate {
+            Some(_) => format!("skein_coordinator_{}", std::process::id()),
+            None => format!("skein_up_{}", std::process::id()),
+        },
+        candidate: args
+            .candidate
+            .as_ref()
+            .map(|c| skein_dds::lease::Candidate {
+                coordinator_id: c.id.clone(),
+                priority: c.priority,
+                api_url: api_url.to_string(),
+                timing: Default::default(),
+            }),
         publish_rate_hz,
         accept_commands: args.dds_commands || file.dds.accept_commands,
         networks: if args.dds_network.is_empty() {

@@ -68,6 +68,18 @@ pub enum SwarmEvent {
         /// The formation as `GET /api/v1/formation` shows it.
         formation: serde_json::Value,
     },
+    /// This coordinator candidate (`skein coordinator`) took or gave up the coordinator
+    /// role (see `skein_swarm::election`).
+    CoordinatorRoleChanged {
+        /// This candidate's id.
+        coordinator_id: String,
+        /// Its role now.
+        role: crate::election::CoordinatorRole,
+        /// The epoch it holds the role in (active), or the highest it has heard.
+        epoch: u64,
+        /// Why it stepped down (names the coordinator it yields to); `None` on a claim.
+        reason: Option<String>,
+    },
     /// The formation has a new leader (failover, or the first one).
     LeaderChanged {
         /// The previous leader, if any.

@@ -12,6 +12,7 @@
 //! - [`protocol`]: the swarm protocol between coordinator and vehicles (serde types).
 //! - [`carrier`]: the in-process carrier of the protocol.
 //! - [`coordinator`]: the root actor, vehicle discovery, commands, formation loop.
+//! - [`election`]: which coordinator candidate of a DDS domain is active (lease, failover).
 //! - [`vehicle`]: the per-vehicle actor, its control loop and procedures.
 //! - [`formation`]: the formation engine's state between ticks.
 //! - [`rehearsal`]: formation flight in virtual time (transition tests, `skein bench formation`).
@@ -28,6 +29,7 @@
 
 pub mod carrier;
 pub mod coordinator;
+pub mod election;
 pub mod events;
 pub mod formation;
 pub mod metrics;

@@ -48,6 +48,7 @@ use utoipa::openapi::{Content, RefOr, Required, ResponseBuilder};
     ),
     components(schemas(
         ErrorBody,
+        skein_swarm::election::ElectionStatus,
         crate::requests::tracks::ObserveRequest,
         crate::requests::recording::RecordingStartRequest,
         crate::tracks::TracksListing,
@@ -126,7 +127,10 @@ fn status_text(status: u16) -> &'static str {
             "Forbidden: the token's role is too low (`required_role`), or the operation is refused"
         }
         404 => "No such vehicle, slot, plugin, target or parameter",
-        409 => "The swarm's or the vehicle's state forbids it (the error says why)",
+        409 => {
+            "The swarm's or the vehicle's state forbids it, or this coordinator is a standby \
+             (the error says why, naming the active coordinator)"
+        }
         422 => "Not a loadable plugin (the error names the file and what differs)",
         429 => "Too many failed token attempts from this address (Retry-After)",
         503 => "The coordinator, the vehicle's link or the payload is not available",
@@ -229,6 +233,10 @@ fn operation(o: &Operation) -> utoipa::openapi::path::Operation {
         b = b.response(status.to_string(), r.build());
     }
     let mut errors: Vec<u16> = o.errors.to_vec();
+    if o.method != "GET" {
+        // A standby coordinator refuses every write (skein_api::election).
+        errors.push(409);
+    }
     if access != Access::Public {
         errors.extend([401, 403, 429]);
         b = b.security(SecurityRequirement::new("bearer", Vec::<String>::new()));

@@ -337,6 +337,14 @@ pub const OPERATIONS: &[Operation] = &[
     ),
     op(
         "GET",
+        "/api/v1/coordinator",
+        "The coordinator election as this candidate sees it (skein coordinator only)",
+        Body::None,
+        &[(200, Json("ElectionStatus"))],
+        &[404],
+    ),
+    op(
+        "GET",
         "/api/v1/tracks",
         "The counter-UAS tracks (swarm frame) and who observes each",
         Body::None,

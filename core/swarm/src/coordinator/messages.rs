@@ -60,6 +60,10 @@ pub struct Health {
     pub swarm_origin: Option<skein_model::geo::GeoPoint>,
     /// True when `POST /api/v1/faults` is enabled.
     pub fault_injection: bool,
+    /// `active` or `standby` in a `skein coordinator` candidate (set by the API from the
+    /// election, see `GET /api/v1/coordinator`); `null` in `skein up`, which has no
+    /// election.
+    pub coordinator_role: Option<crate::election::CoordinatorRole>,
 }
 
 /// The tracks now, and which vehicle observes which track (vehicle id, track id).

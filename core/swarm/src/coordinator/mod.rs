@@ -141,6 +141,7 @@ impl CoordinatorState {
             uptime_s: self.started.elapsed().as_secs_f64(),
             swarm_origin: self.view.frame().map(|f| f.origin),
             fault_injection: self.view.config.fault_injection,
+            coordinator_role: None,
         }
     }
 

@@ -1,0 +1,87 @@
+//! `GET /api/v1/stream`: the WebSocket of the dashboard. The `vehicles` frames (every
+//! vehicle, [`crate::TELEMETRY_HZ`]) are made once by [`publish_telemetry`] and shared by
+//! every session; each session adds the swarm's events as they happen.
+
+use crate::{ApiState, COORDINATOR_TIMEOUT, TELEMETRY_HZ};
+use axum::extract::State;
+use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::response::Response;
+use ractor::ActorRef;
+use skein_swarm::CoordinatorMsg;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::broadcast;
+
+/// Publishes the `vehicles` frame at [`TELEMETRY_HZ`] while anyone listens; ends when the
+/// coordinator stops.
+pub(crate) async fn publish_telemetry(
+    coordinator: ActorRef<CoordinatorMsg>,
+    tx: broadcast::Sender<Arc<str>>,
+) {
+    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / TELEMETRY_HZ));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    loop {
+        tick.tick().await;
+        if tx.receiver_count() == 0 {
+            if coordinator.get_status() == ractor::ActorStatus::Stopped {
+                return;
+            }
+            continue;
+        }
+        let Ok(ractor::rpc::CallResult::Success(list)) = coordinator
+            .call(CoordinatorMsg::ListVehicles, Some(COORDINATOR_TIMEOUT))
+            .await
+        else {
+            if coordinator.get_status() == ractor::ActorStatus::Stopped {
+                return;
+            }
+            continue;
+        };
+        let frame = serde_json::json!({"type": "vehicles", "vehicles": list});
+        let _ = tx.send(Arc::from(frame.to_string()));
+    }
+}
+
+/// Upgrades to the stream's WebSocket.
+pub(crate) async fn stream(State(s): State<ApiState>, ws: WebSocketUpgrade) -> Response {
+    ws.on_upgrade(move |socket| stream_session(socket, s))
+}
+
+async fn stream_session(mut socket: WebSocket, s: ApiState) {
+    let mut events = s.events.subscribe();
+    let mut telemetry = s.telemetry.subscribe();
+    // Send the current picture at once so a new dashboard is never empty for a tick.
+    if let Ok(list) = s.ask(CoordinatorMsg::ListVehicles).await {
+        let frame = serde_json::json!({"type": "vehicles", "vehicles": list});
+        if socket
+            .send(Message::Text(frame.to_string().into()))
+            .await
+            .is_err()
+        {
+            return;
+        }
+    }
+    loop {
+        let text: String = tokio::select! {
+            t = telemetry.recv() => match t {
+                Ok(t) => t.to_string(),
+                Err(broadcast::error::RecvError::Lagged(_)) => continue,
+                Err(broadcast::error::RecvError::Closed) => return,
+            },
+            e = events.recv() => match e {
+                Ok(e) => match serde_json::to_string(&e) { Ok(s) => s, Err(_) => continue },
+                Err(broadcast::error::RecvError::Lagged(n)) => {
+                    serde_json::json!({"type": "events_dropped", "count": n}).to_string()
+                }
+                Err(broadcast::error::RecvError::Closed) => return,
+            },
+            incoming = socket.recv() => match incoming {
+                Some(Ok(Message::Close(_))) | None | Some(Err(_)) => return,
+                Some(Ok(_)) => continue,
+            },
+        };
+        if socket.send(Message::Text(text.into())).await.is_err() {
+            return;
+        }
+    }
+}

@@ -1,0 +1,96 @@
+//! A camera payload's frames over HTTP: the last frame as JPEG
+//! (`GET /api/v1/vehicles/{id}/payloads/{slot}/snapshot`) and every new one as MJPEG
+//! (`…/stream`, `multipart/x-mixed-replace`), which an `<img>` shows as video.
+
+use crate::ApiState;
+use crate::error::ApiError;
+use axum::body::Bytes;
+use axum::extract::{Path, State};
+use axum::http::header;
+use axum::response::{IntoResponse, Response};
+use skein_swarm::CoordinatorMsg;
+
+async fn payload_of(
+    s: &ApiState,
+    id: String,
+    slot: String,
+) -> Result<std::sync::Arc<skein_swarm::payload::PayloadShared>, ApiError> {
+    s.ask(move |r| CoordinatorMsg::GetPayload(id, slot, r))
+        .await?
+        .map_err(ApiError::not_found)
+}
+
+/// `GET …/payloads/{slot}/snapshot`: the last frame; 404 before the first.
+pub(crate) async fn payload_snapshot(
+    State(s): State<ApiState>,
+    Path((id, slot)): Path<(String, String)>,
+) -> Result<Response, ApiError> {
+    let p = payload_of(&s, id.clone(), slot.clone()).await?;
+    match p.frame() {
+        Some(jpeg) => Ok((
+            [
+                (header::CONTENT_TYPE, "image/jpeg"),
+                (header::CACHE_CONTROL, "no-store"),
+            ],
+            jpeg.as_ref().clone(),
+        )
+            .into_response()),
+        None => Err(ApiError::not_found(format!(
+            "payload `{slot}` of {id} has published no frame yet"
+        ))),
+    }
+}
+
+/// Boundary of the MJPEG multipart stream.
+const MJPEG_BOUNDARY: &str = "skeinframe";
+
+/// `GET …/payloads/{slot}/stream`: MJPEG, the current frame then every new one.
+pub(crate) async fn payload_stream(
+    State(s): State<ApiState>,
+    Path((id, slot)): Path<(String, String)>,
+) -> Result<Response, ApiError> {
+    let p = payload_of(&s, id, slot).await?;
+    let rx = p.subscribe_frames();
+    // Each part is sent once: the current frame first, then every new one.
+    let frames = futures_util::stream::unfold((rx, true), |(mut rx, first)| async move {
+        loop {
+            if !first && rx.changed().await.is_err() {
+                return None; // the payload is gone
+            }
+            let frame = rx.borrow_and_update().clone();
+            let Some(jpeg) = frame else {
+                if first {
+                    // Nothing yet: wait for the first frame.
+                    if rx.changed().await.is_err() {
+                        return None;
+                    }
+                    continue;
+                }
+                continue;
+            };
+            let mut part = format!(
+                "--{MJPEG_BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",
+                jpeg.len()
+            )
+            .into_bytes();
+            part.extend_from_slice(&jpeg);
+            part.extend_from_slice(b"\r\n");
+            return Some((
+                Ok::<_, std::convert::Infallible>(Bytes::from(part)),
+                (rx, false),
+            ));
+        }
+    });
+    let body = axum::body::Body::from_stream(frames);
+    Ok((
+        [
+            (
+                header::CONTENT_TYPE,
+                format!("multipart/x-mixed-replace; boundary={MJPEG_BOUNDARY}"),
+            ),
+            (header::CACHE_CONTROL, "no-store".to_string()),
+        ],
+        body,
+    )
+        .into_response())
+}
