@@ -6,6 +6,12 @@
 //! and sends the latest setpoint at a fixed rate whatever the actors are doing, so a
 //! restarting actor never opens a gap. Actors only replace the setpoint.
 //!
+//! Every stream runs on one thread of its own (`skein-setpoints`, a single-threaded tokio
+//! runtime), not on the process's worker threads: a handler that keeps a worker busy (a
+//! plugin call, a large JSON body, a debug build's image processing) or a starved worker
+//! queue cannot delay a setpoint. The thread mostly sleeps, so the kernel wakes it
+//! promptly even when every core is busy. Sending never blocks (`try_send_to`).
+//!
 //! A setpoint not refreshed for [`STALE_AFTER`] loses its velocity feed-forward: the
 //! vehicle holds the last position instead of flying on along a stale velocity while its
 //! owner is away.
@@ -19,8 +25,9 @@ use skein_mavlink::dialect::{
 use skein_model::geo::Ned;
 use skein_model::px4::type_mask;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
+use tokio::runtime::Runtime;
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
 
@@ -184,7 +191,7 @@ impl SetpointStream {
         });
         let counters = Arc::new(Counters::default());
         let since = Arc::new(Mutex::new(None));
-        let task = tokio::spawn(run(
+        let task = stream_runtime().spawn(run(
             endpoint,
             sysid,
             compid,
@@ -235,6 +242,23 @@ impl SetpointStream {
             stale_holds: self.counters.stale_holds.load(Ordering::Relaxed),
         }
     }
+}
+
+/// The runtime of every setpoint stream (see the module docs): one worker thread,
+/// started on first use, kept for the life of the process.
+///
+/// # Panics
+/// When the OS refuses a thread (nothing could fly then).
+fn stream_runtime() -> &'static Runtime {
+    static RUNTIME: OnceLock<Runtime> = OnceLock::new();
+    RUNTIME.get_or_init(|| {
+        tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .thread_name("skein-setpoints")
+            .enable_time()
+            .build()
+            .expect("the setpoint stream thread")
+    })
 }
 
 async fn run(

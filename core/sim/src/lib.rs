@@ -120,6 +120,31 @@ fn spawn_point(home: GeoPoint, index: usize, n: usize, spacing_m: f64) -> GeoPoi
 }
 
 impl Simulator {
+    /// [`Simulator::start`] on worker threads of the simulator's own (`skein-sim`, two
+    /// workers, kept for the life of the process), for a simulator embedded in a process
+    /// that also flies the vehicles (`skein up --sim`): like a PX4 in a process of its
+    /// own, its clocks, receive timestamps and failsafe timers are then not held up by
+    /// the embedding process's busy workers, so a setpoint gap it measures is a gap on
+    /// the wire. Errors as [`Simulator::start`].
+    pub async fn start_on_own_threads(cfg: SimConfig) -> std::io::Result<Simulator> {
+        static RUNTIME: std::sync::OnceLock<std::io::Result<tokio::runtime::Runtime>> =
+            std::sync::OnceLock::new();
+        let runtime = RUNTIME
+            .get_or_init(|| {
+                tokio::runtime::Builder::new_multi_thread()
+                    .worker_threads(2)
+                    .thread_name("skein-sim")
+                    .enable_all()
+                    .build()
+            })
+            .as_ref()
+            .map_err(|e| std::io::Error::new(e.kind(), format!("simulator runtime: {e}")))?;
+        runtime
+            .spawn(Simulator::start(cfg))
+            .await
+            .map_err(std::io::Error::other)?
+    }
+
     /// Binds every vehicle's socket and starts the simulation on the current tokio
     /// runtime. Fails on a bind error, no vehicles, a zero system id, or two vehicles
     /// with the same system id *and* the same target (a receiver could not tell them

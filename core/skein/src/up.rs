@@ -260,7 +260,7 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
         cfg.spacing_m = cfg
             .spacing_m
             .max(1.05 * std::f64::consts::SQRT_2 * swarm_setpoint_separation);
-        let sim = skein_sim::Simulator::start(cfg)
+        let sim = skein_sim::Simulator::start_on_own_threads(cfg)
             .await
             .map_err(|e| format!("simulator: {e}"))?;
         if args.intruders.intruders > 0 {
