@@ -9,7 +9,9 @@ mod support;
 
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
-use support::{EventLog, Skein, eventually, one_at_a_time, sim_stats, truth_min_separation};
+use support::{
+    EventLog, Skein, eventually, one_at_a_time, sim_stats, summary, truth_min_separation,
+};
 
 /// Separation plus tracking margin the formation keeps from a hazard, metres.
 const CLEARANCE_M: f64 = 3.5;
@@ -139,7 +141,12 @@ fn a_lost_leader_is_planned_around_and_the_others_settle_clear_of_it() {
         json!({"command": "clear_hazard"}),
     );
     assert_eq!(status, 200, "{body}");
-    assert!(skein.formation()["hazards"].as_array().unwrap().is_empty());
+    let f = skein.formation();
+    assert!(
+        f["hazards"].as_array().unwrap().is_empty(),
+        "{f} | {}",
+        summary(&skein.vehicles())
+    );
     let (status, body) = skein.post(
         "/api/v1/vehicles/uav-1/commands",
         json!({"command": "clear_hazard"}),

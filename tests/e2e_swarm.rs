@@ -24,10 +24,15 @@ fn ned(v: &Value) -> (f64, f64, f64) {
 fn three_vehicles_take_off_fly_a_line_and_land() {
     let skein = Skein::sim(3);
     let vs = skein.wait_all(
-        "3 connected vehicles with positions",
+        "3 connected vehicles with positions and homes",
         3,
         Duration::from_secs(30),
-        |v| v["state"] == "Landed" && v["position"].is_object() && v["link"]["connected"] == true,
+        |v| {
+            v["state"] == "Landed"
+                && v["position"].is_object()
+                && v["home"].is_object()
+                && v["link"]["connected"] == true
+        },
     );
     let ids: Vec<&str> = vs.iter().map(|v| v["id"].as_str().unwrap()).collect();
     assert_eq!(ids, ["uav-1", "uav-2", "uav-3"]);

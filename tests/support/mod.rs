@@ -198,9 +198,26 @@ impl Process {
 }
 
 impl Drop for Process {
+    /// Kills the process; when a test is failing, prints its last warnings and errors, so
+    /// that a CI log tells what the process saw.
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+        if std::thread::panicking() {
+            let lines = self.stderr.lock().unwrap_or_else(|e| e.into_inner());
+            let notable: Vec<&String> = lines
+                .iter()
+                .filter(|l| l.contains("WARN") || l.contains("ERROR"))
+                .collect();
+            let from = notable.len().saturating_sub(30);
+            eprintln!(
+                "--- last {} warnings and errors of the process under test ---",
+                notable.len() - from
+            );
+            for l in &notable[from..] {
+                eprintln!("{l}");
+            }
+        }
     }
 }
 
@@ -543,20 +560,24 @@ impl Skein {
         });
     }
 
-    /// Waits until `n` vehicles are connected with a position, takes the swarm off to
-    /// `altitude_m` and waits until all `n` hover.
+    /// Waits until `n` vehicles are connected with a position and a home (a vehicle
+    /// without home refuses takeoff), takes the swarm off to `altitude_m` and waits until
+    /// all `n` hover.
     pub fn take_off(&self, n: usize, altitude_m: f64) {
         self.wait_all(
-            "connected with positions",
+            "connected with positions and homes",
             n,
             Duration::from_secs(60),
-            |v| v["link"]["connected"] == true && v["position"].is_object(),
+            |v| {
+                v["link"]["connected"] == true && v["position"].is_object() && v["home"].is_object()
+            },
         );
         let (status, body) = self.post(
             "/api/v1/swarm/commands",
             json!({"command": "takeoff", "altitude_m": altitude_m}),
         );
         assert_eq!(status, 202, "{body}");
+        assert_eq!(body["refused"], json!([]), "{body}");
         self.wait_all("hovering", n, Duration::from_secs(90), |v| {
             v["state"] == "Hovering"
         });

@@ -111,6 +111,11 @@ pub struct VehicleSnapshot {
     pub landed_state: crate::px4::LandedState,
     /// Position, once a global position has been received.
     pub position: Option<Position>,
+    /// Home position (`HOME_POSITION`, height above home 0), once received: where RTL
+    /// returns to and takeoff altitudes are measured from. Until it is known the vehicle
+    /// has no local frame, and takeoff, hold and go-to are refused.
+    #[serde(default)]
+    pub home: Option<Position>,
     /// Velocity.
     pub velocity: Velocity,
     /// Heading, degrees clockwise from north in `[0, 360)` (`ATTITUDE.yaw`).
@@ -143,6 +148,7 @@ mod tests {
             px4_mode: "OFFBOARD".into(),
             landed_state: crate::px4::LandedState::InAir,
             position: Some(Position::from_geo(geo, 10.0, &swarm)),
+            home: Some(Position::from_geo(swarm.origin, 0.0, &swarm)),
             velocity: Velocity::default(),
             heading_deg: 90.0,
             battery: Some(Battery {
@@ -161,6 +167,7 @@ mod tests {
         assert_eq!(v["px4_mode"], "OFFBOARD");
         assert!((v["position"]["east_m"].as_f64().unwrap() - 5.0).abs() < 1e-6);
         assert!((v["position"]["down_m"].as_f64().unwrap() + 10.0).abs() < 1e-6);
+        assert_eq!(v["home"]["north_m"], 0.0);
         assert_eq!(v["battery"]["voltage_v"], 15.9);
         assert_eq!(v["link"]["connected"], true);
         assert!(v["payloads"].as_array().unwrap().is_empty());

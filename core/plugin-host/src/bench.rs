@@ -70,6 +70,7 @@ impl BenchHost {
                 px4_mode: "OFFBOARD".into(),
                 landed_state: LandedState::InAir,
                 position: Some(Position::from_geo(frame.to_geo(ned), 10.0, &frame)),
+                home: Some(Position::from_geo(frame.origin, 0.0, &frame)),
                 velocity: Velocity::default(),
                 heading_deg: 0.0,
                 battery: None,

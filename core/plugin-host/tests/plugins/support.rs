@@ -146,6 +146,7 @@ pub fn snapshot(id: &str, sysid: u8, ned: (f64, f64, f64), heading_deg: f64) -> 
         px4_mode: "OFFBOARD".into(),
         landed_state: LandedState::InAir,
         position: Some(Position::from_geo(geo, -ned.2, &frame)),
+        home: Some(Position::from_geo(ORIGIN, 0.0, &frame)),
         velocity: Velocity::default(),
         heading_deg,
         battery: None,

@@ -95,6 +95,7 @@ impl VehicleShared {
             px4_mode: "UNKNOWN".into(),
             landed_state: Default::default(),
             position: None,
+            home: None,
             velocity: Velocity::default(),
             heading_deg: 0.0,
             battery: None,
@@ -304,6 +305,7 @@ impl VehicleShared {
                 px4_mode: t.heartbeat.map_or("UNKNOWN", |h| h.mode.name()).to_string(),
                 landed_state: t.landed_state,
                 position,
+                home: frame.and_then(|f| t.home.map(|h| Position::from_geo(h.geo, 0.0, &f))),
                 velocity: Velocity {
                     north_m_s: vel.north_m,
                     east_m_s: vel.east_m,
