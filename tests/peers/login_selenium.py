@@ -15,12 +15,12 @@ import argparse
 import json
 import sys
 
-from selenium import webdriver
 from selenium.common.exceptions import (NoSuchElementException, StaleElementReferenceException,
                                         TimeoutException, WebDriverException)
-from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
+
+from dashboard_selenium import add_browser_args, make_driver
 
 
 def parse_args():
@@ -29,19 +29,8 @@ def parse_args():
     p.add_argument("--viewer-token", required=True)
     p.add_argument("--operator-token", required=True)
     p.add_argument("--timeout", type=float, default=30.0)
-    p.add_argument("--chromium", default="/usr/bin/chromium")
-    p.add_argument("--chromedriver", default="/usr/bin/chromedriver")
+    add_browser_args(p)
     return p.parse_args()
-
-
-def make_driver(args):
-    opts = webdriver.ChromeOptions()
-    opts.binary_location = args.chromium
-    opts.add_argument("--headless=new")
-    for a in ("--no-sandbox", "--disable-dev-shm-usage", "--window-size=1440,900",
-              "--disable-gpu", "--no-first-run", "--disable-extensions"):
-        opts.add_argument(a)
-    return webdriver.Chrome(service=Service(executable_path=args.chromedriver), options=opts)
 
 
 def main():
