@@ -82,3 +82,69 @@ fn hostname() -> String {
         .filter(|s| !s.is_empty())
         .unwrap_or_else(|| "skein".into())
 }
+
+/// The API address a candidate advertises in its lease (`api_url`, where a standby's 409
+/// sends clients): `scheme://local` when the API listens on one address; when it listens
+/// on every address (`0.0.0.0`, `::`), one a peer can reach instead: the first
+/// `--dds-network` address of the same family (peers already reach that interface for
+/// DDS), else the address the host routes from ([`route_source`]), else the unspecified
+/// address as it is (a client then has to know the host).
+pub(crate) fn advertised_url(scheme: &str, local: SocketAddr, dds_networks: &[IpAddr]) -> String {
+    let host = if local.ip().is_unspecified() {
+        dds_networks
+            .iter()
+            .copied()
+            .find(|a| a.is_ipv4() == local.is_ipv4() && !a.is_unspecified())
+            .or_else(|| route_source(local.is_ipv4()))
+            .unwrap_or(local.ip())
+    } else {
+        local.ip()
+    };
+    format!("{scheme}://{}", SocketAddr::new(host, local.port()))
+}
+
+/// The local address the host would send from towards a public address (a UDP socket's
+/// `connect` only picks the route: nothing is sent); `None` without such a route.
+fn route_source(ipv4: bool) -> Option<IpAddr> {
+    let (bind, towards): (SocketAddr, SocketAddr) = if ipv4 {
+        // TEST-NET-1 (RFC 5737): routed like any public address, never answered.
+        (([0, 0, 0, 0], 0).into(), ([192, 0, 2, 1], 9).into())
+    } else {
+        // The documentation prefix (RFC 3849).
+        (
+            (std::net::Ipv6Addr::UNSPECIFIED, 0).into(),
+            ("2001:db8::1".parse::<std::net::Ipv6Addr>().ok()?, 9).into(),
+        )
+    };
+    let socket = std::net::UdpSocket::bind(bind).ok()?;
+    socket.connect(towards).ok()?;
+    let ip = socket.local_addr().ok()?.ip();
+    (!ip.is_unspecified()).then_some(ip)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_listen_address_is_advertised_as_it_is() {
+        let local: SocketAddr = "127.0.0.1:8080".parse().unwrap();
+        assert_eq!(
+            advertised_url("http", local, &["10.0.0.2".parse().unwrap()]),
+            "http://127.0.0.1:8080"
+        );
+    }
+
+    #[test]
+    fn every_address_is_advertised_as_the_dds_network_or_the_routed_one() {
+        let any: SocketAddr = "0.0.0.0:8443".parse().unwrap();
+        let nets = ["fe80::1".parse().unwrap(), "10.0.0.2".parse().unwrap()];
+        assert_eq!(advertised_url("https", any, &nets), "https://10.0.0.2:8443");
+        let url = advertised_url("http", any, &[]);
+        assert!(
+            !url.contains("0.0.0.0") || route_source(true).is_none(),
+            "{url}"
+        );
+        assert!(url.ends_with(":8443"), "{url}");
+    }
+}

@@ -313,7 +313,7 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
         println!("skein: recording to {}", info.path.display());
     }
     let scheme = if tls.is_some() { "https" } else { "http" };
-    let dds = match dds_config(&args, &file, &format!("{scheme}://{local}"))? {
+    let dds = match dds_config(&args, &file, scheme, local)? {
         Some(dds) => {
             let summary = format!(
                 "skein: ROS 2 topics under /skein on DDS domain {}{}",
@@ -433,7 +433,8 @@ async fn add_service(
 fn dds_config(
     args: &UpArgs,
     file: &ConfigFile,
-    api_url: &str,
+    api_scheme: &str,
+    api_local: SocketAddr,
 ) -> Result<Option<skein_dds::DdsConfig>, String> {
     if !(args.dds || file.dds.enabled || args.candidate.is_some()) {
         if args.domain_id.is_some() || args.dds_commands || !args.dds_network.is_empty() {
@@ -453,6 +454,12 @@ fn dds_config(
             "[dds] publish_rate_hz: {publish_rate_hz} is not in (0, 100]"
         ));
     }
+    let networks = if args.dds_network.is_empty() {
+        file.dds.networks.clone()
+    } else {
+        args.dds_network.clone()
+    };
+    let api_url = crate::coordinator::advertised_url(api_scheme, api_local, &networks);
     Ok(Some(skein_dds::DdsConfig {
         domain_id,
         node_name: match &args.candidate {
@@ -465,16 +472,12 @@ fn dds_config(
             .map(|c| skein_dds::lease::Candidate {
                 coordinator_id: c.id.clone(),
                 priority: c.priority,
-                api_url: api_url.to_string(),
+                api_url,
                 timing: Default::default(),
             }),
         publish_rate_hz,
         accept_commands: args.dds_commands || file.dds.accept_commands,
-        networks: if args.dds_network.is_empty() {
-            file.dds.networks.clone()
-        } else {
-            args.dds_network.clone()
-        },
+        networks,
     }))
 }
 
