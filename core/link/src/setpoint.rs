@@ -6,8 +6,8 @@
 //! and sends the latest setpoint at a fixed rate whatever the actors are doing, so a
 //! restarting actor never opens a gap. Actors only replace the setpoint.
 //!
-//! Every stream runs on one thread of its own (`skein-setpoints`, a single-threaded tokio
-//! runtime), not on the process's worker threads: a handler that keeps a worker busy (a
+//! Every stream runs on one thread of its own (`skein-setpoints`, a tokio runtime with one
+//! worker), not on the process's worker threads: a handler that keeps a worker busy (a
 //! plugin call, a large JSON body, a debug build's image processing) or a starved worker
 //! queue cannot delay a setpoint. The thread mostly sleeps, so the kernel wakes it
 //! promptly even when every core is busy. Sending never blocks (`try_send_to`).
