@@ -459,7 +459,6 @@ fn dds_config(
     } else {
         args.dds_network.clone()
     };
-    let api_url = crate::coordinator::advertised_url(api_scheme, api_local, &networks);
     Ok(Some(skein_dds::DdsConfig {
         domain_id,
         node_name: match &args.candidate {
@@ -472,7 +471,7 @@ fn dds_config(
             .map(|c| skein_dds::lease::Candidate {
                 coordinator_id: c.id.clone(),
                 priority: c.priority,
-                api_url,
+                api_url: crate::coordinator::advertised_url(api_scheme, api_local, &networks),
                 timing: Default::default(),
             }),
         publish_rate_hz,
