@@ -138,7 +138,7 @@ fn outranks(a: &Lease, b: &Lease) -> bool {
 }
 
 /// Orders two active claims: epoch, then rank.
-fn claim_wins(a: &Lease, b: &Lease) -> bool {
+pub(crate) fn claim_wins(a: &Lease, b: &Lease) -> bool {
     a.epoch > b.epoch || (a.epoch == b.epoch && outranks(a, b))
 }
 
@@ -292,6 +292,8 @@ impl Election {
         }
     }
 }
+
+pub mod observer;
 
 #[cfg(test)]
 mod tests;

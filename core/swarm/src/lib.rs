@@ -42,8 +42,8 @@ pub mod vehicle;
 pub mod view;
 
 pub use coordinator::{
-    CommandOutcome, Coordinator, CoordinatorMsg, EndpointSpec, FaultError, FieldError, ServiceMsg,
-    ServiceSpawner, ServiceSpec, Swarm, VehicleSpec,
+    CommandOutcome, Coordinator, CoordinatorMsg, DistributedMsg, EndpointSpec, FaultError,
+    FieldError, RemoteVehicle, ServiceMsg, ServiceSpawner, ServiceSpec, Swarm, VehicleSpec,
 };
 pub use events::SwarmEvent;
 pub use formation::{FormationSpec, FormationStatus};

@@ -151,6 +151,8 @@ pub enum CoordinatorMsg {
     },
     /// A vehicle's protocol message (acks, state changes, payload answers).
     FromVehicle(FromVehicle),
+    /// What the DDS carrier of the distributed roles asks ([`super::remote`]).
+    Distributed(super::remote::DistributedMsg),
     /// A command for every vehicle.
     SwarmCommand(VehicleCommand, RpcReplyPort<CommandOutcome>),
     /// A command for one vehicle; `Err(None)` when the vehicle does not exist.

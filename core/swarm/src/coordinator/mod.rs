@@ -23,6 +23,7 @@
 //! - [`validation`]: formation and leader-motion requests, checked;
 //! - [`children`]: supervision of vehicles and services, fault routing;
 //! - [`escalation`]: what happens to a vehicle whose actor keeps failing;
+//! - [`remote`]: vehicles of other processes, and an agent's carrier;
 //! - [`swarm`]: starting and stopping it all.
 
 pub mod children;
@@ -34,6 +35,7 @@ pub mod hazards;
 pub mod messages;
 pub mod observe;
 pub mod proxy;
+pub mod remote;
 pub mod swarm;
 pub mod track_leader;
 pub mod validation;
@@ -46,6 +48,7 @@ pub use messages::{
     ServiceSpec,
 };
 pub use proxy::VehicleProxy;
+pub use remote::{DistributedMsg, RemoteVehicle};
 pub use swarm::{StartError, Swarm};
 
 use crate::events::SwarmEvent;
@@ -98,6 +101,8 @@ pub struct CoordinatorState {
     tracking: crate::tracking::TrackingService,
     /// Observing vehicle → (track id, gimbal slot), see [`observe`].
     observing: BTreeMap<String, (String, String)>,
+    /// An agent's carrier: gets a copy of every local vehicle's message ([`remote`]).
+    uplink_tap: Option<tokio::sync::mpsc::UnboundedSender<FromVehicle>>,
 }
 
 /// The `Coordinator` actor (see module docs).
@@ -114,6 +119,7 @@ impl CoordinatorState {
     }
 
     fn on_from_vehicle(&mut self, msg: FromVehicle) {
+        self.tap(&msg);
         match msg {
             FromVehicle::CommandAck {
                 id,
@@ -278,6 +284,7 @@ impl Actor for Coordinator {
             view,
             tracking,
             observing: BTreeMap::new(),
+            uplink_tap: None,
             endpoints: args.endpoints,
             gcs: None,
             vehicles: BTreeMap::new(),
@@ -306,6 +313,7 @@ impl Actor for Coordinator {
                 discovery,
             } => state.on_discovered(&myself, endpoint, discovery).await?,
             CoordinatorMsg::FromVehicle(msg) => state.on_from_vehicle(msg),
+            CoordinatorMsg::Distributed(msg) => state.on_distributed(msg),
             CoordinatorMsg::SwarmCommand(cmd, reply) => {
                 if matches!(cmd, VehicleCommand::Land | VehicleCommand::Rtl)
                     && state.formation.is_active()

@@ -18,6 +18,9 @@ use tokio::sync::watch;
 /// rate; a vehicle at 5 m/s covers 1 m in this time).
 pub const REPORT_EXTRAPOLATION: Duration = Duration::from_millis(200);
 
+/// A remote vehicle not reported for this long shows its link as down.
+pub const REMOTE_SILENCE: Duration = Duration::from_secs(2);
+
 /// A vehicle run by this process: what its supervisor (the coordinator, in `skein up`)
 /// holds.
 pub struct LocalVehicle {
@@ -57,14 +60,39 @@ impl VehicleProxy {
         }
     }
 
+    /// A proxy for a vehicle of another process (an agent's, see [`super::remote`]).
+    pub fn remote(
+        port: Arc<dyn VehiclePort>,
+        snapshots: watch::Receiver<VehicleSnapshot>,
+        reports: watch::Receiver<VehicleReport>,
+    ) -> Self {
+        VehicleProxy {
+            port,
+            snapshots,
+            reports,
+            failed: false,
+            local: None,
+        }
+    }
+
     /// Sends a protocol message; `Err` says why the vehicle cannot be reached.
     pub fn send(&self, msg: ToVehicle) -> Result<(), String> {
         self.port.send(msg)
     }
 
-    /// The latest snapshot (`GET /api/v1/vehicles/{id}`).
+    /// The latest snapshot (`GET /api/v1/vehicles/{id}`). A remote vehicle whose reports
+    /// stopped for [`REMOTE_SILENCE`] (its agent or the network is down) shows its link
+    /// as down, its last values kept.
     pub fn snapshot(&self) -> VehicleSnapshot {
-        self.snapshots.borrow().clone()
+        let mut s = self.snapshots.borrow().clone();
+        if self.local.is_none() {
+            let age = crate::protocol::age_of(self.reports.borrow().stamp_us);
+            if age > REMOTE_SILENCE {
+                s.link.connected = false;
+                s.link.last_seen_ms = s.link.last_seen_ms.max(age.as_millis() as u64);
+            }
+        }
+        s
     }
 
     /// The latest report.

@@ -1,0 +1,141 @@
+//! The coordinator's part in the distributed roles (`skein coordinator`, `skein agent`):
+//! what the DDS carrier of the swarm protocol asks of it ([`DistributedMsg`]).
+//!
+//! - In a **coordinator**, a vehicle of another process (an agent's) joins as a remote
+//!   [`VehicleProxy`]: a port that publishes [`ToVehicle`] on DDS, and the snapshots and
+//!   reports the agent publishes. The formation, the API and the tracker use it like a
+//!   local one; its supervision is its agent's.
+//! - In an **agent**, the coordinator actor is the supervisor of the vehicles of this
+//!   computer: the carrier hands it what the active coordinator sends them
+//!   ([`DistributedMsg::ToLocalVehicle`]), taps what they answer
+//!   ([`DistributedMsg::TapUplink`]), reads their reports, and gives it the other
+//!   agents' vehicles as neighbours to keep separation from.
+
+use super::CoordinatorState;
+use super::proxy::VehicleProxy;
+use crate::events::SwarmEvent;
+use crate::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
+use crate::view::SwarmView;
+use ractor::RpcReplyPort;
+use skein_model::fsm::VehicleState;
+use skein_model::vehicle::VehicleSnapshot;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::{mpsc, watch};
+
+/// A vehicle of another process, as its carrier delivers it.
+pub struct RemoteVehicle {
+    /// Vehicle id (`"uav-3"`).
+    pub id: String,
+    /// Where its [`ToVehicle`] messages go.
+    pub port: Arc<dyn VehiclePort>,
+    /// Its snapshots, swarm frame of this process.
+    pub snapshots: watch::Receiver<VehicleSnapshot>,
+    /// Its reports, swarm frame of this process.
+    pub reports: watch::Receiver<VehicleReport>,
+    /// Who runs it (the agent's id), for the log and the join event.
+    pub agent: String,
+}
+
+/// Messages of the distributed roles (inside [`super::CoordinatorMsg::Distributed`]).
+pub enum DistributedMsg {
+    /// Coordinator: a vehicle of another process joins (ignored, and logged, when the id
+    /// is taken).
+    AddRemoteVehicle(RemoteVehicle),
+    /// Agent: a message for a vehicle of this process (dropped when it has no such
+    /// vehicle: the sample was for another agent's).
+    ToLocalVehicle(String, ToVehicle),
+    /// Agent: a copy of every [`FromVehicle`] of this process's vehicles goes here.
+    TapUplink(mpsc::UnboundedSender<FromVehicle>),
+    /// Agent: the latest report of every vehicle of this process, by id.
+    ListReports(RpcReplyPort<Vec<(String, VehicleReport)>>),
+    /// Agent: where a vehicle of another process is (its report, swarm frame of this
+    /// process), for the separation check of this process's vehicles.
+    Neighbour(String, VehicleReport),
+    /// The swarm view (its frame, for the carrier's frame conversions).
+    GetView(RpcReplyPort<Arc<SwarmView>>),
+}
+
+/// How far a neighbour's report is moved on by its age (as the coordinator's own).
+const NEIGHBOUR_EXTRAPOLATION: Duration = super::proxy::REPORT_EXTRAPOLATION;
+
+impl CoordinatorState {
+    pub(super) fn on_distributed(&mut self, msg: DistributedMsg) {
+        match msg {
+            DistributedMsg::AddRemoteVehicle(r) => self.add_remote(r),
+            DistributedMsg::ToLocalVehicle(id, msg) => {
+                if let Some(v) = self.vehicles.get(&id).filter(|v| v.local.is_some())
+                    && let Err(e) = v.send(msg)
+                {
+                    tracing::debug!("{id}: {e}");
+                }
+            }
+            DistributedMsg::TapUplink(tap) => self.uplink_tap = Some(tap),
+            DistributedMsg::ListReports(reply) => {
+                let reports = self
+                    .vehicles
+                    .iter()
+                    .filter(|(_, v)| v.local.is_some())
+                    .map(|(id, v)| (id.clone(), v.report()))
+                    .collect();
+                let _ = reply.send(reports);
+            }
+            DistributedMsg::Neighbour(id, r) => {
+                if self.vehicles.contains_key(&id) {
+                    return; // a vehicle of this process: it reports itself
+                }
+                let measured = r
+                    .position_now(NEIGHBOUR_EXTRAPOLATION)
+                    .map(|p| (p, r.velocity));
+                let setpoint = r.target.map(|t| (t, r.velocity));
+                self.view.set_position(
+                    &id,
+                    measured,
+                    setpoint,
+                    r.state == VehicleState::InFormation,
+                );
+            }
+            DistributedMsg::GetView(reply) => {
+                let _ = reply.send(self.view.clone());
+            }
+        }
+    }
+
+    fn add_remote(&mut self, r: RemoteVehicle) {
+        if self.vehicles.contains_key(&r.id) {
+            tracing::error!(
+                "{} of agent `{}` is not added: a vehicle of that id exists",
+                r.id,
+                r.agent
+            );
+            return;
+        }
+        let sysid = r.snapshots.borrow().sysid;
+        let connection = format!("dds:{}", r.agent);
+        self.vehicles.insert(
+            r.id.clone(),
+            VehicleProxy::remote(r.port, r.snapshots, r.reports),
+        );
+        self.metrics.vehicles.set(self.vehicles.len() as i64);
+        tracing::info!("{} joined (sysid {sysid}, agent `{}`)", r.id, r.agent);
+        self.emit(SwarmEvent::VehicleJoined {
+            id: r.id,
+            sysid,
+            connection,
+        });
+    }
+
+    /// Copies a local vehicle's message to the tap (an agent's carrier).
+    pub(super) fn tap(&self, msg: &FromVehicle) {
+        let id = match msg {
+            FromVehicle::CommandAck { id, .. }
+            | FromVehicle::StateChanged { id, .. }
+            | FromVehicle::PayloadResult { id, .. } => id,
+        };
+        if let Some(tap) = &self.uplink_tap
+            && self.vehicles.get(id).is_some_and(|v| v.local.is_some())
+        {
+            let _ = tap.send(msg.clone());
+        }
+    }
+}
