@@ -96,6 +96,11 @@ pub struct SimConfig {
     /// Distance between neighbouring spawn points on the grid, metres. The grid has
     /// `ceil(sqrt(n))` columns going east and rows going north from `home`.
     pub spacing_m: f64,
+    /// A fixed grid: this many columns, each vehicle at grid index `sysid - 1`, so that
+    /// simulators of several processes (`skein agent --first-sysid K`) never spawn two
+    /// vehicles on one point; `None` = the `ceil(sqrt(n))` grid in configuration order.
+    #[serde(default)]
+    pub grid_columns: Option<usize>,
     /// Seed of every random process (gusts, GPS noise); same seed + same inputs → same
     /// physics.
     pub seed: u64,
@@ -133,6 +138,7 @@ impl Default for SimConfig {
         SimConfig {
             home: PX4_SITL_HOME,
             spacing_m: 3.0,
+            grid_columns: None,
             seed: 0,
             wind: WindConfig::default(),
             gps_noise_m: 0.0,

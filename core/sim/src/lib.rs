@@ -106,10 +106,10 @@ impl std::fmt::Debug for Simulator {
     }
 }
 
-/// Spawn point of vehicle `index` on a grid around `home`: `ceil(sqrt(n))` columns east,
-/// rows north, `spacing_m` apart.
-fn spawn_point(home: GeoPoint, index: usize, n: usize, spacing_m: f64) -> GeoPoint {
-    let cols = (n as f64).sqrt().ceil().max(1.0) as usize;
+/// Spawn point of vehicle `index` on a grid around `home`: `cols` columns east, rows
+/// north, `spacing_m` apart.
+fn spawn_point(home: GeoPoint, index: usize, cols: usize, spacing_m: f64) -> GeoPoint {
+    let cols = cols.max(1);
     let row = index / cols;
     let col = index % cols;
     NedFrame::new(home).to_geo(Ned::new(
@@ -195,7 +195,11 @@ impl Simulator {
             std_socket.set_nonblocking(true)?;
             let socket = Arc::new(tokio::net::UdpSocket::from_std(std_socket)?);
             let bound = socket.local_addr()?;
-            let spawn = spawn_point(cfg.home, i, n, cfg.spacing_m);
+            let (index, cols) = match cfg.grid_columns {
+                Some(cols) => (usize::from(vc.sysid.max(1) - 1), cols),
+                None => (i, (n as f64).sqrt().ceil() as usize),
+            };
+            let spawn = spawn_point(cfg.home, index, cols, cfg.spacing_m);
             let vehicle = Vehicle::new(vc.sysid, spawn, env.clone(), now);
             let decode_stats = Arc::new(DecodeStats::default());
             let signing = signing::SimSigning::with_key(cfg.signing_key.clone());
@@ -534,9 +538,9 @@ mod tests {
     fn spawn_grid_is_spaced() {
         let home = PX4_SITL_HOME;
         let frame = NedFrame::new(home);
-        let p0 = frame.to_ned(&spawn_point(home, 0, 4, 5.0));
-        let p1 = frame.to_ned(&spawn_point(home, 1, 4, 5.0));
-        let p2 = frame.to_ned(&spawn_point(home, 2, 4, 5.0));
+        let p0 = frame.to_ned(&spawn_point(home, 0, 2, 5.0));
+        let p1 = frame.to_ned(&spawn_point(home, 1, 2, 5.0));
+        let p2 = frame.to_ned(&spawn_point(home, 2, 2, 5.0));
         assert!(p0.norm() < 1e-6);
         assert!((p1.east_m - 5.0).abs() < 1e-3 && p1.north_m.abs() < 1e-3);
         assert!((p2.north_m - 5.0).abs() < 1e-3 && p2.east_m.abs() < 1e-3);
