@@ -7,16 +7,22 @@
 //! - [`lease`]: the coordinator election on `/skein/coordinator` (`skein coordinator`);
 //! - [`convert`]: skein's NED swarm frame to the ENU of REP 103, commands back;
 //! - [`link`]: the supervised `DdsLink` service of `skein up --dds`;
+//! - [`protocol`]: the swarm protocol's carrier between coordinators and agents
+//!   (`/skein/swarm/*`), with [`remote`] (a coordinator's remote vehicles) and [`agent`]
+//!   (an agent's vehicles obeying the active coordinator);
 //! - [`probe`]: a listener of the pose topics (`skein bench dds`).
 //!
 //! The domain is `--domain-id`, else `ROS_DOMAIN_ID`, else 0 ([`domain_id_from_env`]).
 #![warn(missing_docs)]
 
+pub mod agent;
 pub mod convert;
 pub mod lease;
 pub mod link;
 pub mod msgs;
 pub mod probe;
+pub mod protocol;
+pub mod remote;
 pub mod topics;
 
 pub use link::{DdsConfig, DdsCounters, DdsError, DdsLink, DdsShared};

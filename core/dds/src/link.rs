@@ -13,9 +13,12 @@
 //!   `command_result` (a malformed sample is counted and dropped; a command the vehicle
 //!   state forbids is refused with the FSM's reason).
 
+use crate::agent::Agent;
 use crate::convert;
 use crate::lease::ElectionLink;
 use crate::msgs::{self, CommandResult, RosMessage};
+use crate::protocol::ProtocolTopics;
+use crate::remote::Remotes;
 use crate::topics;
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
 use ros2_client::builtin_interfaces::Time;
@@ -26,7 +29,9 @@ use skein_model::supervision::ChildKind;
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::election::ElectionStatus;
 use skein_swarm::metrics::Metrics;
-use skein_swarm::{CoordinatorMsg, ServiceMsg, ServiceSpec};
+use skein_swarm::protocol::VehicleReport;
+use skein_swarm::view::SwarmView;
+use skein_swarm::{CoordinatorMsg, DistributedMsg, ServiceMsg, ServiceSpec};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -53,8 +58,12 @@ pub struct DdsConfig {
     /// `127.0.0.1` alone keeps DDS on this host (unicast discovery over loopback).
     pub networks: Vec<std::net::IpAddr>,
     /// With `skein coordinator`: this process is a candidate in the coordinator election
-    /// on `/skein/coordinator` ([`crate::lease`]).
+    /// on `/skein/coordinator` ([`crate::lease`]), and steers the agents' vehicles
+    /// ([`crate::remote`]).
     pub candidate: Option<crate::lease::Candidate>,
+    /// With `skein agent`: this process's vehicles obey the active coordinator of the
+    /// domain ([`crate::agent`]).
+    pub agent: Option<crate::agent::AgentConfig>,
 }
 
 /// Counters of the DDS link (in `/metrics` as `skein_dds_samples{what="published"}` …).
@@ -96,6 +105,10 @@ pub struct DdsShared {
     tracks: Publisher<msgs::Tracks>,
     vehicles: Mutex<BTreeMap<String, Arc<VehicleTopics>>>,
     election: Option<ElectionLink>,
+    /// The swarm protocol topics, for a candidate or an agent.
+    protocol: Option<ProtocolTopics>,
+    agent: Option<Agent>,
+    remotes: Remotes,
     /// The link's counters.
     pub counters: DdsCounters,
 }
@@ -152,8 +165,20 @@ impl DdsShared {
             Some(c) => Some(ElectionLink::new(&mut node, c, events)?),
             None => None,
         };
+        let agent = match config.agent.clone() {
+            Some(a) => Some(Agent::new(&mut node, a)?),
+            None => None,
+        };
+        let protocol = if election.is_some() || agent.is_some() {
+            Some(ProtocolTopics::new(&mut node)?)
+        } else {
+            None
+        };
         Ok(Arc::new(DdsShared {
             election,
+            protocol,
+            agent,
+            remotes: Remotes::default(),
             config,
             coordinator,
             metrics,
@@ -168,6 +193,56 @@ impl DdsShared {
     /// The coordinator election's status, when this process is a candidate.
     pub fn election(&self) -> Option<tokio::sync::watch::Receiver<ElectionStatus>> {
         self.election.as_ref().map(ElectionLink::subscribe)
+    }
+
+    /// The agent's carrier state, with `skein agent`.
+    pub fn agent(&self) -> Option<&Agent> {
+        self.agent.as_ref()
+    }
+
+    /// The swarm protocol topics (a candidate or an agent).
+    pub(crate) fn protocol(&self) -> Option<&ProtocolTopics> {
+        self.protocol.as_ref()
+    }
+
+    /// The vehicles of other processes this coordinator steers.
+    pub(crate) fn remotes(&self) -> &Remotes {
+        &self.remotes
+    }
+
+    /// The coordinator actor of this process.
+    pub(crate) fn coordinator(&self) -> &ActorRef<CoordinatorMsg> {
+        &self.coordinator
+    }
+
+    /// The coordinator's swarm view (`None` if it does not answer).
+    pub(crate) async fn view(&self) -> Option<Arc<SwarmView>> {
+        match self
+            .coordinator
+            .call(
+                |r| CoordinatorMsg::Distributed(DistributedMsg::GetView(r)),
+                Some(COORDINATOR_TIMEOUT),
+            )
+            .await
+        {
+            Ok(ractor::rpc::CallResult::Success(v)) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// The latest report of every vehicle of this process.
+    pub(crate) async fn local_reports(&self) -> Option<Vec<(String, VehicleReport)>> {
+        match self
+            .coordinator
+            .call(
+                |r| CoordinatorMsg::Distributed(DistributedMsg::ListReports(r)),
+                Some(COORDINATOR_TIMEOUT),
+            )
+            .await
+        {
+            Ok(ractor::rpc::CallResult::Success(v)) => Some(v),
+            _ => None,
+        }
     }
 
     /// The service the coordinator starts and supervises as `coordinator/dds`.
@@ -238,11 +313,18 @@ impl DdsShared {
     /// Copies the counters into `/metrics` (`skein_dds_samples{what=...}`).
     fn export_counters(&self) {
         let c = &self.counters;
+        let zero = AtomicU64::new(0);
+        let (obeyed, refused) = match &self.agent {
+            Some(a) => (&a.counters.obeyed, &a.counters.refused),
+            None => (&zero, &zero),
+        };
         for (what, n) in [
             ("published", &c.published),
             ("publish_errors", &c.publish_errors),
             ("commands", &c.commands),
             ("malformed", &c.malformed),
+            ("protocol_obeyed", obeyed),
+            ("protocol_refused", refused),
         ] {
             self.metrics
                 .dds_samples
@@ -251,7 +333,8 @@ impl DdsShared {
         }
     }
 
-    fn count<M>(&self, r: Result<(), M>) {
+    /// Counts a write as published or failed.
+    pub(crate) fn count<M>(&self, r: Result<(), M>) {
         let c = match r {
             Ok(()) => &self.counters.published,
             Err(_) => &self.counters.publish_errors,
@@ -274,7 +357,7 @@ impl DdsShared {
         self.count(t.state.publish(convert::state(v, now)));
     }
 
-    async fn list_vehicles(&self) -> Option<Vec<VehicleSnapshot>> {
+    pub(crate) async fn list_vehicles(&self) -> Option<Vec<VehicleSnapshot>> {
         match self
             .coordinator
             .call(CoordinatorMsg::ListVehicles, Some(COORDINATOR_TIMEOUT))
@@ -403,7 +486,8 @@ impl DdsLink {
             let Some(vehicles) = shared.list_vehicles().await else {
                 continue;
             };
-            for v in &vehicles {
+            // Another process's vehicle is published by its agent.
+            for v in vehicles.iter().filter(|v| !shared.remotes.contains(&v.id)) {
                 let topics = match shared.vehicle(&v.id) {
                     Ok(t) => t,
                     Err(e) => {
@@ -450,6 +534,8 @@ impl Actor for DdsLink {
                 e.run(&s.counters).await;
             }
         });
+        tasks.spawn(crate::agent::run(shared.clone()));
+        tasks.spawn(crate::remote::run(shared.clone()));
         tasks.spawn(Self::run(shared));
         Ok(DdsLinkState { tasks })
     }

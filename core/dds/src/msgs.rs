@@ -7,7 +7,7 @@
 //!   `sensor_msgs/{NavSatStatus, NavSatFix, BatteryState}` (Jazzy definitions).
 //! - skein's own messages (`skein_msgs/*`), defined by the `.msg` files in
 //!   `core/dds/msg/`: [`VehicleState`], [`Command`], [`CommandResult`], [`Track`],
-//!   [`Tracks`]. A field added there is added here at the same place.
+//!   [`Tracks`], [`CoordinatorLease`], [`SwarmMessage`]. A field added there is added here at the same place.
 //!
 //! Fixed-size arrays (`float64[9]`) are Rust arrays (CDR writes no length); sequences
 //! (`float32[]`, `Track[]`) are `Vec`s (CDR writes a `u32` length first).
@@ -291,4 +291,30 @@ pub struct CoordinatorLease {
 
 impl RosMessage for CoordinatorLease {
     const TYPE: (&'static str, &'static str) = ("skein_msgs", "CoordinatorLease");
+}
+
+/// `skein_msgs/SwarmMessage` (`msg/SwarmMessage.msg`): one swarm-protocol message between
+/// a coordinator and an agent on `/skein/swarm/*` (see [`crate::protocol`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SwarmMessage {
+    /// When it was sent; frame [`crate::FRAME_ID`].
+    pub header: Header,
+    /// The vehicle it is about.
+    pub vehicle_id: String,
+    /// The agent's or the coordinator's id.
+    pub sender_id: String,
+    /// Coordinator to agent: the sender's epoch; agent to coordinator: 0.
+    pub epoch: u64,
+    /// The sender's swarm origin, latitude, degrees (NaN: not anchored yet).
+    pub origin_lat_deg: f64,
+    /// The sender's swarm origin, longitude, degrees.
+    pub origin_lon_deg: f64,
+    /// The sender's swarm origin, metres above mean sea level.
+    pub origin_alt_m: f64,
+    /// The `skein_swarm::protocol` message, JSON.
+    pub body: String,
+}
+
+impl RosMessage for SwarmMessage {
+    const TYPE: (&'static str, &'static str) = ("skein_msgs", "SwarmMessage");
 }

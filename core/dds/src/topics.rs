@@ -10,6 +10,10 @@
 //! | `/skein/<vehicle>/command_result` | `skein_msgs/CommandResult` | reliable, volatile, keep-last 16 | per command |
 //! | `/skein/tracks` | `skein_msgs/Tracks` | reliable, volatile, keep-last 1 | publish rate / 2 |
 //! | `/skein/coordinator` | `skein_msgs/CoordinatorLease` | best-effort, volatile, keep-last 32 | 5 Hz per candidate |
+//! | `/skein/swarm/report` | `skein_msgs/SwarmMessage` | best-effort, volatile, keep-last 64 | 20 Hz per agent vehicle |
+//! | `/skein/swarm/target` | `skein_msgs/SwarmMessage` | best-effort, volatile, keep-last 64 | formation rate per member |
+//! | `/skein/swarm/command` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | on demand |
+//! | `/skein/swarm/command_result` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | per command, state change |
 //!
 //! Poses are sensor data (REP 2003): a lost sample is replaced by the next one, so
 //! retransmitting it only delays the newer. State is reliable keep-last 1: a reader
@@ -19,6 +23,13 @@
 //! would only make a dead candidate look alive longer; every candidate writes the one
 //! topic, so readers keep 32 samples, not 1 (a keyless topic has one instance, and depth 1
 //! would keep only the last writer's).
+//!
+//! The `/skein/swarm/*` topics carry the swarm protocol between coordinators and agents
+//! ([`crate::protocol`]). They are swarm-wide, the vehicle named in each sample, so that a
+//! coordinator finds every agent's vehicles on one topic; each has many writers, hence
+//! depth 64. Reports and targets are like poses (the next one replaces a lost one: a
+//! target carries its time and velocity, the agent moves it on by its age); commands and
+//! their results are reliable, so none is lost or merged.
 //!
 //! Names: a ROS 2 name holds letters, digits and underscores only, so a vehicle id is
 //! written with every other character as `_` ([`ros_name`]): `uav-1` publishes on
@@ -83,6 +94,22 @@ pub fn leases() -> QosProfile {
         .reliability_best_effort()
         .durability(Durability::Volatile)
         .history(History::KeepLast { depth: 32 })
+}
+
+/// Swarm-protocol reports and targets: best-effort, volatile, keep-last 64.
+pub fn protocol_stream() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_best_effort()
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 64 })
+}
+
+/// Swarm-protocol commands and their results: reliable, volatile, keep-last 64.
+pub fn protocol_commands() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Wait(std::time::Duration::from_millis(20)))
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 64 })
 }
 
 /// Commands and their results: reliable, volatile, keep-last 16.

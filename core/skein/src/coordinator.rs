@@ -75,7 +75,7 @@ pub async fn coordinator(args: CoordinatorArgs) -> Result<ExitCode, String> {
 }
 
 /// The host's name (`/proc/sys/kernel/hostname`), `skein` if unreadable.
-fn hostname() -> String {
+pub(crate) fn hostname() -> String {
     std::fs::read_to_string("/proc/sys/kernel/hostname")
         .map(|s| s.trim().to_string())
         .ok()

@@ -7,6 +7,8 @@
 //! - `skein coordinator --priority P`: a coordinator candidate with no vehicles of its
 //!   own (API, dashboard, DDS); the live candidate of highest priority is active, the
 //!   others stand by (see [`coordinator`]).
+//! - `skein agent --sim N --first-sysid K`: the vehicles of this computer, steered over
+//!   DDS by the active coordinator (see [`agent`]).
 //! - `skein sim --vehicles N`: the simulator alone, for any MAVLink client.
 //! - `skein fault --target PATH --kind panic|hang|stop|error`: inject a fault through the
 //!   API of a running `skein up --enable-fault-injection`.
@@ -21,6 +23,7 @@
 //!   to over a Unix socket (see `skein_plugin_host`).
 #![warn(missing_docs)]
 
+mod agent;
 mod bench;
 mod config;
 mod coordinator;
@@ -55,6 +58,9 @@ enum Commands {
     /// A coordinator candidate with no vehicles of its own: API, dashboard, DDS, and the
     /// election (`--priority P`; the live candidate with the highest is active).
     Coordinator(coordinator::CoordinatorArgs),
+    /// The vehicles of this computer, steered over DDS by the active coordinator
+    /// (`--sim N --first-sysid K` simulates vehicles K..K+N-1).
+    Agent(agent::AgentArgs),
     /// Run the PX4 SITL-like simulator alone (instance i: sysid i+1, binds 14580+i, sends to 14540+i).
     Sim(skein_sim::cli::SimArgs),
     /// Benchmarks printing one JSON object (`skein bench swarm --vehicles N --rate-hz 50 --seconds S`).
@@ -161,6 +167,7 @@ fn main() -> ExitCode {
         match cli.command {
             Commands::Up(args) => up::up(args).await,
             Commands::Coordinator(args) => coordinator::coordinator(args).await,
+            Commands::Agent(args) => agent::agent(args).await,
             Commands::Sim(args) => skein_sim::cli::run(args)
                 .await
                 .map(|()| ExitCode::SUCCESS)

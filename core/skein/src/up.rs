@@ -19,7 +19,7 @@ use std::time::Duration;
 pub struct UpArgs {
     /// Simulate this many vehicles in-process.
     #[arg(long, value_name = "N")]
-    sim: Option<usize>,
+    pub(crate) sim: Option<usize>,
     /// Configuration file (TOML) with real vehicles and swarm settings.
     #[arg(long, value_name = "FILE")]
     pub(crate) config: Option<PathBuf>,
@@ -29,10 +29,10 @@ pub struct UpArgs {
     /// With --sim: links listen on PORT+i and simulated vehicle i binds PORT+40+i (the
     /// PX4 SITL layout for 14540); 0 = free ports for both.
     #[arg(long, value_name = "PORT", default_value_t = 14540)]
-    sim_base_port: u16,
+    pub(crate) sim_base_port: u16,
     /// With --sim: seed of the simulator's random processes.
     #[arg(long, default_value_t = 0)]
-    sim_seed: u64,
+    pub(crate) sim_seed: u64,
     /// With --sim: the vehicle model of every simulated vehicle (default: a mix, the
     /// even-numbered vehicles uav-2, uav-4, … `observation`, the others `generic`).
     #[arg(long, value_name = "MODEL")]
@@ -41,11 +41,11 @@ pub struct UpArgs {
     /// `[plugins] dir`; default: the directory holding the skein executable, where
     /// `cargo build --release` puts the plugins).
     #[arg(long, value_name = "DIR")]
-    plugin_dir: Option<PathBuf>,
+    pub(crate) plugin_dir: Option<PathBuf>,
     /// With --sim: open the simulator's stats socket here (one JSON line per command:
     /// stats, reset, silence SYSID MS, reboot SYSID); port 0 picks one, printed at start.
     #[arg(long, value_name = "ADDR:PORT")]
-    sim_stats: Option<SocketAddr>,
+    pub(crate) sim_stats: Option<SocketAddr>,
     /// Accept POST /api/v1/faults (make actors panic, hang, stop or fail on purpose).
     #[arg(long)]
     enable_fault_injection: bool,
@@ -89,6 +89,10 @@ pub struct UpArgs {
     /// election (no vehicles of its own; DDS on).
     #[arg(skip)]
     pub(crate) candidate: Option<crate::coordinator::CandidateArgs>,
+    /// Set by `skein agent`: this process's vehicles obey the active coordinator over DDS
+    /// (DDS on; simulated sysids from its first one).
+    #[arg(skip)]
+    pub(crate) agent: Option<crate::agent::AgentRole>,
 }
 
 pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
@@ -120,7 +124,9 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
     };
     let real = endpoints.len();
     let n_sim = args.sim.unwrap_or(0);
-    if n_sim > 255 {
+    // Simulated vehicle i has sysid `first + i`, its ports offset by `first - 1 + i`.
+    let first = usize::from(args.agent.as_ref().map_or(1, |a| a.first_sysid));
+    if n_sim + first > 256 {
         return Err(format!(
             "--sim {n_sim}: at most 255 simulated vehicles (MAVLink system ids)"
         ));
@@ -151,14 +157,14 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
     }
     for i in 0..n_sim {
         endpoints.push(EndpointSpec {
-            connection: ConnectionAddress::UdpIn(SocketAddr::new(localhost, port(i)?)),
+            connection: ConnectionAddress::UdpIn(SocketAddr::new(localhost, port(first - 1 + i)?)),
             vehicles: vec![VehicleSpec {
                 id: None,
-                sysid: Some((i + 1) as u8),
+                sysid: Some((first + i) as u8),
                 model: Some(
                     args.sim_model
                         .clone()
-                        .unwrap_or_else(|| sim_mix_model(i + 1).to_string()),
+                        .unwrap_or_else(|| sim_mix_model(first + i).to_string()),
                 ),
                 signing: sim_key
                     .clone()
@@ -243,14 +249,18 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
                     .local_addr()
                     .expect("udp endpoint has an address");
                 Ok(skein_sim::SimVehicleConfig {
-                    sysid: (i + 1) as u8,
-                    bind: SocketAddr::new(localhost, port(40 + i)?),
+                    sysid: (first + i) as u8,
+                    bind: SocketAddr::new(localhost, port(40 + first - 1 + i)?),
                     target,
                 })
             })
             .collect::<Result<Vec<_>, String>>()?;
         let mut cfg = skein_sim::SimConfig::with_vehicles(vehicles);
         cfg.seed = args.sim_seed;
+        if args.agent.is_some() {
+            // Agents on one machine lay their vehicles out by sysid on one grid.
+            cfg.grid_columns = Some(AGENT_GRID_COLUMNS);
+        }
         if let Some(key) = sim_key {
             cfg.signing_key = Some(key);
             cfg.params.push(("MAV_SIGN_CFG".into(), 2.0));
@@ -364,6 +374,17 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
                 c.id, c.priority
             );
         }
+        if let Some(a) = &args.agent {
+            let c = &a.config;
+            println!(
+                "skein: agent `{}`: obeys the active coordinator; without one for {:.1} s it \
+                 holds, then after {:.1} s more: {:?}",
+                c.agent_id,
+                c.coordinator_timeout.as_secs_f64(),
+                c.lost_action_after.as_secs_f64(),
+                c.lost_action
+            );
+        }
     }
     spawn_process_watchdog(
         swarm.coordinator.clone(),
@@ -436,7 +457,7 @@ fn dds_config(
     api_scheme: &str,
     api_local: SocketAddr,
 ) -> Result<Option<skein_dds::DdsConfig>, String> {
-    if !(args.dds || file.dds.enabled || args.candidate.is_some()) {
+    if !(args.dds || file.dds.enabled || args.candidate.is_some() || args.agent.is_some()) {
         if args.domain_id.is_some() || args.dds_commands || !args.dds_network.is_empty() {
             return Err("--domain-id, --dds-commands and --dds-network go with --dds".into());
         }
@@ -461,10 +482,12 @@ fn dds_config(
     };
     Ok(Some(skein_dds::DdsConfig {
         domain_id,
-        node_name: match &args.candidate {
-            Some(_) => format!("skein_coordinator_{}", std::process::id()),
-            None => format!("skein_up_{}", std::process::id()),
+        node_name: match (&args.candidate, &args.agent) {
+            (Some(_), _) => format!("skein_coordinator_{}", std::process::id()),
+            (None, Some(_)) => format!("skein_agent_{}", std::process::id()),
+            (None, None) => format!("skein_up_{}", std::process::id()),
         },
+        agent: args.agent.as_ref().map(|a| a.config.clone()),
         candidate: args
             .candidate
             .as_ref()
@@ -479,6 +502,10 @@ fn dds_config(
         networks,
     }))
 }
+
+/// Columns of the spawn grid of agents' simulated vehicles (index `sysid - 1`), so that
+/// agents on one machine never spawn two vehicles on one point.
+const AGENT_GRID_COLUMNS: usize = 4;
 
 /// The model of simulated vehicle `sysid` when `--sim-model` is not given: every other
 /// vehicle (the even sysids: uav-2, uav-4, …) is an `observation` UAV (gimbal and camera),

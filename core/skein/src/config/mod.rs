@@ -223,6 +223,19 @@ pub struct DdsSection {
     pub networks: Vec<std::net::IpAddr>,
 }
 
+/// `[agent]`: what `skein agent` does without a coordinator (`skein_dds::agent`).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AgentSection {
+    /// No coordinator heard for this long: the agent's vehicles hold (default 1.5 s).
+    pub coordinator_timeout_s: Option<f64>,
+    /// `hold` | `land` | `rtl`: what they do after `coordinator_lost_action_s` more
+    /// (default `hold`).
+    pub coordinator_lost_action: Option<String>,
+    /// Seconds of holding before the lost action (default 30).
+    pub coordinator_lost_action_s: Option<f64>,
+}
+
 /// The whole file.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -248,6 +261,9 @@ pub struct ConfigFile {
     /// `[dds]`.
     #[serde(default)]
     pub dds: DdsSection,
+    /// `[agent]`.
+    #[serde(default)]
+    pub agent: AgentSection,
     /// `[supervision]`.
     pub supervision: Option<skein_swarm::supervision::SupervisionConfig>,
     /// `[hazards]`.

@@ -1,0 +1,188 @@
+//! The coordinator's side of the swarm protocol on DDS (`skein coordinator`): the agents'
+//! vehicles as remote proxies.
+//!
+//! A vehicle joins when its first report arrives on `/skein/swarm/report`: the carrier
+//! gives the coordinator a [`RemoteVehicle`] whose port publishes on
+//! `/skein/swarm/target` and `/skein/swarm/command` with this candidate's id and epoch
+//! (a standby's port refuses: only the active coordinator steers), and whose snapshots
+//! and reports follow the agent's, converted into this process's swarm frame. What the
+//! vehicles answer on `/skein/swarm/command_result` goes to the coordinator's mailbox as
+//! from a local vehicle. The watch channels live in [`Remotes`], outside the `DdsLink`
+//! actor, so a restart of `coordinator/dds` keeps every proxy working.
+
+use crate::link::DdsShared;
+use crate::protocol::{Envelope, Reframe, ReportBody, reframed};
+use skein_model::vehicle::VehicleSnapshot;
+use skein_swarm::election::{CoordinatorRole, ElectionStatus};
+use skein_swarm::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
+use skein_swarm::view::SwarmView;
+use skein_swarm::{CoordinatorMsg, DistributedMsg, RemoteVehicle};
+use std::collections::BTreeMap;
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex, PoisonError, Weak};
+use tokio::sync::watch;
+
+/// One remote vehicle's channels.
+struct Channels {
+    snapshots: watch::Sender<VehicleSnapshot>,
+    reports: watch::Sender<VehicleReport>,
+}
+
+/// The remote vehicles this coordinator has heard, by id.
+#[derive(Default)]
+pub struct Remotes {
+    vehicles: Mutex<BTreeMap<String, Channels>>,
+}
+
+impl Remotes {
+    /// True for a vehicle of another process.
+    pub fn contains(&self, id: &str) -> bool {
+        self.vehicles
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .contains_key(id)
+    }
+}
+
+/// The port of one remote vehicle: publishes on the protocol topics while this candidate
+/// is active.
+struct DdsPort {
+    shared: Weak<DdsShared>,
+    vehicle_id: String,
+    election: watch::Receiver<ElectionStatus>,
+    view: Arc<SwarmView>,
+}
+
+impl VehiclePort for DdsPort {
+    fn send(&self, msg: ToVehicle) -> Result<(), String> {
+        let shared = self.shared.upgrade().ok_or("the DDS link has stopped")?;
+        let topics = shared.protocol().ok_or("no swarm protocol topics")?;
+        let (id, epoch) = {
+            let status = self.election.borrow();
+            if status.role != CoordinatorRole::Active {
+                return Err(format!(
+                    "this coordinator is a standby (active: {})",
+                    status
+                        .active
+                        .as_ref()
+                        .map_or("none", |a| a.coordinator_id.as_str())
+                ));
+            }
+            (status.this.coordinator_id.clone(), status.this.epoch)
+        };
+        let topic = topics.to_vehicle_topic(&msg);
+        let m = Envelope::message(&self.vehicle_id, &id, epoch, self.view.frame(), &msg)
+            .map_err(|e| e.to_string())?;
+        let r = topic.writer.publish(m);
+        let failed = r.is_err();
+        shared.count(r);
+        if failed {
+            return Err(format!("DDS write to {} failed", self.vehicle_id));
+        }
+        Ok(())
+    }
+}
+
+/// Runs the coordinator's carrier until the task is aborted (see the module docs).
+pub(crate) async fn run(shared: Arc<DdsShared>) {
+    let (Some(topics), Some(election)) = (shared.protocol(), shared.election()) else {
+        return;
+    };
+    let Some(view) = shared.view().await else {
+        tracing::error!("dds: the coordinator did not answer: no remote vehicles");
+        return;
+    };
+    let s = shared.clone();
+    let results = topics.command_result.reader.clone();
+    let answers = tokio::spawn(async move {
+        loop {
+            let env = match results.async_take().await {
+                Ok((m, _)) => Envelope::from_msg(m),
+                Err(e) => {
+                    s.counters.malformed.fetch_add(1, Ordering::Relaxed);
+                    tracing::warn!("dds: a command result sample was dropped: {e:?}");
+                    continue;
+                }
+            };
+            if !s.remotes().contains(&env.vehicle_id) {
+                continue;
+            }
+            match env.body::<FromVehicle>() {
+                Ok(msg) => {
+                    let _ = s.coordinator().cast(CoordinatorMsg::FromVehicle(msg));
+                }
+                Err(e) => {
+                    s.counters.malformed.fetch_add(1, Ordering::Relaxed);
+                    tracing::warn!("dds: an answer of {} was dropped: {e}", env.vehicle_id);
+                }
+            }
+        }
+    });
+    // Aborted with this task.
+    let _answers = AbortOnDrop(answers);
+    loop {
+        let env = match topics.report.reader.async_take().await {
+            Ok((m, _)) => Envelope::from_msg(m),
+            Err(e) => {
+                shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
+                tracing::warn!("dds: a report sample was dropped: {e:?}");
+                continue;
+            }
+        };
+        let body: ReportBody = match env.body() {
+            Ok(b) => b,
+            Err(e) => {
+                shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
+                tracing::warn!("dds: a report of {} was dropped: {e}", env.vehicle_id);
+                continue;
+            }
+        };
+        let frame = match (view.frame(), env.origin) {
+            (Some(f), _) => Some(f),
+            // A coordinator without vehicles of its own: the first agent's origin.
+            (None, Some(o)) => Some(view.anchor(o)),
+            (None, None) => None,
+        };
+        let reframe = frame.and_then(|f| Reframe::new(env.origin, f));
+        let report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));
+        let snapshot = reframed(body.snapshot, reframe.as_ref(), |r, x| r.snapshot(x));
+        let mut map = shared
+            .remotes()
+            .vehicles
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        if let Some(c) = map.get(&env.vehicle_id) {
+            c.snapshots.send_replace(snapshot);
+            c.reports.send_replace(report);
+            continue;
+        }
+        let (snapshots, snapshots_rx) = watch::channel(snapshot);
+        let (reports, reports_rx) = watch::channel(report);
+        map.insert(env.vehicle_id.clone(), Channels { snapshots, reports });
+        drop(map);
+        let port = DdsPort {
+            shared: Arc::downgrade(&shared),
+            vehicle_id: env.vehicle_id.clone(),
+            election: election.clone(),
+            view: view.clone(),
+        };
+        let _ = shared.coordinator().cast(CoordinatorMsg::Distributed(
+            DistributedMsg::AddRemoteVehicle(RemoteVehicle {
+                id: env.vehicle_id,
+                port: Arc::new(port),
+                snapshots: snapshots_rx,
+                reports: reports_rx,
+                agent: env.sender_id,
+            }),
+        ));
+    }
+}
+
+/// Aborts a task when dropped.
+struct AbortOnDrop(tokio::task::JoinHandle<()>);
+
+impl Drop for AbortOnDrop {
+    fn drop(&mut self) {
+        self.0.abort();
+    }
+}

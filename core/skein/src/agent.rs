@@ -1,0 +1,151 @@
+//! `skein agent`: the vehicles wired to this computer (their PX4 links, FSMs, control
+//! loops, setpoint streams and payloads, kept separated from the neighbours heard on
+//! DDS), steered over DDS by the active coordinator of the domain (`skein coordinator`,
+//! see `skein_dds::agent`). Several agents may share a machine: `--sim N --first-sysid K`
+//! simulates vehicles K to K+N-1, laid out on a grid by sysid.
+//!
+//! The agent's own API listens on loopback only (`127.0.0.1`, a free port, printed at
+//! start): it is for looking at this computer's vehicles; the swarm is flown through the
+//! active coordinator's API.
+
+use crate::config::ConfigFile;
+use crate::up::{UpArgs, up};
+use clap::{Args, FromArgMatches};
+use skein_dds::agent::{AgentConfig, LostAction};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+/// Command line of `skein agent`.
+#[derive(Args, Debug)]
+pub struct AgentArgs {
+    /// Simulate this many vehicles in-process (sysids from --first-sysid).
+    #[arg(long, value_name = "N")]
+    sim: Option<usize>,
+    /// With --sim: the first simulated vehicle's MAVLink system id (its id `uav-K`).
+    #[arg(long, value_name = "K", default_value_t = 1,
+          value_parser = clap::value_parser!(u8).range(1..))]
+    first_sysid: u8,
+    /// With --sim: links listen on PORT+sysid-1, simulated vehicles bind PORT+40+sysid-1;
+    /// 0 = free ports.
+    #[arg(long, value_name = "PORT", default_value_t = 14540)]
+    sim_base_port: u16,
+    /// With --sim: seed of the simulator's random processes.
+    #[arg(long, default_value_t = 0)]
+    sim_seed: u64,
+    /// With --sim: the simulator's stats socket (as `skein up --sim-stats`).
+    #[arg(long, value_name = "ADDR:PORT")]
+    sim_stats: Option<SocketAddr>,
+    /// Configuration file (TOML): `[[vehicles]]`, `[agent]`, `[dds]`, swarm settings.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Id on the swarm protocol topics (default `<hostname>-<pid>`).
+    #[arg(long, value_name = "ID")]
+    id: Option<String>,
+    /// The DDS domain, 0 to 232 (default `[dds] domain_id`, else `ROS_DOMAIN_ID`, else 0).
+    #[arg(long, value_name = "D", value_parser = skein_dds::parse_domain_id)]
+    domain_id: Option<u16>,
+    /// Use only the interface with this local address for DDS (repeatable).
+    #[arg(long, value_name = "ADDR")]
+    dds_network: Vec<IpAddr>,
+    /// No coordinator heard for this long: hold (default `[agent] coordinator_timeout_s`,
+    /// else 1.5).
+    #[arg(long, value_name = "S")]
+    coordinator_timeout_s: Option<f64>,
+    /// What to do after holding for --coordinator-lost-action-s: hold, land or rtl
+    /// (default `[agent] coordinator_lost_action`, else hold).
+    #[arg(long, value_name = "ACTION")]
+    coordinator_lost_action: Option<String>,
+    /// Seconds of holding before the lost action (default `[agent]
+    /// coordinator_lost_action_s`, else 30).
+    #[arg(long, value_name = "S")]
+    coordinator_lost_action_s: Option<f64>,
+    /// Plugin directory (as `skein up --plugin-dir`).
+    #[arg(long, value_name = "DIR")]
+    plugin_dir: Option<PathBuf>,
+}
+
+/// What `skein up` needs to run as an agent.
+#[derive(Debug, Clone)]
+pub struct AgentRole {
+    /// The first simulated vehicle's sysid.
+    pub first_sysid: u8,
+    /// The carrier's settings.
+    pub config: AgentConfig,
+}
+
+/// Runs an agent until a signal or its coordinator actor's failure.
+///
+/// # Errors
+/// A bad config or option (named), a port in use, DDS that cannot start.
+pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
+    let id = match args.id {
+        Some(id) if id.trim().is_empty() => return Err("--id: empty".into()),
+        Some(id) => id,
+        None => format!("{}-{}", crate::coordinator::hostname(), std::process::id()),
+    };
+    let file = match &args.config {
+        Some(path) => ConfigFile::load(path)?,
+        None => ConfigFile::default(),
+    };
+    let mut config = AgentConfig::new(id);
+    let seconds = |what: &str, v: Option<f64>| -> Result<Option<Duration>, String> {
+        match v {
+            None => Ok(None),
+            Some(s) if s.is_finite() && s > 0.0 && s <= 3600.0 => {
+                Ok(Some(Duration::from_secs_f64(s)))
+            }
+            Some(s) => Err(format!("{what}: {s} is not a time in (0, 3600] seconds")),
+        }
+    };
+    if let Some(d) = seconds(
+        "coordinator_timeout_s",
+        args.coordinator_timeout_s
+            .or(file.agent.coordinator_timeout_s),
+    )? {
+        config.coordinator_timeout = d;
+    }
+    if let Some(d) = seconds(
+        "coordinator_lost_action_s",
+        args.coordinator_lost_action_s
+            .or(file.agent.coordinator_lost_action_s),
+    )? {
+        config.lost_action_after = d;
+    }
+    if let Some(a) = args
+        .coordinator_lost_action
+        .or(file.agent.coordinator_lost_action.clone())
+    {
+        config.lost_action = a
+            .parse::<LostAction>()
+            .map_err(|e| format!("coordinator_lost_action: {e}"))?;
+    }
+    if let Some(n) = args.sim
+        && usize::from(args.first_sysid) + n > 256
+    {
+        return Err(format!(
+            "--sim {n} --first-sysid {}: system ids run past 255",
+            args.first_sysid
+        ));
+    }
+    // `skein up`'s options at their defaults, then this role's.
+    let matches = UpArgs::augment_args(clap::Command::new("up"))
+        .try_get_matches_from(["up"])
+        .map_err(|e| e.to_string())?;
+    let mut up_args = UpArgs::from_arg_matches(&matches).map_err(|e| e.to_string())?;
+    up_args.sim = args.sim;
+    up_args.sim_base_port = args.sim_base_port;
+    up_args.sim_seed = args.sim_seed;
+    up_args.sim_stats = args.sim_stats;
+    up_args.config = args.config;
+    up_args.plugin_dir = args.plugin_dir;
+    up_args.http = Some(SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0));
+    up_args.domain_id = args.domain_id;
+    up_args.dds_network = args.dds_network;
+    up_args.agent = Some(AgentRole {
+        first_sysid: args.first_sysid,
+        config,
+    });
+    up(up_args).await
+}
