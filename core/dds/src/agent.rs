@@ -20,7 +20,7 @@
 
 use crate::link::{DdsError, DdsShared, err};
 use crate::msgs::{self, RosMessage};
-use crate::protocol::{Envelope, Reframe, ReportBody, reframed};
+use crate::protocol::{Envelope, Reframe, ReportBody, body_or_drop, into_view, receive, reframed};
 use crate::topics;
 use ros2_client::{Name, Node, Subscription};
 use skein_model::fsm::VehicleState;
@@ -340,28 +340,12 @@ async fn obey(shared: &DdsShared, view: &SwarmView, reader: &Subscription<msgs::
         return;
     };
     loop {
-        let env = match reader.async_take().await {
-            Ok((m, _)) => Envelope::from_msg(m),
-            Err(e) => {
-                shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                tracing::warn!("dds: a swarm protocol sample was dropped: {e:?}");
-                continue;
-            }
-        };
+        let env = receive(shared, reader, "swarm protocol").await;
         if !agent.is_local(&env.vehicle_id) {
             continue; // another agent's vehicle
         }
-        let msg: ToVehicle = match env.body() {
-            Ok(m) => m,
-            Err(e) => {
-                shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                tracing::warn!(
-                    "dds: a message for {} from `{}` was dropped: {e}",
-                    env.vehicle_id,
-                    env.sender_id
-                );
-                continue;
-            }
+        let Some(msg) = body_or_drop::<ToVehicle>(shared, &env, "message") else {
+            continue;
         };
         agent.drain_leases(shared);
         let verdict = agent
@@ -379,12 +363,7 @@ async fn obey(shared: &DdsShared, view: &SwarmView, reader: &Subscription<msgs::
             );
             continue;
         }
-        let frame = match (view.frame(), env.origin) {
-            (Some(f), _) => Some(f),
-            (None, Some(o)) => Some(view.anchor(o)),
-            (None, None) => None,
-        };
-        let reframe = frame.and_then(|f| Reframe::new(env.origin, f));
+        let reframe = into_view(view, env.origin);
         let msg = reframed(msg, reframe.as_ref(), |r, m| r.to_vehicle(m));
         agent.counters.obeyed.fetch_add(1, Ordering::Relaxed);
         let _ =
@@ -403,27 +382,15 @@ async fn neighbours(shared: &DdsShared, view: &SwarmView) {
         return;
     };
     loop {
-        let env = match topics.report.reader.async_take().await {
-            Ok((m, _)) => Envelope::from_msg(m),
-            Err(e) => {
-                shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                tracing::warn!("dds: a report sample was dropped: {e:?}");
-                continue;
-            }
-        };
+        let env = receive(shared, &topics.report.reader, "report").await;
         if env.sender_id == agent.config.agent_id || agent.is_local(&env.vehicle_id) {
             continue;
         }
         let Some(frame) = view.frame() else {
             continue; // no own frame yet: nothing of ours flies
         };
-        let body: ReportBody = match env.body() {
-            Ok(b) => b,
-            Err(e) => {
-                shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                tracing::warn!("dds: a report of {} was dropped: {e}", env.vehicle_id);
-                continue;
-            }
+        let Some(body) = body_or_drop::<ReportBody>(shared, &env, "report") else {
+            continue;
         };
         let reframe = Reframe::new(env.origin, frame);
         let report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));

@@ -11,7 +11,7 @@
 //! over the distance between origins (10⁻⁵ rad for a kilometre), far below a velocity's
 //! noise.
 
-use crate::link::{DdsError, err};
+use crate::link::{DdsError, DdsShared, err};
 use crate::msgs::{Header, RosMessage, SwarmMessage};
 use crate::topics;
 use ros2_client::builtin_interfaces::Time;
@@ -20,7 +20,9 @@ use serde::{Deserialize, Serialize};
 use skein_model::geo::{GeoPoint, Ned, NedFrame};
 use skein_model::vehicle::{Position, VehicleSnapshot};
 use skein_swarm::protocol::{ToVehicle, VehicleReport};
+use skein_swarm::view::SwarmView;
 use std::sync::Arc;
+use std::sync::atomic::Ordering;
 
 /// The body of a `/skein/swarm/report` sample.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -222,6 +224,57 @@ impl Reframe {
         }
         msg
     }
+}
+
+/// The next sample of `reader`, unwrapped; a sample that cannot be read is counted as
+/// malformed, logged naming `what`, and skipped.
+pub(crate) async fn receive(
+    shared: &DdsShared,
+    reader: &Subscription<SwarmMessage>,
+    what: &str,
+) -> Envelope {
+    loop {
+        match reader.async_take().await {
+            Ok((m, _)) => return Envelope::from_msg(m),
+            Err(e) => {
+                shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
+                tracing::warn!("dds: a {what} sample was dropped: {e:?}");
+            }
+        }
+    }
+}
+
+/// The body of `env` as `B`; one that does not parse is counted as malformed, logged
+/// naming `what` and the vehicle, and dropped (`None`).
+pub(crate) fn body_or_drop<B: for<'de> Deserialize<'de>>(
+    shared: &DdsShared,
+    env: &Envelope,
+    what: &str,
+) -> Option<B> {
+    match env.body() {
+        Ok(b) => Some(b),
+        Err(e) => {
+            shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
+            tracing::warn!(
+                "dds: a {what} of {} from `{}` was dropped: {e}",
+                env.vehicle_id,
+                env.sender_id
+            );
+            None
+        }
+    }
+}
+
+/// The conversion of a received envelope's positions into `view`'s swarm frame. A view
+/// not anchored yet (a coordinator without vehicles of its own) is anchored at the
+/// sender's origin.
+pub fn into_view(view: &SwarmView, origin: Option<GeoPoint>) -> Option<Reframe> {
+    let frame = match (view.frame(), origin) {
+        (Some(f), _) => f,
+        (None, Some(o)) => view.anchor(o),
+        (None, None) => return None,
+    };
+    Reframe::new(origin, frame)
 }
 
 /// Applies `reframe` when there is one.

@@ -11,14 +11,13 @@
 //! actor, so a restart of `coordinator/dds` keeps every proxy working.
 
 use crate::link::DdsShared;
-use crate::protocol::{Envelope, Reframe, ReportBody, reframed};
+use crate::protocol::{Envelope, ReportBody, body_or_drop, into_view, receive, reframed};
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
 use skein_swarm::view::SwarmView;
 use skein_swarm::{CoordinatorMsg, DistributedMsg, RemoteVehicle};
 use std::collections::BTreeMap;
-use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex, PoisonError, Weak};
 use tokio::sync::watch;
 
@@ -96,54 +95,24 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
     let results = topics.command_result.reader.clone();
     let answers = tokio::spawn(async move {
         loop {
-            let env = match results.async_take().await {
-                Ok((m, _)) => Envelope::from_msg(m),
-                Err(e) => {
-                    s.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                    tracing::warn!("dds: a command result sample was dropped: {e:?}");
-                    continue;
-                }
-            };
+            let env = receive(&s, &results, "command result").await;
             if !s.remotes().contains(&env.vehicle_id) {
                 continue;
             }
-            match env.body::<FromVehicle>() {
-                Ok(msg) => {
-                    let _ = s.coordinator().cast(CoordinatorMsg::FromVehicle(msg));
-                }
-                Err(e) => {
-                    s.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                    tracing::warn!("dds: an answer of {} was dropped: {e}", env.vehicle_id);
-                }
+            if let Some(msg) = body_or_drop::<FromVehicle>(&s, &env, "answer") {
+                let _ = s.coordinator().cast(CoordinatorMsg::FromVehicle(msg));
             }
         }
     });
     // Aborted with this task.
     let _answers = AbortOnDrop(answers);
     loop {
-        let env = match topics.report.reader.async_take().await {
-            Ok((m, _)) => Envelope::from_msg(m),
-            Err(e) => {
-                shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                tracing::warn!("dds: a report sample was dropped: {e:?}");
-                continue;
-            }
+        let env = receive(&shared, &topics.report.reader, "report").await;
+        let Some(body) = body_or_drop::<ReportBody>(&shared, &env, "report") else {
+            continue;
         };
-        let body: ReportBody = match env.body() {
-            Ok(b) => b,
-            Err(e) => {
-                shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                tracing::warn!("dds: a report of {} was dropped: {e}", env.vehicle_id);
-                continue;
-            }
-        };
-        let frame = match (view.frame(), env.origin) {
-            (Some(f), _) => Some(f),
-            // A coordinator without vehicles of its own: the first agent's origin.
-            (None, Some(o)) => Some(view.anchor(o)),
-            (None, None) => None,
-        };
-        let reframe = frame.and_then(|f| Reframe::new(env.origin, f));
+        // A coordinator without vehicles of its own anchors at the first agent's origin.
+        let reframe = into_view(&view, env.origin);
         let report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));
         let snapshot = reframed(body.snapshot, reframe.as_ref(), |r, x| r.snapshot(x));
         let mut map = shared
