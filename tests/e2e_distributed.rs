@@ -19,6 +19,11 @@
 //!   land`);
 //! - no simulated PX4 took the offboard-loss failsafe, and no setpoint gap in OFFBOARD
 //!   reached 100 ms.
+//!
+//! And with two coordinator candidates (priorities 2 and 1): killing the active one
+//! mid-formation makes the standby active within 2 s, and it flies the formation on from
+//! where it was (its mirror on `/skein/formation`), as steady as before; the killed one
+//! started again takes the role back by handover, never two active, and flies it on.
 
 mod support;
 
@@ -26,10 +31,10 @@ use serde_json::{Value, json};
 use std::time::{Duration, Instant};
 use support::{Skein, assert_no_failsafe_and_no_gap, eventually, summary};
 
-/// A DDS domain of this test process's own, apart from `e2e_dds`' 100–219 and
-/// `e2e_failover`'s 220–231.
-fn domain() -> String {
-    (20 + std::process::id() % 80).to_string()
+/// DDS domain `k` (0 or 1) of this test process's own, apart from `e2e_dds`' 100–219
+/// and `e2e_failover`'s 220–231.
+fn domain(k: u32) -> String {
+    (20 + (std::process::id() % 40) * 2 + k).to_string()
 }
 
 /// Seconds without a coordinator before an agent holds, and then before it lands.
@@ -37,9 +42,13 @@ const TIMEOUT_S: f64 = 1.5;
 const LOST_ACTION_S: f64 = 4.0;
 
 fn agent(sysid: u8, d: &str) -> Skein {
+    agent_with(sysid, d, "land", LOST_ACTION_S)
+}
+
+fn agent_with(sysid: u8, d: &str, lost_action: &str, lost_action_s: f64) -> Skein {
     let first = sysid.to_string();
     let id = format!("agent-{sysid}");
-    let (timeout, action) = (TIMEOUT_S.to_string(), LOST_ACTION_S.to_string());
+    let (timeout, action) = (TIMEOUT_S.to_string(), lost_action_s.to_string());
     Skein::launch_in(
         None,
         "agent",
@@ -61,7 +70,7 @@ fn agent(sysid: u8, d: &str) -> Skein {
             "--coordinator-timeout-s",
             &timeout,
             "--coordinator-lost-action",
-            "land",
+            lost_action,
             "--coordinator-lost-action-s",
             &action,
         ],
@@ -85,10 +94,109 @@ fn north_east(v: &Value) -> (f64, f64) {
     )
 }
 
+/// Speed of the formation's reference point, m/s.
+fn reference_speed(f: &Value) -> f64 {
+    let v = &f["reference"]["velocity"];
+    v["north_m"]
+        .as_f64()
+        .unwrap_or(0.0)
+        .hypot(v["east_m"].as_f64().unwrap_or(0.0))
+}
+
+/// Waits until the formation of `c` cruises at 5 m/s (its reference at speed for 2 s,
+/// past catching up with the acceleration), then samples it for 5 s; asserts the steady
+/// RMS slot error of single-process mode and the separation; returns (mean RMS, worst
+/// RMS, smallest separation), metres.
+fn cruise(c: &Skein) -> (f64, f64, f64) {
+    eventually("the reference at 5 m/s", Duration::from_secs(40), || {
+        let f = c.formation();
+        let speed = reference_speed(&f);
+        if speed > 4.99 {
+            Ok(())
+        } else {
+            Err(format!("{speed:.2} m/s: {f}"))
+        }
+    });
+    let at_speed = Instant::now();
+    while at_speed.elapsed() < Duration::from_secs(2) {
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let mut rms = Vec::new();
+    let mut min_sep = f64::MAX;
+    let steady = Instant::now();
+    while steady.elapsed() < Duration::from_secs(5) {
+        let f = c.formation();
+        rms.push(f["rms_error_m"].as_f64().unwrap_or(f64::INFINITY));
+        min_sep = min_sep.min(f["min_separation_m"].as_f64().unwrap_or(0.0));
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert!(rms.len() > 10, "{rms:?}");
+    assert!(
+        reference_speed(&c.formation()) > 4.99,
+        "the wedge slowed down: {}",
+        c.formation()
+    );
+    let mean = rms.iter().sum::<f64>() / rms.len() as f64;
+    let worst = rms.iter().copied().fold(0.0, f64::max);
+    // Single-process mode measures 0.15-0.19 m (e2e_formation).
+    assert!(mean < 0.3, "steady RMS slot error {mean:.2} m: {rms:?}");
+    assert!(worst < 1.0, "RMS slot error reached {worst:.2} m: {rms:?}");
+    assert!(min_sep > 3.0, "two members came within {min_sep:.2} m");
+    (mean, worst, min_sep)
+}
+
+/// Waits until the members of the formation of `c` are back on their slots (RMS slot
+/// error under 0.5 m) after a change of coordinator: the agents moved their last targets
+/// on by their age for at most 500 ms, then held them, and the new coordinator resumed
+/// the reference there, at rest, to accelerate it again. Asserts the separation
+/// meanwhile; returns (worst RMS, when back, smallest separation).
+fn catch_up(c: &Skein) -> (f64, Instant, f64) {
+    let (mut worst, mut min_sep) = (0.0f64, f64::MAX);
+    let back = eventually(
+        "the members back on their slots",
+        Duration::from_secs(30),
+        || {
+            let f = c.formation();
+            let rms = f["rms_error_m"].as_f64().unwrap_or(f64::INFINITY);
+            worst = worst.max(rms);
+            min_sep = min_sep.min(f["min_separation_m"].as_f64().unwrap_or(0.0));
+            if rms < 0.5 {
+                Ok(Instant::now())
+            } else {
+                Err(f.to_string())
+            }
+        },
+    );
+    assert!(min_sep > 3.0, "two members came within {min_sep:.2} m");
+    (worst, back, min_sep)
+}
+
+/// Takes the swarm of `c` off, forms a wedge behind a virtual leader and sends it north
+/// at 5 m/s.
+fn wedge_north(c: &Skein) {
+    c.take_off(3, 10.0);
+    let (status, body) = c.put(
+        "/api/v1/formation",
+        json!({"shape": "wedge", "spacing_m": 6.0, "leader": "virtual", "altitude_m": 12.0}),
+    );
+    assert_eq!(status, 200, "{body}");
+    c.settled(3, 1.0, Duration::from_secs(60));
+    let (status, body) = c.post(
+        "/api/v1/formation/leader/goto",
+        json!({"north_m": 400.0, "east_m": 0.0, "speed_m_s": 5.0}),
+    );
+    assert_eq!(status, 200, "{body}");
+}
+
+fn role(c: &Skein) -> Value {
+    let (_, s) = c.get("/api/v1/coordinator");
+    s["role"].clone()
+}
+
 #[test]
 fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
     let _one = support::one_at_a_time();
-    let d = domain();
+    let d = domain(0);
     let mut coordinator = Skein::coordinator(&[
         "--id",
         "ground",
@@ -101,17 +209,19 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
     ]);
     let agents: Vec<Skein> = (1..=3).map(|sysid| agent(sysid, &d)).collect();
     eventually("the coordinator active", Duration::from_secs(20), || {
-        let (_, s) = coordinator.get("/api/v1/coordinator");
-        if s["role"] == "active" {
+        let r = role(&coordinator);
+        if r == "active" {
             Ok(())
         } else {
-            Err(s.to_string())
+            Err(r.to_string())
         }
     });
 
     // Each agent spawned its vehicle at its own grid point (sysid - 1, 4 columns): the
     // coordinator, whose frame is the first agent's, sees them apart, none at another's.
-    coordinator.take_off(3, 10.0);
+    coordinator.wait_all("homes", 3, Duration::from_secs(60), |v| {
+        v["home"].is_object()
+    });
     let vs = coordinator.vehicles();
     let ids: Vec<&str> = vs.iter().filter_map(|v| v["id"].as_str()).collect();
     assert_eq!(ids, ["uav-1", "uav-2", "uav-3"], "{}", summary(&vs));
@@ -119,82 +229,19 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
         for b in &vs[i + 1..] {
             let ((an, ae), (bn, be)) = (north_east(a), north_east(b));
             let d = (an - bn).hypot(ae - be);
-            assert!(d > 3.0, "{} and {} hover {d:.2} m apart", a["id"], b["id"]);
+            assert!(d > 3.0, "{} and {} are {d:.2} m apart", a["id"], b["id"]);
         }
     }
 
-    let (status, body) = coordinator.put(
-        "/api/v1/formation",
-        json!({"shape": "wedge", "spacing_m": 6.0, "leader": "virtual", "altitude_m": 12.0}),
-    );
-    assert_eq!(status, 200, "{body}");
-    coordinator.settled(3, 1.0, Duration::from_secs(60));
-    let (status, body) = coordinator.post(
-        "/api/v1/formation/leader/goto",
-        json!({"north_m": 400.0, "east_m": 0.0, "speed_m_s": 5.0}),
-    );
-    assert_eq!(status, 200, "{body}");
-    // Cruising at 5 m/s (the reference at speed for 2 s, past the catching up with the
-    // acceleration), then for 5 s every member on its slot, apart.
-    let cruising = || {
-        let f = coordinator.formation();
-        let v = &f["reference"]["velocity"];
-        v["north_m"]
-            .as_f64()
-            .unwrap_or(0.0)
-            .hypot(v["east_m"].as_f64().unwrap_or(0.0))
-    };
-    eventually("the reference at 5 m/s", Duration::from_secs(40), || {
-        let speed = cruising();
-        if speed > 4.99 {
-            Ok(())
-        } else {
-            Err(format!("{speed:.2} m/s"))
-        }
-    });
-    let at_speed = Instant::now();
-    while at_speed.elapsed() < Duration::from_secs(2) {
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    let mut rms = Vec::new();
-    let mut min_sep = f64::MAX;
-    let steady = Instant::now();
-    while steady.elapsed() < Duration::from_secs(5) {
-        let f = coordinator.formation();
-        rms.push(f["rms_error_m"].as_f64().unwrap_or(f64::INFINITY));
-        min_sep = min_sep.min(f["min_separation_m"].as_f64().unwrap_or(0.0));
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    assert!(rms.len() > 10, "{rms:?}");
-    assert!(
-        cruising() > 4.99,
-        "the wedge slowed down: {}",
-        coordinator.formation()
-    );
-    let mean_rms = rms.iter().sum::<f64>() / rms.len() as f64;
-    let worst_rms = rms.iter().copied().fold(0.0, f64::max);
-    // Single-process mode measures 0.15-0.19 m (e2e_formation).
-    assert!(
-        mean_rms < 0.3,
-        "steady RMS slot error {mean_rms:.2} m: {rms:?}"
-    );
-    assert!(
-        worst_rms < 1.0,
-        "RMS slot error reached {worst_rms:.2} m: {rms:?}"
-    );
-    assert!(min_sep > 3.0, "two members came within {min_sep:.2} m");
+    wedge_north(&coordinator);
+    let (mean_rms, worst_rms, min_sep) = cruise(&coordinator);
     for a in &agents {
         assert_eq!(own_vehicle(a)["state"], "InFormation", "{}", own_vehicle(a));
     }
 
     // The coordinator dies with no goodbye.
     let killed = Instant::now();
-    let status = std::process::Command::new("kill")
-        .args(["-KILL", &coordinator.process.pid().to_string()])
-        .status()
-        .expect("kill");
-    assert!(status.success());
-    coordinator.process.wait_exit(Duration::from_secs(10));
+    coordinator.kill_hard();
     let mut held_at = Vec::new();
     for a in &agents {
         let v = eventually("a vehicle holding", Duration::from_secs(10), || {
@@ -255,5 +302,126 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
         "{}",
         json!({"formation_mean_rms_m": mean_rms, "formation_worst_rms_m": worst_rms,
                "min_separation_m": min_sep, "after_the_coordinator_died": times})
+    );
+}
+
+fn candidate(id: &str, priority: &str, d: &str) -> Skein {
+    Skein::coordinator(&[
+        "--id",
+        id,
+        "--priority",
+        priority,
+        "--domain-id",
+        d,
+        "--dds-network",
+        "127.0.0.1",
+    ])
+}
+
+#[test]
+fn a_standby_flies_the_formation_on_when_the_active_coordinator_dies() {
+    let _one = support::one_at_a_time();
+    let d = domain(1);
+    let mut gcs_a = candidate("gcs-a", "2", &d);
+    let gcs_b = candidate("gcs-b", "1", &d);
+    // Agents that would only hold, so that a formation flown on is the coordinator's.
+    let agents: Vec<Skein> = (1..=3).map(|k| agent_with(k, &d, "hold", 60.0)).collect();
+    eventually(
+        "gcs-a active, gcs-b standby",
+        Duration::from_secs(20),
+        || {
+            let (a, b) = (role(&gcs_a), role(&gcs_b));
+            if a == "active" && b == "standby" {
+                Ok(())
+            } else {
+                Err(format!("{a} {b}"))
+            }
+        },
+    );
+    wedge_north(&gcs_a);
+    cruise(&gcs_a);
+    let (_, writes) = gcs_b.put("/api/v1/formation", json!({"shape": "line"}));
+    assert!(writes.to_string().contains("gcs-a"), "{writes}");
+
+    let before = gcs_a.formation()["reference"]["position"]["north_m"]
+        .as_f64()
+        .unwrap();
+    let killed = Instant::now();
+    gcs_a.kill_hard();
+    let took = eventually("gcs-b active", Duration::from_secs(10), || {
+        if role(&gcs_b) == "active" {
+            Ok(killed.elapsed())
+        } else {
+            Err(role(&gcs_b).to_string())
+        }
+    });
+    assert!(
+        took < Duration::from_secs(2),
+        "gcs-b took {took:?} to take over"
+    );
+    // gcs-b flies gcs-a's formation on from where it was: the same wedge, its reference
+    // further north, every vehicle in it.
+    let resumed = eventually("the formation resumed", Duration::from_secs(10), || {
+        let f = gcs_b.formation();
+        let north = f["reference"]["position"]["north_m"]
+            .as_f64()
+            .unwrap_or(0.0);
+        let members = f["members"].as_array().map_or(0, Vec::len);
+        if f["active"] == true && f["shape"] == "wedge" && members == 3 && north > before {
+            Ok(killed.elapsed())
+        } else {
+            Err(f.to_string())
+        }
+    });
+    let (worst_catch_up, back, catch_up_sep) = catch_up(&gcs_b);
+    let caught_up = back - killed;
+    let (mean_rms, _, min_sep) = cruise(&gcs_b);
+    for a in &agents {
+        assert_eq!(own_vehicle(a)["state"], "InFormation", "{}", own_vehicle(a));
+    }
+
+    // gcs-a returns: it takes the role back only by handover, never two active, and
+    // flies the formation on again.
+    let gcs_a = candidate("gcs-a", "2", &d);
+    let mut both = Vec::new();
+    eventually("gcs-a active again", Duration::from_secs(30), || {
+        let (a, b) = (role(&gcs_a), role(&gcs_b));
+        if a == "active" && b == "active" {
+            both.push(Instant::now());
+        }
+        if a == "active" && b == "standby" {
+            Ok(())
+        } else {
+            Err(format!("{a} {b}"))
+        }
+    });
+    assert!(both.is_empty(), "both were active at {} polls", both.len());
+    eventually(
+        "the formation flown on by gcs-a",
+        Duration::from_secs(10),
+        || {
+            let f = gcs_a.formation();
+            if f["active"] == true && f["members"].as_array().map_or(0, Vec::len) == 3 {
+                Ok(())
+            } else {
+                Err(f.to_string())
+            }
+        },
+    );
+    let (_, _, handover_sep) = catch_up(&gcs_a);
+    let (_, _, min_sep_after) = cruise(&gcs_a);
+    let mut worst_gap = 0.0f64;
+    for a in &agents {
+        assert_eq!(own_vehicle(a)["state"], "InFormation", "{}", own_vehicle(a));
+        worst_gap = worst_gap.max(assert_no_failsafe_and_no_gap(&a.sim_stats_addr()));
+    }
+    eprintln!(
+        "{}",
+        json!({"failover_s": took.as_secs_f64(), "resumed_after_s": resumed.as_secs_f64(),
+               "worst_rms_catching_up_m": worst_catch_up,
+               "back_on_slots_after_s": caught_up.as_secs_f64(),
+               "steady_rms_after_failover_m": mean_rms,
+               "min_separation_m": min_sep.min(min_sep_after).min(catch_up_sep).min(handover_sep),
+               "worst_setpoint_gap_ms": worst_gap})
     );
 }

@@ -152,7 +152,7 @@ fn the_standby_takes_over_within_two_seconds_and_a_returning_one_only_by_handove
     // Kill the active one: the standby claims the next epoch within 2 s.
     let b_log = EventLog::connect(&b.base);
     let killed = Instant::now();
-    kill_hard(&mut a);
+    a.kill_hard();
     let took = eventually("gcs-b active", Duration::from_secs(10), || {
         let s = election(&b);
         if s["role"] == "active" {
@@ -212,15 +212,6 @@ fn the_standby_takes_over_within_two_seconds_and_a_returning_one_only_by_handove
 }
 
 /// SIGKILL: the candidate vanishes without a last lease, as a crashed host would.
-fn kill_hard(s: &mut Skein) {
-    let status = std::process::Command::new("kill")
-        .args(["-KILL", &s.process.pid().to_string()])
-        .status()
-        .expect("kill");
-    assert!(status.success());
-    let _ = s.process.wait_exit(Duration::from_secs(10));
-}
-
 #[test]
 fn a_partition_elects_one_per_side_and_healing_leaves_exactly_one() {
     let lan = Lan::new('f', 2);

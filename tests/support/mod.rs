@@ -461,6 +461,17 @@ impl Skein {
         find(&tree, path)
     }
 
+    /// Kills the process with SIGKILL (no goodbye: no last lease, no clean shutdown) and
+    /// waits for it to exit.
+    pub fn kill_hard(&mut self) {
+        let status = std::process::Command::new("kill")
+            .args(["-KILL", &self.process.pid().to_string()])
+            .status()
+            .expect("kill");
+        assert!(status.success());
+        let _ = self.process.wait_exit(Duration::from_secs(10));
+    }
+
     /// The `host:port` of the simulator stats socket (`--sim-stats`), from stdout.
     pub fn sim_stats_addr(&self) -> String {
         let out = self.process.stdout.lock().unwrap();

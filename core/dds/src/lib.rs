@@ -9,7 +9,8 @@
 //! - [`link`]: the supervised `DdsLink` service of `skein up --dds`;
 //! - [`protocol`]: the swarm protocol's carrier between coordinators and agents
 //!   (`/skein/swarm/*`), with [`remote`] (a coordinator's remote vehicles) and [`agent`]
-//!   (an agent's vehicles obeying the active coordinator);
+//!   (an agent's vehicles obeying the active coordinator) and [`mirror`] (the formation a
+//!   standby resumes);
 //! - [`probe`]: a listener of the pose topics (`skein bench dds`).
 //!
 //! The domain is `--domain-id`, else `ROS_DOMAIN_ID`, else 0 ([`domain_id_from_env`]).
@@ -19,6 +20,7 @@ pub mod agent;
 pub mod convert;
 pub mod lease;
 pub mod link;
+pub mod mirror;
 pub mod msgs;
 pub mod probe;
 pub mod protocol;

@@ -230,6 +230,23 @@ impl DdsShared {
         }
     }
 
+    /// The formation to mirror (`Some(None)`: none is flown; `None`: no answer).
+    pub(crate) async fn formation_mirror(
+        &self,
+    ) -> Option<Option<skein_swarm::formation::FormationMirror>> {
+        match self
+            .coordinator
+            .call(
+                |r| CoordinatorMsg::Distributed(DistributedMsg::GetFormationMirror(r)),
+                Some(COORDINATOR_TIMEOUT),
+            )
+            .await
+        {
+            Ok(ractor::rpc::CallResult::Success(v)) => Some(v),
+            _ => None,
+        }
+    }
+
     /// The latest report of every vehicle of this process.
     pub(crate) async fn local_reports(&self) -> Option<Vec<(String, VehicleReport)>> {
         match self
@@ -536,6 +553,7 @@ impl Actor for DdsLink {
         });
         tasks.spawn(crate::agent::run(shared.clone()));
         tasks.spawn(crate::remote::run(shared.clone()));
+        tasks.spawn(crate::mirror::run(shared.clone()));
         tasks.spawn(Self::run(shared));
         Ok(DdsLinkState { tasks })
     }

@@ -19,6 +19,7 @@ use ros2_client::{Name, Node, Publisher, QosProfile, Subscription};
 use serde::{Deserialize, Serialize};
 use skein_model::geo::{GeoPoint, Ned, NedFrame};
 use skein_model::vehicle::{Position, VehicleSnapshot};
+use skein_swarm::formation::{FormationMirror, LeaderMotion};
 use skein_swarm::protocol::{ToVehicle, VehicleReport};
 use skein_swarm::view::SwarmView;
 use std::sync::Arc;
@@ -52,13 +53,19 @@ pub struct ProtocolTopics {
     /// `/skein/swarm/command_result`: agent → coordinators,
     /// [`FromVehicle`](skein_swarm::protocol::FromVehicle).
     pub command_result: Topic,
+    /// `/skein/formation`: the active coordinator's formation, for the standbys
+    /// ([`crate::mirror`]).
+    pub formation: Topic,
 }
 
 fn topic(node: &mut Node, name: &str, qos: &QosProfile) -> Result<Topic, DdsError> {
-    let ns = format!("{}/swarm", topics::NAMESPACE);
+    topic_in(node, &format!("{}/swarm", topics::NAMESPACE), name, qos)
+}
+
+fn topic_in(node: &mut Node, ns: &str, name: &str, qos: &QosProfile) -> Result<Topic, DdsError> {
     let t = node
         .create_topic(
-            &Name::new(&ns, name).map_err(|e| DdsError(format!("{name}: {e:?}")))?,
+            &Name::new(ns, name).map_err(|e| DdsError(format!("{name}: {e:?}")))?,
             SwarmMessage::type_name(),
             qos,
         )
@@ -83,6 +90,12 @@ impl ProtocolTopics {
             target: topic(node, "target", &topics::protocol_stream())?,
             command: topic(node, "command", &topics::protocol_commands())?,
             command_result: topic(node, "command_result", &topics::protocol_commands())?,
+            formation: topic_in(
+                node,
+                topics::NAMESPACE,
+                "formation",
+                &topics::formation_mirror(),
+            )?,
         })
     }
 
@@ -205,6 +218,20 @@ impl Reframe {
             f.target = self.point(f.target);
         }
         s
+    }
+
+    /// A formation mirror's reference point and the points of its motion.
+    pub fn mirror(&self, mut m: FormationMirror) -> FormationMirror {
+        m.reference.position = self.point(m.reference.position);
+        match &mut m.reference.motion {
+            LeaderMotion::Hold => {}
+            LeaderMotion::GoTo { target, .. } => *target = self.point(*target),
+            LeaderMotion::Waypoints { points, .. } => {
+                points.iter_mut().for_each(|p| *p = self.point(*p));
+            }
+            LeaderMotion::Orbit { centre, .. } => *centre = self.point(*centre),
+        }
+        m
     }
 
     /// A coordinator's message's positions.

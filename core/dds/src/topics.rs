@@ -14,6 +14,7 @@
 //! | `/skein/swarm/target` | `skein_msgs/SwarmMessage` | best-effort, volatile, keep-last 64 | formation rate per member |
 //! | `/skein/swarm/command` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | on demand |
 //! | `/skein/swarm/command_result` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | per command, state change |
+//! | `/skein/formation` | `skein_msgs/SwarmMessage` | reliable, transient-local, keep-last 1 | 5 Hz from the active coordinator |
 //!
 //! Poses are sensor data (REP 2003): a lost sample is replaced by the next one, so
 //! retransmitting it only delays the newer. State is reliable keep-last 1: a reader
@@ -29,7 +30,9 @@
 //! coordinator finds every agent's vehicles on one topic; each has many writers, hence
 //! depth 64. Reports and targets are like poses (the next one replaces a lost one: a
 //! target carries its time and velocity, the agent moves it on by its age); commands and
-//! their results are reliable, so none is lost or merged.
+//! their results are reliable, so none is lost or merged. `/skein/formation` is the
+//! active coordinator's formation for the standbys to resume: transient-local, so a
+//! standby that starts late gets the last one at once.
 //!
 //! Names: a ROS 2 name holds letters, digits and underscores only, so a vehicle id is
 //! written with every other character as `_` ([`ros_name`]): `uav-1` publishes on
@@ -110,6 +113,14 @@ pub fn protocol_commands() -> QosProfile {
         .reliability_reliable(WhenFull::Wait(std::time::Duration::from_millis(20)))
         .durability(Durability::Volatile)
         .history(History::KeepLast { depth: 64 })
+}
+
+/// The formation mirror: reliable, transient-local, keep-last 1.
+pub fn formation_mirror() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Wait(std::time::Duration::from_millis(20)))
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 1 })
 }
 
 /// Commands and their results: reliable, volatile, keep-last 16.

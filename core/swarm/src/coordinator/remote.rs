@@ -10,10 +10,13 @@
 //!   ([`DistributedMsg::ToLocalVehicle`]), taps what they answer
 //!   ([`DistributedMsg::TapUplink`]), reads their reports, and gives it the other
 //!   agents' vehicles as neighbours to keep separation from.
+//! - A **standby** coordinator mirrors the active one's formation and, once it holds the
+//!   role, flies it on ([`DistributedMsg::ResumeFormation`]).
 
 use super::CoordinatorState;
 use super::proxy::VehicleProxy;
 use crate::events::SwarmEvent;
+use crate::formation::FormationMirror;
 use crate::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
 use crate::view::SwarmView;
 use ractor::RpcReplyPort;
@@ -54,6 +57,11 @@ pub enum DistributedMsg {
     Neighbour(String, VehicleReport),
     /// The swarm view (its frame, for the carrier's frame conversions).
     GetView(RpcReplyPort<Arc<SwarmView>>),
+    /// Coordinator: the formation to mirror to the standbys (`None`: none is flown).
+    GetFormationMirror(RpcReplyPort<Option<FormationMirror>>),
+    /// Coordinator that just took the role: fly on the formation of the one it replaces
+    /// (its id), as mirrored (positions in this process's frame), unless it flies one.
+    ResumeFormation(FormationMirror, String),
 }
 
 /// How far a neighbour's report is moved on by its age (as the coordinator's own).
@@ -97,6 +105,25 @@ impl CoordinatorState {
             }
             DistributedMsg::GetView(reply) => {
                 let _ = reply.send(self.view.clone());
+            }
+            DistributedMsg::GetFormationMirror(reply) => {
+                let _ = reply.send(self.formation.mirror());
+            }
+            DistributedMsg::ResumeFormation(mirror, from) => {
+                if self.formation.is_active() {
+                    tracing::warn!(
+                        "the formation of `{from}` is not resumed: this coordinator flies one"
+                    );
+                    return;
+                }
+                tracing::warn!(
+                    "resuming the formation of `{from}` ({:?}, {} members)",
+                    mirror.spec.shape,
+                    mirror.assignment.len()
+                );
+                self.formation.resume(mirror);
+                self.join_hovering();
+                self.formation_changed();
             }
         }
     }

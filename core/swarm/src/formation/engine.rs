@@ -545,5 +545,7 @@ impl FormationEngine {
     }
 }
 
+pub mod mirror;
+
 #[cfg(test)]
 pub(super) mod tests;

@@ -70,6 +70,7 @@ mod spec;
 mod status;
 mod transition;
 
+pub use engine::mirror::FormationMirror;
 pub use engine::{DEFAULT_SEPARATION_M, FormationEngine, MAX_HAZARD_SHIFT_M};
 pub use hazard::{Hazard, HazardConfig, clearing_shift};
 pub use leader::{LEADER_SILENCE, LeaderChange};

@@ -4,7 +4,7 @@
 //! members fall behind.
 
 use super::spec::LeaderMotion;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use skein_model::geo::{Ned, wrap_pi};
 use skein_model::safety::Geofence;
 
@@ -24,7 +24,7 @@ pub const PACE_SLOW_M: f64 = 1.0;
 pub const PACE_STOP_M: f64 = 2.5;
 
 /// The formation's reference point and its motion.
-#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Reference {
     /// Position, swarm-frame NED.
     pub position: Ned,

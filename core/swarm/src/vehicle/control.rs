@@ -34,7 +34,7 @@ pub(super) enum Target {
 
 /// Longest a moving target is extrapolated from its last update (the formation loop
 /// updates it ten times a second; after this, hold where it would be).
-const TRACK_EXTRAPOLATION: Duration = Duration::from_millis(500);
+pub const TRACK_EXTRAPOLATION: Duration = Duration::from_millis(500);
 
 impl Target {
     pub(super) fn position(&self) -> Ned {
