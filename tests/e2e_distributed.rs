@@ -20,15 +20,21 @@
 //! - no simulated PX4 took the offboard-loss failsafe, and no setpoint gap in OFFBOARD
 //!   reached 100 ms.
 //!
-//! And with two coordinator candidates (priorities 2 and 1): killing the active one
-//! mid-formation makes the standby active within 2 s, and it flies the formation on from
-//! where it was (its mirror on `/skein/formation`), as steady as before; the killed one
-//! started again takes the role back by handover, never two active, and flies it on.
+//! Then across hosts: two coordinator candidates (priorities 2 and 1) and the three
+//! agents, each in a network namespace of its own on a bridge the test makes (DDS
+//! discovery by plain multicast), flown only through the active coordinator's API:
+//! killing the active one mid-formation makes the standby active within 2 s, and it
+//! flies the formation on from where it was (its mirror on `/skein/formation`), as
+//! steady as before, never two closer than the separation; the killed one started again
+//! takes the role back by handover, never two active; an agent whose host is cut off
+//! the LAN for 5 s holds its vehicle, which the coordinator sees lost, then returns to
+//! its slot. No simulated PX4 took the offboard-loss failsafe.
 
 mod support;
 
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
+use support::netns::{Host, Lan};
 use support::{Skein, assert_no_failsafe_and_no_gap, eventually, summary};
 
 /// DDS domain `k` (0 or 1) of this test process's own, apart from `e2e_dds`' 100–219
@@ -42,15 +48,26 @@ const TIMEOUT_S: f64 = 1.5;
 const LOST_ACTION_S: f64 = 4.0;
 
 fn agent(sysid: u8, d: &str) -> Skein {
-    agent_with(sysid, d, "land", LOST_ACTION_S)
+    agent_on(None, sysid, d, "land", LOST_ACTION_S)
 }
 
-fn agent_with(sysid: u8, d: &str, lost_action: &str, lost_action_s: f64) -> Skein {
+/// An agent with one simulated vehicle (sysid `sysid`), on loopback (`host` `None`) or on
+/// a host of a [`Lan`] (its DDS and its simulator's stats socket on the host's address;
+/// its own API stays on the host's loopback).
+fn agent_on(
+    host: Option<&Host>,
+    sysid: u8,
+    d: &str,
+    lost_action: &str,
+    lost_action_s: f64,
+) -> Skein {
     let first = sysid.to_string();
     let id = format!("agent-{sysid}");
     let (timeout, action) = (TIMEOUT_S.to_string(), lost_action_s.to_string());
+    let network = host.map_or("127.0.0.1".to_string(), |h| h.addr.to_string());
+    let stats = format!("{network}:0");
     Skein::launch_in(
-        None,
+        host.map(|h| h.ns.as_str()),
         "agent",
         &[
             "--sim",
@@ -60,13 +77,13 @@ fn agent_with(sysid: u8, d: &str, lost_action: &str, lost_action_s: f64) -> Skei
             "--sim-base-port",
             "0",
             "--sim-stats",
-            "127.0.0.1:0",
+            &stats,
             "--id",
             &id,
             "--domain-id",
             d,
             "--dds-network",
-            "127.0.0.1",
+            &network,
             "--coordinator-timeout-s",
             &timeout,
             "--coordinator-lost-action",
@@ -305,30 +322,54 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
     );
 }
 
-fn candidate(id: &str, priority: &str, d: &str) -> Skein {
-    Skein::coordinator(&[
-        "--id",
-        id,
-        "--priority",
-        priority,
-        "--domain-id",
-        d,
-        "--dds-network",
-        "127.0.0.1",
-    ])
+/// A coordinator candidate on a host of a [`Lan`], its API on the host's address (no
+/// tokens on this private LAN: `--insecure-no-auth`).
+fn candidate_on(h: &Host, id: &str, priority: &str, d: &str) -> Skein {
+    let http = format!("{}:0", h.addr);
+    let network = h.addr.to_string();
+    Skein::launch_in(
+        Some(&h.ns),
+        "coordinator",
+        &[
+            "--http",
+            &http,
+            "--id",
+            id,
+            "--priority",
+            priority,
+            "--domain-id",
+            d,
+            "--dds-network",
+            &network,
+            "--insecure-no-auth",
+        ],
+    )
+}
+
+/// The vehicle `id` as coordinator `c` shows it.
+fn vehicle(c: &Skein, id: &str) -> Value {
+    c.vehicles()
+        .into_iter()
+        .find(|v| v["id"] == id)
+        .unwrap_or(Value::Null)
 }
 
 #[test]
-fn a_standby_flies_the_formation_on_when_the_active_coordinator_dies() {
+fn across_hosts_a_standby_flies_the_formation_on_and_a_cut_off_agent_returns() {
     let _one = support::one_at_a_time();
+    // Hosts 0 and 1: the coordinators; 2, 3, 4: the agents of uav-1, uav-2, uav-3.
+    let lan = Lan::new('d', 5);
     let d = domain(1);
-    let mut gcs_a = candidate("gcs-a", "2", &d);
-    let gcs_b = candidate("gcs-b", "1", &d);
-    // Agents that would only hold, so that a formation flown on is the coordinator's.
-    let agents: Vec<Skein> = (1..=3).map(|k| agent_with(k, &d, "hold", 60.0)).collect();
+    let mut gcs_a = candidate_on(&lan.hosts[0], "gcs-a", "2", &d);
+    let gcs_b = candidate_on(&lan.hosts[1], "gcs-b", "1", &d);
+    // Agents that only hold without a coordinator, so that what flies is the
+    // coordinators' doing.
+    let agents: Vec<Skein> = (1..=3u8)
+        .map(|k| agent_on(Some(&lan.hosts[1 + usize::from(k)]), k, &d, "hold", 60.0))
+        .collect();
     eventually(
         "gcs-a active, gcs-b standby",
-        Duration::from_secs(20),
+        Duration::from_secs(30),
         || {
             let (a, b) = (role(&gcs_a), role(&gcs_b));
             if a == "active" && b == "standby" {
@@ -343,6 +384,7 @@ fn a_standby_flies_the_formation_on_when_the_active_coordinator_dies() {
     let (_, writes) = gcs_b.put("/api/v1/formation", json!({"shape": "line"}));
     assert!(writes.to_string().contains("gcs-a"), "{writes}");
 
+    // The active coordinator dies: the standby flies the formation on.
     let before = gcs_a.formation()["reference"]["position"]["north_m"]
         .as_f64()
         .unwrap();
@@ -359,8 +401,6 @@ fn a_standby_flies_the_formation_on_when_the_active_coordinator_dies() {
         took < Duration::from_secs(2),
         "gcs-b took {took:?} to take over"
     );
-    // gcs-b flies gcs-a's formation on from where it was: the same wedge, its reference
-    // further north, every vehicle in it.
     let resumed = eventually("the formation resumed", Duration::from_secs(10), || {
         let f = gcs_b.formation();
         let north = f["reference"]["position"]["north_m"]
@@ -373,55 +413,76 @@ fn a_standby_flies_the_formation_on_when_the_active_coordinator_dies() {
             Err(f.to_string())
         }
     });
-    let (worst_catch_up, back, catch_up_sep) = catch_up(&gcs_b);
-    let caught_up = back - killed;
-    let (mean_rms, _, min_sep) = cruise(&gcs_b);
-    for a in &agents {
-        assert_eq!(own_vehicle(a)["state"], "InFormation", "{}", own_vehicle(a));
-    }
+    let (worst_catch_up, back, mut min_sep) = catch_up(&gcs_b);
+    let (steady_rms, _, sep) = cruise(&gcs_b);
+    min_sep = min_sep.min(sep);
 
-    // gcs-a returns: it takes the role back only by handover, never two active, and
-    // flies the formation on again.
-    let gcs_a = candidate("gcs-a", "2", &d);
-    let mut both = Vec::new();
+    // gcs-a returns: it takes the role back only by handover, never two active.
+    let gcs_a = candidate_on(&lan.hosts[0], "gcs-a", "2", &d);
     eventually("gcs-a active again", Duration::from_secs(30), || {
         let (a, b) = (role(&gcs_a), role(&gcs_b));
-        if a == "active" && b == "active" {
-            both.push(Instant::now());
-        }
+        assert!(!(a == "active" && b == "active"), "two active coordinators");
         if a == "active" && b == "standby" {
             Ok(())
         } else {
             Err(format!("{a} {b}"))
         }
     });
-    assert!(both.is_empty(), "both were active at {} polls", both.len());
-    eventually(
-        "the formation flown on by gcs-a",
-        Duration::from_secs(10),
-        || {
-            let f = gcs_a.formation();
-            if f["active"] == true && f["members"].as_array().map_or(0, Vec::len) == 3 {
-                Ok(())
-            } else {
-                Err(f.to_string())
-            }
-        },
+    let (_, _, sep) = catch_up(&gcs_a);
+    min_sep = min_sep.min(sep);
+
+    // uav-1's host loses its link for 5 s: its agent holds it, the coordinator sees it
+    // lost; back on the LAN, it returns to its slot.
+    let cut = Instant::now();
+    lan.cut(2);
+    eventually("uav-1 lost to gcs-a", Duration::from_secs(10), || {
+        let v = vehicle(&gcs_a, "uav-1");
+        if v["state"] == "Lost" {
+            Ok(())
+        } else {
+            Err(v.to_string())
+        }
+    });
+    eventually("5 s cut off", Duration::from_secs(10), || {
+        if cut.elapsed() >= Duration::from_secs(5) {
+            Ok(())
+        } else {
+            Err(format!("{:?}", cut.elapsed()))
+        }
+    });
+    lan.heal(2);
+    let healed = Instant::now();
+    let returned = eventually("uav-1 back on its slot", Duration::from_secs(60), || {
+        let f = gcs_a.formation();
+        min_sep = min_sep.min(f["min_separation_m"].as_f64().unwrap_or(f64::MAX));
+        let error = f["members"].as_array().and_then(|m| {
+            m.iter()
+                .find(|m| m["id"] == "uav-1")
+                .and_then(|m| m["error_m"].as_f64())
+        });
+        match error {
+            Some(e) if e < 0.5 => Ok(healed.elapsed()),
+            _ => Err(f.to_string()),
+        }
+    });
+    assert!(min_sep > 3.0, "two members came within {min_sep:.2} m");
+    let log = agents[0].process.stderr_text();
+    assert!(
+        log.contains("holding uav-1"),
+        "agent-1 did not hold uav-1:\n{log}"
     );
-    let (_, _, handover_sep) = catch_up(&gcs_a);
-    let (_, _, min_sep_after) = cruise(&gcs_a);
+
     let mut worst_gap = 0.0f64;
     for a in &agents {
-        assert_eq!(own_vehicle(a)["state"], "InFormation", "{}", own_vehicle(a));
         worst_gap = worst_gap.max(assert_no_failsafe_and_no_gap(&a.sim_stats_addr()));
     }
     eprintln!(
         "{}",
         json!({"failover_s": took.as_secs_f64(), "resumed_after_s": resumed.as_secs_f64(),
                "worst_rms_catching_up_m": worst_catch_up,
-               "back_on_slots_after_s": caught_up.as_secs_f64(),
-               "steady_rms_after_failover_m": mean_rms,
-               "min_separation_m": min_sep.min(min_sep_after).min(catch_up_sep).min(handover_sep),
-               "worst_setpoint_gap_ms": worst_gap})
+               "back_on_slots_after_s": (back - killed).as_secs_f64(),
+               "steady_rms_after_failover_m": steady_rms,
+               "cut_off_agent_back_on_its_slot_after_s": returned.as_secs_f64(),
+               "min_separation_m": min_sep, "worst_setpoint_gap_ms": worst_gap})
     );
 }

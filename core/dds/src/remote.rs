@@ -13,6 +13,7 @@
 use crate::link::DdsShared;
 use crate::protocol::{Envelope, ReportBody, body_or_drop, into_view, receive, reframed};
 use skein_model::vehicle::VehicleSnapshot;
+use skein_swarm::coordinator::proxy::REMOTE_SILENCE;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
 use skein_swarm::view::SwarmView;
@@ -122,7 +123,21 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
             .unwrap_or_else(PoisonError::into_inner);
         if let Some(c) = map.get(&env.vehicle_id) {
             c.snapshots.send_replace(snapshot);
-            c.reports.send_replace(report);
+            let before = c.reports.send_replace(report);
+            // A state change seen in the reports (or a silence, in which the coordinator
+            // saw it `Lost`), in case the agent's event was lost in a partition: the
+            // coordinator joins a vehicle that starts hovering to its
+            // formation, as it does on the event (a second join is refused, harmlessly).
+            let silent_us = REMOTE_SILENCE.as_micros() as u64;
+            if before.state != report.state || before.stamp_us + silent_us < report.stamp_us {
+                let _ = shared.coordinator().cast(CoordinatorMsg::FromVehicle(
+                    FromVehicle::StateChanged {
+                        id: env.vehicle_id.clone(),
+                        from: before.state,
+                        to: report.state,
+                    },
+                ));
+            }
             continue;
         }
         let (snapshots, snapshots_rx) = watch::channel(snapshot);

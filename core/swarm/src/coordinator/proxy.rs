@@ -18,7 +18,7 @@ use tokio::sync::watch;
 /// rate; a vehicle at 5 m/s covers 1 m in this time).
 pub const REPORT_EXTRAPOLATION: Duration = Duration::from_millis(200);
 
-/// A remote vehicle not reported for this long shows its link as down.
+/// A remote vehicle not reported for this long is `Lost`, its link down.
 pub const REMOTE_SILENCE: Duration = Duration::from_secs(2);
 
 /// A vehicle run by this process: what its supervisor (the coordinator, in `skein up`)
@@ -80,29 +80,41 @@ impl VehicleProxy {
         self.port.send(msg)
     }
 
-    /// The latest snapshot (`GET /api/v1/vehicles/{id}`). A remote vehicle whose reports
-    /// stopped for [`REMOTE_SILENCE`] (its agent or the network is down) shows its link
-    /// as down, its last values kept.
+    /// True when this is a remote vehicle not reported for [`REMOTE_SILENCE`] (its agent
+    /// or the network is down).
+    fn remote_silent(&self) -> Option<Duration> {
+        if self.local.is_some() {
+            return None;
+        }
+        let age = crate::protocol::age_of(self.reports.borrow().stamp_us);
+        (age > REMOTE_SILENCE).then_some(age)
+    }
+
+    /// The latest snapshot (`GET /api/v1/vehicles/{id}`). A remote vehicle silent for
+    /// [`REMOTE_SILENCE`] shows as `Lost` with its link down, its last values kept.
     pub fn snapshot(&self) -> VehicleSnapshot {
         let mut s = self.snapshots.borrow().clone();
-        if self.local.is_none() {
-            let age = crate::protocol::age_of(self.reports.borrow().stamp_us);
-            if age > REMOTE_SILENCE {
-                s.link.connected = false;
-                s.link.last_seen_ms = s.link.last_seen_ms.max(age.as_millis() as u64);
-            }
+        if let Some(age) = self.remote_silent() {
+            s.state = VehicleState::Lost;
+            s.link.connected = false;
+            s.link.last_seen_ms = s.link.last_seen_ms.max(age.as_millis() as u64);
         }
         s
     }
 
-    /// The latest report.
+    /// The latest report; a silent remote vehicle's state is `Lost` (so the formation
+    /// plans around it as a hazard, as around a local vehicle whose link is silent).
     pub fn report(&self) -> VehicleReport {
-        *self.reports.borrow()
+        let mut r = *self.reports.borrow();
+        if self.remote_silent().is_some() {
+            r.state = VehicleState::Lost;
+        }
+        r
     }
 
-    /// FSM state as last reported.
+    /// FSM state as last reported (`Lost` for a silent remote vehicle).
     pub fn state(&self) -> VehicleState {
-        self.reports.borrow().state
+        self.report().state
     }
 
     /// Swarm-frame position now (the report's, moved on by its age).
