@@ -37,10 +37,10 @@ use std::time::{Duration, Instant};
 use support::netns::{Host, Lan};
 use support::{Skein, assert_no_failsafe_and_no_gap, eventually, summary};
 
-/// DDS domain `k` (0 or 1) of this test process's own, apart from `e2e_dds`' 100–219
+/// DDS domain `k` (0 to 2) of this test process's own, apart from `e2e_dds`' 100–219
 /// and `e2e_failover`'s 220–231.
 fn domain(k: u32) -> String {
-    (20 + (std::process::id() % 40) * 2 + k).to_string()
+    (20 + (std::process::id() % 26) * 3 + k).to_string()
 }
 
 /// Seconds without a coordinator before an agent holds, and then before it lands.
@@ -484,5 +484,56 @@ fn across_hosts_a_standby_flies_the_formation_on_and_a_cut_off_agent_returns() {
                "steady_rms_after_failover_m": steady_rms,
                "cut_off_agent_back_on_its_slot_after_s": returned.as_secs_f64(),
                "min_separation_m": min_sep, "worst_setpoint_gap_ms": worst_gap})
+    );
+}
+
+/// `skein bench dds --distributed`, small: two vehicles in one process, then two agents
+/// and a coordinator, 3 s each. Every field present, targets heard with a latency, and
+/// both flew the line (timing is for the benchmark itself).
+#[test]
+fn bench_dds_distributed_compares_agents_with_one_process() {
+    let _one = support::one_at_a_time();
+    let d = domain(2);
+    let mut p = support::Process::start(&[
+        "bench",
+        "dds",
+        "--distributed",
+        "--vehicles",
+        "2",
+        "--seconds",
+        "3",
+        "--domain-id",
+        &d,
+    ]);
+    let line = p.wait_line("\"bench\"", Duration::from_secs(400));
+    assert_eq!(
+        p.wait_exit(Duration::from_secs(30)),
+        Some(0),
+        "{}",
+        p.stderr_text()
+    );
+    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+    for mode in ["single_process", "distributed"] {
+        let rms = &report[mode]["rms_slot_error_m"];
+        assert!(rms["samples"].as_u64().unwrap() >= 10, "{report}");
+        assert!(
+            rms["mean"].as_f64().unwrap() < 0.5,
+            "{mode} did not fly the line: {report}"
+        );
+    }
+    assert!(
+        report["distributed"]["agent_cpu_cores_per_vehicle"].is_number(),
+        "{report}"
+    );
+    assert!(
+        report["distributed"]["coordinator_cpu_cores"].is_number(),
+        "{report}"
+    );
+    assert!(report["rms_difference_m"].is_number(), "{report}");
+    let lat = &report["target_latency_ms"];
+    assert!(lat["samples"].as_u64().unwrap() > 0, "{report}");
+    assert!(
+        lat["p50"].as_f64().unwrap() <= lat["max"].as_f64().unwrap(),
+        "{report}"
     );
 }

@@ -1,10 +1,11 @@
-//! A listener of skein's pose topics, for `skein bench dds`: it subscribes to
-//! `/skein/<vehicle>/pose` of the given vehicles as any ROS 2 node would and records, for
+//! A listener of skein's topics, for `skein bench dds`: it subscribes to
+//! `/skein/<vehicle>/pose` of the given vehicles as any ROS 2 node would, or to the
+//! coordinators' slot targets on `/skein/swarm/target` as an agent does, and records, for
 //! each sample, the time from its header stamp (set by the publisher just before it
 //! writes) to its arrival here. Both clocks are the same host's wall clock when the probe
 //! runs beside skein.
 
-use crate::msgs::{PoseStamped, RosMessage};
+use crate::msgs::{PoseStamped, RosMessage, SwarmMessage};
 use crate::topics;
 use crate::{DdsError, FRAME_ID};
 use ros2_client::builtin_interfaces::Time;
@@ -14,10 +15,10 @@ use std::net::IpAddr;
 use std::sync::{Arc, Mutex, PoisonError};
 use tokio::task::JoinSet;
 
-/// One received pose: the vehicle and its latency, seconds.
+/// One received pose or target: the vehicle and its latency, seconds.
 pub type Arrival = (String, f64);
 
-/// Subscriptions to the poses of some vehicles (see the module docs). Dropping it leaves
+/// Subscriptions to the poses of some vehicles, or to the targets (see the module docs). Dropping it leaves
 /// the domain.
 pub struct PoseProbe {
     _context: Context,
@@ -27,7 +28,8 @@ pub struct PoseProbe {
 
 impl PoseProbe {
     /// Joins `domain_id` (on `networks` only, when not empty) and subscribes to the poses
-    /// of `vehicles` (ids as the API names them), best-effort as they are published.
+    /// of `vehicles` (ids as the API names them), and with `targets` to the slot targets
+    /// of every vehicle, best-effort as they are published.
     ///
     /// # Errors
     /// The participant, node or a subscription could not be created.
@@ -35,6 +37,7 @@ impl PoseProbe {
         domain_id: u16,
         networks: &[IpAddr],
         vehicles: &[String],
+        targets: bool,
     ) -> Result<Self, DdsError> {
         let mut participant = DomainParticipantBuilder::new(domain_id);
         if !networks.is_empty() {
@@ -52,8 +55,32 @@ impl PoseProbe {
                 NodeOptions::new().enable_rosout(false),
             )
             .map_err(|e| DdsError(format!("ROS 2 node: {e:?}")))?;
-        let arrivals = Arc::new(Mutex::new(Vec::new()));
+        let arrivals: Arc<Mutex<Vec<Arrival>>> = Arc::new(Mutex::new(Vec::new()));
         let mut tasks = JoinSet::new();
+        if targets {
+            let topic = node
+                .create_topic(
+                    &Name::new(&format!("{}/swarm", topics::NAMESPACE), "target")
+                        .map_err(|e| DdsError(format!("{e:?}")))?,
+                    SwarmMessage::type_name(),
+                    &topics::protocol_stream(),
+                )
+                .map_err(|e| DdsError(format!("target topic: {e:?}")))?;
+            let sub = node
+                .create_subscription::<SwarmMessage>(&topic, None)
+                .map_err(|e| DdsError(format!("target subscription: {e:?}")))?;
+            let arrivals = arrivals.clone();
+            tasks.spawn(async move {
+                while let Ok((m, _)) = sub.async_take().await {
+                    let latency_s =
+                        (Time::now().to_nanos() - m.header.stamp.to_nanos()) as f64 * 1e-9;
+                    arrivals
+                        .lock()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .push((m.vehicle_id, latency_s));
+                }
+            });
+        }
         for id in vehicles {
             let topic = node
                 .create_topic(

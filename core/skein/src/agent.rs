@@ -31,6 +31,10 @@ pub struct AgentArgs {
     /// 0 = free ports.
     #[arg(long, value_name = "PORT", default_value_t = 14540)]
     sim_base_port: u16,
+    /// With --sim: the vehicle model of every simulated vehicle (default: as `skein up`,
+    /// the even sysids `observation`, the others `generic`).
+    #[arg(long, value_name = "MODEL")]
+    sim_model: Option<String>,
     /// With --sim: seed of the simulator's random processes.
     #[arg(long, default_value_t = 0)]
     sim_seed: u64,
@@ -137,6 +141,7 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
     up_args.sim = args.sim;
     up_args.sim_base_port = args.sim_base_port;
     up_args.sim_seed = args.sim_seed;
+    up_args.sim_model = args.sim_model;
     up_args.sim_stats = args.sim_stats;
     up_args.config = args.config;
     up_args.plugin_dir = args.plugin_dir;

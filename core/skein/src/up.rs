@@ -36,7 +36,7 @@ pub struct UpArgs {
     /// With --sim: the vehicle model of every simulated vehicle (default: a mix, the
     /// even-numbered vehicles uav-2, uav-4, … `observation`, the others `generic`).
     #[arg(long, value_name = "MODEL")]
-    sim_model: Option<String>,
+    pub(crate) sim_model: Option<String>,
     /// Payload plugin directory: every `lib*.so` in it is loaded at start (overrides
     /// `[plugins] dir`; default: the directory holding the skein executable, where
     /// `cargo build --release` puts the plugins).

@@ -35,6 +35,10 @@ pub struct DdsBenchArgs {
     /// DDS domain of the run with DDS (default: one derived from this process id, 150–199).
     #[arg(long, value_parser = skein_dds::parse_domain_id)]
     pub domain_id: Option<u16>,
+    /// Instead: the distributed roles, `--vehicles` agents of one vehicle each and a
+    /// coordinator, against `skein up` (see `bench/distributed.rs`).
+    #[arg(long)]
+    pub distributed: bool,
 }
 
 /// Publish rate of the DDS link in the run (its default).
@@ -67,14 +71,14 @@ fn start(args: &DdsBenchArgs, dds: Option<u16>) -> Result<UpProcess, String> {
 }
 
 /// CPU cores used by `up` over `seconds` (CPU seconds per second).
-fn cores(up: &UpProcess, seconds: f64) -> Result<f64, String> {
+pub(super) fn cores(up: &UpProcess, seconds: f64) -> Result<f64, String> {
     let c0 = cpu_seconds(Some(up.pid())).ok_or("no /proc CPU figures")?;
     std::thread::sleep(Duration::from_secs_f64(seconds));
     let c1 = cpu_seconds(Some(up.pid())).ok_or("no /proc CPU figures")?;
     Ok((c1 - c0) / seconds)
 }
 
-fn percentile(sorted: &[f64], p: f64) -> Option<f64> {
+pub(super) fn percentile(sorted: &[f64], p: f64) -> Option<f64> {
     let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
     sorted.get(i).copied()
 }
@@ -87,6 +91,9 @@ fn percentile(sorted: &[f64], p: f64) -> Option<f64> {
 pub async fn dds(args: DdsBenchArgs) -> Result<Value, String> {
     if args.vehicles == 0 || args.seconds.is_nan() || args.seconds <= 0.0 {
         return Err("--vehicles and --seconds must be positive".into());
+    }
+    if args.distributed {
+        return super::distributed::distributed(&args).await;
     }
     let domain = args
         .domain_id
@@ -103,7 +110,7 @@ pub async fn dds(args: DdsBenchArgs) -> Result<Value, String> {
     let up = start(&args, Some(domain))?;
     let ids: Vec<String> = (1..=args.vehicles).map(|i| format!("uav-{i}")).collect();
     let probe =
-        skein_dds::probe::PoseProbe::start(domain, &[IpAddr::V4(Ipv4Addr::LOCALHOST)], &ids)
+        skein_dds::probe::PoseProbe::start(domain, &[IpAddr::V4(Ipv4Addr::LOCALHOST)], &ids, false)
             .map_err(|e| e.to_string())?;
     // Discovery first: measure from the first arrival of every vehicle's pose on.
     let deadline = std::time::Instant::now() + Duration::from_secs(30);

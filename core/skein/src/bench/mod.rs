@@ -9,7 +9,9 @@
 //! [`tracking`].
 //!
 //! `skein bench dds [--vehicles 8 --seconds 20]`: CPU of the ROS 2 topics per vehicle and
-//! pose latency to a subscriber, see [`dds`].
+//! pose latency to a subscriber, see [`dds`]; with `--distributed`, N agents and a
+//! coordinator against one process: slot-target latency, CPU per vehicle, formation
+//! error, see [`distributed`].
 //!
 //! `skein bench swarm --vehicles N --rate-hz R --seconds S` (issue 3's benchmark):
 //!
@@ -51,6 +53,7 @@
 //! runtime's own scheduling latency.
 
 mod dds;
+mod distributed;
 mod formation;
 mod restart;
 mod swarm;

@@ -27,9 +27,18 @@ impl UpProcess {
     /// # Errors
     /// The executable cannot be started, or it ends before printing its dashboard line.
     pub fn start(args: &[&str]) -> Result<UpProcess, String> {
+        Self::start_role(&["up", "--http", "127.0.0.1:0"], args)
+    }
+
+    /// `skein <role…> <args>` (`["agent"]`, `["coordinator", "--http", "127.0.0.1:0"]`);
+    /// returns once it serves its API.
+    ///
+    /// # Errors
+    /// As [`UpProcess::start`].
+    pub fn start_role(role: &[&str], args: &[&str]) -> Result<UpProcess, String> {
         let exe = std::env::current_exe().map_err(|e| e.to_string())?;
         let mut child = Command::new(exe)
-            .args(["up", "--http", "127.0.0.1:0"])
+            .args(role)
             .args(args)
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
@@ -48,7 +57,7 @@ impl UpProcess {
                         .to_string();
                 }
                 Some(Ok(_)) => {}
-                _ => return Err("skein up ended before serving its API".into()),
+                _ => return Err(format!("skein {} ended before serving its API", role[0])),
             }
         };
         // Keep draining stdout so the child never blocks on a full pipe.
