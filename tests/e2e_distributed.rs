@@ -6,7 +6,9 @@
 //! - the agents' vehicles join the coordinator as remote vehicles, at the places their
 //!   simulators spawned them (each agent's swarm frame converted into the
 //!   coordinator's);
-//! - the swarm takes off (every vehicle acknowledges over DDS), flies a wedge behind a
+//! - the swarm takes off (every vehicle acknowledges over DDS, and its events, the
+//!   takeoff's outcome and its state changes, reach the coordinator's stream), flies a
+//!   wedge behind a
 //!   virtual leader cruising at 5 m/s, with the steady RMS slot error of single-process
 //!   mode (under 0.3 m), never closer than the separation;
 //!
@@ -35,7 +37,7 @@ mod support;
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
 use support::netns::{Host, Lan};
-use support::{Skein, assert_no_failsafe_and_no_gap, eventually, summary};
+use support::{EventLog, Skein, assert_no_failsafe_and_no_gap, eventually, summary};
 
 /// DDS domain `k` (0 to 2) of this test process's own, apart from `e2e_dds`' 100–219
 /// and `e2e_failover`'s 220–231.
@@ -250,7 +252,30 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
         }
     }
 
+    let events = EventLog::connect(&coordinator.base);
     wedge_north(&coordinator);
+    // The vehicles' own events (on their agents) reach the coordinator's stream.
+    eventually(
+        "the agents' events on the coordinator's stream",
+        Duration::from_secs(10),
+        || {
+            let took_off: Vec<Value> = events
+                .of_type("command_result")
+                .into_iter()
+                .filter(|e| e["command"] == "takeoff" && e["ok"] == true)
+                .collect();
+            let formed = events
+                .of_type("state_changed")
+                .iter()
+                .filter(|e| e["to"] == "InFormation")
+                .count();
+            if took_off.len() == 3 && formed == 3 {
+                Ok(())
+            } else {
+                Err(format!("{took_off:?}, {formed} joined"))
+            }
+        },
+    );
     let (mean_rms, worst_rms, min_sep) = cruise(&coordinator);
     for a in &agents {
         assert_eq!(own_vehicle(a)["state"], "InFormation", "{}", own_vehicle(a));

@@ -10,7 +10,8 @@
 //!   `/skein/swarm/command`, only the active coordinator of the highest epoch
 //!   ([`skein_swarm::election::observer`]); other samples are counted and dropped;
 //! - publishes what the vehicles answer (acks, state changes, payload answers) on
-//!   `/skein/swarm/command_result`;
+//!   `/skein/swarm/command_result`, and their events (state changes, command outcomes,
+//!   status texts, link, geofence clamps, payload events) on `/skein/swarm/events`;
 //! - takes the other agents' reports as neighbours, for the separation check;
 //! - **without a coordinator** for [`AgentConfig::coordinator_timeout`] (default 1.5 s),
 //!   commands every vehicle flying a slot or a go-to to hold where it is (offboard: the
@@ -210,6 +211,29 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
                 && let Ok(m) = Envelope::message(&vehicle, &id, 0, None, &msg)
             {
                 s.count(p.command_result.writer.publish(m));
+            }
+        }
+    });
+    let s = shared.clone();
+    let mut events = shared.events().subscribe();
+    tasks.spawn(async move {
+        let id = s
+            .agent()
+            .map(|a| a.config.agent_id.clone())
+            .unwrap_or_default();
+        loop {
+            let ev = match events.recv().await {
+                Ok(ev) => ev,
+                Err(tokio::sync::broadcast::error::RecvError::Lagged(n)) => {
+                    tracing::warn!("dds: {n} events of this agent were not forwarded (lagged)");
+                    continue;
+                }
+                Err(_) => return,
+            };
+            if let (Some(vehicle), Some(p)) = (ev.vehicle_id(), s.protocol())
+                && let Ok(m) = Envelope::message(vehicle, &id, 0, None, &ev)
+            {
+                s.count(p.events.writer.publish(m));
             }
         }
     });

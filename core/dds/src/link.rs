@@ -109,6 +109,9 @@ pub struct DdsShared {
     protocol: Option<ProtocolTopics>,
     agent: Option<Agent>,
     remotes: Remotes,
+    /// The event bus of this process (an agent forwards its vehicles' events from it, a
+    /// coordinator puts the agents' on it).
+    events: tokio::sync::broadcast::Sender<skein_swarm::SwarmEvent>,
     /// The link's counters.
     pub counters: DdsCounters,
 }
@@ -162,7 +165,7 @@ impl DdsShared {
             &topics::latest_state(),
         )?;
         let election = match config.candidate.clone() {
-            Some(c) => Some(ElectionLink::new(&mut node, c, events)?),
+            Some(c) => Some(ElectionLink::new(&mut node, c, events.clone())?),
             None => None,
         };
         let agent = match config.agent.clone() {
@@ -179,6 +182,7 @@ impl DdsShared {
             protocol,
             agent,
             remotes: Remotes::default(),
+            events,
             config,
             coordinator,
             metrics,
@@ -203,6 +207,11 @@ impl DdsShared {
     /// The swarm protocol topics (a candidate or an agent).
     pub(crate) fn protocol(&self) -> Option<&ProtocolTopics> {
         self.protocol.as_ref()
+    }
+
+    /// The event bus of this process.
+    pub(crate) fn events(&self) -> &tokio::sync::broadcast::Sender<skein_swarm::SwarmEvent> {
+        &self.events
     }
 
     /// The vehicles of other processes this coordinator steers.

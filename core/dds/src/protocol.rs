@@ -56,6 +56,9 @@ pub struct ProtocolTopics {
     /// `/skein/formation`: the active coordinator's formation, for the standbys
     /// ([`crate::mirror`]).
     pub formation: Topic,
+    /// `/skein/swarm/events`: agent → coordinators, the events of its vehicles
+    /// ([`skein_swarm::SwarmEvent::vehicle_id`]), for their event streams.
+    pub events: Topic,
 }
 
 fn topic(node: &mut Node, name: &str, qos: &QosProfile) -> Result<Topic, DdsError> {
@@ -90,6 +93,7 @@ impl ProtocolTopics {
             target: topic(node, "target", &topics::protocol_stream())?,
             command: topic(node, "command", &topics::protocol_commands())?,
             command_result: topic(node, "command_result", &topics::protocol_commands())?,
+            events: topic(node, "events", &topics::protocol_commands())?,
             formation: topic_in(
                 node,
                 topics::NAMESPACE,

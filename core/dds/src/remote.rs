@@ -7,7 +7,7 @@
 //! (a standby's port refuses: only the active coordinator steers), and whose snapshots
 //! and reports follow the agent's, converted into this process's swarm frame. What the
 //! vehicles answer on `/skein/swarm/command_result` goes to the coordinator's mailbox as
-//! from a local vehicle. The watch channels live in [`Remotes`], outside the `DdsLink`
+//! from a local vehicle, and their events on `/skein/swarm/events` to its event stream. The watch channels live in [`Remotes`], outside the `DdsLink`
 //! actor, so a restart of `coordinator/dds` keeps every proxy working.
 
 use crate::link::DdsShared;
@@ -17,7 +17,7 @@ use skein_swarm::coordinator::proxy::REMOTE_SILENCE;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
 use skein_swarm::view::SwarmView;
-use skein_swarm::{CoordinatorMsg, DistributedMsg, RemoteVehicle};
+use skein_swarm::{CoordinatorMsg, DistributedMsg, RemoteVehicle, SwarmEvent};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, PoisonError, Weak};
 use tokio::sync::watch;
@@ -105,8 +105,21 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
             }
         }
     });
+    let s = shared.clone();
+    let events = topics.events.reader.clone();
+    let forwarded = tokio::spawn(async move {
+        loop {
+            let env = receive(&s, &events, "vehicle event").await;
+            if !s.remotes().contains(&env.vehicle_id) {
+                continue;
+            }
+            if let Some(ev) = body_or_drop::<SwarmEvent>(&s, &env, "event") {
+                let _ = s.events().send(ev);
+            }
+        }
+    });
     // Aborted with this task.
-    let _answers = AbortOnDrop(answers);
+    let _tasks = (AbortOnDrop(answers), AbortOnDrop(forwarded));
     loop {
         let env = receive(&shared, &topics.report.reader, "report").await;
         let Some(body) = body_or_drop::<ReportBody>(&shared, &env, "report") else {

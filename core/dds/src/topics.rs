@@ -14,6 +14,7 @@
 //! | `/skein/swarm/target` | `skein_msgs/SwarmMessage` | best-effort, volatile, keep-last 64 | formation rate per member |
 //! | `/skein/swarm/command` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | on demand |
 //! | `/skein/swarm/command_result` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | per command, state change |
+//! | `/skein/swarm/events` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | per vehicle event |
 //! | `/skein/formation` | `skein_msgs/SwarmMessage` | reliable, transient-local, keep-last 1 | 5 Hz from the active coordinator |
 //!
 //! Poses are sensor data (REP 2003): a lost sample is replaced by the next one, so

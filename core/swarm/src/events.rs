@@ -1,11 +1,11 @@
 //! Events of the swarm, as the WebSocket stream and the dashboard's event log show them.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use skein_model::fsm::VehicleState;
 
 /// Something that happened in the swarm. Serialised with a `"type"` tag in snake case
 /// (`{"type": "state_changed", "id": "uav-1", "from": "Hovering", "to": "InFormation"}`).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum SwarmEvent {
     /// A vehicle's first heartbeat arrived and it joined the swarm.
@@ -198,4 +198,23 @@ pub enum SwarmEvent {
         /// Why, or `None` when it is no longer blocked.
         reason: Option<String>,
     },
+}
+
+impl SwarmEvent {
+    /// The vehicle of an event that a vehicle's own actors emit (its FSM, link, commands,
+    /// payloads): the events an agent forwards to the coordinators
+    /// (`/skein/swarm/events`); `None` for the swarm's and the coordinator's own.
+    pub fn vehicle_id(&self) -> Option<&str> {
+        match self {
+            SwarmEvent::StateChanged { id, .. }
+            | SwarmEvent::CommandResult { id, .. }
+            | SwarmEvent::StatusText { id, .. }
+            | SwarmEvent::LinkLost { id }
+            | SwarmEvent::LinkRestored { id }
+            | SwarmEvent::Rebooted { id }
+            | SwarmEvent::GeofenceClamp { id, .. }
+            | SwarmEvent::PayloadEvent { id, .. } => Some(id),
+            _ => None,
+        }
+    }
 }

@@ -103,6 +103,8 @@ pub struct CoordinatorState {
     observing: BTreeMap<String, (String, String)>,
     /// An agent's carrier: gets a copy of every local vehicle's message ([`remote`]).
     uplink_tap: Option<tokio::sync::mpsc::UnboundedSender<FromVehicle>>,
+    /// When hovering remote vehicles were last joined to the formation ([`remote`]).
+    last_rejoin: Instant,
 }
 
 /// The `Coordinator` actor (see module docs).
@@ -285,6 +287,7 @@ impl Actor for Coordinator {
             tracking,
             observing: BTreeMap::new(),
             uplink_tap: None,
+            last_rejoin: Instant::now(),
             endpoints: args.endpoints,
             gcs: None,
             vehicles: BTreeMap::new(),
@@ -525,6 +528,7 @@ impl Actor for Coordinator {
                 let _ = reply.send(());
             }
             CoordinatorMsg::FormationTick => {
+                state.rejoin_remote_hovering();
                 state.follow_track_tick();
                 state.formation_tick();
                 state.observe_tick();

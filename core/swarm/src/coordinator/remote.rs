@@ -64,6 +64,9 @@ pub enum DistributedMsg {
     ResumeFormation(FormationMirror, String),
 }
 
+/// How often hovering remote vehicles are joined to an active formation again.
+const REJOIN_PERIOD: Duration = Duration::from_secs(1);
+
 /// How far a neighbour's report is moved on by its age (as the coordinator's own).
 const NEIGHBOUR_EXTRAPOLATION: Duration = super::proxy::REPORT_EXTRAPOLATION;
 
@@ -150,6 +153,24 @@ impl CoordinatorState {
             sysid,
             connection,
         });
+    }
+
+    /// Joins hovering remote vehicles to an active formation, once a second. The
+    /// coordinator joins every vehicle that starts hovering (`on_state_changed`);
+    /// for a remote vehicle that change can be missed (its agent held it during a
+    /// partition, and the join sent when its reports came back reached the agent before
+    /// the agent heard the coordinator's lease again, so it was not obeyed): this is the
+    /// same rule, applied to the state rather than to its change.
+    pub(super) fn rejoin_remote_hovering(&mut self) {
+        if !self.formation.is_active() || self.last_rejoin.elapsed() < REJOIN_PERIOD {
+            return;
+        }
+        self.last_rejoin = std::time::Instant::now();
+        for (id, v) in &self.vehicles {
+            if v.local.is_none() && !v.failed && v.state() == VehicleState::Hovering {
+                self.internal_command(id, crate::protocol::VehicleCommand::JoinFormation);
+            }
+        }
     }
 
     /// Copies a local vehicle's message to the tap (an agent's carrier).

@@ -1,7 +1,7 @@
 //! The tracker's public types: its tuning, a track as the API shows it, what happens to
 //! tracks, and its counters.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Tuning of the tracker.
 #[derive(Debug, Clone, PartialEq)]
@@ -67,7 +67,7 @@ impl Default for TrackerConfig {
 }
 
 /// Where a track is in its life.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum TrackStatus {
     /// Seen, not yet confirmed.
@@ -79,7 +79,7 @@ pub enum TrackStatus {
 }
 
 /// A track as the API and the stream show it (swarm frame).
-#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct TrackView {
     /// `track-<n>`.
     pub id: String,
@@ -106,7 +106,7 @@ pub struct TrackView {
 }
 
 /// A swarm-frame NED position as JSON.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct NedJson {
     /// North, metres.
     pub north_m: f64,
@@ -117,7 +117,7 @@ pub struct NedJson {
 }
 
 /// A NED velocity as JSON.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct VelocityJson {
     /// North, m/s.
     pub north_m_s: f64,
