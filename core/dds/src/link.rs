@@ -224,51 +224,36 @@ impl DdsShared {
         &self.coordinator
     }
 
-    /// The coordinator's swarm view (`None` if it does not answer).
-    pub(crate) async fn view(&self) -> Option<Arc<SwarmView>> {
-        match self
-            .coordinator
-            .call(
-                |r| CoordinatorMsg::Distributed(DistributedMsg::GetView(r)),
-                Some(COORDINATOR_TIMEOUT),
-            )
-            .await
-        {
+    /// Asks the coordinator; `None` when it does not answer within
+    /// [`COORDINATOR_TIMEOUT`].
+    async fn ask<T: Send + 'static>(
+        &self,
+        msg: impl FnOnce(ractor::RpcReplyPort<T>) -> CoordinatorMsg,
+    ) -> Option<T> {
+        match self.coordinator.call(msg, Some(COORDINATOR_TIMEOUT)).await {
             Ok(ractor::rpc::CallResult::Success(v)) => Some(v),
             _ => None,
         }
+    }
+
+    /// The coordinator's swarm view (`None` if it does not answer).
+    pub(crate) async fn view(&self) -> Option<Arc<SwarmView>> {
+        self.ask(|r| CoordinatorMsg::Distributed(DistributedMsg::GetView(r)))
+            .await
     }
 
     /// The formation to mirror (`Some(None)`: none is flown; `None`: no answer).
     pub(crate) async fn formation_mirror(
         &self,
     ) -> Option<Option<skein_swarm::formation::FormationMirror>> {
-        match self
-            .coordinator
-            .call(
-                |r| CoordinatorMsg::Distributed(DistributedMsg::GetFormationMirror(r)),
-                Some(COORDINATOR_TIMEOUT),
-            )
+        self.ask(|r| CoordinatorMsg::Distributed(DistributedMsg::GetFormationMirror(r)))
             .await
-        {
-            Ok(ractor::rpc::CallResult::Success(v)) => Some(v),
-            _ => None,
-        }
     }
 
     /// The latest report of every vehicle of this process.
     pub(crate) async fn local_reports(&self) -> Option<Vec<(String, VehicleReport)>> {
-        match self
-            .coordinator
-            .call(
-                |r| CoordinatorMsg::Distributed(DistributedMsg::ListReports(r)),
-                Some(COORDINATOR_TIMEOUT),
-            )
+        self.ask(|r| CoordinatorMsg::Distributed(DistributedMsg::ListReports(r)))
             .await
-        {
-            Ok(ractor::rpc::CallResult::Success(v)) => Some(v),
-            _ => None,
-        }
     }
 
     /// The service the coordinator starts and supervises as `coordinator/dds`.
@@ -384,22 +369,11 @@ impl DdsShared {
     }
 
     pub(crate) async fn list_vehicles(&self) -> Option<Vec<VehicleSnapshot>> {
-        match self
-            .coordinator
-            .call(CoordinatorMsg::ListVehicles, Some(COORDINATOR_TIMEOUT))
-            .await
-        {
-            Ok(ractor::rpc::CallResult::Success(v)) => Some(v),
-            _ => None,
-        }
+        self.ask(CoordinatorMsg::ListVehicles).await
     }
 
     async fn publish_tracks(&self) {
-        if let Ok(ractor::rpc::CallResult::Success((views, _))) = self
-            .coordinator
-            .call(CoordinatorMsg::GetTracks, Some(COORDINATOR_TIMEOUT))
-            .await
-        {
+        if let Some((views, _)) = self.ask(CoordinatorMsg::GetTracks).await {
             self.count(self.tracks.publish(convert::tracks(&views, Time::now())));
         }
     }
