@@ -5,26 +5,24 @@
 
 mod support;
 
-use serde_json::Value;
 use std::time::Duration;
-use support::Process;
+use support::bench::bench_report;
 
 #[test]
 fn bench_swarm_reports_every_field_with_all_vehicles_offboard() {
-    let mut p = Process::start(&[
-        "bench",
-        "swarm",
-        "--vehicles",
-        "20",
-        "--rate-hz",
-        "50",
-        "--seconds",
-        "3",
-    ]);
-    let line = p.wait_line("\"vehicles\"", Duration::from_secs(240));
-    let code = p.wait_exit(Duration::from_secs(60));
-    assert_eq!(code, Some(0), "stderr:\n{}", p.stderr_text());
-    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+    let report = bench_report(
+        &[
+            "swarm",
+            "--vehicles",
+            "20",
+            "--rate-hz",
+            "50",
+            "--seconds",
+            "3",
+        ],
+        "vehicles",
+        Duration::from_secs(240),
+    );
     for key in [
         "vehicles",
         "rate_hz",
@@ -72,11 +70,11 @@ fn bench_swarm_reports_every_field_with_all_vehicles_offboard() {
 /// deterministic, no separation or geofence violation.
 #[test]
 fn bench_formation_reports_convergence_error_and_separation() {
-    let mut p = Process::start(&["bench", "formation", "--vehicles", "8"]);
-    let line = p.wait_line("\"formation\"", Duration::from_secs(240));
-    let code = p.wait_exit(Duration::from_secs(60));
-    assert_eq!(code, Some(0), "stderr:\n{}", p.stderr_text());
-    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+    let report = bench_report(
+        &["formation", "--vehicles", "8"],
+        "formation",
+        Duration::from_secs(240),
+    );
     let run = &report["runs"][0];
     assert_eq!(run["vehicles"], 8, "{report}");
     for key in ["mean", "max"] {
@@ -97,11 +95,11 @@ fn bench_formation_reports_convergence_error_and_separation() {
 /// checked to be present and ordered (timing is for the benchmark itself).
 #[test]
 fn bench_restart_restarts_every_panic_with_vehicles_offboard() {
-    let mut p = Process::start(&["bench", "restart", "--panics", "40", "--vehicles", "2"]);
-    let line = p.wait_line("\"restart\"", Duration::from_secs(240));
-    let code = p.wait_exit(Duration::from_secs(60));
-    assert_eq!(code, Some(0), "stderr:\n{}", p.stderr_text());
-    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+    let report = bench_report(
+        &["restart", "--panics", "40", "--vehicles", "2"],
+        "restart",
+        Duration::from_secs(240),
+    );
     assert_eq!(report["panics"], 40, "{report}");
     assert_eq!(report["restarts"], 40, "{report}");
     for key in ["restart_latency_us", "inject_to_running_us"] {
@@ -127,24 +125,23 @@ fn bench_plugins_reports_round_trips_loads_and_restarts() {
     let dir = support::plugins::scratch("bench-plugins");
     support::plugins::build_into(&["skein-plugin-example", "skein-plugin-fault"], &[], &dir);
     let dir_arg = dir.display().to_string();
-    let mut p = Process::start(&[
-        "bench",
+    let report = bench_report(
+        &[
+            "plugins",
+            "--plugin-dir",
+            &dir_arg,
+            "--round-trips",
+            "500",
+            "--isolated-round-trips",
+            "100",
+            "--loads",
+            "3",
+            "--restarts",
+            "5",
+        ],
         "plugins",
-        "--plugin-dir",
-        &dir_arg,
-        "--round-trips",
-        "500",
-        "--isolated-round-trips",
-        "100",
-        "--loads",
-        "3",
-        "--restarts",
-        "5",
-    ]);
-    let line = p.wait_line("\"plugins\"", Duration::from_secs(240));
-    let code = p.wait_exit(Duration::from_secs(60));
-    assert_eq!(code, Some(0), "stderr:\n{}", p.stderr_text());
-    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+        Duration::from_secs(240),
+    );
     let p50 = |path: &[&str]| {
         let mut v = &report;
         for k in path {
@@ -182,18 +179,11 @@ fn bench_tracking_reports_detection_and_track_quality() {
         &dir,
     );
     let dir_arg = dir.display().to_string();
-    let mut p = Process::start(&[
-        "bench",
-        "tracking",
-        "--plugin-dir",
-        &dir_arg,
-        "--seconds",
-        "15",
-    ]);
-    let line = p.wait_line("\"detection\"", Duration::from_secs(300));
-    let code = p.wait_exit(Duration::from_secs(60));
-    assert_eq!(code, Some(0), "stderr:\n{}", p.stderr_text());
-    let report: Value = serde_json::from_str(&line).expect("one JSON object");
+    let report = bench_report(
+        &["tracking", "--plugin-dir", &dir_arg, "--seconds", "15"],
+        "detection",
+        Duration::from_secs(300),
+    );
     for key in [
         "frames",
         "true_positives",

@@ -12,8 +12,9 @@ mod support;
 
 use serde_json::Value;
 use std::time::Duration;
+use support::bench::bench_report;
 use support::counter_uas::{OBSERVERS, build_plugins, up_with_intruder_pass_and};
-use support::{Process, Skein, eventually, run_peer};
+use support::{Skein, eventually, run_peer};
 
 /// A DDS domain of this test process's own (`offset`, 0 to 3, tells the tests apart).
 fn domain(offset: u32) -> String {
@@ -207,24 +208,19 @@ fn counter_uas_tracks_reach_a_cyclonedds_peer() {
 #[test]
 fn bench_dds_reports_cpu_and_pose_latency() {
     let d = domain(3);
-    let mut p = Process::start(&[
-        "bench",
-        "dds",
-        "--vehicles",
-        "2",
-        "--seconds",
-        "2",
-        "--domain-id",
-        &d,
-    ]);
-    let line = p.wait_line("\"vehicles\"", Duration::from_secs(180));
-    assert_eq!(
-        p.wait_exit(Duration::from_secs(30)),
-        Some(0),
-        "{}",
-        p.stderr_text()
+    let report = bench_report(
+        &[
+            "dds",
+            "--vehicles",
+            "2",
+            "--seconds",
+            "2",
+            "--domain-id",
+            &d,
+        ],
+        "vehicles",
+        Duration::from_secs(180),
     );
-    let report: Value = serde_json::from_str(&line).expect("one JSON object");
     for key in [
         "cpu_cores_without_dds",
         "cpu_cores_with_dds",

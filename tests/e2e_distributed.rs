@@ -36,6 +36,7 @@ mod support;
 
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
+use support::bench::bench_report;
 use support::netns::{Host, Lan};
 use support::{EventLog, Skein, assert_no_failsafe_and_no_gap, eventually, summary};
 
@@ -519,25 +520,20 @@ fn across_hosts_a_standby_flies_the_formation_on_and_a_cut_off_agent_returns() {
 fn bench_dds_distributed_compares_agents_with_one_process() {
     let _one = support::one_at_a_time();
     let d = domain(2);
-    let mut p = support::Process::start(&[
+    let report = bench_report(
+        &[
+            "dds",
+            "--distributed",
+            "--vehicles",
+            "2",
+            "--seconds",
+            "3",
+            "--domain-id",
+            &d,
+        ],
         "bench",
-        "dds",
-        "--distributed",
-        "--vehicles",
-        "2",
-        "--seconds",
-        "3",
-        "--domain-id",
-        &d,
-    ]);
-    let line = p.wait_line("\"bench\"", Duration::from_secs(400));
-    assert_eq!(
-        p.wait_exit(Duration::from_secs(30)),
-        Some(0),
-        "{}",
-        p.stderr_text()
+        Duration::from_secs(400),
     );
-    let report: Value = serde_json::from_str(&line).expect("one JSON object");
     for mode in ["single_process", "distributed"] {
         let rms = &report[mode]["rms_slot_error_m"];
         assert!(rms["samples"].as_u64().unwrap() >= 10, "{report}");

@@ -11,6 +11,7 @@ use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+pub mod bench;
 pub mod counter_uas;
 pub mod netns;
 pub mod payloads;
