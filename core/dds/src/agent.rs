@@ -27,7 +27,7 @@ use ros2_client::{Name, Node, Subscription};
 use skein_model::fsm::VehicleState;
 use skein_swarm::election::observer::Observer;
 use skein_swarm::election::{ElectionConfig, Lease};
-use skein_swarm::protocol::{FromVehicle, ToVehicle, VehicleCommand, VehicleReport};
+use skein_swarm::protocol::{ToVehicle, VehicleCommand, VehicleReport};
 use skein_swarm::view::SwarmView;
 use skein_swarm::{CoordinatorMsg, DistributedMsg};
 use std::collections::BTreeSet;
@@ -202,13 +202,8 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
             .map(|a| a.config.agent_id.clone())
             .unwrap_or_default();
         while let Some(msg) = uplink.recv().await {
-            let vehicle = match &msg {
-                FromVehicle::CommandAck { id, .. }
-                | FromVehicle::StateChanged { id, .. }
-                | FromVehicle::PayloadResult { id, .. } => id.clone(),
-            };
             if let Some(p) = s.protocol()
-                && let Ok(m) = Envelope::message(&vehicle, &id, 0, None, &msg)
+                && let Ok(m) = Envelope::message(msg.vehicle_id(), &id, 0, None, &msg)
             {
                 s.count(p.command_result.writer.publish(m));
             }

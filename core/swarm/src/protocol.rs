@@ -217,6 +217,17 @@ pub enum FromVehicle {
     },
 }
 
+impl FromVehicle {
+    /// The vehicle that sent it.
+    pub fn vehicle_id(&self) -> &str {
+        match self {
+            FromVehicle::CommandAck { id, .. }
+            | FromVehicle::StateChanged { id, .. }
+            | FromVehicle::PayloadResult { id, .. } => id,
+        }
+    }
+}
+
 /// What the formation engine needs of a vehicle, published by the vehicle at its control
 /// rate (keep-last: only the newest matters).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -175,11 +175,7 @@ impl CoordinatorState {
 
     /// Copies a local vehicle's message to the tap (an agent's carrier).
     pub(super) fn tap(&self, msg: &FromVehicle) {
-        let id = match msg {
-            FromVehicle::CommandAck { id, .. }
-            | FromVehicle::StateChanged { id, .. }
-            | FromVehicle::PayloadResult { id, .. } => id,
-        };
+        let id = msg.vehicle_id();
         if let Some(tap) = &self.uplink_tap
             && self.vehicles.get(id).is_some_and(|v| v.local.is_some())
         {
