@@ -13,7 +13,6 @@
 use crate::link::DdsShared;
 use crate::protocol::{Envelope, ReportBody, body_or_drop, into_view, receive, reframed};
 use skein_model::vehicle::VehicleSnapshot;
-use skein_swarm::coordinator::proxy::REMOTE_SILENCE;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
 use skein_swarm::view::SwarmView;
@@ -92,32 +91,22 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
         tracing::error!("dds: the coordinator did not answer: no remote vehicles");
         return;
     };
-    let s = shared.clone();
-    let results = topics.command_result.reader.clone();
-    let answers = tokio::spawn(async move {
-        loop {
-            let env = receive(&s, &results, "command result").await;
-            if !s.remotes().contains(&env.vehicle_id) {
-                continue;
-            }
-            if let Some(msg) = body_or_drop::<FromVehicle>(&s, &env, "answer") {
-                let _ = s.coordinator().cast(CoordinatorMsg::FromVehicle(msg));
-            }
-        }
-    });
-    let s = shared.clone();
-    let events = topics.events.reader.clone();
-    let forwarded = tokio::spawn(async move {
-        loop {
-            let env = receive(&s, &events, "vehicle event").await;
-            if !s.remotes().contains(&env.vehicle_id) {
-                continue;
-            }
-            if let Some(ev) = body_or_drop::<SwarmEvent>(&s, &env, "event") {
-                let _ = s.events().send(ev);
-            }
-        }
-    });
+    let answers = tokio::spawn(forward(
+        shared.clone(),
+        topics.command_result.reader.clone(),
+        "answer",
+        |s, msg: FromVehicle| {
+            let _ = s.coordinator().cast(CoordinatorMsg::FromVehicle(msg));
+        },
+    ));
+    let forwarded = tokio::spawn(forward(
+        shared.clone(),
+        topics.events.reader.clone(),
+        "event",
+        |s, ev: SwarmEvent| {
+            let _ = s.events().send(ev);
+        },
+    ));
     // Aborted with this task.
     let _tasks = (AbortOnDrop(answers), AbortOnDrop(forwarded));
     loop {
@@ -136,21 +125,7 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
             .unwrap_or_else(PoisonError::into_inner);
         if let Some(c) = map.get(&env.vehicle_id) {
             c.snapshots.send_replace(snapshot);
-            let before = c.reports.send_replace(report);
-            // A state change seen in the reports (or a silence, in which the coordinator
-            // saw it `Lost`), in case the agent's event was lost in a partition: the
-            // coordinator joins a vehicle that starts hovering to its
-            // formation, as it does on the event (a second join is refused, harmlessly).
-            let silent_us = REMOTE_SILENCE.as_micros() as u64;
-            if before.state != report.state || before.stamp_us + silent_us < report.stamp_us {
-                let _ = shared.coordinator().cast(CoordinatorMsg::FromVehicle(
-                    FromVehicle::StateChanged {
-                        id: env.vehicle_id.clone(),
-                        from: before.state,
-                        to: report.state,
-                    },
-                ));
-            }
+            c.reports.send_replace(report);
             continue;
         }
         let (snapshots, snapshots_rx) = watch::channel(snapshot);
@@ -172,6 +147,24 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
                 agent: env.sender_id,
             }),
         ));
+    }
+}
+
+/// Hands every `B` sample of `reader` about a remote vehicle to `deliver`; samples about
+/// other vehicles are skipped, unreadable ones counted and dropped.
+async fn forward<B: for<'de> serde::Deserialize<'de>>(
+    shared: Arc<DdsShared>,
+    reader: Arc<ros2_client::Subscription<crate::msgs::SwarmMessage>>,
+    what: &'static str,
+    deliver: impl Fn(&DdsShared, B),
+) {
+    loop {
+        let env = receive(&shared, &reader, what).await;
+        if shared.remotes().contains(&env.vehicle_id)
+            && let Some(b) = body_or_drop::<B>(&shared, &env, what)
+        {
+            deliver(&shared, b);
+        }
     }
 }
 
