@@ -10,7 +10,7 @@
 
 use crate::config::ConfigFile;
 use crate::up::{UpArgs, up};
-use clap::{Args, FromArgMatches};
+use clap::Args;
 use skein_dds::agent::{AgentConfig, LostAction};
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::PathBuf;
@@ -134,10 +134,7 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
         ));
     }
     // `skein up`'s options at their defaults, then this role's.
-    let matches = UpArgs::augment_args(clap::Command::new("up"))
-        .try_get_matches_from(["up"])
-        .map_err(|e| e.to_string())?;
-    let mut up_args = UpArgs::from_arg_matches(&matches).map_err(|e| e.to_string())?;
+    let mut up_args = UpArgs::defaults()?;
     up_args.sim = args.sim;
     up_args.sim_base_port = args.sim_base_port;
     up_args.sim_seed = args.sim_seed;

@@ -5,7 +5,7 @@
 //! writes with a 409 naming the active one.
 
 use crate::up::{UpArgs, up};
-use clap::{Args, FromArgMatches};
+use clap::Args;
 use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -58,10 +58,7 @@ pub async fn coordinator(args: CoordinatorArgs) -> Result<ExitCode, String> {
         None => format!("{}-{}", hostname(), std::process::id()),
     };
     // `skein up`'s options at their defaults, then this role's.
-    let matches = UpArgs::augment_args(clap::Command::new("up"))
-        .try_get_matches_from(["up"])
-        .map_err(|e| e.to_string())?;
-    let mut up_args = UpArgs::from_arg_matches(&matches).map_err(|e| e.to_string())?;
+    let mut up_args = UpArgs::defaults()?;
     up_args.config = args.config;
     up_args.http = args.http;
     up_args.domain_id = args.domain_id;

@@ -98,6 +98,21 @@ pub struct UpArgs {
     pub(crate) agent: Option<crate::agent::AgentRole>,
 }
 
+impl UpArgs {
+    /// `skein up`'s options at their defaults (for the roles built on it: `skein
+    /// coordinator`, `skein agent`).
+    ///
+    /// # Errors
+    /// Never for the options as declared (clap's message otherwise).
+    pub(crate) fn defaults() -> Result<UpArgs, String> {
+        use clap::{Args, FromArgMatches};
+        let matches = UpArgs::augment_args(clap::Command::new("up"))
+            .try_get_matches_from(["up"])
+            .map_err(|e| e.to_string())?;
+        UpArgs::from_arg_matches(&matches).map_err(|e| e.to_string())
+    }
+}
+
 pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
     let file = match &args.config {
         Some(path) => ConfigFile::load(path)?,
