@@ -7,7 +7,13 @@
 //! 3. Foreground: pixels darker than their background by more than `threshold`.
 //! 4. Connected components (8-connected) of the foreground
 //!    (`imageproc::region_labelling::connected_components`).
-//! 5. Kept: components of at least `min_area_px` pixels whose bounding box is compact
+//! 5. Parts of one aircraft joined: components that could each be (part of) an aircraft
+//!    (compact, not larger than `max_size_px`) whose bounding boxes lie within
+//!    `join_gap` times the smaller one's larger side of each other are one blob. A near
+//!    quadcopter is its rotors, which the darker-than-background test separates where its
+//!    lighter body lies between them; as separate blobs each would be an aircraft of
+//!    half the size beside the true one.
+//! 6. Kept: components of at least `min_area_px` pixels whose bounding box is compact
 //!    (aspect ratio at most `max_aspect`, filled at least `min_fill`) and not larger than
 //!    `max_size_px`: lines (the horizon, field edges, grid lines) are long and thin,
 //!    aircraft are not.
@@ -33,6 +39,9 @@ pub struct BlobParams {
     pub max_aspect: f64,
     /// Smallest fraction of the bounding box the blob fills.
     pub min_fill: f64,
+    /// Components closer than this times the smaller one's larger side are one blob
+    /// (see the module docs).
+    pub join_gap: f64,
 }
 
 impl Default for BlobParams {
@@ -44,6 +53,7 @@ impl Default for BlobParams {
             max_size_px: 160,
             max_aspect: 3.0,
             min_fill: 0.3,
+            join_gap: 0.5,
         }
     }
 }
@@ -101,20 +111,53 @@ pub fn find_blobs(rgb: &[u8], width: u32, height: u32, p: &BlobParams) -> Vec<Bl
         Luma([u8::from(f64::from(dark[y as usize * w + x as usize]) > p.threshold) * 255])
     });
     let labels = connected_components(&fg, Connectivity::Eight, Luma([0u8]));
-    // Per label (0: background): box, area, darkness-weighted sums.
-    #[derive(Clone, Copy)]
-    struct Acc {
-        x0: u32,
-        y0: u32,
-        x1: u32,
-        y1: u32,
-        area: usize,
-        sw: f64,
-        sx: f64,
-        sy: f64,
-    }
     let n = labels.as_raw().iter().copied().max().unwrap_or(0) as usize;
-    let empty = Acc {
+    let mut acc = vec![Acc::EMPTY; n + 1];
+    for (x, y, px) in labels.enumerate_pixels() {
+        let label = px[0] as usize;
+        if label == 0 {
+            continue;
+        }
+        let wgt = f64::from(dark[y as usize * w + x as usize]);
+        acc[label].add(x, y, wgt);
+    }
+    let acc = join_parts(acc.into_iter().skip(1).filter(|a| a.area > 0), p);
+    let mut blobs: Vec<Blob> = acc
+        .into_iter()
+        .filter_map(|a| {
+            let (bw, bh) = a.size();
+            let fill = a.area as f64 / (f64::from(bw) * f64::from(bh));
+            (a.area >= p.min_area_px && a.compact(p) && fill >= p.min_fill).then(|| Blob {
+                x: a.x0,
+                y: a.y0,
+                width: bw,
+                height: bh,
+                cx: a.sx / a.sw,
+                cy: a.sy / a.sw,
+                area: a.area,
+                contrast: a.sw / a.area as f64,
+            })
+        })
+        .collect();
+    blobs.sort_by(|a, b| (b.contrast * b.area as f64).total_cmp(&(a.contrast * a.area as f64)));
+    blobs
+}
+
+/// A component's box, area and darkness-weighted sums.
+#[derive(Clone, Copy)]
+struct Acc {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+    area: usize,
+    sw: f64,
+    sx: f64,
+    sy: f64,
+}
+
+impl Acc {
+    const EMPTY: Acc = Acc {
         x0: u32::MAX,
         y0: u32::MAX,
         x1: 0,
@@ -124,49 +167,79 @@ pub fn find_blobs(rgb: &[u8], width: u32, height: u32, p: &BlobParams) -> Vec<Bl
         sx: 0.0,
         sy: 0.0,
     };
-    let mut acc = vec![empty; n + 1];
-    for (x, y, px) in labels.enumerate_pixels() {
-        let label = px[0] as usize;
-        if label == 0 {
-            continue;
-        }
-        let a = &mut acc[label];
-        let wgt = f64::from(dark[y as usize * w + x as usize]);
-        a.x0 = a.x0.min(x);
-        a.y0 = a.y0.min(y);
-        a.x1 = a.x1.max(x);
-        a.y1 = a.y1.max(y);
-        a.area += 1;
-        a.sw += wgt;
-        a.sx += wgt * (f64::from(x) + 0.5);
-        a.sy += wgt * (f64::from(y) + 0.5);
+
+    fn add(&mut self, x: u32, y: u32, wgt: f64) {
+        self.x0 = self.x0.min(x);
+        self.y0 = self.y0.min(y);
+        self.x1 = self.x1.max(x);
+        self.y1 = self.y1.max(y);
+        self.area += 1;
+        self.sw += wgt;
+        self.sx += wgt * (f64::from(x) + 0.5);
+        self.sy += wgt * (f64::from(y) + 0.5);
     }
-    let mut blobs: Vec<Blob> = acc
-        .into_iter()
-        .skip(1)
-        .filter(|a| a.area > 0)
-        .filter_map(|a| {
-            let (bw, bh) = (a.x1 - a.x0 + 1, a.y1 - a.y0 + 1);
-            let aspect = f64::from(bw.max(bh)) / f64::from(bw.min(bh));
-            let fill = a.area as f64 / (f64::from(bw) * f64::from(bh));
-            (a.area >= p.min_area_px
-                && bw.max(bh) <= p.max_size_px
-                && aspect <= p.max_aspect
-                && fill >= p.min_fill)
-                .then(|| Blob {
-                    x: a.x0,
-                    y: a.y0,
-                    width: bw,
-                    height: bh,
-                    cx: a.sx / a.sw,
-                    cy: a.sy / a.sw,
-                    area: a.area,
-                    contrast: a.sw / a.area as f64,
-                })
-        })
-        .collect();
-    blobs.sort_by(|a, b| (b.contrast * b.area as f64).total_cmp(&(a.contrast * a.area as f64)));
-    blobs
+
+    fn absorb(&mut self, o: &Acc) {
+        self.x0 = self.x0.min(o.x0);
+        self.y0 = self.y0.min(o.y0);
+        self.x1 = self.x1.max(o.x1);
+        self.y1 = self.y1.max(o.y1);
+        self.area += o.area;
+        self.sw += o.sw;
+        self.sx += o.sx;
+        self.sy += o.sy;
+    }
+
+    /// Bounding box width and height, pixels.
+    fn size(&self) -> (u32, u32) {
+        (self.x1 - self.x0 + 1, self.y1 - self.y0 + 1)
+    }
+
+    /// Shaped like (part of) an aircraft: not larger than `max_size_px`, aspect ratio at
+    /// most `max_aspect`.
+    fn compact(&self, p: &BlobParams) -> bool {
+        let (bw, bh) = self.size();
+        bw.max(bh) <= p.max_size_px && f64::from(bw.max(bh)) / f64::from(bw.min(bh)) <= p.max_aspect
+    }
+
+    /// Empty pixels between the two boxes along the axis where they are farthest apart (0
+    /// when they touch or overlap).
+    fn gap_px(&self, o: &Acc) -> u32 {
+        let gx = self.x0.max(o.x0).saturating_sub(self.x1.min(o.x1) + 1);
+        let gy = self.y0.max(o.y0).saturating_sub(self.y1.min(o.y1) + 1);
+        gx.max(gy)
+    }
+}
+
+/// Joins the parts of one aircraft (step 5 of the module docs) until no two compact
+/// components are within reach of each other; the rest pass through unchanged.
+fn join_parts(components: impl Iterator<Item = Acc>, p: &BlobParams) -> Vec<Acc> {
+    let (mut parts, mut out): (Vec<Acc>, Vec<Acc>) = components.partition(|a| a.compact(p));
+    loop {
+        let mut joined = false;
+        let mut i = 0;
+        while i < parts.len() {
+            let mut j = i + 1;
+            while j < parts.len() {
+                let (a, b) = (&parts[i], &parts[j]);
+                let side = |c: &Acc| f64::from(c.size().0.max(c.size().1));
+                let reach = p.join_gap * side(a).min(side(b));
+                if f64::from(a.gap_px(b)) <= reach {
+                    let b = parts.swap_remove(j);
+                    parts[i].absorb(&b);
+                    joined = true;
+                } else {
+                    j += 1;
+                }
+            }
+            i += 1;
+        }
+        if !joined {
+            break;
+        }
+    }
+    out.append(&mut parts);
+    out
 }
 
 #[cfg(test)]
@@ -216,6 +289,33 @@ mod tests {
             "{b:?}"
         );
         assert!((7..=9).contains(&b.width), "{b:?}");
+    }
+
+    #[test]
+    fn the_rotors_of_a_near_quadcopter_are_one_blob_and_two_aircraft_stay_two() {
+        let (w, h) = (160, 120);
+        let mut px = sky(w, h);
+        // The camera's near intruder (radius 14 px): four black rotors around a grey
+        // body that is not dark enough against its own surroundings to join them.
+        let (cx, cy, rr) = (60.0, 60.0, 14.0);
+        for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+            let (x, y) = (cx + sx * rr * 0.55, cy + sy * rr * 0.55 * 0.5);
+            disc(&mut px, w, x, y, rr * 0.4, [20, 20, 22]);
+        }
+        disc(&mut px, w, cx, cy, rr * 0.38, [150, 150, 155]);
+        // A far aircraft 30 px to its right.
+        disc(&mut px, w, 120.0, 62.0, 3.0, [20, 20, 22]);
+        let blobs = find_blobs(&px, w, h, &BlobParams::default());
+        assert_eq!(blobs.len(), 2, "{blobs:?}");
+        let near = blobs.iter().find(|b| b.cx < 100.0).expect("the near one");
+        assert!(
+            (near.cx - cx).abs() < 0.5 && (near.cy - cy).abs() < 0.5,
+            "{near:?}"
+        );
+        // As wide as its rotors reach: 2 × (0.55 + 0.4) × 14 px.
+        assert!((25..=28).contains(&near.width), "{near:?}");
+        let far = blobs.iter().find(|b| b.cx > 100.0).expect("the far one");
+        assert!((far.cx - 120.0).abs() < 0.5, "{far:?}");
     }
 
     #[test]

@@ -14,7 +14,7 @@
 //! # Configuration (all optional)
 //! `{"camera_slot": "camera", "rate_hz": 10, "threshold": 50, "min_area_px": 6,
 //!   "background_radius_px": 12, "max_size_px": 160, "max_aspect": 3.0, "min_fill": 0.3,
-//!   "max_detections": 20}`
+//!   "join_gap": 0.5, "max_detections": 20}` (see [`blobs`] for what each one tunes).
 //!
 //! # State and events
 //! Each processed frame goes into the state (the tracker and the dashboard read it there),
@@ -242,6 +242,7 @@ impl Plugin for Detector {
                 "max_size_px",
                 "max_aspect",
                 "min_fill",
+                "join_gap",
                 "max_detections",
             ],
         )?;
@@ -261,6 +262,7 @@ impl Plugin for Detector {
                 max_size_px: a.f64_in("max_size_px", f64::from(d.max_size_px), 2.0, 4096.0)? as u32,
                 max_aspect: a.f64_in("max_aspect", d.max_aspect, 1.0, 100.0)?,
                 min_fill: a.f64_in("min_fill", d.min_fill, 0.0, 1.0)?,
+                join_gap: a.f64_in("join_gap", d.join_gap, 0.0, 10.0)?,
             },
             max_detections: a.f64_in("max_detections", 20.0, 1.0, 1000.0)? as usize,
             frames: 0,
