@@ -165,7 +165,9 @@ fn bench_plugins_reports_round_trips_loads_and_restarts() {
 }
 
 /// `skein bench tracking` for 15 s on freshly built gimbal, camera and detector plugins:
-/// every figure present, frames were scored, and the intruders were tracked.
+/// every figure present, frames were scored, and the intruders were tracked. Its trace,
+/// replayed through a fresh tracker (`--replay`), gives every detector frame back and
+/// tracks the intruders again.
 #[test]
 fn bench_tracking_reports_detection_and_track_quality() {
     let dir = support::plugins::scratch("bench-tracking");
@@ -179,8 +181,18 @@ fn bench_tracking_reports_detection_and_track_quality() {
         &dir,
     );
     let dir_arg = dir.display().to_string();
+    let trace = dir.join("trace.jsonl");
+    let trace_arg = trace.display().to_string();
     let report = bench_report(
-        &["tracking", "--plugin-dir", &dir_arg, "--seconds", "15"],
+        &[
+            "tracking",
+            "--plugin-dir",
+            &dir_arg,
+            "--seconds",
+            "15",
+            "--trace",
+            &trace_arg,
+        ],
         "detection",
         Duration::from_secs(300),
     );
@@ -218,4 +230,19 @@ fn bench_tracking_reports_detection_and_track_quality() {
         report["tracks"]["confirmed_tracks"].as_u64().unwrap() >= 1,
         "{report}"
     );
+    let replayed = bench_report(
+        &["tracking", "--replay", &trace_arg],
+        "replay",
+        Duration::from_secs(60),
+    );
+    let r = &replayed["tracks"];
+    assert!(r["replay"]["samples"].as_u64().unwrap() >= 30, "{replayed}");
+    // Every frame the detectors scored is in the trace (the bench scores a subset).
+    assert!(
+        r["replay"]["frames"].as_u64().unwrap() >= report["detection"]["frames"].as_u64().unwrap(),
+        "{replayed}"
+    );
+    assert_eq!(r["replay"]["malformed_frames"], 0, "{replayed}");
+    assert!(r["confirmed_tracks"].as_u64().unwrap() >= 1, "{replayed}");
+    assert!(!r["rmse_m"].is_null(), "{replayed}");
 }

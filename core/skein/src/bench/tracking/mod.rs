@@ -31,10 +31,18 @@
 //!      blind spot), both also per path kind in `id_switches_by_pattern`,
 //!      `false_tracks` (confirmed tracks never matched to an intruder, duplicates
 //!      included) and `false_track_longest_s`.
+//!
+//! The track figures are computed in [`score`]; `--trace FILE` writes every sample, with
+//! the detector frames, and `--replay FILE` runs the tracker again over such a trace
+//! without flying ([`replay`]).
+
+mod replay;
+mod score;
 
 use super::up_process::UpProcess;
+use score::Scorer;
 use serde_json::{Value, json};
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, HashMap};
 use std::time::{Duration, Instant};
 
 /// Arguments of `skein bench tracking`.
@@ -56,6 +64,11 @@ pub struct TrackingBenchArgs {
     /// file, to see where a metric comes from.
     #[arg(long, value_name = "FILE")]
     pub trace: Option<std::path::PathBuf>,
+    /// Fly nothing: replay a `--trace` file's detector frames through a fresh tracker and
+    /// print its track figures (see `bench/tracking/replay.rs`); with `--trace`, write the
+    /// replay's samples there.
+    #[arg(long, value_name = "FILE")]
+    pub replay: Option<std::path::PathBuf>,
 }
 
 /// `skein up` with the bench's scene (4 observation UAVs, seeded intruders).
@@ -87,18 +100,7 @@ fn start(args: &TrackingBenchArgs) -> Result<UpProcess, String> {
     UpProcess::start(&a)
 }
 
-fn ned(v: &Value) -> Option<[f64; 3]> {
-    Some([
-        v["north_m"].as_f64()?,
-        v["east_m"].as_f64()?,
-        v["down_m"].as_f64()?,
-    ])
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-}
-
+/// The state of a vehicle's payload in `slot`, from `GET /api/v1/vehicles`.
 fn payload_state<'a>(v: &'a Value, slot: &str) -> Option<&'a Value> {
     v["payloads"]
         .as_array()?
@@ -159,50 +161,26 @@ impl Tally {
     }
 }
 
-/// Intruders matched one-to-one to confirmed tracks within 10 m, as CLEAR-MOT does: an
-/// intruder keeps its previous track while that one is still within the gate and not
-/// taken; the others go to the nearest free track, closest pairs first. Returns intruder
-/// id → (track id, distance m).
-fn assign(
-    intruders: &[(String, [f64; 3])],
-    confirmed: &[(String, [f64; 3])],
-    previous: &BTreeMap<String, Option<String>>,
-) -> BTreeMap<String, (String, f64)> {
-    const GATE_M: f64 = 10.0;
-    let mut out: BTreeMap<String, (String, f64)> = BTreeMap::new();
-    let mut taken: BTreeSet<&str> = BTreeSet::new();
-    for (iid, p) in intruders {
-        if let Some(Some(prev)) = previous.get(iid)
-            && let Some((tid, q)) = confirmed.iter().find(|(t, _)| t == prev)
-            && dist(*p, *q) <= GATE_M
-            && taken.insert(tid.as_str())
-        {
-            out.insert(iid.clone(), (tid.clone(), dist(*p, *q)));
-        }
-    }
-    let mut pairs: Vec<(f64, &String, &String)> = intruders
-        .iter()
-        .filter(|(iid, _)| !out.contains_key(iid))
-        .flat_map(|(iid, p)| {
-            confirmed
-                .iter()
-                .map(move |(tid, q)| (dist(*p, *q), iid, tid))
-        })
-        .filter(|(d, _, tid)| *d <= GATE_M && !taken.contains(tid.as_str()))
-        .collect();
-    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    for (d, iid, tid) in pairs {
-        if out.contains_key(iid) || taken.contains(tid.as_str()) {
-            continue;
-        }
-        taken.insert(tid.as_str());
-        out.insert(iid.clone(), (tid.clone(), d));
-    }
-    out
+/// The `--trace` file, created.
+fn trace_file(
+    args: &TrackingBenchArgs,
+) -> Result<Option<std::io::BufWriter<std::fs::File>>, String> {
+    let Some(p) = &args.trace else {
+        return Ok(None);
+    };
+    let file = std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?;
+    Ok(Some(std::io::BufWriter::new(file)))
 }
 
 /// Runs the benchmark (blocking: HTTP polling of a child `skein up`).
 pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
+    if let Some(path) = &args.replay {
+        let mut file = trace_file(args)?;
+        let out = file.as_mut().map(|f| f as &mut dyn std::io::Write);
+        let config = skein_swarm::tracking::TrackerConfig::default();
+        let tracks = replay::replay(path, config, out)?;
+        return Ok(json!({"replay": path.display().to_string(), "tracks": tracks}));
+    }
     let up = start(args)?;
     eprintln!("bench tracking: skein up at {}", up.base);
     up.wait_vehicles(
@@ -242,26 +220,12 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
     let start = Instant::now();
     let mut tally = Tally::default();
     let mut last_frame: HashMap<String, u64> = HashMap::new();
-    let mut sq_err = Vec::new();
-    let mut in_view_since: BTreeMap<String, f64> = BTreeMap::new();
-    let mut confirmed_after: BTreeMap<String, Option<f64>> = BTreeMap::new();
-    let mut matched: BTreeMap<String, Option<String>> = BTreeMap::new();
-    let mut switches = 0u64;
-    // Per intruder: out of every camera's view since its last match.
-    let mut unseen_since_match: BTreeMap<String, bool> = BTreeMap::new();
-    // Per path kind: (switches in view, reacquisitions).
-    let mut by_pattern: BTreeMap<String, (u64, u64)> = BTreeMap::new();
-    let mut confirmed_seen: BTreeMap<String, (f64, f64)> = BTreeMap::new();
-    let mut near_intruder: BTreeSet<String> = BTreeSet::new();
-    let mut trace = match &args.trace {
-        Some(p) => Some(std::io::BufWriter::new(
-            std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?,
-        )),
-        None => None,
-    };
+    let mut scorer = Scorer::default();
+    let mut trace = trace_file(args)?;
     while start.elapsed().as_secs_f64() < args.seconds {
         let t = start.elapsed().as_secs_f64();
         let vehicles = up.get("/api/v1/vehicles")?;
+        let now_us = skein_swarm::tracking::now_us();
         let tracks = up.get("/api/v1/tracks")?["tracks"]
             .as_array()
             .cloned()
@@ -296,94 +260,14 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
                 tally.frame(cam, &dets);
             }
         }
-        // Tracks against the truth.
-        let members: Vec<[f64; 3]> = truth["vehicles"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .filter_map(ned)
-            .collect();
-        let centre = members
-            .iter()
-            .fold([0.0; 3], |c, p| [c[0] + p[0], c[1] + p[1], c[2] + p[2]]);
-        let centre = centre.map(|c| c / members.len().max(1) as f64);
-        let confirmed: Vec<(String, [f64; 3])> = tracks
-            .iter()
-            .filter(|t| t["status"] == "confirmed")
-            .filter_map(|t| Some((t["id"].as_str()?.to_string(), ned(&t["position"])?)))
-            .collect();
-        for (id, _) in &confirmed {
-            let e = confirmed_seen.entry(id.clone()).or_insert((t, t));
-            e.1 = t;
-        }
-        let intruders: Vec<(String, [f64; 3])> = truth["intruders"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .filter_map(|i| Some((i["id"].as_str()?.to_string(), ned(i)?)))
-            .collect();
-        let assigned = assign(&intruders, &confirmed, &matched);
-        for i in truth["intruders"].as_array().into_iter().flatten() {
-            let (Some(iid), Some(p)) = (i["id"].as_str(), ned(i)) else {
-                continue;
-            };
-            let nearest = assigned.get(iid).map(|(id, d)| (id, *d));
-            if let Some((id, _)) = nearest {
-                near_intruder.insert(id.clone());
-            }
-            let views = viewers.get(iid).copied().unwrap_or(0);
-            let pattern = i["pattern"].as_str().unwrap_or("?").to_string();
-            let kind = by_pattern.entry(pattern).or_default();
-            if confirmed_after.get(iid).is_none_or(Option::is_none) {
-                if views >= 2 {
-                    in_view_since.entry(iid.to_string()).or_insert(t);
-                    confirmed_after.entry(iid.to_string()).or_insert(None);
-                } else if views == 0 {
-                    // Out of every camera's view, still unconfirmed: the clock restarts
-                    // when it is next in two views.
-                    in_view_since.remove(iid);
-                }
-                if let Some(&t_in) = in_view_since.get(iid)
-                    && nearest.is_some_and(|(_, d)| d <= 5.0)
-                {
-                    confirmed_after.insert(iid.to_string(), Some(t - t_in));
-                }
-            }
-            let unseen = unseen_since_match.entry(iid.to_string()).or_insert(false);
-            if views == 0 {
-                *unseen = true;
-            }
-            let within = dist(p, centre) <= 100.0;
-            if let Some((id, d)) = nearest.filter(|(_, d)| *d <= 10.0) {
-                if within {
-                    sq_err.push(d * d);
-                }
-                let last = matched.entry(iid.to_string()).or_insert(None);
-                if last.as_ref().is_some_and(|l| l != id) {
-                    switches += 1;
-                    if *unseen {
-                        kind.1 += 1;
-                    } else {
-                        kind.0 += 1;
-                    }
-                }
-                *last = Some(id.clone());
-                *unseen = false;
-            }
-        }
+        scorer.sample(t, &truth, &viewers, &tracks);
         if let Some(w) = trace.as_mut() {
             use std::io::Write;
-            let line = json!({"t_s": t, "intruders": truth["intruders"], "viewers": viewers,
-                "centre": centre, "tracks": tracks});
+            let line = replay::trace_line(t, now_us, &vs, &truth, &viewers, &tracks);
             writeln!(w, "{line}").map_err(|e| format!("trace: {e}"))?;
         }
         std::thread::sleep(Duration::from_millis(200));
     }
-    let false_tracks: Vec<(&String, f64)> = confirmed_seen
-        .iter()
-        .filter(|(id, _)| !near_intruder.contains(*id))
-        .map(|(id, (a, b))| (id, b - a))
-        .collect();
     let ratio = |a: u64, b: u64| {
         if b == 0 {
             Value::Null
@@ -391,7 +275,6 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
             json!(a as f64 / b as f64)
         }
     };
-    let times: Vec<f64> = confirmed_after.values().flatten().copied().collect();
     Ok(json!({
         "seconds": args.seconds,
         "intruders": args.intruders,
@@ -404,21 +287,6 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
             "precision": ratio(tally.tp, tally.tp + tally.fp),
             "recall": ratio(tally.tp, tally.tp + tally.misses),
         },
-        "tracks": {
-            "rmse_m": (!sq_err.is_empty()).then(|| (sq_err.iter().sum::<f64>() / sq_err.len() as f64).sqrt()),
-            "samples": sq_err.len(),
-            "time_to_confirm_s": confirmed_after,
-            "time_to_confirm_max_s": times.iter().cloned().reduce(f64::max),
-            "in_two_views": confirmed_after.len(),
-            "id_switches": switches,
-            "id_switches_in_view": by_pattern.values().map(|k| k.0).sum::<u64>(),
-            "reacquisitions": by_pattern.values().map(|k| k.1).sum::<u64>(),
-            "id_switches_by_pattern": by_pattern.iter().map(|(p, k)| {
-                (p.clone(), json!({"in_view": k.0, "reacquisitions": k.1}))
-            }).collect::<BTreeMap<_, _>>(),
-            "confirmed_tracks": confirmed_seen.len(),
-            "false_tracks": false_tracks.len(),
-            "false_track_longest_s": false_tracks.iter().map(|f| f.1).reduce(f64::max),
-        },
+        "tracks": scorer.report(),
     }))
 }

@@ -1,0 +1,174 @@
+//! Traces of `skein bench tracking` and their replay through the tracker.
+//!
+//! With `--trace FILE` the bench writes one JSON line per sample: `t_s` (seconds into the
+//! measurement), `now_us` (wall clock when the vehicles were read), `truth` (as
+//! `GET /api/v1/sim/truth` answered), `viewers` (cameras drawing each intruder), `tracks`
+//! (as `GET /api/v1/tracks` listed them), `members` (each vehicle's id and swarm-frame NED
+//! position) and `detectors` (each observation UAV's recent detector frames, the
+//! `recent` list of its detector's payload state: at 5 Hz sampling every frame is in some
+//! line).
+//!
+//! `skein bench tracking --replay FILE` runs a fresh [`Tracker`] over the trace's detector
+//! frames instead of flying: it steps at [`TRACKER_HZ`] on the frames' clock, each frame
+//! delivered [`DELIVERY_US`] after its capture, with the members' positions of the latest
+//! sample, and scores its tracks at every sample's time against the recorded truth. The
+//! same trace always gives the same figures, so a change of the tracker can be measured
+//! on the flights that showed a problem, in seconds and without the simulator's
+//! run-to-run variation.
+
+use super::score::Scorer;
+use serde_json::{Value, json};
+use skein_swarm::tracking::detection::parse_detections;
+use skein_swarm::tracking::{TRACKER_HZ, Tracker, TrackerConfig};
+use std::collections::{BTreeMap, HashSet};
+use std::io::{BufRead, Write};
+
+/// Assumed time from a frame's capture to the tracker's reading it, µs (the detector's
+/// processing and the payload state's publication).
+pub const DELIVERY_US: u64 = 50_000;
+
+/// One trace line (see the module docs) from one sample of the live bench.
+pub(super) fn trace_line(
+    t_s: f64,
+    now_us: u64,
+    vehicles: &[Value],
+    truth: &Value,
+    viewers: &BTreeMap<String, usize>,
+    tracks: &[Value],
+) -> Value {
+    let members: Vec<Value> = vehicles
+        .iter()
+        .filter(|v| v["position"].is_object())
+        .map(|v| json!({"id": v["id"], "position": v["position"]}))
+        .collect();
+    let detectors: BTreeMap<String, Value> = vehicles
+        .iter()
+        .filter_map(|v| {
+            let id = v["id"].as_str()?.to_string();
+            let state = super::payload_state(v, "detector")?;
+            Some((id, state["recent"].clone()))
+        })
+        .collect();
+    json!({"t_s": t_s, "now_us": now_us, "truth": truth, "viewers": viewers,
+        "tracks": tracks, "members": members, "detectors": detectors})
+}
+
+struct Sample {
+    t_s: f64,
+    now_us: u64,
+    truth: Value,
+    viewers: BTreeMap<String, usize>,
+    members: Vec<(String, nalgebra::Vector3<f64>)>,
+}
+
+/// Reads a trace: its samples in order, and every detector frame once as
+/// (stamp µs, vehicle id, frame), oldest first.
+fn read(path: &std::path::Path) -> Result<(Vec<Sample>, Vec<(u64, String, Value)>), String> {
+    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut samples = Vec::new();
+    let mut frames = Vec::new();
+    let mut seen: HashSet<(String, u64)> = HashSet::new();
+    for (n, line) in std::io::BufReader::new(file).lines().enumerate() {
+        let line = line.map_err(|e| format!("{}: {e}", path.display()))?;
+        let v: Value = serde_json::from_str(&line)
+            .map_err(|e| format!("{} line {}: {e}", path.display(), n + 1))?;
+        let (Some(t_s), Some(now_us)) = (v["t_s"].as_f64(), v["now_us"].as_u64()) else {
+            return Err(format!(
+                "{} line {}: no t_s or now_us (a trace of an older skein?)",
+                path.display(),
+                n + 1
+            ));
+        };
+        for (id, recent) in v["detectors"].as_object().into_iter().flatten() {
+            for f in recent.as_array().into_iter().flatten() {
+                let (Some(frame), Some(stamp)) = (f["frame"].as_u64(), f["stamp_us"].as_u64())
+                else {
+                    continue;
+                };
+                if seen.insert((id.clone(), frame)) {
+                    frames.push((stamp, id.clone(), f.clone()));
+                }
+            }
+        }
+        let members = v["members"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(|m| {
+                let p = super::score::ned(&m["position"])?;
+                Some((m["id"].as_str()?.to_string(), nalgebra::Vector3::from(p)))
+            })
+            .collect();
+        let viewers = serde_json::from_value(v["viewers"].clone()).unwrap_or_default();
+        samples.push(Sample {
+            t_s,
+            now_us,
+            truth: v["truth"].clone(),
+            viewers,
+            members,
+        });
+    }
+    frames.sort_by_key(|f| f.0);
+    Ok((samples, frames))
+}
+
+/// Replays the trace at `path` (see the module docs); returns the report's `tracks` object
+/// with the replay's counters. With `out`, writes the replay's own trace there (the lines
+/// of the input with the replayed tracks, without `members` and `detectors`).
+///
+/// # Errors
+/// The file cannot be read, or a line is not a trace line; `out` cannot be written.
+pub fn replay(
+    path: &std::path::Path,
+    config: TrackerConfig,
+    mut out: Option<&mut dyn std::io::Write>,
+) -> Result<Value, String> {
+    let (samples, frames) = read(path)?;
+    let (Some(first), Some(last)) = (frames.first(), samples.last()) else {
+        return Err(format!("{}: no detector frames", path.display()));
+    };
+    let period_us = (1e6 / TRACKER_HZ) as u64;
+    let mut tracker = Tracker::new(config);
+    let mut scorer = Scorer::default();
+    let mut step_us = first.0 + period_us;
+    let (mut next_frame, mut malformed) = (0, 0u64);
+    let mut members: &[(String, nalgebra::Vector3<f64>)] = &[];
+    let mut sample_i = 0;
+    while step_us <= last.now_us + period_us {
+        while sample_i < samples.len() && samples[sample_i].now_us <= step_us {
+            let s = &samples[sample_i];
+            members = &s.members;
+            let tracks: Vec<Value> = tracker
+                .tracks(s.now_us)
+                .into_iter()
+                .map(|t| serde_json::to_value(t).unwrap_or(Value::Null))
+                .collect();
+            scorer.sample(s.t_s, &s.truth, &s.viewers, &tracks);
+            if let Some(w) = out.as_mut() {
+                let line = json!({"t_s": s.t_s, "now_us": s.now_us, "truth": s.truth,
+                    "viewers": s.viewers, "tracks": tracks});
+                writeln!(w, "{line}").map_err(|e| format!("trace: {e}"))?;
+            }
+            sample_i += 1;
+        }
+        let mut bearings = Vec::new();
+        while next_frame < frames.len() && frames[next_frame].0 + DELIVERY_US <= step_us {
+            let (_, id, f) = &frames[next_frame];
+            match parse_detections(id, f) {
+                Ok(rays) => bearings.extend(rays),
+                Err(_) => malformed += 1,
+            }
+            next_frame += 1;
+        }
+        tracker.step(step_us, bearings, members);
+        step_us += period_us;
+    }
+    let mut report = scorer.report();
+    report["replay"] = json!({
+        "samples": samples.len(),
+        "frames": frames.len(),
+        "malformed_frames": malformed,
+        "tracker": serde_json::to_value(tracker.counters()).unwrap_or(Value::Null),
+    });
+    Ok(report)
+}
