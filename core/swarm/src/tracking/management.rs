@@ -8,7 +8,11 @@ use super::tracker::{Track, TrackEvent, TrackStatus, Tracker, us_to_s};
 use nalgebra::{Matrix3, Vector3};
 
 /// Velocity uncertainty of a new (or restarted) track, m/s per axis.
-const NEW_VELOCITY_SIGMA_M_S: f64 = 8.0;
+pub(super) const NEW_VELOCITY_SIGMA_M_S: f64 = 8.0;
+
+/// Two tracks two observers each fixed this recently are two aircraft, not the halves of
+/// one split over two cameras, seconds (see [`Tracker::join_split`]).
+const SPLIT_AFTER_S: f64 = 1.0;
 
 impl Tracker {
     fn new_track(
@@ -35,6 +39,7 @@ impl Tracker {
             last_update_us: t_us,
             hits: 1,
             triangulated_hits: triangulated,
+            last_triangulated_us: (triangulated > 0).then_some(t_us),
             observers,
         });
         self.counters.tracks_created += 1;
@@ -68,10 +73,17 @@ impl Tracker {
 
     /// One aircraft split over two tracks, each fed by one camera: two tracks that each
     /// got one lone bearing in this step, from two observers whose rays meet within reach
-    /// of the older track. The older takes both bearings (and so a triangulated fix);
-    /// returns the younger ones, ascending, for the caller to delete after the updates.
+    /// of the older track, unless two observers fixed each of them within
+    /// [`SPLIT_AFTER_S`] (two tracks each triangulated just before are two aircraft: the
+    /// rays of two cameras each on another of them meet at a ghost). The older takes both bearings (and so a
+    /// triangulated fix); returns the younger ones, ascending, for the caller to delete
+    /// after the updates.
     pub(super) fn join_split(&self, rays: &[Ray], assigned: &mut [Vec<usize>]) -> Vec<usize> {
         let rank = |t: &Track| (t.status != TrackStatus::Tentative, u64::MAX - t.created_us);
+        let fixed_lately = |t: &Track, at_us: u64| {
+            t.last_triangulated_us
+                .is_some_and(|l| us_to_s(at_us, l) < SPLIT_AFTER_S)
+        };
         let mut gone = Vec::new();
         for a in 0..assigned.len() {
             for b in a + 1..assigned.len() {
@@ -79,7 +91,11 @@ impl Tracker {
                     continue;
                 }
                 let (ra, rb) = (&rays[assigned[a][0]], &rays[assigned[b][0]]);
-                if ra.observer == rb.observer {
+                let at_us = ra.stamp_us.max(rb.stamp_us);
+                if ra.observer == rb.observer
+                    || (fixed_lately(&self.tracks[a], at_us)
+                        && fixed_lately(&self.tracks[b], at_us))
+                {
                     continue;
                 }
                 let Some((t1, t2, miss)) =
@@ -111,6 +127,44 @@ impl Tracker {
         gone.sort_unstable();
         gone.dedup();
         gone
+    }
+
+    /// A track no two observers have fixed yet has only one camera's guess of its range
+    /// (the size range, or none for a distant blur): while it takes that camera's
+    /// bearings, another camera's bearing of the same aircraft passes far from it and is
+    /// left over, with no partner to start a track with. So when a bearing left over in
+    /// this step (`used` false), from another observer, meets the ray of the one bearing
+    /// such a track got (as two bearings must to start a track), the track takes it too;
+    /// returns the tracks that did, for the caller to restart at the point the two fix.
+    pub(super) fn triangulate_lone(
+        &self,
+        rays: &[Ray],
+        assigned: &mut [Vec<usize>],
+        used: &mut [bool],
+    ) -> Vec<bool> {
+        let mut restart = vec![false; assigned.len()];
+        for (ti, ids) in assigned.iter_mut().enumerate() {
+            if self.tracks[ti].triangulated_hits > 0 || ids.len() != 1 {
+                continue;
+            }
+            let a = &rays[ids[0]];
+            let best = rays
+                .iter()
+                .enumerate()
+                .filter(|(j, b)| !used[*j] && b.observer != a.observer)
+                .filter_map(|(j, b)| {
+                    let (t1, t2, miss) = closest_approach(&a.origin, &a.dir, &b.origin, &b.dir)?;
+                    (t1 > 0.0 && t2 > 0.0 && miss <= self.config.init_gate_m + 0.03 * t1.max(t2))
+                        .then_some((j, miss))
+                })
+                .min_by(|x, y| x.1.total_cmp(&y.1));
+            if let Some((j, _)) = best {
+                used[j] = true;
+                ids.push(j);
+                restart[ti] = true;
+            }
+        }
+        restart
     }
 
     /// How far from its prediction a confirmed or lost track may be continued, metres.
@@ -192,6 +246,7 @@ impl Tracker {
             t.last_update_us = t.last_update_us.max(t_us);
             t.hits += 1;
             t.triangulated_hits += 1;
+            t.last_triangulated_us = Some(t_us);
             t.observers = observers;
             self.counters.bearings_associated += 2;
             if t.status == TrackStatus::Lost {
@@ -327,7 +382,8 @@ impl Tracker {
                             d.last_update_us,
                             d.observers.clone(),
                         );
-                        let (hits, tri) = (d.hits, d.triangulated_hits);
+                        let (hits, tri, fixed) =
+                            (d.hits, d.triangulated_hits, d.last_triangulated_us);
                         let k = &mut self.tracks[keep];
                         k.filter = filter;
                         k.t_us = t_us;
@@ -335,6 +391,7 @@ impl Tracker {
                         k.observers = observers;
                         k.hits = k.hits.max(hits);
                         k.triangulated_hits = k.triangulated_hits.max(tri);
+                        k.last_triangulated_us = k.last_triangulated_us.max(fixed);
                         if k.status == TrackStatus::Lost {
                             k.status = TrackStatus::Confirmed;
                             events

@@ -59,6 +59,35 @@ fn fly(
     events
 }
 
+/// A track the tracker has followed for a while: at `p` moving at `v` (confident: 0.3 m,
+/// 0.1 m/s), created at `created_us`, last updated at `seen_us`, last fixed by two
+/// observers at `triangulated_us`; 20 hits, 5 of them triangulated.
+fn settled_track(
+    id: &str,
+    status: TrackStatus,
+    p: Vector3<f64>,
+    v: Vector3<f64>,
+    created_us: u64,
+    seen_us: u64,
+    triangulated_us: Option<u64>,
+) -> super::tracker::Track {
+    let mut filter =
+        super::filter::ConstantVelocity::new(p, nalgebra::Matrix3::identity() * 0.1, 0.1, 2.0);
+    filter.x.fixed_rows_mut::<3>(3).copy_from(&v);
+    super::tracker::Track {
+        id: id.to_string(),
+        status,
+        filter,
+        t_us: seen_us,
+        created_us,
+        last_update_us: seen_us,
+        hits: 20,
+        triangulated_hits: 5,
+        last_triangulated_us: triangulated_us,
+        observers: vec![],
+    }
+}
+
 fn nearest_id(tracker: &Tracker, now_us: u64, p: Vector3<f64>) -> (String, f64) {
     tracker
         .tracks(now_us)
@@ -288,24 +317,9 @@ fn a_target_back_from_a_blind_spot_keeps_its_id() {
 
 #[test]
 fn two_tracks_of_one_target_are_merged_under_the_older_id() {
-    use super::filter::ConstantVelocity;
-    use super::tracker::Track;
-    use nalgebra::Matrix3;
     let mut tr = Tracker::new(TrackerConfig::default());
-    let track = |id: &str, status, p: Vector3<f64>, v: Vector3<f64>, created_us, seen_us| {
-        let mut filter = ConstantVelocity::new(p, Matrix3::identity() * 0.5, 0.5, 2.0);
-        filter.x.fixed_rows_mut::<3>(3).copy_from(&v);
-        Track {
-            id: id.to_string(),
-            status,
-            filter,
-            t_us: seen_us,
-            created_us,
-            last_update_us: seen_us,
-            hits: 10,
-            triangulated_hits: 10,
-            observers: vec!["uav-1".into(), "uav-3".into()],
-        }
+    let track = |id: &str, status, p, v, created_us, seen_us| {
+        settled_track(id, status, p, v, created_us, seen_us, Some(seen_us))
     };
     let v = Vector3::new(0.0, 5.0, 0.0);
     // An old confirmed track coasting 0.5 s, and a younger one updated just now, 1 m off,
@@ -352,25 +366,25 @@ fn two_tracks_of_one_target_are_merged_under_the_older_id() {
 
 #[test]
 fn an_aircraft_split_over_two_cameras_tracks_is_joined_under_the_older_id() {
-    use super::filter::ConstantVelocity;
-    use super::tracker::Track;
-    use nalgebra::Matrix3;
     let target = Vector3::new(30.0, 5.0, -12.0);
     let (o2, o4) = (Vector3::from(OBSERVERS[0].1), Vector3::from(OBSERVERS[1].1));
     // Each track sits on one camera's ray, 5 m off in range: each gate holds only that
     // camera's bearing.
     let on_ray =
         |o: Vector3<f64>, off: f64| o + (target - o).normalize() * ((target - o).norm() + off);
-    let track = |id: &str, p: Vector3<f64>, created_us: u64| Track {
-        id: id.to_string(),
-        status: TrackStatus::Confirmed,
-        filter: ConstantVelocity::new(p, Matrix3::identity() * 0.1, 0.1, 2.0),
-        t_us: 9_900_000,
-        created_us,
-        last_update_us: 9_900_000,
-        hits: 20,
-        triangulated_hits: 5,
-        observers: vec![],
+    // Each fed by its one camera for the last 4 s.
+    let track = |id: &str, p, created_us| {
+        let (seen_us, fixed_us) = (9_900_000, Some(5_900_000));
+        let v = Vector3::zeros();
+        settled_track(
+            id,
+            TrackStatus::Confirmed,
+            p,
+            v,
+            created_us,
+            seen_us,
+            fixed_us,
+        )
     };
     let mut tr = Tracker::new(TrackerConfig::default());
     tr.tracks.push(track("track-1", on_ray(o2, 5.0), 1_000_000));
@@ -389,4 +403,130 @@ fn an_aircraft_split_over_two_cameras_tracks_is_joined_under_the_older_id() {
     let p = Vector3::new(t.position.north_m, t.position.east_m, t.position.down_m);
     // The triangulated fix pulled it in from 5 m off (against its confident prior).
     assert!((p - target).norm() < 3.0, "{t:?}");
+}
+
+#[test]
+fn two_aircraft_whose_rays_cross_near_one_of_them_stay_two_tracks() {
+    let (o2, o4) = (Vector3::from(OBSERVERS[0].1), Vector3::from(OBSERVERS[1].1));
+    // uav-2 sees only the first aircraft, uav-4 only the second; uav-4's ray crosses
+    // uav-2's 4 m beyond the first: a ghost within reach of its track.
+    let t1 = Vector3::new(40.0, 0.0, -10.0);
+    let ghost = Vector3::new(44.0, 0.0, -10.0);
+    let t2 = o4 + (ghost - o4) * 1.5;
+    let mut tr = Tracker::new(TrackerConfig::default());
+    // Both fixed by two cameras a moment ago.
+    for (id, p, created_us) in [("track-1", t1, 1_000_000), ("track-2", t2, 2_000_000)] {
+        let (seen_us, fixed_us) = (9_900_000, Some(9_900_000));
+        let v = Vector3::zeros();
+        tr.tracks.push(settled_track(
+            id,
+            TrackStatus::Confirmed,
+            p,
+            v,
+            created_us,
+            seen_us,
+            fixed_us,
+        ));
+    }
+    let bearings = vec![
+        bearing("uav-2", o2, t1, 10_000_000, 0.0),
+        bearing("uav-4", o4, t2, 10_000_000, 0.0),
+    ];
+    let events = tr.step(10_000_000, bearings, &[]);
+    assert!(
+        !events.iter().any(|e| matches!(e, TrackEvent::Deleted(_))),
+        "{events:?}"
+    );
+    let tracks = tr.tracks(10_000_000);
+    assert_eq!(tracks.len(), 2, "{events:?}");
+    for (t, truth) in tracks.iter().zip([t1, t2]) {
+        let p = Vector3::new(t.position.north_m, t.position.east_m, t.position.down_m);
+        assert!((p - truth).norm() < 1.0, "{t:?} is not at {truth}");
+        assert_eq!(t.unseen_s, 0.0, "{t:?}");
+    }
+}
+
+#[test]
+fn a_track_one_camera_put_at_a_wrong_range_is_fixed_by_a_second_camera() {
+    let (o2, o4) = (Vector3::from(OBSERVERS[0].1), Vector3::from(OBSERVERS[1].1));
+    let target = Vector3::new(50.0, 3.0, -14.0);
+    // Fed by uav-2's bearings alone (distant blurs, no size range): confidently on the ray,
+    // 15 m beyond the aircraft.
+    let wrong = o2 + (target - o2).normalize() * ((target - o2).norm() + 15.0);
+    let mut t = settled_track(
+        "track-3",
+        TrackStatus::Tentative,
+        wrong,
+        Vector3::zeros(),
+        8_000_000,
+        9_900_000,
+        None,
+    );
+    (t.hits, t.triangulated_hits) = (5, 0);
+    let mut tr = Tracker::new(TrackerConfig::default());
+    tr.tracks.push(t);
+    let blur = |mut r: super::geometry::Ray| {
+        r.range_from_size_m = None;
+        r
+    };
+    let bearings = vec![
+        blur(bearing("uav-2", o2, target, 10_000_000, 0.0)),
+        blur(bearing("uav-4", o4, target, 10_000_000, 0.0)),
+    ];
+    let events = tr.step(10_000_000, bearings, &[]);
+    let tracks = tr.tracks(10_000_000);
+    assert_eq!(tracks.len(), 1, "{events:?}");
+    let t = &tracks[0];
+    assert_eq!(t.id, "track-3");
+    let p = Vector3::new(t.position.north_m, t.position.east_m, t.position.down_m);
+    assert!((p - target).norm() < 1.0, "{t:?}");
+    // Fixed by two cameras: confirmed.
+    assert_eq!((t.triangulated_hits, t.status), (1, TrackStatus::Confirmed));
+}
+
+#[test]
+fn a_lost_track_does_not_take_the_bearing_of_a_tracked_aircraft() {
+    let o2 = Vector3::from(OBSERVERS[0].1);
+    let target = Vector3::new(40.0, 0.0, -10.0);
+    let mut tr = Tracker::new(TrackerConfig::default());
+    // Tracked, 1.4 m behind the aircraft after a turn (inside the 1.5 m gate floor).
+    tr.tracks.push(settled_track(
+        "track-1",
+        TrackStatus::Confirmed,
+        target + Vector3::new(0.0, 1.4, 0.0),
+        Vector3::zeros(),
+        1_000_000,
+        9_900_000,
+        Some(9_900_000),
+    ));
+    // Unseen for 3 s, 4 m the other side, its covariance grown to 5 m.
+    let mut lost = settled_track(
+        "track-2",
+        TrackStatus::Lost,
+        target - Vector3::new(0.0, 4.0, 0.0),
+        Vector3::zeros(),
+        2_000_000,
+        7_000_000,
+        Some(7_000_000),
+    );
+    lost.filter
+        .p
+        .fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(nalgebra::Matrix3::identity() * 25.0));
+    lost.t_us = 9_900_000;
+    tr.tracks.push(lost);
+    let events = tr.step(
+        10_000_000,
+        vec![bearing("uav-2", o2, target, 10_000_000, 0.0)],
+        &[],
+    );
+    let tracks = tr.tracks(10_000_000);
+    let (t1, t2) = (&tracks[0], &tracks[1]);
+    assert_eq!(
+        (t1.id.as_str(), t1.unseen_s),
+        ("track-1", 0.0),
+        "{events:?}"
+    );
+    assert_eq!(t2.status, TrackStatus::Lost, "{events:?}");
+    assert!(t2.unseen_s > 2.9, "{t2:?}");
 }

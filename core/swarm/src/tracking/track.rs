@@ -61,7 +61,7 @@ impl Default for TrackerConfig {
             delete_after_s: 5.0,
             merge_m: 2.0,
             reacquire_m: 6.0,
-            reacquire_m_per_s: 1.5,
+            reacquire_m_per_s: 3.0,
         }
     }
 }

@@ -8,10 +8,17 @@
 //!    meet at one point;
 //! 3. associates each observer's bearings with the tracks one-to-one by minimum total
 //!    Mahalanobis distance (Hungarian algorithm, `pathfinding::kuhn_munkres_min`, integer
-//!    weights), gated at χ² `gate_chi2` (or `gate_floor_m` across the ray);
+//!    weights), gated at χ² `gate_chi2` (or `gate_floor_m` across the ray); a lost
+//!    track, whose covariance grew while it went unseen, only gets a bearing no other
+//!    track in its gate can take;
 //!    two tracks that each got one lone bearing, from two observers whose rays meet
 //!    within reach (see 7) of the older, are one aircraft split over two cameras: the
-//!    older takes both bearings and the younger is deleted;
+//!    older takes both bearings and the younger is deleted; unless both were fixed by two
+//!    observers within the last second: then they are two aircraft, and their rays meet at
+//!    a ghost;
+//!    a track no two observers fixed yet, fed by one camera, also takes a bearing of
+//!    another observer left over in this step that meets its bearing's ray, and restarts
+//!    at the point the two fix (its range was that one camera's guess);
 //! 4. updates each track with the point its bearings fix ([`super::geometry::fuse_rays`]:
 //!    least-squares triangulation when two observers see it, the range from apparent size
 //!    along a lone ray);
@@ -37,6 +44,7 @@
 
 use super::filter::ConstantVelocity;
 use super::geometry::{Ray, RayNoise, fuse_rays, perp};
+use super::management::NEW_VELOCITY_SIGMA_M_S;
 use nalgebra::Vector3;
 use pathfinding::prelude::{Matrix, kuhn_munkres_min};
 use std::collections::BTreeMap;
@@ -55,6 +63,8 @@ pub(super) struct Track {
     pub(super) last_update_us: u64,
     pub(super) hits: u32,
     pub(super) triangulated_hits: u32,
+    /// Time of the last update two observers fixed, µs.
+    pub(super) last_triangulated_us: Option<u64>,
     pub(super) observers: Vec<String>,
 }
 
@@ -239,7 +249,15 @@ impl Tracker {
                     if let Some((d2, dist)) = self.ray_distance2(t, &rays[i])
                         && (d2 <= self.config.gate_chi2 || dist <= self.config.gate_floor_m)
                     {
-                        m[(row, c)] = (d2.min(1e6) * SCALE) as i64;
+                        // A lost track's covariance has grown while it went unseen, so it
+                        // would win bearings from a track being updated: it only gets one
+                        // no such track can take.
+                        let lost = if t.status == TrackStatus::Lost {
+                            self.config.gate_chi2.max(1.0) * 4.0
+                        } else {
+                            0.0
+                        };
+                        m[(row, c)] = ((d2 + lost).min(1e6) * SCALE) as i64;
                     }
                 }
             }
@@ -252,6 +270,7 @@ impl Tracker {
             }
         }
         let split = self.join_split(&rays, &mut assigned);
+        let restart = self.triangulate_lone(&rays, &mut assigned, &mut used);
         let noise = self.noise();
         for (ti, ray_ids) in assigned.iter().enumerate() {
             if ray_ids.is_empty() {
@@ -293,14 +312,19 @@ impl Tracker {
                 continue;
             };
             let view_before = self.tracks[ti].status;
+            let accel = self.config.accel_sigma_m_s2;
             let t = &mut self.tracks[ti];
-            if !t.filter.update(&z, &cov) {
+            if restart[ti] {
+                // Its range was one camera's guess: it starts again where two fix it.
+                t.filter = ConstantVelocity::new(z, cov, NEW_VELOCITY_SIGMA_M_S, accel);
+            } else if !t.filter.update(&z, &cov) {
                 continue;
             }
             self.counters.bearings_associated += ray_ids.len() as u64;
             t.hits += 1;
             if triangulated {
                 t.triangulated_hits += 1;
+                t.last_triangulated_us = Some(t.t_us);
             }
             t.observers = observers;
             t.last_update_us = t.t_us;
