@@ -75,9 +75,9 @@ impl Tracker {
     /// got one lone bearing in this step, from two observers whose rays meet within reach
     /// of the older track, unless two observers fixed each of them within
     /// [`SPLIT_AFTER_S`] (two tracks each triangulated just before are two aircraft: the
-    /// rays of two cameras each on another of them meet at a ghost). The older takes both bearings (and so a
-    /// triangulated fix); returns the younger ones, ascending, for the caller to delete
-    /// after the updates.
+    /// rays of two cameras each on another of them meet at a ghost). The older takes both
+    /// bearings (and so a triangulated fix); returns the younger ones, ascending, for the
+    /// caller to delete after the updates.
     pub(super) fn join_split(&self, rays: &[Ray], assigned: &mut [Vec<usize>]) -> Vec<usize> {
         let rank = |t: &Track| (t.status != TrackStatus::Tentative, u64::MAX - t.created_us);
         let fixed_lately = |t: &Track, at_us: u64| {
@@ -349,10 +349,18 @@ impl Tracker {
 
     /// Two tracks on one aircraft: closer than `merge_m` at velocities they cannot tell
     /// apart (within 2 m/s, or within three standard deviations of the two estimates, as a
-    /// young track's is). The older id stays (a confirmed or lost track before a tentative
-    /// one); it takes the other's state when that one was updated more recently.
+    /// young track's is). The id of the track being followed stays: a confirmed one's
+    /// before a lost one's (the lost one may have drifted onto another aircraft's track
+    /// while unseen), a lost one's before a tentative one's (the aircraft is back from a
+    /// blind spot), else the older; it takes the other's state when that one was updated
+    /// more recently.
     pub(super) fn merge(&mut self, now_us: u64, events: &mut Vec<TrackEvent>) {
-        let rank = |t: &Track| (t.status != TrackStatus::Tentative, u64::MAX - t.created_us);
+        let status_rank = |s: TrackStatus| match s {
+            TrackStatus::Confirmed => 2,
+            TrackStatus::Lost => 1,
+            TrackStatus::Tentative => 0,
+        };
+        let rank = |t: &Track| (status_rank(t.status), u64::MAX - t.created_us);
         let mut doomed = vec![false; self.tracks.len()];
         for i in 0..self.tracks.len() {
             for j in i + 1..self.tracks.len() {

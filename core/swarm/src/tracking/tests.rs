@@ -530,3 +530,36 @@ fn a_lost_track_does_not_take_the_bearing_of_a_tracked_aircraft() {
     assert_eq!(t2.status, TrackStatus::Lost, "{events:?}");
     assert!(t2.unseen_s > 2.9, "{t2:?}");
 }
+
+#[test]
+fn a_lost_track_that_drifted_onto_a_followed_aircraft_gives_up_its_id() {
+    let mut tr = Tracker::new(TrackerConfig::default());
+    let v = Vector3::new(3.0, 0.0, 0.0);
+    // The older track went unseen 1.2 s ago and coasted onto the aircraft that the
+    // younger one follows (1 m apart now, same velocity).
+    tr.tracks.push(settled_track(
+        "track-4",
+        TrackStatus::Lost,
+        Vector3::new(-26.0 - 3.6, -17.0, -15.0),
+        v,
+        1_000_000,
+        8_800_000,
+        Some(5_000_000),
+    ));
+    tr.tracks.push(settled_track(
+        "track-7",
+        TrackStatus::Confirmed,
+        Vector3::new(-26.0, -16.0, -15.0),
+        v,
+        3_000_000,
+        10_000_000,
+        Some(10_000_000),
+    ));
+    let events = tr.step(10_000_000, vec![], &[]);
+    let ids: Vec<String> = tr.tracks(10_000_000).into_iter().map(|t| t.id).collect();
+    assert_eq!(ids, ["track-7"], "{events:?}");
+    assert!(
+        matches!(&events[..], [TrackEvent::Deleted(d)] if d.id == "track-4"),
+        "{events:?}"
+    );
+}

@@ -28,9 +28,10 @@
 //! 6. runs the lifecycle: tentative → confirmed after `confirm_hits` updates, at least one
 //!    of them triangulated; confirmed → lost after `lost_after_s` without an update (a lost
 //!    track that is seen again is recovered under its id); tentative tracks unseen for
-//!    `tentative_timeout_s` and lost tracks unseen for `delete_after_s` are deleted; a
-//!    track that comes within `merge_m` of an older one (at a velocity it cannot tell
-//!    from the older one's) is merged into it, under the older id;
+//!    `tentative_timeout_s` and lost tracks unseen for `delete_after_s` are deleted; two
+//!    tracks within `merge_m` of each other (at velocities they cannot tell apart) are
+//!    merged, under the id of the one being followed (confirmed, then lost, then
+//!    tentative; else the older);
 //! 7. keeps ids through manoeuvres and blind spots: a pair of bearings left over in step 5
 //!    whose point lies within `reacquire_m` of a confirmed or lost track that was not
 //!    updated in the step continues that track (its filter restarts at the point, keeping
