@@ -11,7 +11,8 @@
 //! `skein bench tracking --replay FILE` runs a fresh [`Tracker`] over the trace's detector
 //! frames instead of flying: it steps at [`TRACKER_HZ`] on the frames' clock, each frame
 //! delivered [`DELIVERY_US`] after its capture, with the members' positions of the latest
-//! sample, and scores its tracks at every sample's time against the recorded truth. The
+//! sample, and scores its tracks at every sample's time against the recorded truth, from
+//! [`WARM_UP_S`] after the first frame on. The
 //! same trace always gives the same figures, so a change of the tracker can be measured
 //! on the flights that showed a problem, in seconds and without the simulator's
 //! run-to-run variation.
@@ -26,6 +27,11 @@ use std::io::{BufRead, Write};
 /// Assumed time from a frame's capture to the tracker's reading it, µs (the detector's
 /// processing and the payload state's publication).
 pub const DELIVERY_US: u64 = 50_000;
+
+/// The replay scores no sample in the first seconds after the trace's first frame: its
+/// tracker starts there with no track, where the live one had tracked through the
+/// bench's warm-up.
+pub const WARM_UP_S: f64 = 3.0;
 
 /// One trace line (see the module docs) from one sample of the live bench.
 pub(super) fn trace_line(
@@ -131,6 +137,7 @@ pub fn replay(
     let mut tracker = Tracker::new(config);
     let mut scorer = Scorer::default();
     let mut step_us = first.0 + period_us;
+    let warm_up_us = first.0 + (WARM_UP_S * 1e6) as u64;
     let (mut next_frame, mut malformed) = (0, 0u64);
     let mut members: &[(String, nalgebra::Vector3<f64>)] = &[];
     let mut sample_i = 0;
@@ -143,7 +150,9 @@ pub fn replay(
                 .into_iter()
                 .map(|t| serde_json::to_value(t).unwrap_or(Value::Null))
                 .collect();
-            scorer.sample(s.t_s, &s.truth, &s.viewers, &tracks);
+            if s.now_us >= warm_up_us {
+                scorer.sample(s.t_s, &s.truth, &s.viewers, &tracks);
+            }
             if let Some(w) = out.as_mut() {
                 let line = json!({"t_s": s.t_s, "now_us": s.now_us, "truth": s.truth,
                     "viewers": s.viewers, "tracks": tracks});
@@ -166,6 +175,7 @@ pub fn replay(
     let mut report = scorer.report();
     report["replay"] = json!({
         "samples": samples.len(),
+        "warm_up_s": WARM_UP_S,
         "frames": frames.len(),
         "malformed_frames": malformed,
         "tracker": serde_json::to_value(tracker.counters()).unwrap_or(Value::Null),
