@@ -67,9 +67,11 @@ struct Sample {
     members: Vec<(String, nalgebra::Vector3<f64>)>,
 }
 
-/// Reads a trace: its samples in order, and every detector frame once as
-/// (stamp µs, vehicle id, frame), oldest first.
-fn read(path: &std::path::Path) -> Result<(Vec<Sample>, Vec<(u64, String, Value)>), String> {
+/// A detector frame of a trace: capture time µs, observer vehicle id, the frame.
+type TracedFrame = (u64, String, Value);
+
+/// Reads a trace: its samples in order, and every detector frame once, oldest first.
+fn read(path: &std::path::Path) -> Result<(Vec<Sample>, Vec<TracedFrame>), String> {
     let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut samples = Vec::new();
     let mut frames = Vec::new();
