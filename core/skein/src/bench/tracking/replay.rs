@@ -4,24 +4,23 @@
 //! measurement), `now_us` (wall clock when the vehicles were read), `truth` (as
 //! `GET /api/v1/sim/truth` answered), `viewers` (cameras drawing each intruder), `tracks`
 //! (as `GET /api/v1/tracks` listed them), `members` (each vehicle's id and swarm-frame NED
-//! position) and `detectors` (each observation UAV's recent detector frames, the
-//! `recent` list of its detector's payload state: at 5 Hz sampling every frame is in some
-//! line).
+//! position) and `detectors` (per observation UAV, its detector's payload state reduced
+//! to `recent`, the frames of the last half second: at 5 Hz sampling every frame is in
+//! some line).
 //!
 //! `skein bench tracking --replay FILE` runs a fresh [`Tracker`] over the trace's detector
 //! frames instead of flying: it steps at [`TRACKER_HZ`] on the frames' clock, each frame
 //! delivered [`DELIVERY_US`] after its capture, with the members' positions of the latest
 //! sample, and scores its tracks at every sample's time against the recorded truth, from
-//! [`WARM_UP_S`] after the first frame on. The
-//! same trace always gives the same figures, so a change of the tracker can be measured
-//! on the flights that showed a problem, in seconds and without the simulator's
-//! run-to-run variation.
+//! [`WARM_UP_S`] after the first frame on. The same trace always gives the same figures,
+//! so a change of the tracker can be measured on the flights that showed a problem, in
+//! seconds and without the simulator's run-to-run variation.
 
 use super::score::Scorer;
 use serde_json::{Value, json};
-use skein_swarm::tracking::detection::parse_detections;
+use skein_swarm::tracking::detection::{self, parse_detections};
 use skein_swarm::tracking::{TRACKER_HZ, Tracker, TrackerConfig};
-use std::collections::{BTreeMap, HashSet};
+use std::collections::{BTreeMap, HashMap};
 use std::io::{BufRead, Write};
 
 /// Assumed time from a frame's capture to the tracker's reading it, µs (the detector's
@@ -52,7 +51,7 @@ pub(super) fn trace_line(
         .filter_map(|v| {
             let id = v["id"].as_str()?.to_string();
             let state = super::payload_state(v, "detector")?;
-            Some((id, state["recent"].clone()))
+            Some((id, json!({"recent": state["recent"]})))
         })
         .collect();
     json!({"t_s": t_s, "now_us": now_us, "truth": truth, "viewers": viewers,
@@ -70,12 +69,13 @@ struct Sample {
 /// A detector frame of a trace: capture time µs, observer vehicle id, the frame.
 type TracedFrame = (u64, String, Value);
 
-/// Reads a trace: its samples in order, and every detector frame once, oldest first.
+/// Reads a trace: its samples in order, and every detector frame once (as
+/// [`detection::new_frames`] gives them to the live tracker), oldest first.
 fn read(path: &std::path::Path) -> Result<(Vec<Sample>, Vec<TracedFrame>), String> {
     let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut samples = Vec::new();
     let mut frames = Vec::new();
-    let mut seen: HashSet<(String, u64)> = HashSet::new();
+    let mut newest: HashMap<String, u64> = HashMap::new();
     for (n, line) in std::io::BufReader::new(file).lines().enumerate() {
         let line = line.map_err(|e| format!("{}: {e}", path.display()))?;
         let v: Value = serde_json::from_str(&line)
@@ -87,15 +87,16 @@ fn read(path: &std::path::Path) -> Result<(Vec<Sample>, Vec<TracedFrame>), Strin
                 n + 1
             ));
         };
-        for (id, recent) in v["detectors"].as_object().into_iter().flatten() {
-            for f in recent.as_array().into_iter().flatten() {
-                let (Some(frame), Some(stamp)) = (f["frame"].as_u64(), f["stamp_us"].as_u64())
-                else {
-                    continue;
-                };
-                if seen.insert((id.clone(), frame)) {
-                    frames.push((stamp, id.clone(), f.clone()));
+        // Read as the live tracker reads a detector's state: its frames newer than the
+        // last one taken from that vehicle.
+        for (id, state) in v["detectors"].as_object().into_iter().flatten() {
+            for f in detection::new_frames(state, newest.get(id).copied()) {
+                if let Some(n) = f["frame"].as_u64() {
+                    newest.insert(id.clone(), n);
                 }
+                // A frame without a capture time sorts first and is counted as malformed.
+                let stamp = f["stamp_us"].as_u64().unwrap_or(0);
+                frames.push((stamp, id.clone(), f.clone()));
             }
         }
         let members = v["members"]
