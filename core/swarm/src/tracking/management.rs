@@ -14,6 +14,18 @@ pub(super) const NEW_VELOCITY_SIGMA_M_S: f64 = 8.0;
 /// one split over two cameras, seconds (see [`Tracker::join_split`]).
 const SPLIT_AFTER_S: f64 = 1.0;
 
+/// Which of two tracks on one aircraft keeps its id: the one being followed (a confirmed
+/// track before a lost one, which may have coasted onto another aircraft; a lost one
+/// before a tentative one, the aircraft back from a blind spot), else the older.
+fn id_rank(t: &Track) -> (u8, u64) {
+    let status = match t.status {
+        TrackStatus::Confirmed => 2,
+        TrackStatus::Lost => 1,
+        TrackStatus::Tentative => 0,
+    };
+    (status, u64::MAX - t.created_us)
+}
+
 impl Tracker {
     fn new_track(
         &mut self,
@@ -47,6 +59,18 @@ impl Tracker {
         TrackEvent::Created(self.view(t, t_us))
     }
 
+    /// Two bearings of two observers that could be one aircraft: their rays pass within
+    /// `init_gate_m` + 3 % of the range of each other, in front of both. Returns the
+    /// distances along each ray to the closest approach and the miss distance, metres.
+    fn rays_meet(&self, a: &Ray, b: &Ray) -> Option<(f64, f64, f64)> {
+        if a.observer == b.observer {
+            return None;
+        }
+        let (t1, t2, miss) = closest_approach(&a.origin, &a.dir, &b.origin, &b.dir)?;
+        (t1 > 0.0 && t2 > 0.0 && miss <= self.config.init_gate_m + 0.03 * t1.max(t2))
+            .then_some((t1, t2, miss))
+    }
+
     /// Pairs of pending bearings from two observers whose rays meet in front of both:
     /// `(miss distance m, i, j)`, best first.
     fn meeting_pairs(&self) -> Vec<(f64, usize, usize)> {
@@ -54,15 +78,7 @@ impl Tracker {
         let mut pairs = Vec::new();
         for i in 0..pending.len() {
             for j in i + 1..pending.len() {
-                let (a, b) = (&pending[i], &pending[j]);
-                if a.observer == b.observer {
-                    continue;
-                }
-                if let Some((t1, t2, miss)) = closest_approach(&a.origin, &a.dir, &b.origin, &b.dir)
-                    && t1 > 0.0
-                    && t2 > 0.0
-                    && miss <= self.config.init_gate_m + 0.03 * t1.max(t2)
-                {
+                if let Some((_, _, miss)) = self.rays_meet(&pending[i], &pending[j]) {
                     pairs.push((miss, i, j));
                 }
             }
@@ -73,13 +89,12 @@ impl Tracker {
 
     /// One aircraft split over two tracks, each fed by one camera: two tracks that each
     /// got one lone bearing in this step, from two observers whose rays meet within reach
-    /// of the older track, unless two observers fixed each of them within
-    /// [`SPLIT_AFTER_S`] (two tracks each triangulated just before are two aircraft: the
-    /// rays of two cameras each on another of them meet at a ghost). The older takes both
-    /// bearings (and so a triangulated fix); returns the younger ones, ascending, for the
-    /// caller to delete after the updates.
+    /// of the track that keeps its id ([`id_rank`]), unless two observers fixed each of
+    /// them within [`SPLIT_AFTER_S`] (two tracks each triangulated just before are two
+    /// aircraft: the rays of two cameras each on another of them meet at a ghost). That
+    /// track takes both bearings (and so a triangulated fix); returns the others,
+    /// ascending, for the caller to delete after the updates.
     pub(super) fn join_split(&self, rays: &[Ray], assigned: &mut [Vec<usize>]) -> Vec<usize> {
-        let rank = |t: &Track| (t.status != TrackStatus::Tentative, u64::MAX - t.created_us);
         let fixed_lately = |t: &Track, at_us: u64| {
             t.last_triangulated_us
                 .is_some_and(|l| us_to_s(at_us, l) < SPLIT_AFTER_S)
@@ -92,22 +107,14 @@ impl Tracker {
                 }
                 let (ra, rb) = (&rays[assigned[a][0]], &rays[assigned[b][0]]);
                 let at_us = ra.stamp_us.max(rb.stamp_us);
-                if ra.observer == rb.observer
-                    || (fixed_lately(&self.tracks[a], at_us)
-                        && fixed_lately(&self.tracks[b], at_us))
-                {
+                if fixed_lately(&self.tracks[a], at_us) && fixed_lately(&self.tracks[b], at_us) {
                     continue;
                 }
-                let Some((t1, t2, miss)) =
-                    closest_approach(&ra.origin, &ra.dir, &rb.origin, &rb.dir)
-                else {
+                let Some((t1, t2, _)) = self.rays_meet(ra, rb) else {
                     continue;
                 };
-                if !(t1 > 0.0 && t2 > 0.0 && miss <= self.config.init_gate_m + 0.03 * t1.max(t2)) {
-                    continue;
-                }
                 let meet = (ra.origin + ra.dir * t1 + rb.origin + rb.dir * t2) / 2.0;
-                let (keep, drop) = if rank(&self.tracks[a]) >= rank(&self.tracks[b]) {
+                let (keep, drop) = if id_rank(&self.tracks[a]) >= id_rank(&self.tracks[b]) {
                     (a, b)
                 } else {
                     (b, a)
@@ -151,12 +158,8 @@ impl Tracker {
             let best = rays
                 .iter()
                 .enumerate()
-                .filter(|(j, b)| !used[*j] && b.observer != a.observer)
-                .filter_map(|(j, b)| {
-                    let (t1, t2, miss) = closest_approach(&a.origin, &a.dir, &b.origin, &b.dir)?;
-                    (t1 > 0.0 && t2 > 0.0 && miss <= self.config.init_gate_m + 0.03 * t1.max(t2))
-                        .then_some((j, miss))
-                })
+                .filter(|(j, _)| !used[*j])
+                .filter_map(|(j, b)| Some((j, self.rays_meet(a, b)?.2)))
                 .min_by(|x, y| x.1.total_cmp(&y.1));
             if let Some((j, _)) = best {
                 used[j] = true;
@@ -349,18 +352,9 @@ impl Tracker {
 
     /// Two tracks on one aircraft: closer than `merge_m` at velocities they cannot tell
     /// apart (within 2 m/s, or within three standard deviations of the two estimates, as a
-    /// young track's is). The id of the track being followed stays: a confirmed one's
-    /// before a lost one's (the lost one may have drifted onto another aircraft's track
-    /// while unseen), a lost one's before a tentative one's (the aircraft is back from a
-    /// blind spot), else the older; it takes the other's state when that one was updated
-    /// more recently.
+    /// young track's is). The one [`id_rank`] prefers stays; it takes the other's state
+    /// when that one was updated more recently.
     pub(super) fn merge(&mut self, now_us: u64, events: &mut Vec<TrackEvent>) {
-        let status_rank = |s: TrackStatus| match s {
-            TrackStatus::Confirmed => 2,
-            TrackStatus::Lost => 1,
-            TrackStatus::Tentative => 0,
-        };
-        let rank = |t: &Track| (status_rank(t.status), u64::MAX - t.created_us);
         let mut doomed = vec![false; self.tracks.len()];
         for i in 0..self.tracks.len() {
             for j in i + 1..self.tracks.len() {
@@ -380,7 +374,11 @@ impl Tracker {
                     fa.p.fixed_view::<3, 3>(3, 3).trace() + fb.p.fixed_view::<3, 3>(3, 3).trace();
                 // Crossing targets come close too, but at velocities known to differ.
                 if d < self.config.merge_m && (dv < 2.0 || dv * dv <= 9.0 * v_var) {
-                    let (keep, drop) = if rank(a) >= rank(b) { (i, j) } else { (j, i) };
+                    let (keep, drop) = if id_rank(a) >= id_rank(b) {
+                        (i, j)
+                    } else {
+                        (j, i)
+                    };
                     doomed[drop] = true;
                     if self.tracks[drop].last_update_us > self.tracks[keep].last_update_us {
                         let d = &self.tracks[drop];

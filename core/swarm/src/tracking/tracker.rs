@@ -12,8 +12,9 @@
 //!    track, whose covariance grew while it went unseen, only gets a bearing no other
 //!    track in its gate can take;
 //!    two tracks that each got one lone bearing, from two observers whose rays meet
-//!    within reach (see 7) of the older, are one aircraft split over two cameras: the
-//!    older takes both bearings and the younger is deleted; unless both were fixed by two
+//!    within reach (see 7) of the one that keeps its id (as in a merge, see 6), are one
+//!    aircraft split over two cameras: it takes both bearings and the other is deleted;
+//!    unless both were fixed by two
 //!    observers within the last second: then they are two aircraft, and their rays meet at
 //!    a ghost;
 //!    a track no two observers fixed yet, fed by one camera, also takes a bearing of
