@@ -119,7 +119,7 @@ fn bench_restart_restarts_every_panic_with_vehicles_offboard() {
 }
 
 /// `skein bench plugins` on freshly built example and fault plugins, small counts: every
-/// figure present, and a socket round trip to a plugin-host child costs more than a call.
+/// figure present and ordered as it must be; without the example plugin, a clear error.
 #[test]
 fn bench_plugins_reports_round_trips_loads_and_restarts() {
     let dir = support::plugins::scratch("bench-plugins");
@@ -153,6 +153,7 @@ fn bench_plugins_reports_round_trips_loads_and_restarts() {
     };
     let local = p50(&["round_trip_us", "in_process"]);
     let remote = p50(&["round_trip_us", "process"]);
+    // A socket round trip between processes costs more than a function call.
     assert!(local > 0.0 && remote > local, "{report}");
     for key in [
         "load_us",
@@ -162,6 +163,23 @@ fn bench_plugins_reports_round_trips_loads_and_restarts() {
     ] {
         assert!(p50(&[key]) > 0.0, "{key}: {report}");
     }
+    // A new child process costs more than a new driver in the same one.
+    assert!(
+        p50(&["restart_after_abort_us"]) > p50(&["restart_after_panic_us"]),
+        "{report}"
+    );
+    assert_eq!(report["round_trip_us"]["in_process"]["n"], 500, "{report}");
+    assert_eq!(report["plugin"]["name"], "example", "{report}");
+    // Without the example plugin there is nothing to measure: a clear error, exit 1.
+    let empty = support::plugins::scratch("bench-plugins-empty");
+    let mut p =
+        support::Process::start(&["bench", "plugins", "--plugin-dir", empty.to_str().unwrap()]);
+    assert_eq!(p.wait_exit(Duration::from_secs(60)), Some(1));
+    let err = p.stderr_text();
+    assert!(
+        err.contains("libskein_plugin_example.so not found"),
+        "{err}"
+    );
 }
 
 /// `skein bench tracking` for 15 s on freshly built gimbal, camera and detector plugins:

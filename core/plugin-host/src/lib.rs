@@ -24,13 +24,13 @@
 //! skein exits: a few MB per retired build.
 //!
 //! [`plugin_host_main`] is the child's entry point (the `skein plugin-host` subcommand);
-//! [`bench_plugins`] measures round trips, loads, reloads and restarts.
+//! `skein bench plugins` (crate `skein-bench`) measures round trips, loads, reloads and
+//! restarts through this crate's public API.
 //!
 //! `unsafe` code lives only at the FFI boundary: `library.rs` (mapping and header checks),
 //! `services.rs` (the host callbacks), `inprocess.rs` and `child.rs` (vtable calls).
 #![warn(missing_docs)]
 
-mod bench;
 mod child;
 mod error;
 mod inprocess;
@@ -41,7 +41,6 @@ pub mod protocol;
 mod registry;
 mod services;
 
-pub use bench::{BenchConfig, bench_plugins, summary as latency_summary_us};
 pub use child::{PluginHostArgs, plugin_host_main};
 pub use error::HostError;
 pub use isolated::ChildCommand;

@@ -63,7 +63,9 @@ enum Commands {
     Agent(agent::AgentArgs),
     /// Run the PX4 SITL-like simulator alone (instance i: sysid i+1, binds 14580+i, sends to 14540+i).
     Sim(skein_sim::cli::SimArgs),
-    /// Benchmarks printing one JSON object (`skein bench swarm --vehicles N --rate-hz 50 --seconds S`).
+    /// Benchmarks printing one JSON object (`skein bench swarm --vehicles N --rate-hz 50
+    /// --seconds S`): runs the `skein-bench` executable beside this one.
+    #[command(disable_help_flag = true)]
     Bench(bench::BenchArgs),
     /// Inject a fault into an actor of a running skein (needs --enable-fault-injection there).
     Fault(FaultArgs),
@@ -162,7 +164,7 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    install_panic_hook();
+    skein_swarm::supervision::install_panic_hook();
     let result = runtime.block_on(async {
         match cli.command {
             Commands::Up(args) => up::up(args).await,
@@ -181,7 +183,7 @@ fn main() -> ExitCode {
                 );
                 ExitCode::SUCCESS
             }),
-            Commands::Bench(args) => bench::run(args).await.map(|()| ExitCode::SUCCESS),
+            Commands::Bench(args) => bench::run(args),
             Commands::Token(TokenCommand::Create(args)) => token_create(&args),
             Commands::Key(KeyCommand::Create(args)) => keys::key_create(&args),
             Commands::Replay(args) => replay::run(args).await,
@@ -199,24 +201,6 @@ fn main() -> ExitCode {
 /// Exit status when the coordinator failed (EX_SOFTWARE): for systemd or Docker to
 /// restart the process.
 pub(crate) const EXIT_COORDINATOR_FAILED: u8 = 70;
-
-/// One line per panic, no backtrace: supervised actors panic on purpose in fault tests,
-/// and the default hook (with `RUST_BACKTRACE=1`) costs ~100 µs of restart latency.
-fn install_panic_hook() {
-    std::panic::set_hook(Box::new(|info| {
-        let msg = info
-            .payload()
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| info.payload().downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "non-string panic payload".into());
-        let at = info
-            .location()
-            .map(|l| format!(" at {}:{}", l.file(), l.line()))
-            .unwrap_or_default();
-        tracing::error!("panic: {msg}{at}");
-    }));
-}
 
 /// Pings the coordinator from a thread of its own (so a wedged runtime cannot stop it);
 /// a coordinator that does not answer within `deadline` is a hung root: exit non-zero.

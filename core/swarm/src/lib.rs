@@ -15,7 +15,6 @@
 //! - [`election`]: which coordinator candidate of a DDS domain is active (lease, failover).
 //! - [`vehicle`]: the per-vehicle actor, its control loop and procedures.
 //! - [`formation`]: the formation engine's state between ticks.
-//! - [`rehearsal`]: formation flight in virtual time (transition tests, `skein bench formation`).
 //! - [`payload`]: payload actors, the vehicle side of the payload contract, built-ins.
 //! - [`supervision`]: restart policies, failure records, the supervision tree.
 //! - [`tracking`]: counter-UAS tracker fusing the detectors' bearings into 3D tracks.
@@ -35,7 +34,6 @@ pub mod formation;
 pub mod metrics;
 pub mod payload;
 pub mod protocol;
-pub mod rehearsal;
 pub mod supervision;
 pub mod tracking;
 pub mod vehicle;

@@ -2,7 +2,6 @@
 //! does not build cdylib dependencies for tests) and loaded with real `dlopen`, in-process
 //! and in `skein-plugin-host` child processes.
 
-mod bench;
 mod camera;
 mod detector;
 mod faults;

@@ -25,7 +25,8 @@
 //! - [`policy`]: the policies and each child's record;
 //! - [`registry`]: the shared registry and the tree the API shows;
 //! - [`children`]: the children table every supervisor uses (spawned children, hung
-//!   set, watchdog, restart probe).
+//!   set, watchdog, restart probe);
+//! - [`install_panic_hook`]: the cheap panic hook of every executable with actors.
 
 pub mod children;
 pub mod policy;
@@ -36,3 +37,23 @@ pub use policy::{
     ChildRecord, Decision, Exit, FailureRecord, PolicyConfig, SupervisionConfig, VehicleEscalation,
 };
 pub use registry::{ROOT, Supervision, TreeNode};
+
+/// Replaces the process's panic hook by one that logs one line per panic (message and
+/// place), no backtrace: supervised actors panic on purpose in fault tests, and the
+/// default hook (with `RUST_BACKTRACE=1`) costs ~100 µs of restart latency. Every
+/// executable that runs supervised actors (`skein`, `skein-bench`) installs it first.
+pub fn install_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "non-string panic payload".into());
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        tracing::error!("panic: {msg}{at}");
+    }));
+}

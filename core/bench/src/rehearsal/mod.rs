@@ -4,7 +4,7 @@
 //!
 //! What runs is the code that flies: slot targets at the formation rate, extrapolated by
 //! each vehicle between formation ticks as the Vehicle actor does, shaped against every
-//! other vehicle's position and setpoint (planned between members, as [`crate::view`]
+//! other vehicle's position and setpoint (planned between members, as `skein_swarm`'s neighbour view
 //! marks them), and for a simulated PX4 the same tracking correction (acceleration
 //! feed-forward with a learnt drag term). What flies is chosen by
 //! [`RehearsalConfig::airframe`] ([`airframe`]): skein's PX4-faithful simulated
@@ -15,13 +15,13 @@ mod airframe;
 
 pub use airframe::AirframeKind;
 
-use crate::formation::{
-    FormationEngine, FormationSpec, FormationStatus, Hazard, HazardConfig, LeaderMotion, Member,
-};
-use crate::vehicle::tracking::{TrackingCorrection, TrackingGains};
 use airframe::Airframe;
 use skein_model::geo::Ned;
 use skein_model::safety::{Geofence, MotionLimits, Obstacle, SetpointShaper};
+use skein_swarm::formation::{
+    FormationEngine, FormationSpec, FormationStatus, Hazard, HazardConfig, LeaderMotion, Member,
+};
+use skein_swarm::vehicle::tracking::{TrackingCorrection, TrackingGains};
 use std::collections::BTreeMap;
 use std::time::Duration;
 

@@ -1,14 +1,14 @@
-//! A formation on the PX4-faithful simulated multicopter (`skein_swarm::rehearsal` with
+//! A formation on the PX4-faithful simulated multicopter (`skein_bench::rehearsal` with
 //! `AirframeKind::Px4`: PX4 v1.16's position-control cascade on SIH-like physics, the
 //! same model `skein sim` flies), with PX4's estimator noise on: a wedge of five behind a
 //! virtual leader cruising at 5 m/s and orbiting at 5 m/s (radius 40 m) keeps its RMS
 //! slot error under 0.3 m (about 0.2 m of that is PX4's own hover wander) and every pair
 //! at the minimum separation. Virtual time: deterministic, a few seconds of CPU.
 
+use skein_bench::rehearsal::{AirframeKind, Rehearsal, RehearsalConfig};
 use skein_model::formation::Shape;
 use skein_model::geo::Ned;
 use skein_swarm::formation::{FormationFrame, FormationSpec, VIRTUAL};
-use skein_swarm::rehearsal::{AirframeKind, Rehearsal, RehearsalConfig};
 
 fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64

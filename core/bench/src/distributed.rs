@@ -15,9 +15,9 @@
 //!    `target_latency_ms` (`p50`, `p99`, `max`, `samples`), and
 //!    `rms_difference_m` (distributed mean minus single-process mean).
 
-use super::cpu_seconds;
-use super::dds::{DdsBenchArgs, percentile};
-use super::up_process::UpProcess;
+use crate::dds::{DdsBenchArgs, percentile};
+use crate::procfs::cpu_seconds;
+use crate::up_process::UpProcess;
 use serde_json::{Value, json};
 use std::net::{IpAddr, Ipv4Addr};
 use std::time::{Duration, Instant};

@@ -1,5 +1,5 @@
-//! A `skein up` child process of a benchmark: this same executable, its API on a free
-//! port, killed when dropped.
+//! A `skein up` child process of a benchmark: the `skein` executable
+//! ([`crate::skein_exe`]), its API on a free port, killed when dropped.
 
 use serde_json::Value;
 use std::io::{BufRead, BufReader};
@@ -36,7 +36,7 @@ impl UpProcess {
     /// # Errors
     /// As [`UpProcess::start`].
     pub fn start_role(role: &[&str], args: &[&str]) -> Result<UpProcess, String> {
-        let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+        let exe = crate::skein_exe()?;
         let mut child = Command::new(exe)
             .args(role)
             .args(args)

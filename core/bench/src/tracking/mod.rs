@@ -39,7 +39,7 @@
 mod replay;
 mod score;
 
-use super::up_process::UpProcess;
+use crate::up_process::UpProcess;
 use score::Scorer;
 use serde_json::{Value, json};
 use std::collections::{BTreeMap, HashMap};
@@ -65,7 +65,7 @@ pub struct TrackingBenchArgs {
     #[arg(long, value_name = "FILE")]
     pub trace: Option<std::path::PathBuf>,
     /// Fly nothing: replay a `--trace` file's detector frames through a fresh tracker and
-    /// print its track figures (see `bench/tracking/replay.rs`); with `--trace`, write the
+    /// print its track figures (see `core/bench/src/tracking/replay.rs`); with `--trace`, write the
     /// replay's samples there.
     #[arg(long, value_name = "FILE")]
     pub replay: Option<std::path::PathBuf>,

@@ -2,8 +2,7 @@
 //! process-isolated), load and reload times, and restart times after a crash, measured on
 //! the `example` and `fault` plugins of a plugin directory.
 
-use crate::isolated::ChildCommand;
-use crate::manager::{HostConfig, PluginManager};
+use crate::PluginsBenchArgs;
 use serde_json::{Value, json};
 use skein_mavlink::MavMessage;
 use skein_model::fsm::VehicleState;
@@ -13,6 +12,7 @@ use skein_model::vehicle::{LinkStatus, Position, VehicleSnapshot, Velocity};
 use skein_payload::{
     Isolation, PayloadDriver, PayloadFactory, PayloadHost, PayloadSpec, PayloadState,
 };
+use skein_plugin_host::{ChildCommand, HostConfig, PluginManager};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -261,6 +261,38 @@ pub fn bench_plugins(cfg: &BenchConfig) -> Result<Value, String> {
         "restart_after_abort_us": abort_restarts,
         "notes": notes,
     }))
+}
+
+/// `skein bench plugins`: [`bench_plugins`] on the plugin directory,
+/// the isolated instances in `skein plugin-host` children of the `skein` executable
+/// ([`crate::skein_exe`]). JSON:
+/// `round_trip_us` (`in_process`, `process`: `n`, `p50`, `p99`, `max`), `load_us`,
+/// `reload_us`, `restart_after_panic_us`, `restart_after_abort_us`, and the plugin measured.
+///
+/// # Errors
+/// No example plugin in the directory, or a measurement failed.
+pub fn plugins(args: &PluginsBenchArgs) -> Result<Value, String> {
+    let skein = crate::skein_exe()?;
+    let dir = match &args.plugin_dir {
+        Some(d) => d.clone(),
+        None => skein
+            .parent()
+            .map(std::path::Path::to_path_buf)
+            .ok_or("cannot find the skein executable's directory: give --plugin-dir")?,
+    };
+    let child = ChildCommand {
+        program: skein,
+        args: vec!["plugin-host".into()],
+    };
+    let mut cfg = BenchConfig::new(&dir, child);
+    cfg.round_trips = args.round_trips.max(1);
+    cfg.isolated_round_trips = args.isolated_round_trips.max(1);
+    cfg.loads = args.loads.max(1);
+    cfg.restarts = args.restarts.max(1);
+    let mut report = bench_plugins(&cfg)?;
+    report["bench"] = json!("plugins");
+    report["plugin_dir"] = json!(dir.display().to_string());
+    Ok(report)
 }
 
 #[cfg(test)]

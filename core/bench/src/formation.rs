@@ -1,7 +1,7 @@
 //! `skein bench formation`: formation flight in virtual time on the PX4-faithful
 //! simulated multicopter (see [`formation`]).
 
-use super::round;
+use crate::round;
 use serde_json::{Value, json};
 use std::time::Instant;
 
@@ -32,16 +32,16 @@ pub struct FormationBenchArgs {
 /// `speed_m_s` (RMS slot error while cruising, after the first quarter of the cruise
 /// samples), then half an orbit of 30 m radius at `speed_m_s` (RMS slot error while
 /// orbiting, likewise), with the smallest distance between two vehicles over the whole
-/// run. Virtual time (see `skein_swarm::rehearsal`), on the PX4-faithful simulated
+/// run. Virtual time (see `crate::rehearsal`), on the PX4-faithful simulated
 /// multicopter by default: deterministic, and `wall_s` says how long the CPU took.
 ///
 /// # Errors
 /// When a shape does not converge within 300 s of virtual time.
 pub fn formation(args: &FormationBenchArgs) -> Result<Value, String> {
+    use crate::rehearsal::{AirframeKind, Rehearsal, RehearsalConfig};
     use skein_model::formation::Shape;
     use skein_model::geo::Ned;
     use skein_swarm::formation::{FormationFrame, FormationSpec, VIRTUAL};
-    use skein_swarm::rehearsal::{AirframeKind, Rehearsal, RehearsalConfig};
     let airframe = match args.airframe.as_str() {
         "point-mass" => AirframeKind::PointMass,
         _ => AirframeKind::Px4 {

@@ -1,7 +1,13 @@
 //! `skein bench restart`: restart latency of a payload actor under hovering vehicles,
 //! with the largest gap in the offboard setpoint stream (see [`restart`]).
 
-use super::*;
+use crate::SwarmBenchArgs;
+use crate::round;
+use crate::sim_process::*;
+use crate::stack::*;
+use serde_json::{Value, json};
+use skein_swarm::{CoordinatorMsg, Swarm, SwarmServices};
+use std::time::{Duration, Instant};
 
 /// `skein bench restart`.
 #[derive(clap::Args, Debug, Clone)]
@@ -188,62 +194,12 @@ async fn panic_payloads(
         "period_ms": args.period_ms,
         "panics": args.panics,
         "restarts": latency_us.len(),
-        "restart_latency_us": skein_plugin_host::latency_summary_us(latency_us),
-        "inject_to_running_us": skein_plugin_host::latency_summary_us(outside_us),
+        "restart_latency_us": crate::plugins::summary(latency_us),
+        "inject_to_running_us": crate::plugins::summary(outside_us),
         "largest_setpoint_gap_ms": f64_at(&summary["setpoint_intervals"], &["max_ms"]),
         "setpoint_interval_p99_ms": f64_at(&summary["setpoint_intervals"], &["p99_ms"]),
         "offboard_loss_failsafes": u64_at(&summary, "offboard_loss_failsafes"),
         "all_offboard": in_offboard == n as u64,
         "seconds": round(window_s, 2),
     }))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn own_cpu_and_memory_are_readable_on_linux() {
-        if !cfg!(target_os = "linux") {
-            return;
-        }
-        let cpu = cpu_seconds(None).expect("/proc/self/stat");
-        assert!(cpu >= 0.0);
-        assert!(peak_rss_mb().expect("VmHWM") > 0.0);
-        assert!(cpu_seconds(Some(std::process::id())).is_some());
-    }
-
-    #[test]
-    fn late_intervals_count_buckets_above_the_threshold() {
-        let buckets = json!([
-            {"lo_ms": 19.9, "hi_ms": 20.0, "count": 90},
-            {"lo_ms": 24.9, "hi_ms": 25.0, "count": 3},
-            {"lo_ms": 25.0, "hi_ms": 25.1, "count": 2},
-            {"lo_ms": 1000.0, "hi_ms": 1500.0, "count": 1},
-        ]);
-        assert_eq!(late_intervals(&buckets, 25.0), 3);
-        assert_eq!(late_intervals(&json!(null), 25.0), 0);
-    }
-
-    #[test]
-    fn metric_samples_are_summed_over_labels() {
-        let text = "# HELP skein_setpoints_sent Offboard setpoints sent, per vehicle.\n\
-                    # TYPE skein_setpoints_sent gauge\n\
-                    skein_setpoints_sent{vehicle=\"uav-1\"} 120\n\
-                    skein_setpoints_sent{vehicle=\"uav-2\"} 80\n\
-                    skein_setpoints_sent_other 5\n";
-        assert_eq!(sum_metric(text, "skein_setpoints_sent"), 200);
-    }
-
-    #[test]
-    fn port_blocks_stay_below_the_ephemeral_range() {
-        for attempt in 0..50 {
-            let base = candidate_base(1000, attempt).expect("room for 1000");
-            assert!(
-                base >= 20_000 && usize::from(base) + 1000 <= 32_768,
-                "{base}"
-            );
-        }
-        assert!(candidate_base(20_000, 0).is_none());
-    }
 }

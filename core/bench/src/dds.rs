@@ -17,8 +17,8 @@
 //! The two runs are separate processes a few seconds apart: rerun on a quiet host when
 //! the CPU figures look noisy.
 
-use super::cpu_seconds;
-use super::up_process::UpProcess;
+use crate::procfs::cpu_seconds;
+use crate::up_process::UpProcess;
 use serde_json::{Value, json};
 use std::net::{IpAddr, Ipv4Addr};
 use std::time::Duration;
@@ -36,7 +36,7 @@ pub struct DdsBenchArgs {
     #[arg(long, value_parser = skein_dds::parse_domain_id)]
     pub domain_id: Option<u16>,
     /// Instead: the distributed roles, `--vehicles` agents of one vehicle each and a
-    /// coordinator, against `skein up` (see `bench/distributed.rs`).
+    /// coordinator, against `skein up` (see `core/bench/src/distributed.rs`).
     #[arg(long)]
     pub distributed: bool,
 }

@@ -1,7 +1,7 @@
 //! Load benchmark: N simulated vehicles (swarm telemetry profile) in one process, and a
 //! client that streams setpoints to all of them.
 //!
-//! `cargo run --release -p skein-sim --example swarm_bench -- --vehicles 1000 --rate-hz 50`
+//! `cargo run --release -p skein-bench --example sim_swarm -- --vehicles 1000 --rate-hz 50`
 //!
 //! The simulator runs on its own 2-worker tokio runtime (threads `sim-w`), the client on a
 //! separate single-threaded runtime (thread `client`); CPU time is read per thread from

@@ -1,7 +1,14 @@
 //! `skein bench swarm`: setpoint timing and CPU of a large swarm against the simulator
 //! in its own process (see the module docs of [`super`] and [`swarm`]).
 
-use super::*;
+use crate::SwarmBenchArgs;
+use crate::procfs::*;
+use crate::round;
+use crate::sim_process::*;
+use crate::stack::*;
+use serde_json::{Value, json};
+use skein_swarm::{Swarm, SwarmServices};
+use std::time::{Duration, Instant};
 
 /// A task on this process's runtime ticking at the setpoint period for `window`; returns
 /// its tick intervals, ms. Its lateness is the runtime's own scheduling latency (timer

@@ -1,5 +1,5 @@
 //! Losing vehicles mid-transition, in virtual time (the real engine and shapers, see
-//! `skein_swarm::rehearsal`): 100 seeded runs, each a random formation of six behind a
+//! `skein_bench::rehearsal`): 100 seeded runs, each a random formation of six behind a
 //! virtual leader or a leader vehicle, changed to another random one, with a random
 //! member (the leader too) lost while the change is flown. The lost vehicle holds where
 //! it is, as PX4 does on offboard loss, and is a hazard the others plan around.
@@ -14,12 +14,12 @@
 
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
+use skein_bench::rehearsal::{Rehearsal, RehearsalConfig};
 use skein_model::formation::Shape;
 use skein_model::safety::Geofence;
 use skein_swarm::formation::{
     DEFAULT_SEPARATION_M, FormationFrame, FormationSpec, HazardConfig, VIRTUAL,
 };
-use skein_swarm::rehearsal::{Rehearsal, RehearsalConfig};
 
 const VEHICLES: usize = 6;
 

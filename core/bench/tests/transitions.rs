@@ -1,15 +1,15 @@
 //! Formation changes in virtual time (the real engine and shapers, see
-//! `skein_swarm::rehearsal`): 100 seeded random changes of shape, spacing, heading, frame
+//! `skein_bench::rehearsal`): 100 seeded random changes of shape, spacing, heading, frame
 //! and altitude, with the virtual leader moving, never bring two vehicles closer than the
 //! minimum separation and never take one out of the geofence.
 
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
+use skein_bench::rehearsal::{Rehearsal, RehearsalConfig};
 use skein_model::formation::Shape;
 use skein_model::geo::Ned;
 use skein_model::safety::Geofence;
 use skein_swarm::formation::{FormationFrame, FormationSpec, LeaderMotion, VIRTUAL};
-use skein_swarm::rehearsal::{Rehearsal, RehearsalConfig};
 
 /// Every shape but `custom` (all of them fly 8 vehicles).
 fn shapes() -> Vec<Shape> {
