@@ -25,10 +25,10 @@ use crate::protocol::{Envelope, Reframe, ReportBody, body_or_drop, into_view, re
 use crate::topics;
 use ros2_client::{Name, Node, Subscription};
 use skein_model::fsm::VehicleState;
+use skein_swarm::SwarmContext;
 use skein_swarm::election::observer::Observer;
 use skein_swarm::election::{ElectionConfig, Lease};
 use skein_swarm::protocol::{ToVehicle, VehicleCommand, VehicleReport};
-use skein_swarm::view::SwarmView;
 use skein_swarm::{CoordinatorMsg, DistributedMsg};
 use std::collections::BTreeSet;
 use std::str::FromStr;
@@ -248,7 +248,7 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
 async fn publish_reports(
     shared: &DdsShared,
     agent: &Agent,
-    view: &SwarmView,
+    view: &SwarmContext,
     reports: Vec<(String, VehicleReport)>,
 ) {
     let Some(topics) = shared.protocol() else {
@@ -349,7 +349,7 @@ impl Loss {
 }
 
 /// Hands the active coordinator's targets or commands to the local vehicles.
-async fn obey(shared: &DdsShared, view: &SwarmView, reader: &Subscription<msgs::SwarmMessage>) {
+async fn obey(shared: &DdsShared, view: &SwarmContext, reader: &Subscription<msgs::SwarmMessage>) {
     let Some(agent) = shared.agent() else {
         return;
     };
@@ -391,7 +391,7 @@ async fn obey(shared: &DdsShared, view: &SwarmView, reader: &Subscription<msgs::
 }
 
 /// Gives the local coordinator the other agents' vehicles as neighbours.
-async fn neighbours(shared: &DdsShared, view: &SwarmView) {
+async fn neighbours(shared: &DdsShared, view: &SwarmContext) {
     let (Some(agent), Some(topics)) = (shared.agent(), shared.protocol()) else {
         return;
     };

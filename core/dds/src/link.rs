@@ -27,10 +27,10 @@ use ros2_client::{Context, Name, Node, NodeName, NodeOptions, QosProfile};
 use ros2_client::{Publisher, Subscription};
 use skein_model::supervision::ChildKind;
 use skein_model::vehicle::VehicleSnapshot;
+use skein_swarm::SwarmContext;
 use skein_swarm::election::ElectionStatus;
 use skein_swarm::metrics::Metrics;
 use skein_swarm::protocol::VehicleReport;
-use skein_swarm::view::SwarmView;
 use skein_swarm::{CoordinatorMsg, DistributedMsg, ServiceMsg, ServiceSpec};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -237,8 +237,8 @@ impl DdsShared {
     }
 
     /// The coordinator's swarm view (`None` if it does not answer).
-    pub(crate) async fn view(&self) -> Option<Arc<SwarmView>> {
-        self.ask(|r| CoordinatorMsg::Distributed(DistributedMsg::GetView(r)))
+    pub(crate) async fn view(&self) -> Option<Arc<SwarmContext>> {
+        self.ask(|r| CoordinatorMsg::Distributed(DistributedMsg::GetContext(r)))
             .await
     }
 

@@ -19,9 +19,9 @@ use ros2_client::{Name, Node, Publisher, QosProfile, Subscription};
 use serde::{Deserialize, Serialize};
 use skein_model::geo::{GeoPoint, Ned, NedFrame};
 use skein_model::vehicle::{Position, VehicleSnapshot};
+use skein_swarm::SwarmContext;
 use skein_swarm::formation::{FormationMirror, LeaderMotion};
 use skein_swarm::protocol::{ToVehicle, VehicleReport};
-use skein_swarm::view::SwarmView;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
@@ -299,7 +299,7 @@ pub(crate) fn body_or_drop<B: for<'de> Deserialize<'de>>(
 /// The conversion of a received envelope's positions into `view`'s swarm frame. A view
 /// not anchored yet (a coordinator without vehicles of its own) is anchored at the
 /// sender's origin.
-pub fn into_view(view: &SwarmView, origin: Option<GeoPoint>) -> Option<Reframe> {
+pub fn into_view(view: &SwarmContext, origin: Option<GeoPoint>) -> Option<Reframe> {
     let frame = match (view.frame(), origin) {
         (Some(f), _) => f,
         (None, Some(o)) => view.anchor(o),

@@ -13,9 +13,9 @@
 use crate::link::DdsShared;
 use crate::protocol::{Envelope, ReportBody, body_or_drop, into_view, receive, reframed};
 use skein_model::vehicle::VehicleSnapshot;
+use skein_swarm::SwarmContext;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
-use skein_swarm::view::SwarmView;
 use skein_swarm::{CoordinatorMsg, DistributedMsg, RemoteVehicle, SwarmEvent};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, PoisonError, Weak};
@@ -49,7 +49,7 @@ struct DdsPort {
     shared: Weak<DdsShared>,
     vehicle_id: String,
     election: watch::Receiver<ElectionStatus>,
-    view: Arc<SwarmView>,
+    view: Arc<SwarmContext>,
 }
 
 impl VehiclePort for DdsPort {

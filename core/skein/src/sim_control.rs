@@ -1,4 +1,4 @@
-//! The in-process simulator as the swarm reaches it ([`skein_swarm::payload::SimulatorControl`]):
+//! The in-process simulator as the swarm reaches it ([`skein_swarm::SimulatorControl`]):
 //! the radio payload's link impairment, the intruders the simulated cameras render, and the
 //! ground truth of `GET /api/v1/sim/truth`.
 
@@ -24,7 +24,7 @@ fn velocity(v: &skein_model::geo::Ned) -> Velocity {
     }
 }
 
-impl skein_swarm::payload::SimulatorControl for LateSimControl {
+impl skein_swarm::SimulatorControl for LateSimControl {
     fn set_link_quality(&self, sysid: u8, loss_fraction: f64, latency_ms: f64) -> bool {
         self.0
             .get()

@@ -1,9 +1,9 @@
 //! The in-process carrier of the swarm protocol (`skein up`): protocol messages travel
-//! as actor messages, reports as `watch` channels. The DDS carrier carries the same
-//! [`crate::protocol`] types between processes.
+//! as actor messages ([`LocalPort`] to a Vehicle actor; the other way, the uplink the
+//! coordinator gives each vehicle posts to its mailbox), reports as `watch` channels. The
+//! DDS carrier carries the same [`crate::protocol`] types between processes.
 
-use crate::coordinator::CoordinatorMsg;
-use crate::protocol::{ToVehicle, Uplink, VehiclePort};
+use crate::protocol::{ToVehicle, VehiclePort};
 use crate::vehicle::VehicleMsg;
 use ractor::ActorRef;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -44,11 +44,4 @@ impl VehiclePort for LocalPort {
             None => Err("the vehicle actor is not running (restarting)".into()),
         }
     }
-}
-
-/// An uplink that posts a vehicle's protocol messages to the coordinator's mailbox.
-pub fn uplink_to(coordinator: ActorRef<CoordinatorMsg>) -> Uplink {
-    Arc::new(move |msg| {
-        let _ = coordinator.cast(CoordinatorMsg::FromVehicle(msg));
-    })
 }

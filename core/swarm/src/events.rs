@@ -133,27 +133,27 @@ pub enum SwarmEvent {
     /// The tracker started a (tentative) track of a non-cooperative aircraft.
     TrackCreated {
         /// The track.
-        track: crate::tracking::TrackView,
+        track: crate::tracks::TrackView,
     },
     /// A track was confirmed.
     TrackConfirmed {
         /// The track.
-        track: crate::tracking::TrackView,
+        track: crate::tracks::TrackView,
     },
     /// A confirmed track has not been seen for the tracker's `lost_after_s`.
     TrackLost {
         /// The track.
-        track: crate::tracking::TrackView,
+        track: crate::tracks::TrackView,
     },
     /// A lost track was seen again, under its id.
     TrackRecovered {
         /// The track.
-        track: crate::tracking::TrackView,
+        track: crate::tracks::TrackView,
     },
     /// A track was deleted (aged out, never confirmed, or merged into another).
     TrackDeleted {
         /// The track.
-        track: crate::tracking::TrackView,
+        track: crate::tracks::TrackView,
     },
     /// An event raised by a payload.
     PayloadEvent {

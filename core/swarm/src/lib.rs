@@ -15,11 +15,15 @@
 //! - [`election`]: which coordinator candidate of a DDS domain is active (lease, failover).
 //! - [`vehicle`]: the per-vehicle actor, its control loop and procedures.
 //! - [`formation`]: the formation engine's state between ticks.
-//! - [`payload`]: payload actors, the vehicle side of the payload contract, built-ins.
+//! - [`payload`]: payload actors (children of their Vehicle), built-in payloads.
 //! - [`supervision`]: restart policies, failure records, the supervision tree.
-//! - [`tracking`]: counter-UAS tracker fusing the detectors' bearings into 3D tracks.
+//! - [`tracking`]: counter-UAS tracker fusing the detectors' bearings into 3D tracks;
+//!   [`tracks`]: the tracks as everyone else sees them.
 //! - [`metrics`]: Prometheus metrics.
-//! - [`view`]: configuration and the swarm frame shared by all vehicles.
+//! - [`config`], [`services`], [`context`]: configuration, the process's services, and
+//!   the swarm frame, given to every actor;
+//! - [`neighbours`]: where every vehicle is, for the separation check (the coordinator
+//!   owns the board, each vehicle writes its slot and reads the others').
 //! - [`events`]: what the stream and dashboard are told.
 //!
 //! Actors never block in `handle`: link I/O runs in tasks that post results back as
@@ -27,18 +31,24 @@
 #![warn(missing_docs)]
 
 pub mod carrier;
+pub mod config;
+pub mod context;
 pub mod coordinator;
 pub mod election;
 pub mod events;
 pub mod formation;
 pub mod metrics;
+pub mod neighbours;
 pub mod payload;
 pub mod protocol;
+pub mod services;
 pub mod supervision;
 pub mod tracking;
+pub mod tracks;
 pub mod vehicle;
-pub mod view;
 
+pub use config::{SwarmConfig, VehicleModel};
+pub use context::SwarmContext;
 pub use coordinator::{
     CommandOutcome, Coordinator, CoordinatorMsg, DistributedMsg, EndpointSpec, FaultError,
     FieldError, RemoteVehicle, ServiceMsg, ServiceSpawner, ServiceSpec, Swarm, VehicleSpec,
@@ -46,5 +56,5 @@ pub use coordinator::{
 pub use events::SwarmEvent;
 pub use formation::{FormationSpec, FormationStatus};
 pub use protocol::VehicleCommand;
+pub use services::{SimulatorControl, SwarmServices};
 pub use vehicle::VehicleMsg;
-pub use view::{SwarmConfig, SwarmServices, VehicleModel};

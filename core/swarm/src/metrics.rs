@@ -40,9 +40,9 @@ pub struct Metrics {
     /// Ground-station forwarding, frames by `kind` (to_gcs, from_gcs, setpoints_dropped,
     /// no_route, to_gcs_dropped) and `connection`.
     pub gcs_forward_frames: Family<Labels, Gauge>,
-    /// Payload driver threads given up because a call did not return in time (set from
-    /// [`crate::payload::abandoned_driver_threads`] at every render).
-    payload_threads_abandoned: Gauge,
+    /// Payload driver threads given up because a call did not return in time (set by the
+    /// coordinator from the payload actors' count before every render).
+    pub payload_threads_abandoned: Gauge,
     /// DDS link samples since the start (`what` label: published, publish_errors,
     /// commands, malformed), set by the DDS link.
     pub dds_samples: Family<Labels, Gauge>,
@@ -200,10 +200,10 @@ impl Metrics {
     /// Sets the tracking metrics from the tracker's current tracks and totals.
     pub fn set_tracking(
         &self,
-        tracks: &[crate::tracking::TrackView],
-        c: &crate::tracking::TrackerCounters,
+        tracks: &[crate::tracks::TrackView],
+        c: &crate::tracks::TrackerCounters,
     ) {
-        use crate::tracking::TrackStatus;
+        use crate::tracks::TrackStatus;
         for (status, name) in [
             (TrackStatus::Tentative, "tentative"),
             (TrackStatus::Confirmed, "confirmed"),
@@ -256,8 +256,6 @@ impl Metrics {
 
     /// The OpenMetrics text exposition.
     pub fn render(&self) -> String {
-        self.payload_threads_abandoned
-            .set(i64::try_from(crate::payload::abandoned_driver_threads()).unwrap_or(i64::MAX));
         let mut out = String::new();
         encode(&mut out, &self.registry).expect("writing to a String cannot fail");
         out

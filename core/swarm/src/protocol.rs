@@ -25,6 +25,14 @@ pub fn wall_us() -> u64 {
         .map_or(0, |d| d.as_micros() as u64)
 }
 
+/// Longest a slot target is moved on along its velocity by its age (the formation loop
+/// sends one ten times a second); past this the vehicle holds where the target would be.
+pub const TARGET_EXTRAPOLATION: Duration = Duration::from_millis(500);
+
+/// Longest a report's position is moved on by its age (reports come at the control rate;
+/// a vehicle at 5 m/s covers 1 m in this time).
+pub const REPORT_EXTRAPOLATION: Duration = Duration::from_millis(200);
+
 /// Age of a wall-clock stamp ([`wall_us`]) now; zero for a stamp from the future.
 pub fn age_of(stamp_us: u64) -> Duration {
     Duration::from_micros(wall_us().saturating_sub(stamp_us))

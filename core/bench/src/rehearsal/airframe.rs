@@ -117,7 +117,7 @@ impl Airframe {
         }
     }
 
-    /// True for the simulated PX4, whose lag the tracking correction cancels (as the
+    /// True for the simulated PX4, whose lag the slot correction cancels (as the
     /// Vehicle actor does for a member flying its slot).
     pub(super) fn is_px4(&self) -> bool {
         matches!(self, Airframe::Px4(_))

@@ -5,7 +5,7 @@
 //! What runs is the code that flies: slot targets at the formation rate, extrapolated by
 //! each vehicle between formation ticks as the Vehicle actor does, shaped against every
 //! other vehicle's position and setpoint (planned between members, as `skein_swarm`'s neighbour view
-//! marks them), and for a simulated PX4 the same tracking correction (acceleration
+//! marks them), and for a simulated PX4 the same slot correction (acceleration
 //! feed-forward with a learnt drag term). What flies is chosen by
 //! [`RehearsalConfig::airframe`] ([`airframe`]): skein's PX4-faithful simulated
 //! multicopter (`skein bench formation`), or a kinder point mass for the seeded sweeps of
@@ -21,7 +21,7 @@ use skein_model::safety::{Geofence, MotionLimits, Obstacle, SetpointShaper};
 use skein_swarm::formation::{
     FormationEngine, FormationSpec, FormationStatus, Hazard, HazardConfig, LeaderMotion, Member,
 };
-use skein_swarm::vehicle::tracking::{TrackingCorrection, TrackingGains};
+use skein_swarm::vehicle::slot_correction::{SlotCorrection, SlotCorrectionGains};
 use std::collections::BTreeMap;
 use std::time::Duration;
 
@@ -100,7 +100,7 @@ struct Aircraft {
     /// Its measured velocity, NED m/s.
     velocity: Ned,
     shaper: SetpointShaper,
-    tracking: TrackingCorrection,
+    slot_correction: SlotCorrection,
     /// Slot target and velocity from the last formation tick (its age in `slot_age_s`).
     slot: Option<(Ned, Ned)>,
     slot_age_s: f64,
@@ -148,7 +148,7 @@ impl Rehearsal {
                     position: p,
                     velocity: Ned::ZERO,
                     shaper,
-                    tracking: TrackingCorrection::default(),
+                    slot_correction: SlotCorrection::default(),
                     slot: None,
                     slot_age_s: 0.0,
                     setpoint: (p, Ned::ZERO),
@@ -383,15 +383,15 @@ impl Rehearsal {
             }
             a.setpoint = (sp.position, sp.velocity);
         }
-        // Fly: a member flying its slot on a simulated PX4 adds the tracking correction,
+        // Fly: a member flying its slot on a simulated PX4 adds the slot correction,
         // as the Vehicle actor does; a lost one gets nothing.
-        let gains = TrackingGains::default();
+        let gains = SlotCorrectionGains::default();
         for a in &mut self.aircraft {
             let (sp, ff) = a.setpoint;
             let setpoint = if a.lost_at_s.is_some() {
                 None
             } else if a.slot.is_some() && a.airframe.is_px4() {
-                let c = a.tracking.update(&gains, sp, ff, a.position, dt);
+                let c = a.slot_correction.update(&gains, sp, ff, a.position, dt);
                 Some((sp + c.offset, ff, c.acceleration))
             } else {
                 Some((sp, ff, Ned::ZERO))

@@ -5,12 +5,13 @@
 
 use super::CoordinatorState;
 use super::messages::{CoordinatorMsg, FaultError, ServiceMsg};
-use crate::carrier;
+use crate::protocol::Uplink;
 use crate::supervision::{self, ChildHandle, ChildKey, Exit, Next};
 use crate::vehicle::{Vehicle, VehicleArgs, VehicleMsg};
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use skein_model::supervision::{ChildKind, FaultKind};
 use std::cmp::Ordering;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// How long a vehicle has to answer a fault-injection request about its children.
@@ -82,9 +83,12 @@ impl CoordinatorState {
                     Vehicle,
                     VehicleArgs {
                         shared: local.shared.clone(),
-                        view: self.view.clone(),
+                        context: self.context.clone(),
+                        fleet: self.fleet.reader(),
+                        neighbours: self.neighbours.reader(),
+                        position: self.neighbours.slot(id),
                         events: self.events.clone(),
-                        uplink: carrier::uplink_to(myself.clone()),
+                        uplink: uplink_to(myself.clone()),
                         supervision: self.supervision.clone(),
                     },
                     myself.get_cell(),
@@ -187,7 +191,7 @@ impl CoordinatorState {
         kind: FaultKind,
         reply: RpcReplyPort<Result<(), FaultError>>,
     ) {
-        if !self.view.config.fault_injection {
+        if !self.context.config.fault_injection {
             let _ = reply.send(Err(FaultError::Disabled));
             return;
         }
@@ -253,4 +257,11 @@ impl CoordinatorState {
             let _ = reply.send(r);
         });
     }
+}
+
+/// An uplink that posts a vehicle's protocol messages to the coordinator's mailbox.
+pub fn uplink_to(coordinator: ActorRef<CoordinatorMsg>) -> Uplink {
+    Arc::new(move |msg| {
+        let _ = coordinator.cast(CoordinatorMsg::FromVehicle(msg));
+    })
 }

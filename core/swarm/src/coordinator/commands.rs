@@ -109,7 +109,7 @@ impl CoordinatorState {
                 Err(format!(
                     "{} refused: vehicle {id} has failed (its actor kept failing and it was commanded to {:?})",
                     cmd.name(),
-                    self.view.config.supervision.vehicle_escalation
+                    self.context.config.supervision.vehicle_escalation
                 ))
             } else {
                 v.send(ToVehicle::Command {

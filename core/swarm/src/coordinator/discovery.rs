@@ -70,18 +70,18 @@ impl CoordinatorState {
             return Ok(());
         }
         let model = self
-            .view
+            .context
             .config
             .model(vspec.model.as_deref().unwrap_or("generic"));
         let link = VehicleLink::new(
             endpoint.clone(),
             d.sysid,
             d.compid,
-            self.view.config.stream_rate_hz,
-            self.view.config.link_setup.clone(),
+            self.context.config.stream_rate_hz,
+            self.context.config.link_setup.clone(),
         );
         let shared = VehicleShared::new(id.clone(), model, link, simulated);
-        self.view.add_vehicle(shared.clone());
+        self.fleet.add(shared.clone());
         self.vehicles
             .insert(id.clone(), VehicleProxy::local(shared));
         self.metrics.vehicles.set(self.vehicles.len() as i64);

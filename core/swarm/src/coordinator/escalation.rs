@@ -24,7 +24,7 @@ impl CoordinatorState {
             return;
         };
         let shared = local.shared.clone();
-        let action = self.view.config.supervision.vehicle_escalation;
+        let action = self.context.config.supervision.vehicle_escalation;
         let events: skein_link::EventSink = Arc::new(|_| {});
         let spawned = Actor::spawn_linked(
             None,

@@ -47,7 +47,7 @@ impl CoordinatorState {
     /// One tick of the formation loop (see the module docs).
     pub(super) fn formation_tick(&mut self) {
         // Vehicles without an actor (escalated) still show their telemetry.
-        let frame = self.view.frame();
+        let frame = self.context.frame();
         for v in self.vehicles.values().filter(|v| v.failed) {
             if let Some(local) = &v.local {
                 local.shared.settle_from_telemetry();
@@ -99,7 +99,7 @@ impl CoordinatorState {
         self.formation.set_hazards(hazards);
         let slots = self
             .formation
-            .tick(&members, dt, &self.view.config.geofence);
+            .tick(&members, dt, &self.context.config.geofence);
         for replan in self.formation.take_replans() {
             tracing::warn!("formation planned again: {}", replan.reason);
             self.emit(SwarmEvent::FormationReplanned {

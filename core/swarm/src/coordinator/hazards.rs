@@ -27,7 +27,7 @@ impl CoordinatorState {
     /// Brings the hazards up to date from the vehicles' reports; emits `hazard_added`
     /// and `hazard_cleared`; returns the hazards in force.
     pub(super) fn update_hazards(&mut self) -> Vec<Hazard> {
-        let config = self.view.config.hazards;
+        let config = self.context.config.hazards;
         let mut events = Vec::new();
         for (id, v) in &self.vehicles {
             let r = v.report();

@@ -67,7 +67,7 @@ pub struct Health {
 }
 
 /// The tracks now, and which vehicle observes which track (vehicle id, track id).
-pub type TracksAnswer = (Vec<crate::tracking::TrackView>, Vec<(String, String)>);
+pub type TracksAnswer = (Vec<crate::tracks::TrackView>, Vec<(String, String)>);
 
 /// Why a formation request was refused: the field and the reason.
 #[derive(Debug, Clone, PartialEq, Serialize)]

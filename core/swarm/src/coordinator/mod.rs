@@ -51,12 +51,16 @@ pub use proxy::VehicleProxy;
 pub use remote::{DistributedMsg, RemoteVehicle};
 pub use swarm::{StartError, Swarm};
 
+use crate::config::SwarmConfig;
+use crate::context::SwarmContext;
 use crate::events::SwarmEvent;
 use crate::formation::{FormationEngine, LeaderMotion};
 use crate::metrics::Metrics;
+use crate::neighbours::NeighbourBoard;
 use crate::protocol::{FromVehicle, PayloadCommandError, ToVehicle, VehicleCommand};
+use crate::services::SwarmServices;
 use crate::supervision::{self, Children, Supervision};
-use crate::view::{SwarmConfig, SwarmServices, SwarmView};
+use crate::vehicle::fleet::FleetRegistry;
 use commands::{CommandReply, InFlight};
 use ractor::{Actor, ActorProcessingErr, ActorRef, SupervisionEvent};
 use skein_link::{Endpoint, Px4LinkMsg};
@@ -83,7 +87,11 @@ pub struct CoordinatorArgs {
 
 /// State of [`Coordinator`].
 pub struct CoordinatorState {
-    view: Arc<SwarmView>,
+    context: Arc<SwarmContext>,
+    /// The registry of this process's vehicles (payload hosts and the tracker read it).
+    fleet: FleetRegistry,
+    /// Every vehicle's place, for the vehicles' separation checks.
+    neighbours: NeighbourBoard,
     endpoints: Vec<(Arc<Endpoint>, EndpointSpec)>,
     gcs: Option<Arc<skein_link::GcsForwarder>>,
     vehicles: BTreeMap<String, VehicleProxy>,
@@ -147,8 +155,8 @@ impl CoordinatorState {
             vehicles: self.vehicles.len(),
             connected,
             uptime_s: self.started.elapsed().as_secs_f64(),
-            swarm_origin: self.view.frame().map(|f| f.origin),
-            fault_injection: self.view.config.fault_injection,
+            swarm_origin: self.context.frame().map(|f| f.origin),
+            fault_injection: self.context.config.fault_injection,
             coordinator_role: None,
         }
     }
@@ -193,6 +201,9 @@ impl CoordinatorState {
                     .set(local.shared.link.stream().counts().sent as i64);
             }
         }
+        self.metrics
+            .payload_threads_abandoned
+            .set(i64::try_from(crate::payload::abandoned_driver_threads()).unwrap_or(i64::MAX));
         self.metrics.render()
     }
 
@@ -275,15 +286,18 @@ impl Actor for Coordinator {
         let separation_m = args.config.setpoint_separation_m();
         let mut formation = FormationEngine::new(separation_m);
         formation.set_replan_after_s(args.config.hazards.replan_after_s);
-        let view = Arc::new(SwarmView::new(args.config, args.services));
+        let context = Arc::new(SwarmContext::new(args.config, args.services));
+        let fleet = FleetRegistry::new();
         let tracking = crate::tracking::TrackingService::spawn(
             crate::tracking::TrackerConfig::default(),
-            view.clone(),
+            fleet.reader(),
             args.events.clone(),
             args.metrics.clone(),
         );
         Ok(CoordinatorState {
-            view,
+            context,
+            fleet,
+            neighbours: NeighbourBoard::new(),
             tracking,
             observing: BTreeMap::new(),
             uplink_tap: None,
@@ -352,7 +366,7 @@ impl Actor for Coordinator {
                     .collect();
                 let tracks = state.tracking.shared().tracks();
                 let checked = track_leader::validate_track_leader(&spec, &tracks).and_then(|()| {
-                    validation::validate_formation(&state.view.config, &spec, &vehicles)
+                    validation::validate_formation(&state.context.config, &spec, &vehicles)
                 });
                 match checked {
                     Err(e) => {
@@ -381,12 +395,13 @@ impl Actor for Coordinator {
                 {
                     fill_altitude(&mut motion, down);
                 }
-                let r = validation::validate_motion(&state.view.config, &motion).and_then(|()| {
-                    state.formation.set_motion(motion).map_err(|e| FieldError {
-                        field: "formation".into(),
-                        error: e,
-                    })
-                });
+                let r =
+                    validation::validate_motion(&state.context.config, &motion).and_then(|()| {
+                        state.formation.set_motion(motion).map_err(|e| FieldError {
+                            field: "formation".into(),
+                            error: e,
+                        })
+                    });
                 let _ = reply.send(r.map(|()| state.formation_status()));
             }
             CoordinatorMsg::ClearHazard(id, reply) => {
@@ -499,9 +514,9 @@ impl Actor for Coordinator {
             }
             CoordinatorMsg::GetSimTruth(reply) => {
                 let truth = state
-                    .view
+                    .context
                     .simulator()
-                    .map(|sim| sim.truth(state.view.frame().as_ref()))
+                    .map(|sim| sim.truth(state.context.frame().as_ref()))
                     .filter(|v| !v.is_null());
                 let _ = reply.send(truth);
             }

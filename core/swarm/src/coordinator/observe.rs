@@ -45,7 +45,8 @@ impl ObserveRefusal {
 impl CoordinatorState {
     /// The gimbal slot of vehicle `id`, if it has one (a payload of kind `gimbal`).
     fn gimbal_slot(&self, id: &str) -> Option<String> {
-        self.view
+        self.fleet
+            .reader()
             .snapshots()
             .into_iter()
             .find(|s| s.id == id)?

@@ -3,7 +3,7 @@
 //! part the coordinator supervises.
 
 use crate::carrier::LocalPort;
-use crate::protocol::{ToVehicle, VehiclePort, VehicleReport};
+use crate::protocol::{REPORT_EXTRAPOLATION, ToVehicle, VehiclePort, VehicleReport};
 use crate::vehicle::VehicleShared;
 use ractor::ActorRef;
 use skein_link::Px4LinkMsg;
@@ -13,10 +13,6 @@ use skein_model::vehicle::VehicleSnapshot;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::watch;
-
-/// Longest a report's position is moved on by its age (it is published at the control
-/// rate; a vehicle at 5 m/s covers 1 m in this time).
-pub const REPORT_EXTRAPOLATION: Duration = Duration::from_millis(200);
 
 /// A remote vehicle not reported for this long is `Lost`, its link down.
 pub const REMOTE_SILENCE: Duration = Duration::from_secs(2);

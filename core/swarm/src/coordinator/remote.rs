@@ -15,10 +15,10 @@
 
 use super::CoordinatorState;
 use super::proxy::VehicleProxy;
+use crate::context::SwarmContext;
 use crate::events::SwarmEvent;
 use crate::formation::FormationMirror;
 use crate::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
-use crate::view::SwarmView;
 use ractor::RpcReplyPort;
 use skein_model::fsm::VehicleState;
 use skein_model::vehicle::VehicleSnapshot;
@@ -55,8 +55,8 @@ pub enum DistributedMsg {
     /// Agent: where a vehicle of another process is (its report, swarm frame of this
     /// process), for the separation check of this process's vehicles.
     Neighbour(String, VehicleReport),
-    /// The swarm view (its frame, for the carrier's frame conversions).
-    GetView(RpcReplyPort<Arc<SwarmView>>),
+    /// The swarm context (its frame, for the carrier's frame conversions).
+    GetContext(RpcReplyPort<Arc<SwarmContext>>),
     /// Coordinator: the formation to mirror to the standbys (`None`: none is flown).
     GetFormationMirror(RpcReplyPort<Option<FormationMirror>>),
     /// Coordinator that just took the role: fly on the formation of the one it replaces
@@ -68,7 +68,7 @@ pub enum DistributedMsg {
 const REJOIN_PERIOD: Duration = Duration::from_secs(1);
 
 /// How far a neighbour's report is moved on by its age (as the coordinator's own).
-const NEIGHBOUR_EXTRAPOLATION: Duration = super::proxy::REPORT_EXTRAPOLATION;
+const NEIGHBOUR_EXTRAPOLATION: Duration = crate::protocol::REPORT_EXTRAPOLATION;
 
 impl CoordinatorState {
     pub(super) fn on_distributed(&mut self, msg: DistributedMsg) {
@@ -99,15 +99,14 @@ impl CoordinatorState {
                     .position_now(NEIGHBOUR_EXTRAPOLATION)
                     .map(|p| (p, r.velocity));
                 let setpoint = r.target.map(|t| (t, r.velocity));
-                self.view.set_position(
-                    &id,
+                self.neighbours.slot(&id).set(
                     measured,
                     setpoint,
                     r.state == VehicleState::InFormation,
                 );
             }
-            DistributedMsg::GetView(reply) => {
-                let _ = reply.send(self.view.clone());
+            DistributedMsg::GetContext(reply) => {
+                let _ = reply.send(self.context.clone());
             }
             DistributedMsg::GetFormationMirror(reply) => {
                 let _ = reply.send(self.formation.mirror());

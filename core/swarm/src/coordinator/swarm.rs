@@ -4,9 +4,10 @@
 use super::discovery::EndpointSpec;
 use super::messages::CoordinatorMsg;
 use super::{Coordinator, CoordinatorArgs};
+use crate::config::SwarmConfig;
 use crate::events::SwarmEvent;
 use crate::metrics::Metrics;
-use crate::view::{SwarmConfig, SwarmServices};
+use crate::services::SwarmServices;
 use ractor::{Actor, ActorRef};
 use skein_link::{Endpoint, Identity};
 use std::sync::Arc;

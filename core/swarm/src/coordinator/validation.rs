@@ -2,8 +2,8 @@
 //! configuration and the vehicles' states, answered as a [`FieldError`] naming the field.
 
 use super::messages::FieldError;
+use crate::config::SwarmConfig;
 use crate::formation::{FormationSpec, LeaderMotion, VIRTUAL};
-use crate::view::SwarmConfig;
 use skein_model::fsm::VehicleState;
 use skein_model::geo::Ned;
 

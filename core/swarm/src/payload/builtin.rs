@@ -130,3 +130,13 @@ impl PayloadFactory for Factories {
         self.0.iter().flat_map(|f| f.providers()).collect()
     }
 }
+
+impl Default for crate::services::SwarmServices {
+    /// The built-in payloads only, no simulator.
+    fn default() -> Self {
+        crate::services::SwarmServices {
+            payloads: Arc::new(BuiltinPayloads),
+            simulator: None,
+        }
+    }
+}

@@ -16,13 +16,13 @@
 //!
 //! What outlives the actor is [`PayloadShared`] ([`shared`]): the spec, the state and the
 //! last video frame the payload published, and which library serves it, so the API keeps
-//! showing them across restarts. The driver reaches the world through
-//! [`VehiclePayloadHost`] ([`host`]).
+//! showing them across restarts. The driver reaches the world through the
+//! [`PayloadHost`](skein_payload::PayloadHost) its vehicle gives it
+//! ([`crate::vehicle::payload_host`]).
 
 pub mod actor;
 pub mod builtin;
 mod driver;
-pub mod host;
 pub mod placement;
 pub mod shared;
 
@@ -31,6 +31,5 @@ pub use actor::{
     PayloadActor, PayloadActorState, PayloadArgs, PayloadMsg, abandoned_driver_threads,
 };
 pub use builtin::{BuiltinPayloads, FAULT_FIXTURE, Factories};
-pub use host::{SimulatorControl, VehiclePayloadHost};
 pub use placement::{AttachRefusal, Placement, check_attach, placement, provider_for};
 pub use shared::PayloadShared;

@@ -76,6 +76,19 @@ impl PayloadShared {
             .clone()
     }
 
+    /// Keeps the driver's latest state (`PayloadHost::publish_state`).
+    pub(crate) fn publish_state(&self, state: PayloadState) {
+        *self.state.write().unwrap_or_else(PoisonError::into_inner) = Some(state);
+    }
+
+    /// Keeps the driver's latest video frame, JPEG, and wakes the frame streams
+    /// (`PayloadHost::publish_frame`).
+    pub(crate) fn publish_frame(&self, jpeg: Vec<u8>) {
+        self.frames
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.frame.send_replace(Some(Arc::new(jpeg)));
+    }
+
     /// The last published video frame (JPEG).
     pub fn frame(&self) -> Option<Arc<Vec<u8>>> {
         self.frame.borrow().clone()

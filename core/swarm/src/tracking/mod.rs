@@ -5,15 +5,15 @@
 //! - [`filter`]: the constant-velocity Kalman filter of each track (`nalgebra`);
 //! - [`tracker`]: association (gated Hungarian) and update; `management`: track start,
 //!   continuation through manoeuvres and blind spots, lifecycle, merging, stable ids;
-//! - [`track`]: the tuning, the tracks as the API shows them, track events, counters;
+//! - [`track`]: the tuning (the tracks as the API shows them, track events and counters
+//!   are in the leaf [`crate::tracks`]);
 //! - [`detection`]: the detector plugin's detections (its payload state) as bearings.
 //!
 //! [`TrackingService`] runs the tracker in a task of its own beside the coordinator: at
 //! [`TRACKER_HZ`] it reads every frame the detectors processed since its last step from
-//! their payload states, steps the tracker with them and the swarm members' poses (so members are never tracks), raises the
-//! `track_*` events on the bus, and keeps the current tracks for `GET /api/v1/tracks` and
-//! the metrics. Not to be confused with `vehicle::tracking` (setpoint tracking of a
-//! formation member).
+//! their payload states, steps the tracker with them and the swarm members' poses (so
+//! members are never tracks), raises the `track_*` events on the bus, and keeps the current tracks for `GET /api/v1/tracks` and
+//! the metrics.
 
 pub mod detection;
 pub mod filter;
@@ -26,7 +26,7 @@ pub mod tracker;
 
 use crate::events::SwarmEvent;
 use crate::metrics::Metrics;
-use crate::view::SwarmView;
+use crate::vehicle::fleet::Fleet;
 use nalgebra::Vector3;
 use std::collections::HashMap;
 use std::sync::{Arc, PoisonError, RwLock};
@@ -90,14 +90,14 @@ impl TrackingService {
     /// Starts the tracker task on the current runtime.
     pub fn spawn(
         config: TrackerConfig,
-        view: Arc<SwarmView>,
+        fleet: Fleet,
         events: broadcast::Sender<SwarmEvent>,
         metrics: Arc<Metrics>,
     ) -> Self {
         let shared = Arc::new(TrackingShared::default());
         let task = tokio::spawn(run(
             Tracker::new(config),
-            view,
+            fleet,
             events,
             metrics,
             shared.clone(),
@@ -123,7 +123,7 @@ fn to_swarm_event(e: TrackEvent) -> SwarmEvent {
 
 async fn run(
     mut tracker: Tracker,
-    view: Arc<SwarmView>,
+    fleet: Fleet,
     events: broadcast::Sender<SwarmEvent>,
     metrics: Arc<Metrics>,
     shared: Arc<TrackingShared>,
@@ -135,7 +135,7 @@ async fn run(
     loop {
         tick.tick().await;
         let mut bearings = Vec::new();
-        for (id, slot, state) in view.payload_states(detection::DETECTOR_KIND) {
+        for (id, slot, state) in fleet.payload_states(detection::DETECTOR_KIND) {
             let key = (id, slot);
             let frames = detection::new_frames(&state, seen.get(&key).copied());
             for f in frames {
@@ -153,7 +153,7 @@ async fn run(
                 }
             }
         }
-        let members: Vec<(String, Vector3<f64>)> = view
+        let members: Vec<(String, Vector3<f64>)> = fleet
             .snapshots()
             .into_iter()
             .filter_map(|s| {

@@ -51,8 +51,9 @@ use nalgebra::Vector3;
 use pathfinding::prelude::{Matrix, kuhn_munkres_min};
 use std::collections::BTreeMap;
 
-pub use super::track::{
-    NedJson, TrackEvent, TrackStatus, TrackView, TrackerConfig, TrackerCounters, VelocityJson,
+pub use super::track::TrackerConfig;
+pub use crate::tracks::{
+    NedJson, TrackEvent, TrackStatus, TrackView, TrackerCounters, VelocityJson,
 };
 
 pub(super) struct Track {

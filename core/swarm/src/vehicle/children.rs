@@ -7,10 +7,9 @@
 
 use super::VehicleActorState;
 use super::messages::{Child, VehicleMsg};
+use super::payload_host::VehiclePayloadHost;
 use super::shared::VehicleShared;
-use crate::payload::{
-    PayloadActor, PayloadArgs, PayloadMsg, Placement, VehiclePayloadHost, placement,
-};
+use crate::payload::{PayloadActor, PayloadArgs, PayloadMsg, Placement, placement};
 use crate::supervision::{ChildHandle, Exit, Next};
 use ractor::{Actor, ActorProcessingErr, ActorRef};
 use skein_link::{Px4Link, Px4LinkArgs, Px4LinkMsg};
@@ -44,7 +43,8 @@ impl VehicleActorState {
                 let spec = shared.spec.clone();
                 let host = VehiclePayloadHost::new(
                     self.shared.clone(),
-                    self.view.clone(),
+                    self.context.clone(),
+                    self.fleet.clone(),
                     self.events.clone(),
                     shared.clone(),
                 );
@@ -53,7 +53,7 @@ impl VehicleActorState {
                     PayloadActor,
                     PayloadArgs {
                         spec,
-                        factory: self.view.services.payloads.clone(),
+                        factory: self.context.services.payloads.clone(),
                         host,
                         shared,
                         ready,
@@ -92,7 +92,7 @@ impl VehicleActorState {
         if let Child::Payload(slot) = &child
             && let Some(p) = self.shared.payload(slot)
             && let Placement::Wait(why) =
-                placement(&p.spec, &self.view.services.payloads.providers())
+                placement(&p.spec, &self.context.services.payloads.providers())
         {
             p.set_waiting(Some(why));
             let path = self.children.path(&child);
@@ -137,7 +137,7 @@ impl VehicleActorState {
             // A payload whose plugin is gone is not a failure to count: it waits for one.
             if let Some(p) = self.shared.payload(slot)
                 && let Placement::Wait(why) =
-                    placement(&p.spec, &self.view.services.payloads.providers())
+                    placement(&p.spec, &self.context.services.payloads.providers())
             {
                 p.set_waiting(Some(why));
                 self.children

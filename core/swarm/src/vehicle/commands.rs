@@ -7,9 +7,9 @@ use super::VehicleActorState;
 use super::control::Target;
 use super::procedures::Procedure;
 use super::shared::Memory;
+use crate::config::SwarmConfig;
 use crate::events::SwarmEvent;
 use crate::protocol::{FromVehicle, VehicleCommand};
-use crate::view::SwarmConfig;
 use ractor::ActorRef;
 use skein_link::LinkCommand;
 use skein_link::px4link::LinkEvent;
@@ -22,7 +22,7 @@ use super::messages::VehicleMsg;
 
 impl VehicleActorState {
     pub(super) fn config(&self) -> &SwarmConfig {
-        &self.view.config
+        &self.context.config
     }
 
     pub(super) fn emit(&self, ev: SwarmEvent) {
@@ -48,7 +48,7 @@ impl VehicleActorState {
         tracing::info!(id = %self.shared.id, "{from} -> {to}");
         if to != VehicleState::InFormation {
             mem.slot = None;
-            mem.tracking.reset();
+            mem.slot_correction.reset();
         }
         if to != VehicleState::TakingOff {
             mem.offboard_engaged = false;
@@ -73,9 +73,9 @@ impl VehicleActorState {
     }
 
     pub(super) fn swarm_frame(&self) -> Option<NedFrame> {
-        self.view.frame().or_else(|| {
+        self.context.frame().or_else(|| {
             let home = self.shared.link.with_telemetry(|t| t.home)?;
-            Some(self.view.anchor(home.geo))
+            Some(self.context.anchor(home.geo))
         })
     }
 

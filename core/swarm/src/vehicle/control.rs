@@ -5,15 +5,15 @@
 //! Formation slot targets arrive stamped and move on by their age.
 
 use super::VehicleActorState;
-use super::tracking::TrackingGains;
+use super::slot_correction::SlotCorrectionGains;
 use crate::events::SwarmEvent;
-use crate::protocol::{SlotTarget, age_of};
+use crate::protocol::{SlotTarget, TARGET_EXTRAPOLATION, age_of};
 use skein_link::LocalSetpoint;
 use skein_model::fsm::{Event, VehicleState};
 use skein_model::geo::Ned;
 use skein_model::px4::Px4Mode;
 use skein_model::safety::SetpointShaper;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 /// Distance to a takeoff altitude or go-to point that counts as arrived, metres.
 pub const ARRIVAL_TOLERANCE_M: f64 = 0.5;
@@ -31,10 +31,6 @@ pub(super) enum Target {
         at: Instant,
     },
 }
-
-/// Longest a moving target is extrapolated from its last update (the formation loop
-/// updates it ten times a second; after this, hold where it would be).
-pub const TRACK_EXTRAPOLATION: Duration = Duration::from_millis(500);
 
 impl Target {
     pub(super) fn position(&self) -> Ned {
@@ -54,9 +50,9 @@ impl Target {
                 at,
             } => {
                 let age = now.saturating_duration_since(at);
-                if age > TRACK_EXTRAPOLATION {
+                if age > TARGET_EXTRAPOLATION {
                     (
-                        position + velocity * TRACK_EXTRAPOLATION.as_secs_f64(),
+                        position + velocity * TARGET_EXTRAPOLATION.as_secs_f64(),
                         Ned::ZERO,
                     )
                 } else {
@@ -119,8 +115,7 @@ impl VehicleActorState {
         // A member flying its slot (the leader vehicle included) is on the formation's
         // transition plan.
         let planned = state == VehicleState::InFormation && mem.slot.is_some();
-        self.view
-            .set_position(&self.shared.id, measured, None, planned);
+        self.position.set(measured, None, planned);
         match state {
             VehicleState::TakingOff
             | VehicleState::Hovering
@@ -128,10 +123,11 @@ impl VehicleActorState {
             | VehicleState::GoTo => {
                 if let (Some(target), Some(local), Some(cur)) = (mem.target, local_frame, current) {
                     let (tp, tv) = target.now(now);
-                    self.view.others(&self.shared.id, planned, &mut self.others);
+                    self.neighbours
+                        .others(&self.shared.id, planned, &mut self.others);
                     let yaw = mem.yaw_rad;
                     let limits = self.shared.model.limits;
-                    let config = &self.view.config;
+                    let config = &self.context.config;
                     let shaper = mem.shaper.get_or_insert_with(|| {
                         SetpointShaper::new(
                             cur,
@@ -144,12 +140,8 @@ impl VehicleActorState {
                     // The floor binds where the vehicle is meant to fly, not on the way up.
                     shaper.enforce_floor(state != VehicleState::TakingOff);
                     let sp = shaper.step(tp, tv, yaw, dt, &self.others);
-                    self.view.set_position(
-                        &self.shared.id,
-                        measured,
-                        Some((sp.position, sp.velocity)),
-                        planned,
-                    );
+                    self.position
+                        .set(measured, Some((sp.position, sp.velocity)), planned);
                     if let Some(v) = sp.fence
                         && mem.last_fence != sp.fence
                     {
@@ -160,17 +152,17 @@ impl VehicleActorState {
                     }
                     mem.last_fence = sp.fence;
                     let setpoint = if planned {
-                        // Flying a slot: cancel PX4's tracking lag (see `tracking`); the
+                        // Flying a slot: cancel PX4's tracking lag (see `slot_correction`); the
                         // corrected point is clamped into the fence like any other.
-                        let c = mem.tracking.update(
-                            &TrackingGains::default(),
+                        let c = mem.slot_correction.update(
+                            &SlotCorrectionGains::default(),
                             sp.position,
                             sp.velocity,
                             cur,
                             dt,
                         );
                         let (p, _) = self
-                            .view
+                            .context
                             .config
                             .geofence
                             .clamp(sp.position + c.offset, true);

@@ -1,11 +1,13 @@
 //! What a Vehicle actor is given and told: its arguments, its message enum, and its
 //! children's names.
 
+use super::fleet::Fleet;
 use super::shared::VehicleShared;
+use crate::context::SwarmContext;
 use crate::events::SwarmEvent;
+use crate::neighbours::{NeighbourSlot, Neighbours};
 use crate::protocol::{ToVehicle, Uplink};
 use crate::supervision::{ChildKey, Supervision};
-use crate::view::SwarmView;
 use ractor::{ActorId, RpcReplyPort};
 use skein_link::Px4LinkMsg;
 use skein_link::px4link::LinkEvent;
@@ -18,8 +20,14 @@ use tokio::sync::broadcast;
 pub struct VehicleArgs {
     /// The vehicle's persistent part.
     pub shared: Arc<VehicleShared>,
-    /// The shared swarm view (neighbours for separation, the swarm frame).
-    pub view: Arc<SwarmView>,
+    /// Configuration, services, the swarm frame.
+    pub context: Arc<SwarmContext>,
+    /// The vehicles of this process (what its payloads' drivers see of the swarm).
+    pub fleet: Fleet,
+    /// The other vehicles' places, for the separation check.
+    pub neighbours: Neighbours,
+    /// Where this vehicle publishes its own place (the same slot across restarts).
+    pub position: NeighbourSlot,
     /// Event bus.
     pub events: broadcast::Sender<SwarmEvent>,
     /// Where the vehicle's protocol messages ([`crate::protocol::FromVehicle`]) go.

@@ -13,7 +13,9 @@
 //! - [`commands`]: operator commands and link events into the FSM;
 //! - [`procedures`]: multi-step operations (arm, enter OFFBOARD, land) as tasks;
 //! - [`control`]: the control loop feeding the setpoint stream;
-//! - [`tracking`]: the outer loop that cancels PX4's tracking lag;
+//! - [`slot_correction`]: the outer loop that cancels PX4's lag behind a formation slot;
+//! - [`fleet`]: the coordinator's registry of this process's vehicles, and its readers;
+//! - [`payload_host`]: what a payload driver reaches of its vehicle and the swarm;
 //! - [`children`]: supervision of its `Px4Link` and payloads;
 //! - [`payloads`]: payload slots waiting for plugins, plugin loads and unloads, run-time
 //!   attach and detach.
@@ -21,22 +23,26 @@
 mod children;
 pub mod commands;
 pub mod control;
+pub mod fleet;
 pub mod messages;
+pub mod payload_host;
 mod payloads;
 pub mod procedures;
 pub mod shared;
-pub mod tracking;
+pub mod slot_correction;
 
 pub use control::ARRIVAL_TOLERANCE_M;
 pub use messages::{AfterStop, Child, ProcedureStep, VehicleArgs, VehicleMsg};
 pub use procedures::OFFBOARD_PRESTREAM;
 pub use shared::{PayloadMap, VehicleShared, payload_json};
 
+use crate::context::SwarmContext;
 use crate::events::SwarmEvent;
+use crate::neighbours::{NeighbourSlot, Neighbours};
 use crate::payload::PayloadMsg;
 use crate::protocol::{FromVehicle, PayloadCommandError, ToVehicle, Uplink};
 use crate::supervision::Children;
-use crate::view::SwarmView;
+use fleet::Fleet;
 use ractor::{Actor, ActorProcessingErr, ActorRef, SupervisionEvent};
 use skein_link::Px4LinkMsg;
 use skein_model::supervision::ChildStatus;
@@ -51,7 +57,10 @@ pub struct Vehicle;
 /// State of [`Vehicle`].
 pub struct VehicleActorState {
     shared: Arc<VehicleShared>,
-    view: Arc<SwarmView>,
+    context: Arc<SwarmContext>,
+    fleet: Fleet,
+    neighbours: Neighbours,
+    position: NeighbourSlot,
     events: broadcast::Sender<SwarmEvent>,
     uplink: Uplink,
     children: Children<Child>,
@@ -168,7 +177,7 @@ impl Actor for Vehicle {
         myself: ActorRef<Self::Msg>,
         args: VehicleArgs,
     ) -> Result<Self::State, ActorProcessingErr> {
-        let period = Duration::from_secs_f64(1.0 / args.view.config.control_rate_hz.max(1.0));
+        let period = Duration::from_secs_f64(1.0 / args.context.config.control_rate_hz.max(1.0));
         myself.send_interval(period, || VehicleMsg::Tick);
         myself.send_interval(args.supervision.config.watchdog_period(), || {
             VehicleMsg::WatchTick
@@ -176,7 +185,10 @@ impl Actor for Vehicle {
         let path = format!("{}/{}", crate::supervision::ROOT, args.shared.id);
         let mut state = VehicleActorState {
             shared: args.shared,
-            view: args.view,
+            context: args.context,
+            fleet: args.fleet,
+            neighbours: args.neighbours,
+            position: args.position,
             events: args.events,
             uplink: args.uplink,
             children: Children::new(path, args.supervision),

@@ -44,7 +44,7 @@ impl VehicleActorState {
         let Some(shared) = self.shared.payload(slot) else {
             return Ok(());
         };
-        let providers = self.view.services.payloads.providers();
+        let providers = self.context.services.payloads.providers();
         let child = Child::Payload(slot.to_string());
         match placement(&shared.spec, &providers) {
             Placement::Wait(why) => {
@@ -75,7 +75,7 @@ impl VehicleActorState {
         &mut self,
         myself: &ActorRef<VehicleMsg>,
     ) -> Result<(), ActorProcessingErr> {
-        let providers = self.view.services.payloads.providers();
+        let providers = self.context.services.payloads.providers();
         let payloads = self.shared.payloads();
         for (slot, p) in payloads.iter() {
             if self.stopping.contains(slot) || self.attaching.contains_key(slot) {
@@ -186,7 +186,7 @@ impl VehicleActorState {
                 result,
             });
         };
-        let providers = self.view.services.payloads.providers();
+        let providers = self.context.services.payloads.providers();
         let payloads = self.shared.payloads();
         if let Err(r) = check_attach(&spec, payloads.keys().map(String::as_str), &providers) {
             let (field, error) = (r.field.to_string(), r.error);

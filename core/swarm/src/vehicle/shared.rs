@@ -4,11 +4,11 @@
 
 use super::control::Target;
 use super::messages::Child;
-use super::tracking::TrackingCorrection;
+use super::slot_correction::SlotCorrection;
+use crate::config::VehicleModel;
 use crate::payload::PayloadShared;
 use crate::protocol::{SlotTarget, VehicleReport, wall_us};
 use crate::supervision::{self, ChildKey, Supervision};
-use crate::view::VehicleModel;
 use skein_link::VehicleLink;
 use skein_model::fsm::{self, VehicleState};
 use skein_model::geo::{Ned, NedFrame, wrap_deg_360};
@@ -39,7 +39,7 @@ pub(super) struct Memory {
     pub(super) last_fence: Option<FenceViolation>,
     /// What the control loop learnt of the vehicle's tracking lag (kept across actor
     /// restarts, like the rest of the memory).
-    pub(super) tracking: TrackingCorrection,
+    pub(super) slot_correction: SlotCorrection,
 }
 
 /// The part of a vehicle that outlives its actor: identity, link, FSM memory and the
@@ -123,7 +123,7 @@ impl VehicleShared {
                 takeoff_altitude_m: 0.0,
                 goto_target: None,
                 last_fence: None,
-                tracking: TrackingCorrection::default(),
+                slot_correction: SlotCorrection::default(),
             }),
             snapshot: watch::channel(snapshot).0,
             report: watch::channel(VehicleReport::disconnected()).0,

@@ -5,15 +5,15 @@
 //! The mirror is the spec, the reference point with its motion, the leader vehicle, the
 //! pattern's heading and the slot assignment, stamped. Resuming puts the reference where
 //! the members' targets are: a vehicle moves its last slot target on by its age for at
-//! most [`TRACK_EXTRAPOLATION`] and then holds it, so the reference moves on by the
+//! most [`TARGET_EXTRAPOLATION`] and then holds it, so the reference moves on by the
 //! mirror's age up to that much, at its velocity while the members still move, else at
 //! rest (its motion then accelerates it again as at the start). So the new coordinator's
 //! first targets are where the members are aiming, without a jump.
 
 use super::FormationEngine;
 use crate::formation::{FormationSpec, Reference};
+use crate::protocol::TARGET_EXTRAPOLATION;
 use crate::protocol::age_of;
-use crate::vehicle::control::TRACK_EXTRAPOLATION;
 use serde::{Deserialize, Serialize};
 use skein_model::geo::Ned;
 use std::collections::BTreeMap;
@@ -56,11 +56,11 @@ impl FormationEngine {
     pub fn resume(&mut self, m: FormationMirror) {
         self.deactivate();
         let age = age_of(m.stamp_us);
-        let moved = age.min(TRACK_EXTRAPOLATION).as_secs_f64();
+        let moved = age.min(TARGET_EXTRAPOLATION).as_secs_f64();
         let mut reference = m.reference;
         reference.position = reference.position + reference.velocity * moved;
         reference.heading_rad += reference.heading_rate_rad_s * moved;
-        if age > TRACK_EXTRAPOLATION {
+        if age > TARGET_EXTRAPOLATION {
             reference.velocity = Ned::ZERO;
             reference.heading_rate_rad_s = 0.0;
         }

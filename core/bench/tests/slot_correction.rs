@@ -1,4 +1,4 @@
-//! The tracking correction against the faithful simulator (PX4 v1.16's cascade on
+//! The slot correction against the faithful simulator (PX4 v1.16's cascade on
 //! SIH-like physics, `skein_sim::VirtualVehicle`, virtual time): a point moving at 5 m/s
 //! in a straight line and on a circle, followed with position + velocity setpoints at
 //! 50 Hz, measured from the vehicle's own LOCAL_POSITION_NED as skein measures it. The
@@ -9,7 +9,7 @@ use skein_mavlink::MavMessage;
 use skein_model::geo::Ned;
 use skein_sim::virtual_vehicle::client;
 use skein_sim::{SimConfig, VirtualVehicle};
-use skein_swarm::vehicle::tracking::{TrackingCorrection, TrackingGains};
+use skein_swarm::vehicle::slot_correction::{SlotCorrection, SlotCorrectionGains};
 
 fn setpoint(p: Ned, v: Ned, yaw: f64) -> MavMessage {
     client::setpoint(client::POSITION_VELOCITY_YAW, p, v, Ned::ZERO, yaw)
@@ -43,7 +43,7 @@ type Path = dyn Fn(f64) -> (Ned, Ned);
 /// Flies `path` for `seconds` after a hover at (0, 0, -10); returns the RMS and the
 /// largest error between the measured position (moved on by its age, as skein does) and
 /// the target, over `from_s..seconds`.
-fn fly(path: &Path, seconds: f64, from_s: f64, gains: Option<TrackingGains>) -> (f64, f64) {
+fn fly(path: &Path, seconds: f64, from_s: f64, gains: Option<SlotCorrectionGains>) -> (f64, f64) {
     fly_where(path, seconds, &|t| t >= from_s, gains, false)
 }
 
@@ -53,7 +53,7 @@ fn fly(path: &Path, seconds: f64, from_s: f64, gains: Option<TrackingGains>) -> 
 fn fly_cruising(
     path: &Path,
     seconds: f64,
-    gains: Option<TrackingGains>,
+    gains: Option<SlotCorrectionGains>,
     noise: bool,
 ) -> (f64, f64) {
     let (a, v, d, hold) = (1.5, 5.0, 60.0, 5.0);
@@ -77,7 +77,7 @@ fn fly_where(
     path: &Path,
     seconds: f64,
     keep: &dyn Fn(f64) -> bool,
-    gains: Option<TrackingGains>,
+    gains: Option<SlotCorrectionGains>,
     estimator_noise: bool,
 ) -> (f64, f64) {
     let cfg = SimConfig {
@@ -91,7 +91,7 @@ fn fly_where(
     let mut next_sp = vv.time_s();
     let mut next_hb = vv.time_s() + 1.0;
     let t0 = vv.time_s();
-    let mut correction = TrackingCorrection::default();
+    let mut correction = SlotCorrection::default();
     let mut errors = Vec::new();
     while vv.time_s() - t0 < seconds {
         let t = vv.time_s() - t0;
@@ -184,7 +184,7 @@ fn legs(t: f64) -> (Ned, Ned) {
 
 #[test]
 fn the_correction_cancels_px4s_lag_in_cruise_and_on_a_circle() {
-    let g = TrackingGains::default();
+    let g = SlotCorrectionGains::default();
     let (raw_legs, _) = fly_cruising(&legs, 120.0, None, false);
     let (legs_rms, legs_max) = fly_cruising(&legs, 120.0, Some(g), false);
     let (noisy_legs, noisy_max) = fly_cruising(&legs, 120.0, Some(g), true);

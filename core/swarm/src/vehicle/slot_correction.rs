@@ -1,11 +1,11 @@
-//! Tracking correction: PX4's position controller lags a moving setpoint. On PX4 v1.16
+//! Slot correction: PX4's position controller lags a moving setpoint. On PX4 v1.16
 //! (SIH, default parameters) a point moving at 5 m/s with velocity feed-forward is
 //! followed 1.25 m behind, and a 5 m/s circle is flown 1.7 m wide: the drag needs a tilt
 //! that only the slow velocity integrator (`MPC_XY_VEL_I_ACC` 0.4) builds, and nothing
 //! asks for the acceleration of a curve. A formation flown on raw slot targets carries
 //! that as slot error.
 //!
-//! [`TrackingCorrection`] adds what PX4's offboard setpoint can carry beyond position and
+//! [`SlotCorrection`] adds what PX4's offboard setpoint can carry beyond position and
 //! velocity: an acceleration feed-forward (SET_POSITION_TARGET_LOCAL_NED `afx/afy/afz`,
 //! type_mask without the acceleration bits, which PX4 adds to its velocity controller's
 //! output). It is the commanded path's own acceleration (the curve, the speed-ups) plus
@@ -24,9 +24,9 @@
 
 use skein_model::geo::Ned;
 
-/// Gains and bounds of [`TrackingCorrection`].
+/// Gains and bounds of [`SlotCorrection`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TrackingGains {
+pub struct SlotCorrectionGains {
     /// Adaptation rate of the drag term, (1/s) per second per metre of along-track
     /// error.
     pub drag_rate: f64,
@@ -50,9 +50,9 @@ pub struct TrackingGains {
     pub leak_s: f64,
 }
 
-impl Default for TrackingGains {
+impl Default for SlotCorrectionGains {
     fn default() -> Self {
-        TrackingGains {
+        SlotCorrectionGains {
             drag_rate: 0.1,
             max_drag_per_s: 2.0,
             ki_per_s: 0.3,
@@ -78,7 +78,7 @@ pub struct Correction {
 
 /// The correction's state (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct TrackingCorrection {
+pub struct SlotCorrection {
     /// Learnt drag: the acceleration needed per m/s of horizontal speed, 1/s.
     pub drag_per_s: f64,
     /// Integral of the horizontal error across the commanded velocity (positive to the
@@ -95,12 +95,12 @@ pub struct TrackingCorrection {
 /// Time constant of the commanded acceleration's low-pass filter, seconds.
 const ACC_FILTER_S: f64 = 0.1;
 
-impl TrackingCorrection {
+impl SlotCorrection {
     /// Forgets the path (keeps the learnt drag, a property of the airframe).
     pub fn reset(&mut self) {
-        *self = TrackingCorrection {
+        *self = SlotCorrection {
             drag_per_s: self.drag_per_s,
-            ..TrackingCorrection::default()
+            ..SlotCorrection::default()
         };
     }
 
@@ -109,7 +109,7 @@ impl TrackingCorrection {
     /// moves (before the correction), `measured` where it is (all swarm-frame NED).
     pub fn update(
         &mut self,
-        g: &TrackingGains,
+        g: &SlotCorrectionGains,
         commanded: Ned,
         commanded_velocity: Ned,
         measured: Ned,
@@ -150,7 +150,7 @@ impl TrackingCorrection {
     }
 
     /// The correction for a target moving at `commanded_velocity` now.
-    pub fn correction(&self, g: &TrackingGains, commanded_velocity: Ned) -> Correction {
+    pub fn correction(&self, g: &SlotCorrectionGains, commanded_velocity: Ned) -> Correction {
         let h = commanded_velocity.horizontal_norm();
         let mut offset = Ned::new(0.0, 0.0, self.height_m);
         if h > 1e-6 {
@@ -185,8 +185,8 @@ mod tests {
     /// and nothing is learnt while the target climbs.
     #[test]
     fn the_height_offset_cancels_a_steady_height_error_in_level_flight() {
-        let g = TrackingGains::default();
-        let mut c = TrackingCorrection::default();
+        let g = SlotCorrectionGains::default();
+        let mut c = SlotCorrection::default();
         let target = Ned::new(0.0, 0.0, -10.0);
         let bias_m = -0.2;
         let dt = 0.02;
@@ -204,7 +204,7 @@ mod tests {
         c.update(&g, target, climbing, target + Ned::new(0.0, 0.0, 1.0), dt);
         assert_eq!(c.height_m, before, "learnt during a climb");
 
-        let mut far = TrackingCorrection::default();
+        let mut far = SlotCorrection::default();
         for _ in 0..1000 {
             far.update(&g, target, Ned::ZERO, target + Ned::new(0.0, 0.0, -2.5), dt);
         }
