@@ -8,8 +8,8 @@
 //! start): it is for looking at this computer's vehicles; the swarm is flown through the
 //! active coordinator's API.
 
+use super::up::{UpArgs, up};
 use crate::config::ConfigFile;
-use crate::up::{UpArgs, up};
 use clap::Args;
 use skein_dds::agent::{AgentConfig, LostAction};
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
@@ -87,7 +87,7 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
     let id = match args.id {
         Some(id) if id.trim().is_empty() => return Err("--id: empty".into()),
         Some(id) => id,
-        None => format!("{}-{}", crate::coordinator::hostname(), std::process::id()),
+        None => format!("{}-{}", super::candidate::hostname(), std::process::id()),
     };
     let file = match &args.config {
         Some(path) => ConfigFile::load(path)?,

@@ -45,7 +45,7 @@ pub async fn run(args: ReplayArgs) -> Result<ExitCode, String> {
         args.file.display(),
         args.speed
     );
-    let result = skein_api::replay::serve(listener, state, crate::shutdown_signal())
+    let result = skein_api::replay::serve(listener, state, crate::process::shutdown_signal())
         .await
         .map_err(|e| e.to_string());
     player.abort();

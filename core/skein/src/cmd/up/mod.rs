@@ -4,11 +4,8 @@
 mod plugins;
 
 use crate::config::ConfigFile;
+use crate::process::{EXIT_COORDINATOR_FAILED, shutdown_signal, spawn_process_watchdog};
 use crate::sim_control;
-use crate::{
-    DEFAULT_HTTP, EXIT_COORDINATOR_FAILED, refuse_unauthenticated, shutdown_signal,
-    spawn_process_watchdog,
-};
 use plugins::{default_plugin_dir, start_plugins, warn_missing_kinds};
 use skein_link::ConnectionAddress;
 use skein_swarm::{EndpointSpec, Swarm, VehicleSpec};
@@ -17,6 +14,26 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Duration;
+
+/// Where the API listens without `--http` or `[http] listen`.
+pub(crate) const DEFAULT_HTTP: SocketAddr = SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 8080);
+
+/// Why skein will not listen on `addr`: not loopback, no tokens, and no
+/// `--insecure-no-auth`.
+pub(crate) fn refuse_unauthenticated(
+    addr: SocketAddr,
+    tokens: usize,
+    insecure: bool,
+) -> Result<(), String> {
+    if tokens > 0 || insecure || addr.ip().is_loopback() {
+        return Ok(());
+    }
+    Err(format!(
+        "refusing to listen on {addr} without authentication: anyone on that network could \
+         fly the swarm. Add tokens to the config ([[http.tokens]], made by `skein token create \
+         --role operator`), listen on 127.0.0.1, or pass --insecure-no-auth if you really mean it"
+    ))
+}
 
 #[derive(clap::Args, Debug)]
 pub struct UpArgs {
@@ -91,11 +108,11 @@ pub struct UpArgs {
     /// Set by `skein coordinator`: this process is a candidate of the coordinator
     /// election (no vehicles of its own; DDS on).
     #[arg(skip)]
-    pub(crate) candidate: Option<crate::coordinator::CandidateArgs>,
+    pub(crate) candidate: Option<super::candidate::CandidateArgs>,
     /// Set by `skein agent`: this process's vehicles obey the active coordinator over DDS
     /// (DDS on; simulated sysids from its first one).
     #[arg(skip)]
-    pub(crate) agent: Option<crate::agent::AgentRole>,
+    pub(crate) agent: Option<super::agent::AgentRole>,
 }
 
 impl UpArgs {
@@ -512,7 +529,7 @@ fn dds_config(
             .map(|c| skein_dds::lease::Candidate {
                 coordinator_id: c.id.clone(),
                 priority: c.priority,
-                api_url: crate::coordinator::advertised_url(api_scheme, api_local, &networks),
+                api_url: super::candidate::advertised_url(api_scheme, api_local, &networks),
                 timing: Default::default(),
             }),
         publish_rate_hz,

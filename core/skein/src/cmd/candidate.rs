@@ -4,7 +4,7 @@
 //! candidate of highest priority is active; a standby's API answers reads and refuses
 //! writes with a 409 naming the active one.
 
-use crate::up::{UpArgs, up};
+use super::up::{UpArgs, up};
 use clap::Args;
 use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
