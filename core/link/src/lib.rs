@@ -5,7 +5,7 @@
 //!   discovered from their first heartbeat, malformed input counted and dropped.
 //! - [`telemetry`]: the latest state of a vehicle folded from PX4's streams.
 //! - [`command`]: the command protocol's operations and errors.
-//! - [`params`]: the parameter protocol (PX4's bytewise integers, duplicate answers).
+//! - [`param_client`]: the parameter protocol (PX4's bytewise integers, duplicate answers).
 //! - [`setup`]: what is configured at connect: telemetry rates, parameters.
 //! - [`setpoint`]: the offboard setpoint stream, a task that outlives actor restarts.
 //! - [`px4link`]: the `Px4Link` actor tying these together per vehicle.
@@ -23,7 +23,7 @@ pub mod command;
 pub mod endpoint;
 pub mod fault;
 pub mod gcs;
-pub mod params;
+pub mod param_client;
 pub mod px4link;
 pub mod setpoint;
 pub mod setup;

@@ -13,7 +13,7 @@
 
 use crate::command::{LinkCommand, LinkError, result_name};
 use crate::endpoint::Endpoint;
-use crate::params::{ParamClient, ParamOp, ParamReply, Transmit};
+use crate::param_client::{ParamClient, ParamOp, ParamReply, Transmit};
 use crate::setpoint::SetpointStream;
 use crate::setup::{LinkSetup, interval_us};
 use crate::telemetry::{Change, Telemetry};

@@ -4,8 +4,8 @@
 //! parent.
 
 use crate::library::LoadedLibrary;
-use crate::protocol::{read_frame, service, tag, take_f64, write_frame};
 use crate::services::{Services, host_api};
+use crate::wire::{read_frame, service, tag, take_f64, write_frame};
 use skein_plugin_sdk::abi::{HostApi, PluginVTable, RawBytes, RawSink, status};
 use std::ffi::{OsString, c_void};
 use std::os::unix::net::UnixStream;

@@ -8,9 +8,9 @@
 //! child. A call that misses its deadline kills the child the same way.
 
 use crate::inprocess::parse_instance_info;
-use crate::protocol::{read_frame, service, tag, take_f64, take_u32, write_frame};
 use crate::registry::{InstanceGuard, StalePolicy};
 use crate::services::{HostServices, Services};
+use crate::wire::{read_frame, service, tag, take_f64, take_u32, write_frame};
 use skein_mavlink::{Encoder, MavMessage, message_id};
 use skein_payload::PayloadDriver;
 use skein_plugin_sdk::MavlinkInterest;

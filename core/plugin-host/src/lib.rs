@@ -12,7 +12,7 @@
 //! Drivers come in two kinds, chosen by [`skein_payload::PayloadSpec::isolation`]:
 //! - in-process: direct calls through the plugin's vtable; a panic in the plugin becomes an
 //!   error (the SDK catches it at the boundary) and the process lives on;
-//! - process: the plugin runs in a child process speaking [`protocol`] over a Unix socket;
+//! - process: the plugin runs in a child process speaking [`wire`] over a Unix socket;
 //!   an abort, a segfault or a missed call deadline kills only the child, and the driver
 //!   reports it from its next call, so the supervisor re-creates it (a new child).
 //!
@@ -37,9 +37,9 @@ mod inprocess;
 mod isolated;
 mod library;
 mod manager;
-pub mod protocol;
 mod registry;
 mod services;
+pub mod wire;
 
 pub use child::{PluginHostArgs, plugin_host_main};
 pub use error::HostError;

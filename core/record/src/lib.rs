@@ -14,13 +14,13 @@
 //!
 //! Messages are JSON with a JSON Schema per channel (MCAP `jsonschema` encoding), stamped
 //! with the wall-clock time they were taken (ns since the Unix epoch). See
-//! [`channels`] for the schemas and [`replay`] for reading a file back.
+//! [`channels`] for the schemas and [`reader`] for reading a file back.
 
 pub mod channels;
+pub mod reader;
 pub mod recorder;
-pub mod replay;
 mod sent;
 mod writer;
 
+pub use reader::{ReplayError, Timeline};
 pub use recorder::{RecordError, Recorder, Recording, RecordingSummary, Sources};
-pub use replay::{ReplayError, Timeline};

@@ -131,7 +131,7 @@ fn parse_param(s: &str) -> Result<(String, f64), String> {
         .trim()
         .parse()
         .map_err(|e| format!("{value:?}: {e}"))?;
-    if crate::params::Params::index_of(name.trim()).is_none() {
+    if crate::px4_params::Params::index_of(name.trim()).is_none() {
         return Err(format!("unknown parameter {name:?}"));
     }
     Ok((name.trim().to_string(), value))

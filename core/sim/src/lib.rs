@@ -23,7 +23,7 @@ mod config;
 mod histogram;
 mod impairment;
 pub mod intruders;
-pub mod params;
+pub mod px4_params;
 mod report;
 mod runtime;
 mod signing;

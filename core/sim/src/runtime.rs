@@ -15,7 +15,7 @@
 //! datagram enters an empty line).
 
 use crate::impairment::Impairment;
-use crate::params::Param;
+use crate::px4_params::Param;
 use crate::signing::SimSigning;
 use crate::vehicle::{Outbox, Vehicle};
 use skein_mavlink::{DecodeCounts, DecodeStats, Decoder, Encoder};

@@ -34,10 +34,10 @@
 //!
 //! The track figures are computed in [`score`]; `--trace FILE` writes every sample, with
 //! the detector frames, and `--replay FILE` runs the tracker again over such a trace
-//! without flying ([`replay`]).
+//! without flying ([`trace`]).
 
-mod replay;
 mod score;
+mod trace;
 
 use crate::up_process::UpProcess;
 use score::Scorer;
@@ -65,7 +65,7 @@ pub struct TrackingBenchArgs {
     #[arg(long, value_name = "FILE")]
     pub trace: Option<std::path::PathBuf>,
     /// Fly nothing: replay a `--trace` file's detector frames through a fresh tracker and
-    /// print its track figures (see `core/bench/src/tracking/replay.rs`); with `--trace`, write the
+    /// print its track figures (see `core/bench/src/tracking/trace.rs`); with `--trace`, write the
     /// replay's samples there.
     #[arg(long, value_name = "FILE")]
     pub replay: Option<std::path::PathBuf>,
@@ -178,7 +178,7 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
         let mut file = trace_file(args)?;
         let out = file.as_mut().map(|f| f as &mut dyn std::io::Write);
         let config = skein_swarm::tracking::TrackerConfig::default();
-        let tracks = replay::replay(path, config, out)?;
+        let tracks = trace::replay(path, config, out)?;
         return Ok(json!({"replay": path.display().to_string(), "tracks": tracks}));
     }
     let up = start(args)?;
@@ -263,7 +263,7 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
         scorer.sample(t, &truth, &viewers, &tracks);
         if let Some(w) = trace.as_mut() {
             use std::io::Write;
-            let line = replay::trace_line(t, now_us, &vs, &truth, &viewers, &tracks);
+            let line = trace::trace_line(t, now_us, &vs, &truth, &viewers, &tracks);
             writeln!(w, "{line}").map_err(|e| format!("trace: {e}"))?;
         }
         std::thread::sleep(Duration::from_millis(200));

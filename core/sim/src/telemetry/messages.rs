@@ -585,7 +585,7 @@ impl Vehicle {
                     mavtype: MavBatteryType::MAV_BATTERY_TYPE_LIPO,
                     battery_remaining: remaining_pct,
                     time_remaining: {
-                        let capacity = self.params.get(crate::params::Param::BAT1_CAPACITY);
+                        let capacity = self.params.get(crate::px4_params::Param::BAT1_CAPACITY);
                         let left_mah = (capacity - b.consumed_mah).max(0.0);
                         (left_mah / b.current_a.max(0.1) * 3.6).round() as i32
                     },

@@ -14,7 +14,7 @@
 
 use crate::config::WindConfig;
 use crate::histogram::IntervalHistogram;
-use crate::params::{PARAM_COUNT, Param, ParamValue, Params};
+use crate::px4_params::{PARAM_COUNT, Param, ParamValue, Params};
 use crate::telemetry::Streams;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -28,16 +28,16 @@ mod battery;
 mod commander;
 mod dynamics;
 mod land_detector;
+mod mavlink_receiver;
 mod navigator;
 mod position_control;
-mod protocol;
 #[cfg(test)]
 mod tests;
 
 pub(crate) use battery::Battery;
+use mavlink_receiver::{Command, LastCommand};
 pub(crate) use navigator::RtlPhase;
 use position_control::PositionControl;
-use protocol::{Command, LastCommand};
 
 /// Standard gravity, m/s².
 pub(crate) const GRAVITY_M_S2: f64 = 9.806_65;

@@ -14,7 +14,7 @@
 //! find it, which is why PX4 reaches only about 2.4 m/s of a 3 m/s velocity setpoint
 //! after 5 s on SIH (drag 1 N/(m/s) on 1 kg).
 
-use crate::params::{Param, Params};
+use crate::px4_params::{Param, Params};
 use crate::vehicle::GRAVITY_M_S2;
 
 /// Gains and limits of one controller update, read from the parameter table (live, so a
