@@ -67,9 +67,11 @@ fn bench_swarm_reports_every_field_with_all_vehicles_offboard() {
 }
 
 /// `skein bench formation`, 8 vehicles: every field present and, the rehearsal being
-/// deterministic, no separation or geofence violation.
+/// deterministic, no separation or geofence violation, and every shape within the
+/// formation's 0.3 m RMS budget cruising at 5 m/s behind its virtual leader (the budget
+/// `tests/e2e_formation.rs` holds the wedge and the circle to over UDP).
 #[test]
-fn bench_formation_reports_convergence_error_and_separation() {
+fn bench_formation_flies_every_shape_within_budget_and_separation() {
     let report = bench_report(
         &["formation", "--vehicles", "8"],
         "formation",
@@ -88,6 +90,23 @@ fn bench_formation_reports_convergence_error_and_separation() {
     assert!(run["min_separation_m"].as_f64().unwrap() >= 3.0, "{report}");
     assert_eq!(run["separation_violations"], 0, "{report}");
     assert_eq!(run["fence_violations"], 0, "{report}");
+    let shapes = run["rms_slot_error_per_shape_m"].as_object().expect("per shape");
+    for shape in [
+        "line",
+        "column",
+        "wedge",
+        "echelon_right",
+        "echelon_left",
+        "diamond",
+        "circle",
+        "grid",
+    ] {
+        let moving = shapes[shape]["moving"].as_f64();
+        assert!(
+            moving.is_some_and(|m| m < 0.3),
+            "{shape}: cruise RMS {moving:?}: {report}"
+        );
+    }
 }
 
 /// `skein bench restart`, small: 40 panics over 2 hovering vehicles. Every panic must

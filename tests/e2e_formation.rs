@@ -1,8 +1,11 @@
-//! Formation flight from the outside, with simulated PX4s over real UDP: every shape
-//! behind a virtual leader moving at 5 m/s, the leader vehicle dying, a vehicle joining
-//! in flight. One swarm at a time: eight PX4-faithful vehicles at 50 Hz are most of two
-//! cores in a debug build. Separation is checked on the simulator's ground truth, not on skein's
-//! own metrics.
+//! Formation flight from the outside, with simulated PX4s over real UDP: a wedge and a
+//! circle behind a virtual leader moving at 5 m/s, the leader vehicle dying, a vehicle
+//! joining in flight. One swarm at a time: eight PX4-faithful vehicles at 50 Hz are most
+//! of two cores in a debug build. Separation is checked on the simulator's ground truth,
+//! not on skein's own metrics. Every other shape flies the same checks in virtual time, on
+//! the same formation engine and simulated airframe (`skein bench formation`, in
+//! `tests/bench_smoke.rs`): real time here is for the path, UDP and actors, not the
+//! geometry.
 
 mod support;
 
@@ -26,7 +29,7 @@ fn settled(skein: &Skein, n: usize, tol: f64, within: Duration) {
 }
 
 #[test]
-fn every_shape_behind_a_virtual_leader_at_5_m_s() {
+fn a_wedge_and_a_circle_behind_a_virtual_leader_at_5_m_s_over_udp() {
     let _serial = one_at_a_time();
     let skein = up(8, &[]);
     let stats = skein.sim_stats_addr();
@@ -34,16 +37,9 @@ fn every_shape_behind_a_virtual_leader_at_5_m_s() {
     let mut min_sep = f64::INFINITY;
     let mut report = Vec::new();
     let mut north = 0.0;
-    let shapes = [
-        "line",
-        "column",
-        "wedge",
-        "echelon_right",
-        "echelon_left",
-        "diamond",
-        "circle",
-        "grid",
-    ];
+    // The wedge (the paper's formation) and the circle, whose slots lie opposite the
+    // wedge's: the change between them reassigns every member.
+    let shapes = ["wedge", "circle"];
     for shape in shapes {
         // Reshape while the virtual leader holds …
         let (status, body) = skein.put(
