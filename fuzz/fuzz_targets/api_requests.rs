@@ -46,7 +46,7 @@ fuzz_target!(|data: &[u8]| {
         4 => check(requests::leader::leader_motion("waypoints", body), |_| {}),
         5 => check(requests::leader::leader_motion("orbit", body), |_| {}),
         6 => check(requests::leader::leader_motion("hold", body), |_| {}),
-        7 => check(requests::params::param_value(body), |v| assert!(v.is_finite())),
+        7 => check(requests::px4_param_write::param_value(body), |v| assert!(v.is_finite())),
         8 => check(requests::payloads::parse_attach(body), |_| {}),
         9 => {
             check(requests::plugins::load(body), |_| {});

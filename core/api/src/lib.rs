@@ -43,11 +43,11 @@ pub mod auth;
 pub mod election;
 pub mod error;
 pub mod openapi;
-pub mod params;
 pub mod payloads;
 pub mod plugins;
+pub mod px4_params;
 pub mod recording;
-pub mod replay;
+pub mod replay_server;
 pub mod requests;
 pub mod responses;
 pub mod server;
@@ -196,10 +196,10 @@ pub fn app(state: ApiState) -> Router {
         .route("/api/v1/vehicles", get(list_vehicles))
         .route("/api/v1/vehicles/{id}", get(get_vehicle))
         .route("/api/v1/vehicles/{id}/commands", post(vehicle_command))
-        .route("/api/v1/vehicles/{id}/params", get(params::list_params))
+        .route("/api/v1/vehicles/{id}/params", get(px4_params::list_params))
         .route(
             "/api/v1/vehicles/{id}/params/{name}",
-            get(params::get_param).put(params::put_param),
+            get(px4_params::get_param).put(px4_params::put_param),
         )
         .route("/api/v1/swarm/commands", post(swarm_command))
         .route(

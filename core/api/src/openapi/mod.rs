@@ -21,9 +21,9 @@ use crate::requests::{
         LeaderGoToRequest, LeaderHoldRequest, LeaderOrbitRequest, LeaderWaypointsRequest,
         PointRequest,
     },
-    params::ParamValueRequest,
     payloads::AttachRequest,
     plugins::{LoadRequest, ReloadRequest, UnloadRequest},
+    px4_param_write::ParamValueRequest,
 };
 use crate::responses::{
     Cleared, Detached, ErrorBody, FaultInjected, ParamEntry, ParamValue, PayloadView,

@@ -10,15 +10,15 @@
 //!
 //! One module per concept: [`commands`] (vehicle and swarm commands), [`formation`],
 //! [`leader`] (leader motion), [`payloads`] (attach), [`plugins`], [`faults`],
-//! [`params`].
+//! [`px4_param_write`].
 
 pub mod commands;
 pub mod faults;
 pub mod formation;
 pub mod leader;
-pub mod params;
 pub mod payloads;
 pub mod plugins;
+pub mod px4_param_write;
 pub mod recording;
 pub mod tracks;
 

@@ -139,7 +139,7 @@ pub(crate) async fn put_param(
     body: Bytes,
 ) -> Result<Response, ApiError> {
     check_param_name(&name)?;
-    let value = requests::params::param_value(&body)?;
+    let value = requests::px4_param_write::param_value(&body)?;
     let link = link_of(&s, &id).await?;
     let n = name.clone();
     match link
