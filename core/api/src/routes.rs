@@ -3,7 +3,7 @@
 //! in the router of the role it needs. The axum router ([`crate::app`]: one
 //! authentication `route_layer` per role), the role table ([`crate::auth::routes`]) and
 //! the served contract ([`crate::openapi`], with each operation's role) are all built
-//! from [`by_role`], so they cannot disagree.
+//! from `by_role`, so they cannot disagree.
 //!
 //! Adding a route touches the handler (with its `#[utoipa::path]`), one line here in its
 //! role's router, and its row in `docs/api.md` (a test holds the doc to the contract).
