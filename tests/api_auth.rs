@@ -1,113 +1,15 @@
-//! Roles on every route, over the router without a socket: each route of
-//! `skein_api::auth::ROUTES` × {no token, viewer, operator, admin} → 401 / 403 / through,
-//! and the failed-attempt lockout (429). The coordinator is a stand-in that drops every
-//! request (handlers answer 503 at once): only the middleware's verdict is under test.
+//! Roles on every route, over the router without a socket: each operation of the
+//! contract (`skein_api::auth::routes`, the role table read from it) × {no token, viewer,
+//! operator, admin} → 401 / 403 / through, and the failed-attempt lockout (429). The
+//! coordinator is a stand-in that drops every request (handlers answer 503 at once): only
+//! the gates' verdict is under test.
 
-use axum::body::Body;
-use axum::extract::ConnectInfo;
-use axum::http::{Method, Request, StatusCode};
-use ractor::{Actor, ActorProcessingErr, ActorRef};
-use skein_api::auth::{self, Access, Auth, Role, TokenConfig};
-use skein_swarm::CoordinatorMsg;
-use std::net::SocketAddr;
-use tokio::sync::broadcast;
-use tower::ServiceExt;
+#[path = "../core/api/tests/support/mod.rs"]
+mod support;
 
-struct Mute;
-
-impl Actor for Mute {
-    type Msg = CoordinatorMsg;
-    type State = ();
-    type Arguments = ();
-    async fn pre_start(
-        &self,
-        _: ActorRef<CoordinatorMsg>,
-        _: (),
-    ) -> Result<(), ActorProcessingErr> {
-        Ok(())
-    }
-    async fn handle(
-        &self,
-        _: ActorRef<CoordinatorMsg>,
-        _msg: CoordinatorMsg,
-        _: &mut (),
-    ) -> Result<(), ActorProcessingErr> {
-        Ok(()) // the reply port is dropped: the caller learns at once
-    }
-}
-
-const TOKENS: [(&str, Role, &str); 3] = [
-    ("watch", Role::Viewer, "v1ewer-token-0123456789abcdef"),
-    ("ops", Role::Operator, "0perator-token-0123456789abcdef"),
-    ("root", Role::Admin, "adm1n-token-0123456789abcdef"),
-];
-
-async fn router(auth: Auth) -> axum::Router {
-    router_of(auth, None).await
-}
-
-/// The router, as a coordinator candidate's with `election`.
-async fn router_of(
-    auth: Auth,
-    election: Option<tokio::sync::watch::Receiver<skein_swarm::election::ElectionStatus>>,
-) -> axum::Router {
-    let (coordinator, _) = Actor::spawn(None, Mute, ()).await.unwrap();
-    let (events, _) = broadcast::channel(4);
-    let state = skein_api::ApiState::new(coordinator, events).with_auth(auth);
-    skein_api::app(match election {
-        Some(e) => state.with_election(e),
-        None => state,
-    })
-}
-
-fn configured() -> Auth {
-    let cfg: Vec<TokenConfig> = TOKENS
-        .iter()
-        .map(|(name, role, token)| TokenConfig {
-            name: (*name).into(),
-            role: *role,
-            hash: auth::hash_token(token).unwrap(),
-        })
-        .collect();
-    Auth::new(&cfg).unwrap()
-}
-
-fn concrete(path: &str) -> String {
-    path.replace("{id}", "uav-1")
-        .replace("{name}", "MPC_XY_VEL_MAX")
-        .replace("{command}", "hold")
-        .replace("{slot}", "cam")
-        .replace("{op}", "load")
-}
-
-fn request(method: &str, path: &str, token: Option<&str>, ip: [u8; 4]) -> Request<Body> {
-    let mut b = Request::builder()
-        .method(Method::from_bytes(method.as_bytes()).unwrap())
-        .uri(path)
-        .header("content-type", "application/json");
-    if let Some(t) = token {
-        b = b.header("authorization", format!("Bearer {t}"));
-    }
-    let body = if method == "GET" {
-        Body::empty()
-    } else {
-        Body::from("{}")
-    };
-    let mut req = b.body(body).unwrap();
-    req.extensions_mut()
-        .insert(ConnectInfo(SocketAddr::from((ip, 40000))));
-    req
-}
-
-async fn call(app: &axum::Router, req: Request<Body>) -> (StatusCode, serde_json::Value) {
-    let res = app.clone().oneshot(req).await.unwrap();
-    let status = res.status();
-    let bytes = axum::body::to_bytes(res.into_body(), 1 << 20)
-        .await
-        .unwrap();
-    let json = serde_json::from_slice(&bytes).unwrap_or(serde_json::Value::Null);
-    (status, json)
-}
+use axum::http::StatusCode;
+use skein_api::auth::{self, Access, Auth};
+use support::{TOKENS, call, concrete, configured, request, router, router_of};
 
 #[derive(Debug, PartialEq)]
 enum Verdict {
@@ -120,15 +22,16 @@ enum Verdict {
 async fn every_route_enforces_its_role() {
     let app = router(configured()).await;
     let mut failures = Vec::new();
-    for (method, path, access) in auth::ROUTES {
-        let uri = concrete(path);
+    for route in auth::routes() {
+        let (method, access) = (route.method.as_str(), route.access);
+        let uri = concrete(&route.path);
         for caller in [None, Some(0usize), Some(1), Some(2)] {
             let token = caller.map(|i| TOKENS[i].2);
             let role = caller.map(|i| TOKENS[i].1);
             let expected = match (access, role) {
                 (Access::Public, _) => Verdict::Through,
                 (Access::Role(_), None) => Verdict::Unauthorized,
-                (Access::Role(need), Some(r)) if r < *need => Verdict::Forbidden,
+                (Access::Role(need), Some(r)) if r < need => Verdict::Forbidden,
                 _ => Verdict::Through,
             };
             let (status, body) = call(&app, request(method, &uri, token, [10, 0, 0, 1])).await;
@@ -169,7 +72,8 @@ async fn every_route_enforces_its_role() {
 #[tokio::test]
 async fn without_tokens_everything_is_open_and_whoami_says_so() {
     let app = router(Auth::disabled()).await;
-    for (method, path, _) in auth::ROUTES {
+    for route in auth::routes() {
+        let (method, path) = (route.method.as_str(), &route.path);
         let (status, body) =
             call(&app, request(method, &concrete(path), None, [127, 0, 0, 1])).await;
         assert!(
@@ -295,10 +199,11 @@ async fn a_standby_refuses_every_write_after_authentication_and_answers_reads() 
     let (tx, rx) = tokio::sync::watch::channel(election(CoordinatorRole::Standby));
     let app = router_of(configured(), Some(rx)).await;
     let admin = Some(TOKENS[2].2);
-    for (method, path, access) in auth::ROUTES {
-        let uri = concrete(path);
+    for route in auth::routes() {
+        let (method, access) = (route.method.as_str(), route.access);
+        let uri = concrete(&route.path);
         let (status, body) = call(&app, request(method, &uri, admin, [10, 0, 0, 7])).await;
-        if *method == "GET" {
+        if method == "GET" {
             assert_ne!(status, StatusCode::CONFLICT, "{method} {uri}: {body}");
             continue;
         }
@@ -310,7 +215,7 @@ async fn a_standby_refuses_every_write_after_authentication_and_answers_reads() 
         );
         assert!(e.contains("http://10.0.0.2:8080"), "{e}");
         // Authentication comes first: no token is a 401, not a 409.
-        if *access != Access::Public {
+        if access != Access::Public {
             let (status, _) = call(&app, request(method, &uri, None, [10, 0, 0, 8])).await;
             assert_eq!(status, StatusCode::UNAUTHORIZED, "{method} {uri}");
         }

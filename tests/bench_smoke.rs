@@ -90,7 +90,9 @@ fn bench_formation_flies_every_shape_within_budget_and_separation() {
     assert!(run["min_separation_m"].as_f64().unwrap() >= 3.0, "{report}");
     assert_eq!(run["separation_violations"], 0, "{report}");
     assert_eq!(run["fence_violations"], 0, "{report}");
-    let shapes = run["rms_slot_error_per_shape_m"].as_object().expect("per shape");
+    let shapes = run["rms_slot_error_per_shape_m"]
+        .as_object()
+        .expect("per shape");
     for shape in [
         "line",
         "column",

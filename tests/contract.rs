@@ -1,6 +1,14 @@
 //! The API contract against a live swarm: schemathesis (tests/peers/requirements.txt)
 //! generates requests from `GET /api/v1/openapi.json` of a `skein up --sim 3` and checks
-//! every answer: no 5xx, every body inside its schema, every status documented.
+//! every answer: no 5xx, every body inside its schema, every status documented, and every
+//! request the schema allows accepted (`positive_data_acceptance`), but for the refusals
+//! the contract itself announces: an operation's `x-skein-swarm-checks` names the fields
+//! the running swarm checks beyond any static schema (its geofence, speed limits,
+//! vehicles, loaded plugins). For those operations a 400 or 422 is expected, and the
+//! check [`SWARM_CHECKS_HOOK`] adds holds it to naming one of those fields. And every
+//! request the schema forbids is refused (`negative_data_rejection`): the swarm runs with
+//! an admin token, as any skein off loopback does, so a request without one is refused
+//! too.
 //!
 //! Everything is fair game, destructive operations included (swarm commands, formations,
 //! payload attach / detach, plugin unload, parameter writes): the swarm is simulated, and
@@ -11,12 +19,64 @@ mod support;
 
 use std::time::{Duration, Instant};
 use support::plugins::{build_into, scratch};
-use support::{Skein, run_python_in};
+use support::{Skein, eventually, run_python_in};
 
 /// Test cases per operation and phase: enough for every operation's edge cases (the
 /// coverage phase) plus some random ones, within a minute or two on a loaded 2-core
 /// machine.
 const MAX_EXAMPLES: &str = "25";
+
+/// The statuses `positive_data_acceptance` expects by default (schemathesis 4), and the
+/// refusals of a field the swarm checks.
+const ACCEPTED: &str = r#""2xx", "3xx", "401", "403", "404", "409", "429", "5xx""#;
+const SWARM_REFUSALS: &str = r#""400", "422""#;
+
+/// A schemathesis check (a hooks file): a request valid by the schema that an operation
+/// with `x-skein-swarm-checks` refuses must name one of those fields (`body`: the whole
+/// body is the payload's own, read by its plugin).
+const SWARM_CHECKS_HOOK: &str = r#"
+import schemathesis
+
+
+@schemathesis.check
+def refusals_name_a_swarm_checked_field(ctx, response, case):
+    meta = case.meta
+    if meta is None or not meta.generation.mode.is_positive:
+        return None
+    if response.status_code not in (400, 422):
+        return None
+    checks = case.operation.definition.raw.get("x-skein-swarm-checks")
+    if checks is None or "body" in checks:
+        return None
+    try:
+        field = response.json().get("field")
+    except Exception:
+        field = None
+    if field not in checks:
+        raise AssertionError(
+            f"a request valid by the schema was refused ({response.status_code}) naming "
+            f"{field!r}, not a field the swarm checks ({', '.join(checks)})"
+        )
+    return None
+"#;
+
+/// The schemathesis configuration for `spec`: the hooks file, and for each operation with
+/// `x-skein-swarm-checks` its refusals among the expected statuses.
+fn schemathesis_config(spec: &serde_json::Value, hooks: &std::path::Path) -> String {
+    let mut toml = format!("hooks = \"{}\"\n", hooks.display());
+    for (path, item) in spec["paths"].as_object().unwrap() {
+        for (method, op) in item.as_object().unwrap() {
+            if op.get("x-skein-swarm-checks").is_some() {
+                toml.push_str(&format!(
+                    "\n[[operations]]\ninclude-path = \"{path}\"\ninclude-method = \"{}\"\n\
+                     checks.positive_data_acceptance.expected-statuses = [{ACCEPTED}, {SWARM_REFUSALS}]\n",
+                    method.to_uppercase()
+                ));
+            }
+        }
+    }
+    toml
+}
 
 #[test]
 fn schemathesis_finds_nothing_against_a_live_swarm() {
@@ -26,10 +86,16 @@ fn schemathesis_finds_nothing_against_a_live_swarm() {
     build_into(&["skein-plugin-gimbal", "skein-plugin-camera"], &[], &dir);
     // schemathesis starts recordings: into a scratch directory, not the working one.
     let recordings = scratch("contract-recordings");
+    let token = skein_api::auth::new_token().unwrap();
     let cfg = dir.join("skein.toml");
     std::fs::write(
         &cfg,
-        format!("[recording]\ndir = \"{}\"\n", recordings.display()),
+        format!(
+            "[recording]\ndir = \"{}\"\n\n[[http.tokens]]\nname = \"contract\"\nrole = \"admin\"\n\
+             hash = \"{}\"\n",
+            recordings.display(),
+            skein_api::auth::hash_token(&token).unwrap()
+        ),
     )
     .unwrap();
     let skein = Skein::up(&[
@@ -42,8 +108,17 @@ fn schemathesis_finds_nothing_against_a_live_swarm() {
         "--config",
         cfg.to_str().unwrap(),
     ]);
-    skein.wait_all("connected", 3, Duration::from_secs(60), |v| {
-        v["link"]["connected"] == true
+    let vehicles = format!("/api/v1/vehicles?token={token}");
+    eventually("3 vehicles connected", Duration::from_secs(60), || {
+        let (_, v) = skein.get(&vehicles);
+        let connected = v.as_array().map_or(0, |vs| {
+            vs.iter().filter(|v| v["link"]["connected"] == true).count()
+        });
+        if connected == 3 {
+            Ok(())
+        } else {
+            Err(v.to_string())
+        }
     });
     let (status, spec) = skein.get("/api/v1/openapi.json");
     assert_eq!(status, 200, "{spec}");
@@ -53,15 +128,25 @@ fn schemathesis_finds_nothing_against_a_live_swarm() {
     let started = Instant::now();
     // schemathesis and hypothesis keep caches in the working directory: a scratch one.
     let work = scratch("contract-work");
+    let hooks = work.join("swarm_checks.py");
+    std::fs::write(&hooks, SWARM_CHECKS_HOOK).unwrap();
+    let config = work.join("schemathesis.toml");
+    std::fs::write(&config, schemathesis_config(&spec, &hooks)).unwrap();
     let (code, out, err) = run_python_in(
         &work,
         &[
             "-m",
             "schemathesis.cli",
+            "--config-file",
+            config.to_str().unwrap(),
             "run",
             &schema,
+            "--header",
+            &format!("Authorization: Bearer {token}"),
             "--checks",
-            "not_a_server_error,response_schema_conformance,status_code_conformance",
+            "not_a_server_error,response_schema_conformance,status_code_conformance,\
+             positive_data_acceptance,refusals_name_a_swarm_checked_field,\
+             negative_data_rejection",
             "--phases",
             "examples,coverage,fuzzing",
             "--max-examples",

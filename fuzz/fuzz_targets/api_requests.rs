@@ -42,11 +42,11 @@ fuzz_target!(|data: &[u8]| {
                 assert!(o.north_m.is_finite() && o.east_m.is_finite() && o.down_m.is_finite(), "{f:?}");
             }
         }),
-        3 => check(requests::leader::leader_motion("goto", body), |_| {}),
-        4 => check(requests::leader::leader_motion("waypoints", body), |_| {}),
-        5 => check(requests::leader::leader_motion("orbit", body), |_| {}),
-        6 => check(requests::leader::leader_motion("hold", body), |_| {}),
-        7 => check(requests::params::param_value(body), |v| assert!(v.is_finite())),
+        3 => check(requests::leader::goto(body), |_| {}),
+        4 => check(requests::leader::waypoints(body), |_| {}),
+        5 => check(requests::leader::orbit(body), |_| {}),
+        6 => check(requests::leader::hold(body), |_| {}),
+        7 => check(requests::px4_param_write::param_value(body), |v| assert!(v.is_finite())),
         8 => check(requests::payloads::parse_attach(body), |_| {}),
         9 => {
             check(requests::plugins::load(body), |_| {});

@@ -10,17 +10,20 @@
 //! build in 4.4 s from clean, argon2 in 5.6 s (2 jobs). Digests are compared in constant
 //! time (`subtle`).
 //!
-//! Every route has one [`Access`] in [`ROUTES`]; the middleware ([`require`]) looks the
-//! request's matched route up there (unknown routes need [`Role::Admin`]: fail closed).
-//! Without tokens configured ([`Auth::disabled`]) everything is allowed, as before; the
-//! binary refuses that on a non-loopback address unless told `--insecure-no-auth`.
+//! Every route has one [`Access`]: the role router it is registered in
+//! ([`crate::routes`]), whose gate ([`require`], one `route_layer` per role) checks it.
+//! The contract states it on each operation (`x-skein-role`), and [`routes`] reads the
+//! table back from there. Any other `/api/…` path needs a viewer token (and answers 404);
+//! a handler cannot be routed without a role. Without tokens configured
+//! ([`Auth::disabled`]) everything is allowed, as before; the binary refuses that on a
+//! non-loopback address unless told `--insecure-no-auth`.
 //!
 //! Failed attempts are counted per client IP: after [`MAX_FAILURES`] within
 //! [`FAILURE_WINDOW`], that IP is answered 429 for [`LOCKOUT`].
 
 use crate::ApiState;
 use axum::Json;
-use axum::extract::{ConnectInfo, MatchedPath, Request, State};
+use axum::extract::{ConnectInfo, Request, State};
 use axum::http::{HeaderValue, Method, StatusCode, header};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
@@ -29,7 +32,7 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
-use std::sync::{Mutex, PoisonError};
+use std::sync::{Mutex, OnceLock, PoisonError};
 use std::time::{Duration, Instant};
 use subtle::ConstantTimeEq;
 use utoipa::ToSchema;
@@ -88,79 +91,64 @@ pub enum Access {
     Role(Role),
 }
 
-use Access::Public;
-const VIEWER: Access = Access::Role(Role::Viewer);
-const OPERATOR: Access = Access::Role(Role::Operator);
-const ADMIN: Access = Access::Role(Role::Admin);
-
-/// Every route of [`crate::app`] (method, axum path, access). The middleware and the
-/// tests read this one table; `docs/api.md` reproduces it.
-pub const ROUTES: &[(&str, &str, Access)] = &[
-    ("GET", "/api/v1/health", Public),
-    // The contract holds no swarm data: tools read it without a token.
-    ("GET", "/api/v1/openapi.json", Public),
-    ("GET", "/api/v1/auth/whoami", VIEWER),
-    ("GET", "/api/v1/vehicles", VIEWER),
-    ("GET", "/api/v1/vehicles/{id}", VIEWER),
-    ("POST", "/api/v1/vehicles/{id}/commands", OPERATOR),
-    ("GET", "/api/v1/vehicles/{id}/params", VIEWER),
-    ("GET", "/api/v1/vehicles/{id}/params/{name}", VIEWER),
-    ("PUT", "/api/v1/vehicles/{id}/params/{name}", ADMIN),
-    ("POST", "/api/v1/swarm/commands", OPERATOR),
-    ("GET", "/api/v1/formation", VIEWER),
-    ("PUT", "/api/v1/formation", OPERATOR),
-    ("DELETE", "/api/v1/formation", OPERATOR),
-    ("POST", "/api/v1/formation/leader/{command}", OPERATOR),
-    ("GET", "/api/v1/formation/shapes", VIEWER),
-    ("GET", "/api/v1/vehicles/{id}/payloads", VIEWER),
-    ("POST", "/api/v1/vehicles/{id}/payloads", OPERATOR),
-    ("POST", "/api/v1/vehicles/{id}/payloads/{slot}", OPERATOR),
-    ("DELETE", "/api/v1/vehicles/{id}/payloads/{slot}", OPERATOR),
-    (
-        "GET",
-        "/api/v1/vehicles/{id}/payloads/{slot}/snapshot",
-        VIEWER,
-    ),
-    (
-        "GET",
-        "/api/v1/vehicles/{id}/payloads/{slot}/stream",
-        VIEWER,
-    ),
-    ("GET", "/api/v1/plugins", VIEWER),
-    ("POST", "/api/v1/plugins/{op}", ADMIN),
-    ("GET", "/api/v1/supervision", VIEWER),
-    ("POST", "/api/v1/faults", ADMIN),
-    ("GET", "/metrics", VIEWER),
-    ("GET", "/api/v1/links", VIEWER),
-    ("GET", "/api/v1/geofence", VIEWER),
-    ("GET", "/api/v1/stream", VIEWER),
-    ("GET", "/api/v1/coordinator", VIEWER),
-    ("GET", "/api/v1/tracks", VIEWER),
-    ("POST", "/api/v1/tracks/{id}/observe", OPERATOR),
-    ("DELETE", "/api/v1/tracks/{id}/observe", OPERATOR),
-    ("GET", "/api/v1/sim/truth", VIEWER),
-    ("GET", "/api/v1/recording", VIEWER),
-    ("POST", "/api/v1/recording/start", OPERATOR),
-    ("POST", "/api/v1/recording/stop", OPERATOR),
-];
-
-/// The access a request needs: its (method, matched route) in [`ROUTES`]; `HEAD` as `GET`;
-/// any other API path (the 404 catch-all) a viewer; anything unlisted an admin.
-pub fn required(method: &Method, route: &str) -> Access {
-    let m = if method == Method::HEAD {
-        "GET"
-    } else {
-        method.as_str()
-    };
-    if let Some((_, _, a)) = ROUTES.iter().find(|(rm, rp, _)| *rm == m && *rp == route) {
-        return *a;
+impl Access {
+    /// As the contract writes it (`x-skein-role`): `public`, or the role's name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Access::Public => "public",
+            Access::Role(r) => r.as_str(),
+        }
     }
-    if route == "/api/{*rest}" || ROUTES.iter().any(|(_, rp, _)| *rp == route) {
-        // Unknown endpoint, or a method the route does not have (405): no need to be
-        // more than a viewer to learn that.
-        return VIEWER;
+}
+
+impl std::str::FromStr for Access {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "public" => Ok(Access::Public),
+            role => role.parse().map(Access::Role),
+        }
     }
-    ADMIN
+}
+
+/// One operation of the contract and who may call it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RouteAccess {
+    /// HTTP method, upper case (`GET`).
+    pub method: String,
+    /// The route as axum and the contract write it (`/api/v1/vehicles/{id}`).
+    pub path: String,
+    /// Who may call it.
+    pub access: Access,
+}
+
+/// Every operation of [`crate::app`] with its access, read from the contract's
+/// `x-skein-role` (an operation without one would need an admin: fail closed).
+pub fn routes() -> &'static [RouteAccess] {
+    static TABLE: OnceLock<Vec<RouteAccess>> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        crate::openapi::operations(crate::openapi::contract())
+            .map(|(method, path, op)| RouteAccess {
+                method: method.to_string(),
+                path: path.to_string(),
+                access: crate::openapi::access_of(op).unwrap_or(Access::Role(Role::Admin)),
+            })
+            .collect()
+    })
+}
+
+/// The gate of one role's routes: the API's state and the access they need.
+#[derive(Clone)]
+pub struct Gate {
+    state: ApiState,
+    access: Access,
+}
+
+impl Gate {
+    /// A gate letting through what `access` allows.
+    pub fn new(state: ApiState, access: Access) -> Self {
+        Gate { state, access }
+    }
 }
 
 /// Failed attempts from one IP before it is locked out.
@@ -407,9 +395,10 @@ fn presented(req: &Request) -> Option<String> {
     })
 }
 
-/// The middleware: authenticates and authorises every routed request (see the module).
-pub async fn require(State(s): State<ApiState>, mut req: Request, next: Next) -> Response {
-    let auth = s.auth.clone();
+/// The middleware of one role's routes ([`Gate`]): authenticates and authorises every
+/// request they get (see the module).
+pub async fn require(State(gate): State<Gate>, mut req: Request, next: Next) -> Response {
+    let auth = gate.state.auth.clone();
     if !auth.enabled() {
         req.extensions_mut().insert(Identity {
             auth: false,
@@ -418,12 +407,7 @@ pub async fn require(State(s): State<ApiState>, mut req: Request, next: Next) ->
         });
         return next.run(req).await;
     }
-    let route = req
-        .extensions()
-        .get::<MatchedPath>()
-        .map(|m| m.as_str().to_string())
-        .unwrap_or_default();
-    let needed = match required(req.method(), &route) {
+    let needed = match gate.access {
         Access::Public => return next.run(req).await,
         Access::Role(r) => r,
     };
@@ -475,8 +459,10 @@ pub async fn require(State(s): State<ApiState>, mut req: Request, next: Next) ->
     next.run(req).await
 }
 
-/// `GET /api/v1/auth/whoami`: `{"auth", "name", "role"}`.
-pub async fn whoami(identity: Option<axum::Extension<Identity>>) -> Response {
+/// The caller's token: name and role
+#[utoipa::path(get, path = "/api/v1/auth/whoami",
+    responses((status = 200, body = Identity)))]
+pub(crate) async fn whoami(identity: Option<axum::Extension<Identity>>) -> Response {
     match identity {
         Some(axum::Extension(i)) => Json(i).into_response(),
         None => Json(Identity {
@@ -528,10 +514,50 @@ mod tests {
     }
 
     #[test]
-    fn unknown_routes_need_an_admin() {
-        assert_eq!(required(&Method::GET, "/api/v1/health"), Public);
-        assert_eq!(required(&Method::HEAD, "/api/v1/vehicles"), VIEWER);
-        assert_eq!(required(&Method::GET, "/something/else"), ADMIN);
-        assert_eq!(required(&Method::PATCH, "/api/v1/formation"), VIEWER);
+    fn access_reads_back_as_the_contract_writes_it() {
+        for a in [
+            Access::Public,
+            Access::Role(Role::Viewer),
+            Access::Role(Role::Operator),
+            Access::Role(Role::Admin),
+        ] {
+            assert_eq!(a.as_str().parse::<Access>(), Ok(a));
+        }
+        assert!("root".parse::<Access>().is_err());
+    }
+
+    #[test]
+    fn the_role_table_has_every_operation_once_with_its_role() {
+        let table = routes();
+        let role = |m: &str, p: &str| {
+            table
+                .iter()
+                .find(|r| r.method == m && r.path == p)
+                .map(|r| r.access)
+        };
+        assert_eq!(role("GET", "/api/v1/health"), Some(Access::Public));
+        assert_eq!(
+            role("GET", "/api/v1/vehicles"),
+            Some(Access::Role(Role::Viewer))
+        );
+        assert_eq!(
+            role("POST", "/api/v1/formation/leader/orbit"),
+            Some(Access::Role(Role::Operator))
+        );
+        assert_eq!(
+            role("PUT", "/api/v1/vehicles/{id}/params/{name}"),
+            Some(Access::Role(Role::Admin))
+        );
+        assert_eq!(role("POST", "/api/v1/plugins/{op}"), None);
+        for (i, r) in table.iter().enumerate() {
+            assert!(
+                !table[..i]
+                    .iter()
+                    .any(|o| o.method == r.method && o.path == r.path),
+                "{} {} twice",
+                r.method,
+                r.path
+            );
+        }
     }
 }

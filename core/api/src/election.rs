@@ -15,7 +15,9 @@ use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
 
-/// `GET /api/v1/coordinator`: the election as this candidate sees it.
+/// The coordinator election as this candidate sees it (skein coordinator only)
+#[utoipa::path(get, path = "/api/v1/coordinator",
+    responses((status = 200, body = ElectionStatus), (status = 404)))]
 pub(crate) async fn status(State(s): State<ApiState>) -> Result<Json<ElectionStatus>, ApiError> {
     match &s.election {
         Some(e) => Ok(Json(e.borrow().clone())),

@@ -13,29 +13,31 @@
 //! Both last until skein restarts: the vehicle model (`skein up --config`) is what a
 //! restart starts from.
 
+use crate::ApiState;
 use crate::error::ApiError;
-use crate::{ApiState, requests};
+use crate::path_params::{PayloadSlot, VehicleId};
+use crate::requests::payloads::AttachRequest;
+use crate::responses::{Detached, PayloadView};
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::{Path, State};
 use axum::http::StatusCode;
-use axum::response::{IntoResponse, Response};
+use serde_json::Value;
 use skein_swarm::CoordinatorMsg;
-use skein_swarm::payload::PayloadCommandError;
 
 pub use crate::requests::payloads::parse_attach;
 
 /// Refuses a command to a payload that is not running (`waiting_for_plugin`, `failed`,
 /// `stopped`, `restarting`): 409 naming `slot`, a state of the resource the caller can
 /// see in `GET …/payloads` (and the message says which), not a failure of the server.
-/// A payload that fails or hangs on the command itself is a 503 ([`payload_error`]).
+/// A payload that fails or hangs on the command itself is a 503 (see [`crate::error`]).
 ///
 /// # Errors
 /// 404 for an unknown vehicle, 409 as above, 503 without an answer from the coordinator.
 pub async fn require_running(s: &ApiState, id: &str, slot: &str) -> Result<(), ApiError> {
     let id2 = id.to_string();
     let Some(vehicle) = s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r)).await? else {
-        return Err(ApiError::not_found(format!("no vehicle `{id}`")));
+        return Err(ApiError::no_vehicle(id));
     };
     let Some(p) = vehicle.payloads.iter().find(|p| p["slot"] == slot) else {
         return Ok(()); // the vehicle answers 404 naming its slots
@@ -55,117 +57,75 @@ pub async fn require_running(s: &ApiState, id: &str, slot: &str) -> Result<(), A
     }
 }
 
-/// The HTTP answer for a payload request that got no answer from the payload: 404, 503
-/// (it failed or hung handling the command, or stopped running meanwhile; a payload known
-/// not to be running is refused before, see [`require_running`]), 400 (a plugin's refusal names the field as `"field: message"`
-/// by convention), 400 or 409 naming the field.
-pub fn payload_error(e: PayloadCommandError) -> ApiError {
-    match e {
-        PayloadCommandError::NotFound(why) => ApiError::not_found(why),
-        PayloadCommandError::Unavailable(why) => ApiError::unavailable(why),
-        PayloadCommandError::Refused(why) => {
-            let field = why
-                .split_once(':')
-                .map(|(f, _)| f.trim())
-                .filter(|f| {
-                    !f.is_empty() && f.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
-                })
-                .map(str::to_string);
-            ApiError {
-                status: StatusCode::BAD_REQUEST,
-                error: why,
-                field,
-            }
-        }
-        PayloadCommandError::Invalid { field, error } => ApiError::field(&field, error),
-        PayloadCommandError::Conflict { field, error } => ApiError::conflict(error, Some(&field)),
-    }
-}
-
-/// `GET /api/v1/vehicles/{id}/payloads`.
+/// The vehicle's payload slots
+#[utoipa::path(get, path = "/api/v1/vehicles/{id}/payloads", params(VehicleId),
+    responses((status = 200, body = [PayloadView]), (status = 404), (status = 503)))]
 pub(crate) async fn list_payloads(
     State(s): State<ApiState>,
-    Path(id): Path<String>,
-) -> Result<Response, ApiError> {
+    Path(VehicleId { id }): Path<VehicleId>,
+) -> Result<Json<Vec<Value>>, ApiError> {
     let id2 = id.clone();
-    match s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r)).await? {
-        Some(v) => Ok(Json(v.payloads).into_response()),
-        None => Err(ApiError::not_found(format!("no vehicle `{id}`"))),
-    }
+    s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r))
+        .await?
+        .map(|v| Json(v.payloads))
+        .ok_or_else(|| ApiError::no_vehicle(&id))
 }
 
-/// `POST /api/v1/vehicles/{id}/payloads/{slot}`: the payload's own command.
+/// A payload's own JSON command; answered with its answer
+#[utoipa::path(post, path = "/api/v1/vehicles/{id}/payloads/{slot}", params(PayloadSlot),
+    request_body = Object,
+    responses((status = 200, body = Object), (status = 400), (status = 404), (status = 409),
+        (status = 503)),
+    extensions(("x-skein-swarm-checks" = json!({
+        "body": "the payload's own command, read by its plugin (gimbal: set_angles, …)"
+    }))))]
 pub(crate) async fn payload_command(
     State(s): State<ApiState>,
-    Path((id, slot)): Path<(String, String)>,
+    Path(PayloadSlot { id, slot }): Path<PayloadSlot>,
     body: Bytes,
-) -> Result<Response, ApiError> {
-    let cmd = serde_json::Value::Object(requests::object(&body)?);
+) -> Result<Json<Value>, ApiError> {
+    let cmd = Value::Object(crate::requests::object(&body)?);
     require_running(&s, &id, &slot).await?;
-    match s
-        .ask(move |r| CoordinatorMsg::PayloadCommand(id, slot, cmd, r))
-        .await?
-    {
-        Ok(answer) => Ok(Json(answer).into_response()),
-        Err(e) => Err(payload_error(e)),
-    }
+    Ok(Json(
+        s.ask(move |r| CoordinatorMsg::PayloadCommand(id, slot, cmd, r))
+            .await??,
+    ))
 }
 
-/// `POST /api/v1/vehicles/{id}/payloads`.
+/// Attach a payload (until restart)
+///
+/// 201 with the payload as listed, once its driver exists.
+#[utoipa::path(post, path = "/api/v1/vehicles/{id}/payloads", params(VehicleId),
+    request_body = AttachRequest,
+    responses((status = 201, body = PayloadView), (status = 400), (status = 404),
+        (status = 409), (status = 503)),
+    extensions(("x-skein-swarm-checks" = json!({
+        "kind": "a kind a loaded plugin (or the built-in provider) provides",
+        "plugin": "a loaded plugin that provides kind",
+        "config": "what the plugin accepts at creation"
+    }))))]
 pub(crate) async fn attach_payload(
     State(s): State<ApiState>,
-    Path(id): Path<String>,
+    Path(VehicleId { id }): Path<VehicleId>,
     body: Bytes,
-) -> Result<Response, ApiError> {
+) -> Result<(StatusCode, Json<Value>), ApiError> {
     let spec = parse_attach(&body)?;
-    match s
+    let payload = s
         .ask(move |r| CoordinatorMsg::AttachPayload(id, spec, r))
-        .await?
-    {
-        Ok(payload) => Ok((StatusCode::CREATED, Json(payload)).into_response()),
-        Err(e) => Err(payload_error(e)),
-    }
+        .await??;
+    Ok((StatusCode::CREATED, Json(payload)))
 }
 
-/// `DELETE /api/v1/vehicles/{id}/payloads/{slot}`.
+/// Detach a payload (until restart), after its driver's shutdown ran
+#[utoipa::path(delete, path = "/api/v1/vehicles/{id}/payloads/{slot}", params(PayloadSlot),
+    responses((status = 200, body = Detached), (status = 404), (status = 409),
+        (status = 503)))]
 pub(crate) async fn detach_payload(
     State(s): State<ApiState>,
-    Path((id, slot)): Path<(String, String)>,
-) -> Result<Response, ApiError> {
-    match s
-        .ask(move |r| CoordinatorMsg::DetachPayload(id, slot, r))
-        .await?
-    {
-        Ok(answer) => Ok(Json(answer).into_response()),
-        Err(e) => Err(payload_error(e)),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn payload_errors_map_to_statuses_and_fields() {
-        let e = payload_error(PayloadCommandError::Conflict {
-            field: "slot".into(),
-            error: "exists".into(),
-        });
-        assert_eq!(
-            (e.status, e.field.as_deref()),
-            (StatusCode::CONFLICT, Some("slot"))
-        );
-        let e = payload_error(PayloadCommandError::Invalid {
-            field: "config".into(),
-            error: "lamp config: unknown field `x`".into(),
-        });
-        assert_eq!(
-            (e.status, e.field.as_deref()),
-            (StatusCode::BAD_REQUEST, Some("config"))
-        );
-        let e = payload_error(PayloadCommandError::Refused("on: must be a boolean".into()));
-        assert_eq!(e.field.as_deref(), Some("on"));
-        let e = payload_error(PayloadCommandError::Unavailable("waiting".into()));
-        assert_eq!(e.status, StatusCode::SERVICE_UNAVAILABLE);
-    }
+    Path(PayloadSlot { id, slot }): Path<PayloadSlot>,
+) -> Result<Json<Value>, ApiError> {
+    Ok(Json(
+        s.ask(move |r| CoordinatorMsg::DetachPayload(id, slot, r))
+            .await??,
+    ))
 }

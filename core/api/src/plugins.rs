@@ -21,11 +21,17 @@
 //! Errors: 400 for a bad body (naming the field; the bodies are
 //! [`requests::plugins`]), 404 unknown plugin, 409 conflicts, 403
 //! outside the plugin directory, 422 a file that is not a loadable plugin (the message
-//! names the file and, for an ABI mismatch, what differs), 503 without a plugin host.
+//! names the file and, for an ABI mismatch, what differs), 503 without a plugin host
+//! (the plugin host's errors become these in [`crate::error`]).
 
+use crate::ApiState;
 use crate::error::ApiError;
 use crate::requests;
+use crate::requests::plugins::{LoadRequest, ReloadRequest, UnloadRequest};
 use crate::responses::{PluginsListing, ProviderEntry, RefusedFile, Reloaded};
+use axum::Json;
+use axum::body::Bytes;
+use axum::extract::State;
 use axum::http::StatusCode;
 use serde_json::{Value, json};
 use skein_payload::PayloadFactory;
@@ -133,24 +139,24 @@ pub fn list(plugins: Option<&PluginsApi>) -> PluginsListing {
     }
 }
 
-fn host_error(e: &HostError) -> ApiError {
-    let field = match e {
-        HostError::NotFound { .. } | HostError::InUse { .. } => "name",
-        HostError::Load { .. }
-        | HostError::NotAPlugin { .. }
-        | HostError::Incompatible { .. }
-        | HostError::Forbidden { .. }
-        | HostError::AlreadyLoaded { .. } => "file",
-    };
-    ApiError {
-        status: StatusCode::from_u16(e.http_status()).unwrap_or(StatusCode::BAD_REQUEST),
-        error: e.to_string(),
-        field: Some(field.to_string()),
+impl PluginsApi {
+    /// Lists the file of a load that failed on the file itself (not a loadable plugin,
+    /// or built for another ABI) among the refused files.
+    fn remember_if_refused(&self, e: &HostError) {
+        if let HostError::Load { file, .. }
+        | HostError::NotAPlugin { file, .. }
+        | HostError::Incompatible { file, .. } = e
+        {
+            self.remember_refused(file, e.to_string());
+        }
     }
 }
 
-fn no_host() -> ApiError {
-    ApiError::unavailable("this skein runs without a plugin host")
+/// The plugin host of this API: 503 without one.
+fn host(s: &ApiState) -> Result<Arc<PluginsApi>, ApiError> {
+    s.plugins
+        .clone()
+        .ok_or_else(|| ApiError::unavailable("this skein runs without a plugin host"))
 }
 
 /// Runs a manager operation off the async workers (it copies and maps files).
@@ -162,58 +168,59 @@ async fn blocking<T: Send + 'static>(
         .map_err(|e| ApiError::status(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))
 }
 
-/// `POST /api/v1/plugins/load`.
-///
-/// # Errors
-/// See the module docs.
-pub async fn load(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value, ApiError> {
-    let file = requests::plugins::load(body)?;
-    let pl = plugins.ok_or_else(no_host)?;
-    let m = pl.manager.clone();
-    let f = PathBuf::from(&file);
-    match blocking(move || m.load(&f)).await? {
-        Ok(info) => {
-            pl.forget_refused(&info.file);
-            let current = pl.manager.generation(&info.name);
-            Ok(library_json(&info, current))
-        }
-        Err(e) => {
-            if let HostError::Load { file, .. }
-            | HostError::NotAPlugin { file, .. }
-            | HostError::Incompatible { file, .. } = &e
-            {
-                pl.remember_refused(file, e.to_string());
-            }
-            Err(host_error(&e))
-        }
-    }
+/// Plugin libraries, their instances, payload providers and refused files
+#[utoipa::path(get, path = "/api/v1/plugins",
+    responses((status = 200, body = PluginsListing)))]
+pub(crate) async fn listing(State(s): State<ApiState>) -> Json<PluginsListing> {
+    Json(list(s.plugins.as_deref()))
 }
 
-/// `POST /api/v1/plugins/unload`.
-///
-/// # Errors
-/// See the module docs.
-pub async fn unload(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value, ApiError> {
-    let (name, force) = requests::plugins::unload(body)?;
-    let pl = plugins.ok_or_else(no_host)?;
+/// Load a plugin library from the plugin directory
+#[utoipa::path(post, path = "/api/v1/plugins/load", request_body = LoadRequest,
+    responses((status = 200, body = LibraryInfo), (status = 400), (status = 403),
+        (status = 409), (status = 422), (status = 503)),
+    extensions(("x-skein-swarm-checks" = json!({
+        "file": "a loadable plugin library in the plugin directory"
+    }))))]
+pub(crate) async fn load(State(s): State<ApiState>, body: Bytes) -> Result<Json<Value>, ApiError> {
+    let file = requests::plugins::load(&body)?;
+    let pl = host(&s)?;
+    let m = pl.manager.clone();
+    let f = PathBuf::from(&file);
+    let info = blocking(move || m.load(&f))
+        .await?
+        .inspect_err(|e| pl.remember_if_refused(e))?;
+    pl.forget_refused(&info.file);
+    let current = pl.manager.generation(&info.name);
+    Ok(Json(library_json(&info, current)))
+}
+
+/// Unload a plugin library (force: stop its instances first)
+#[utoipa::path(post, path = "/api/v1/plugins/unload", request_body = UnloadRequest,
+    responses((status = 200, body = LibraryInfo), (status = 400), (status = 404),
+        (status = 409), (status = 503)))]
+pub(crate) async fn unload(
+    State(s): State<ApiState>,
+    body: Bytes,
+) -> Result<Json<Value>, ApiError> {
+    let (name, force) = requests::plugins::unload(&body)?;
+    let pl = host(&s)?;
     let m = pl.manager.clone();
     if !force {
-        return match blocking(move || m.unload(&name)).await? {
-            Ok(info) => Ok(library_json(&info, None)),
-            Err(e @ HostError::InUse { .. }) => {
-                let mut err = host_error(&e);
+        let info = blocking(move || m.unload(&name)).await?.map_err(|e| {
+            let in_use = matches!(e, HostError::InUse { .. });
+            let mut err = ApiError::from(e);
+            if in_use {
                 err.error
                     .push_str(" (add \"force\": true to stop them first)");
-                Err(err)
             }
-            Err(e) => Err(host_error(&e)),
-        };
+            err
+        })?;
+        return Ok(Json(library_json(&info, None)));
     }
     // The manager tells the vehicles (PluginEvent::Unloaded), which stop the instances;
     // answer once they are gone.
-    let forced = blocking(move || m.unload_force(&name))
-        .await?
-        .map_err(|e| host_error(&e))?;
+    let forced = blocking(move || m.unload_force(&name)).await??;
     let deadline = tokio::time::Instant::now() + FORCED_UNLOAD_WAIT;
     let mut live = forced.live_instances();
     while !live.is_empty() && tokio::time::Instant::now() < deadline {
@@ -230,64 +237,34 @@ pub async fn unload(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Val
             .collect::<Vec<_>>()
     );
     v["still_stopping"] = json!(live);
-    Ok(v)
+    Ok(Json(v))
 }
 
-/// `POST /api/v1/plugins/reload`.
-///
-/// # Errors
-/// See the module docs.
-pub async fn reload(plugins: Option<Arc<PluginsApi>>, body: &[u8]) -> Result<Value, ApiError> {
-    let name = requests::plugins::reload(body)?;
-    let pl = plugins.ok_or_else(no_host)?;
+/// Reload a plugin library from its file; its instances move to the new build
+#[utoipa::path(post, path = "/api/v1/plugins/reload", request_body = ReloadRequest,
+    responses((status = 200, body = Reloaded), (status = 400), (status = 404),
+        (status = 409), (status = 422), (status = 503)))]
+pub(crate) async fn reload(
+    State(s): State<ApiState>,
+    body: Bytes,
+) -> Result<Json<Reloaded>, ApiError> {
+    let name = requests::plugins::reload(&body)?;
+    let pl = host(&s)?;
     let m = pl.manager.clone();
-    match blocking(move || m.reload(&name)).await? {
-        Ok(report) => Ok(serde_json::to_value(Reloaded {
-            library: library_json(&report.library, Some(report.library.generation)),
-            previous_version: report.previous_version,
-            previous_generation: report.previous_generation,
-            stale_instances: report.stale_instances,
-        })
-        .unwrap_or(Value::Null)),
-        Err(e) => {
-            if let HostError::Load { file, .. }
-            | HostError::NotAPlugin { file, .. }
-            | HostError::Incompatible { file, .. } = &e
-            {
-                pl.remember_refused(file, e.to_string());
-            }
-            Err(host_error(&e))
-        }
-    }
+    let report = blocking(move || m.reload(&name))
+        .await?
+        .inspect_err(|e| pl.remember_if_refused(e))?;
+    Ok(Json(Reloaded {
+        library: library_json(&report.library, Some(report.library.generation)),
+        previous_version: report.previous_version,
+        previous_generation: report.previous_generation,
+        stale_instances: report.stale_instances,
+    }))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn host_errors_map_to_statuses_and_fields() {
-        let e = host_error(&HostError::InUse {
-            name: "gimbal".into(),
-            instances: vec!["uav-2/gimbal".into()],
-        });
-        assert_eq!(e.status, StatusCode::CONFLICT);
-        assert_eq!(e.field.as_deref(), Some("name"));
-        assert!(e.error.contains("uav-2/gimbal"), "{}", e.error);
-        let e = host_error(&HostError::Incompatible {
-            file: "/p/libx.so".into(),
-            difference: "ABI version mismatch: 999 vs 1".into(),
-        });
-        assert_eq!(e.status, StatusCode::UNPROCESSABLE_ENTITY);
-        assert_eq!(e.field.as_deref(), Some("file"));
-        assert!(e.error.contains("/p/libx.so") && e.error.contains("ABI"));
-        let e = host_error(&HostError::Forbidden {
-            file: "/etc/x.so".into(),
-            reason: "outside".into(),
-        });
-        assert_eq!(e.status, StatusCode::FORBIDDEN);
-        assert_eq!(e.field.as_deref(), Some("file"));
-    }
 
     #[test]
     fn without_a_host_only_the_builtin_provider_is_listed() {

@@ -11,9 +11,7 @@ use axum::Json;
 use axum::body::Bytes;
 use axum::extract::State;
 use axum::http::StatusCode;
-use axum::response::{IntoResponse, Response};
 use serde::Serialize;
-use skein_record::RecordError;
 use skein_record::recorder::RecordingInfo;
 use utoipa::ToSchema;
 
@@ -55,35 +53,35 @@ fn recorder(s: &ApiState) -> Result<&skein_record::Recorder, ApiError> {
         .ok_or_else(|| ApiError::unavailable("this skein has no recorder"))
 }
 
-fn refusal(e: RecordError) -> ApiError {
-    match e {
-        RecordError::AlreadyRecording(_) | RecordError::NotRecording => {
-            ApiError::conflict(e.to_string(), None)
-        }
-        RecordError::BadName(_) => ApiError::field("name", e.to_string()),
-        RecordError::Io(_) => ApiError::status(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()),
-    }
-}
-
-/// `GET /api/v1/recording`.
-pub async fn status(State(s): State<ApiState>) -> Result<Response, ApiError> {
+/// The running recording, or null
+#[utoipa::path(get, path = "/api/v1/recording",
+    responses((status = 200, body = RecordingStatus), (status = 503)))]
+pub(crate) async fn status(State(s): State<ApiState>) -> Result<Json<RecordingStatus>, ApiError> {
     Ok(Json(RecordingStatus {
         recording: recorder(&s)?.status(),
-    })
-    .into_response())
+    }))
 }
 
-/// `POST /api/v1/recording/start`.
-pub async fn start(State(s): State<ApiState>, body: Bytes) -> Result<Response, ApiError> {
+/// Start recording to MCAP in the recordings directory
+#[utoipa::path(post, path = "/api/v1/recording/start",
+    request_body = Option<RecordingStartRequest>,
+    responses((status = 201, body = RecordingFile), (status = 400), (status = 409),
+        (status = 500), (status = 503)))]
+pub(crate) async fn start(
+    State(s): State<ApiState>,
+    body: Bytes,
+) -> Result<(StatusCode, Json<RecordingInfo>), ApiError> {
     let req: RecordingStartRequest = crate::requests::parse_or_empty(&body)?;
-    let info = recorder(&s)?
-        .start(req.name.as_deref(), None)
-        .map_err(refusal)?;
-    Ok((StatusCode::CREATED, Json(info)).into_response())
+    let info = recorder(&s)?.start(req.name.as_deref(), None)?;
+    Ok((StatusCode::CREATED, Json(info)))
 }
 
-/// `POST /api/v1/recording/stop`.
-pub async fn stop(State(s): State<ApiState>) -> Result<Response, ApiError> {
-    let summary = recorder(&s)?.stop().await.map_err(refusal)?;
-    Ok(Json(summary).into_response())
+/// Stop the recording and finish its file
+#[utoipa::path(post, path = "/api/v1/recording/stop",
+    responses((status = 200, body = RecordingDone), (status = 409), (status = 500),
+        (status = 503)))]
+pub(crate) async fn stop(
+    State(s): State<ApiState>,
+) -> Result<Json<skein_record::RecordingSummary>, ApiError> {
+    Ok(Json(recorder(&s)?.stop().await?))
 }

@@ -3,7 +3,24 @@
 //! for the OpenAPI contract ([`crate::openapi`]).
 
 use serde::Serialize;
-use utoipa::ToSchema;
+use utoipa::openapi::RefOr;
+use utoipa::openapi::schema::{KnownFormat, ObjectBuilder, Schema, SchemaFormat, Type};
+use utoipa::{PartialSchema, ToSchema};
+
+/// A binary answer (a JPEG frame, the MJPEG stream): bytes of the answer's media type, not
+/// JSON (the contract's schema only).
+pub struct Binary;
+
+impl PartialSchema for Binary {
+    fn schema() -> RefOr<Schema> {
+        ObjectBuilder::new()
+            .schema_type(Type::String)
+            .format(Some(SchemaFormat::KnownFormat(KnownFormat::Binary)))
+            .into()
+    }
+}
+
+impl ToSchema for Binary {}
 
 /// Every 4xx / 5xx answer.
 #[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]

@@ -42,7 +42,9 @@ pub(crate) async fn publish_telemetry(
     }
 }
 
-/// Upgrades to the stream's WebSocket.
+/// WebSocket of vehicle states (10 Hz) and events
+#[utoipa::path(get, path = "/api/v1/stream",
+    responses((status = 101, description = "Switching to the WebSocket")))]
 pub(crate) async fn stream(State(s): State<ApiState>, ws: WebSocketUpgrade) -> Response {
     ws.on_upgrade(move |socket| stream_session(socket, s))
 }

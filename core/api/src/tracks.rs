@@ -19,12 +19,11 @@
 
 use crate::ApiState;
 use crate::error::ApiError;
+use crate::path_params::TrackId;
 use crate::requests::tracks::ObserveRequest;
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::{Path, State};
-use axum::http::StatusCode;
-use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 use skein_swarm::CoordinatorMsg;
 use skein_swarm::tracking::TrackView;
@@ -65,8 +64,12 @@ pub struct Released {
     pub released: Vec<String>,
 }
 
-/// `GET /api/v1/tracks`.
-pub async fn list_tracks(State(s): State<ApiState>) -> Result<Response, ApiError> {
+/// The counter-UAS tracks (swarm frame) and who observes each
+#[utoipa::path(get, path = "/api/v1/tracks",
+    responses((status = 200, body = TracksListing), (status = 503)))]
+pub(crate) async fn list_tracks(
+    State(s): State<ApiState>,
+) -> Result<Json<TracksListing>, ApiError> {
     let (tracks, observing) = s.ask(CoordinatorMsg::GetTracks).await?;
     let tracks = tracks
         .into_iter()
@@ -79,47 +82,42 @@ pub async fn list_tracks(State(s): State<ApiState>) -> Result<Response, ApiError
             track,
         })
         .collect();
-    Ok(Json(TracksListing { tracks }).into_response())
+    Ok(Json(TracksListing { tracks }))
 }
 
-/// `POST /api/v1/tracks/{id}/observe`.
-pub async fn observe(
+/// Point gimbals at the track and keep them on it
+///
+/// The gimbals of the given vehicles (default: every observation UAV).
+#[utoipa::path(post, path = "/api/v1/tracks/{id}/observe", params(TrackId),
+    request_body = Option<ObserveRequest>,
+    responses((status = 200, body = Observing), (status = 400), (status = 404),
+        (status = 409), (status = 503)),
+    extensions(("x-skein-swarm-checks" = json!({
+        "vehicles": "vehicles of the swarm that have a gimbal"
+    }))))]
+pub(crate) async fn observe(
     State(s): State<ApiState>,
-    Path(id): Path<String>,
+    Path(TrackId { id }): Path<TrackId>,
     body: Bytes,
-) -> Result<Response, ApiError> {
+) -> Result<Json<Observing>, ApiError> {
     let vehicles = crate::requests::parse_or_empty::<ObserveRequest>(&body)?.vehicles;
     let track = id.clone();
-    match s
+    let vehicles = s
         .ask(move |r| CoordinatorMsg::ObserveTrack(track, vehicles, r))
-        .await?
-    {
-        Ok(vehicles) => Ok(Json(Observing {
-            track: id,
-            vehicles,
-        })
-        .into_response()),
-        Err(refusal) => {
-            use skein_swarm::coordinator::observe::ObserveRefusal as R;
-            let status = match refusal {
-                R::UnknownTrack(_) => StatusCode::NOT_FOUND,
-                R::TrackLost(_) => StatusCode::CONFLICT,
-                R::BadVehicle(_) => StatusCode::BAD_REQUEST,
-            };
-            Err(ApiError {
-                status,
-                error: refusal.message().to_string(),
-                field: Some(refusal.field().to_string()),
-            })
-        }
-    }
+        .await??;
+    Ok(Json(Observing {
+        track: id,
+        vehicles,
+    }))
 }
 
-/// `DELETE /api/v1/tracks/{id}/observe`.
-pub async fn stop_observing(
+/// Stop observing the track; the gimbals hold their angles
+#[utoipa::path(delete, path = "/api/v1/tracks/{id}/observe", params(TrackId),
+    responses((status = 200, body = Released), (status = 503)))]
+pub(crate) async fn stop_observing(
     State(s): State<ApiState>,
-    Path(id): Path<String>,
-) -> Result<Response, ApiError> {
+    Path(TrackId { id }): Path<TrackId>,
+) -> Result<Json<Released>, ApiError> {
     let track = id.clone();
     let released = s
         .ask(move |r| CoordinatorMsg::StopObserving(track, r))
@@ -127,16 +125,23 @@ pub async fn stop_observing(
     Ok(Json(Released {
         track: id,
         released,
-    })
-    .into_response())
+    }))
 }
 
-/// `GET /api/v1/sim/truth`.
-pub async fn sim_truth(State(s): State<ApiState>) -> Result<Response, ApiError> {
-    match s.ask(CoordinatorMsg::GetSimTruth).await? {
-        Some(truth) => Ok(Json(truth).into_response()),
-        None => Err(ApiError::not_found(
-            "no simulator is embedded (ground truth exists only with `skein up --sim N`)",
-        )),
-    }
+/// The embedded simulator's ground truth
+///
+/// Vehicles and intruders, for evaluation only.
+#[utoipa::path(get, path = "/api/v1/sim/truth",
+    responses((status = 200, body = Object), (status = 404), (status = 503)))]
+pub(crate) async fn sim_truth(
+    State(s): State<ApiState>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    s.ask(CoordinatorMsg::GetSimTruth)
+        .await?
+        .map(Json)
+        .ok_or_else(|| {
+            ApiError::not_found(
+                "no simulator is embedded (ground truth exists only with `skein up --sim N`)",
+            )
+        })
 }

@@ -4,6 +4,8 @@
 
 use crate::ApiState;
 use crate::error::ApiError;
+use crate::path_params::PayloadSlot;
+use crate::responses::Binary;
 use axum::body::Bytes;
 use axum::extract::{Path, State};
 use axum::http::header;
@@ -20,10 +22,16 @@ async fn payload_of(
         .map_err(ApiError::not_found)
 }
 
-/// `GET …/payloads/{slot}/snapshot`: the last frame; 404 before the first.
+/// The camera's last frame
+///
+/// 404 before the first.
+#[utoipa::path(get, path = "/api/v1/vehicles/{id}/payloads/{slot}/snapshot",
+    params(PayloadSlot),
+    responses((status = 200, body = inline(Binary), content_type = "image/jpeg"), (status = 404),
+        (status = 503)))]
 pub(crate) async fn payload_snapshot(
     State(s): State<ApiState>,
-    Path((id, slot)): Path<(String, String)>,
+    Path(PayloadSlot { id, slot }): Path<PayloadSlot>,
 ) -> Result<Response, ApiError> {
     let p = payload_of(&s, id.clone(), slot.clone()).await?;
     match p.frame() {
@@ -44,10 +52,16 @@ pub(crate) async fn payload_snapshot(
 /// Boundary of the MJPEG multipart stream.
 const MJPEG_BOUNDARY: &str = "skeinframe";
 
-/// `GET …/payloads/{slot}/stream`: MJPEG, the current frame then every new one.
+/// The camera's frames as MJPEG, every new one
+///
+/// The current frame first, then every new one, until the payload is gone.
+#[utoipa::path(get, path = "/api/v1/vehicles/{id}/payloads/{slot}/stream",
+    params(PayloadSlot),
+    responses((status = 200, body = inline(Binary), content_type = "multipart/x-mixed-replace"),
+        (status = 404), (status = 503)))]
 pub(crate) async fn payload_stream(
     State(s): State<ApiState>,
-    Path((id, slot)): Path<(String, String)>,
+    Path(PayloadSlot { id, slot }): Path<PayloadSlot>,
 ) -> Result<Response, ApiError> {
     let p = payload_of(&s, id, slot).await?;
     let rx = p.subscribe_frames();

@@ -4,18 +4,23 @@
 //! [`CommandRequest`] is the contract (one variant per command, tagged by `command`);
 //! [`parse`] reads it with the path of the field at fault, and
 //! [`CommandRequest::into_command`] checks what serde cannot (a positive takeoff
-//! altitude, `confirm: true`) and gives the swarm's [`VehicleCommand`], or
-//! [`Command::ClearHazard`], which the coordinator handles itself.
+//! altitude, read from the schema's own bound; `confirm: true`) and gives the swarm's
+//! [`VehicleCommand`], or [`Command::ClearHazard`], which the coordinator handles itself.
+//! The swarm's commands are the same but for `clear_hazard` ([`SwarmCommandRequest`]).
 
+use super::schema_bounds::Bounds;
 use super::{from_map, object};
 use crate::error::ApiError;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use skein_model::geo::Ned;
 use skein_swarm::VehicleCommand;
-use utoipa::ToSchema;
+use utoipa::openapi::RefOr;
+use utoipa::openapi::schema::{AdditionalProperties, ObjectBuilder, Schema, Type};
+use utoipa::{PartialSchema, ToSchema};
 
-/// A command body. Unknown fields are refused with their name.
+/// A command body. Unknown fields are refused with their name ([`parse`]; the contract
+/// states it in [`VehicleCommandRequest`] and [`SwarmCommandRequest`]).
 #[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
 #[serde(tag = "command", rename_all = "snake_case")]
 pub enum CommandRequest {
@@ -27,6 +32,7 @@ pub enum CommandRequest {
     /// caller must say so.
     ForceDisarm {
         /// Must be `true`.
+        #[schema(schema_with = must_be_true)]
         confirm: bool,
     },
     /// Arm if needed, enter offboard and climb.
@@ -59,6 +65,70 @@ pub enum CommandRequest {
     /// formation must plan around (answered 200 `{"cleared": id}`).
     ClearHazard,
 }
+
+/// The schema of `force_disarm`'s `confirm`: `true` and nothing else.
+fn must_be_true() -> ObjectBuilder {
+    ObjectBuilder::new()
+        .schema_type(Type::Boolean)
+        .enum_values(Some([true]))
+        .description(Some(
+            "Must be `true`: the caller knows the motors stop in flight.",
+        ))
+}
+
+/// The contract's schema of [`CommandRequest`] bodies, as [`parse`] reads them: each
+/// variant an object of its own fields only (unknown fields are refused by name), without
+/// `clear_hazard` unless `with_clear_hazard`.
+fn command_schema(with_clear_hazard: bool) -> RefOr<Schema> {
+    let mut schema = CommandRequest::schema();
+    if let RefOr::T(Schema::OneOf(one_of)) = &mut schema {
+        one_of
+            .items
+            .retain(|variant| with_clear_hazard || command_of(variant) != Some("clear_hazard"));
+        for variant in &mut one_of.items {
+            if let RefOr::T(Schema::Object(o)) = variant {
+                o.additional_properties = Some(Box::new(AdditionalProperties::FreeForm(false)));
+            }
+        }
+    }
+    schema
+}
+
+/// The `command` of one variant's schema.
+fn command_of(variant: &RefOr<Schema>) -> Option<&str> {
+    let RefOr::T(Schema::Object(o)) = variant else {
+        return None;
+    };
+    match o.properties.get("command")? {
+        RefOr::T(Schema::Object(c)) => c.enum_values.as_ref()?.first()?.as_str(),
+        _ => None,
+    }
+}
+
+/// The body of `POST /api/v1/vehicles/{id}/commands` in the contract: a
+/// [`CommandRequest`] (the schema only: [`vehicle_command`] parses the body).
+pub struct VehicleCommandRequest;
+
+impl PartialSchema for VehicleCommandRequest {
+    fn schema() -> RefOr<Schema> {
+        command_schema(true)
+    }
+}
+
+impl ToSchema for VehicleCommandRequest {}
+
+/// The body of `POST /api/v1/swarm/commands` in the contract: a [`CommandRequest`] but
+/// `clear_hazard`, which concerns one vehicle (the schema only: [`swarm_command`] parses
+/// the body).
+pub struct SwarmCommandRequest;
+
+impl PartialSchema for SwarmCommandRequest {
+    fn schema() -> RefOr<Schema> {
+        command_schema(false)
+    }
+}
+
+impl ToSchema for SwarmCommandRequest {}
 
 /// What a command body asks for.
 #[derive(Debug, Clone, PartialEq)]
@@ -193,11 +263,9 @@ impl CommandRequest {
                 VehicleCommand::Disarm { force: true }
             }
             CommandRequest::Takeoff { altitude_m } => {
-                if let Some(a) = altitude_m.filter(|a| *a <= 0.0) {
-                    return Err(ApiError::field(
-                        "altitude_m",
-                        format!("altitude_m must be above 0 m, got {a}"),
-                    ));
+                if let Some(a) = altitude_m {
+                    Bounds::of_variant::<CommandRequest>("command", "takeoff", "altitude_m")
+                        .check("altitude_m", a, "m")?;
                 }
                 VehicleCommand::Takeoff { altitude_m }
             }

@@ -1,6 +1,9 @@
-//! `PUT /api/v1/formation`: the formation to fly.
+//! `PUT /api/v1/formation`: the formation to fly. The bounds of spacing, altitude and
+//! offsets are the schema's ([`Bounds`]): a formation wider than a kilometre is a typo
+//! (and distances to slots at 1e300 m overflow).
 
 use super::parse;
+use super::schema_bounds::Bounds;
 use crate::error::ApiError;
 use serde::Deserialize;
 use skein_model::formation::Shape;
@@ -8,13 +11,6 @@ use skein_model::geo::Ned;
 use skein_swarm::FormationSpec;
 use skein_swarm::formation::FormationFrame;
 use utoipa::ToSchema;
-
-/// Largest slot spacing and custom offset, metres: a formation wider than a kilometre is
-/// a typo (and distances to slots at 1e300 m overflow).
-pub const MAX_FORMATION_M: f64 = 1000.0;
-
-/// Largest formation altitude above or below the swarm origin, metres.
-pub const MAX_ALTITUDE_M: f64 = 10_000.0;
 
 /// A formation request; only `shape` is always required (`spacing_m` too, except for
 /// `custom`).
@@ -43,7 +39,8 @@ pub struct FormationRequest {
     pub offsets: Option<Vec<OffsetRequest>>,
     /// With a track as leader (`"leader": "track-7"`): the distance the formation keeps
     /// from the track, metres (required then; its range is checked by the coordinator,
-    /// which names this field).
+    /// which names this field, within 5–500 m).
+    #[schema(minimum = 5.0, maximum = 500.0)]
     pub standoff_m: Option<f64>,
 }
 
@@ -69,21 +66,17 @@ impl FormationRequest {
     ///
     /// # Errors
     /// 400 naming `spacing_m` when it is missing or not above 0 for a shape other than
-    /// `custom`, or above [`MAX_FORMATION_M`]; `altitude_m` beyond [`MAX_ALTITUDE_M`];
-    /// `offsets[i].forward_m` (…) beyond [`MAX_FORMATION_M`].
+    /// `custom`, or above its maximum; `altitude_m` or `offsets[i].forward_m` (…) outside
+    /// their bounds (all as the schema declares them).
     pub fn into_spec(self) -> Result<FormationSpec, ApiError> {
         let custom = self.shape == Shape::Custom;
-        if let Some(s) = self.spacing_m.filter(|s| *s > MAX_FORMATION_M) {
-            return Err(ApiError::field(
-                "spacing_m",
-                format!("spacing_m must be at most {MAX_FORMATION_M} m, got {s}"),
-            ));
+        let spacing = Bounds::of::<FormationRequest>("spacing_m");
+        if let Some(s) = self.spacing_m {
+            // A custom formation has no spacing: only its upper bound applies.
+            spacing.upper().check("spacing_m", s, "m")?;
         }
-        if let Some(a) = self.altitude_m.filter(|a| a.abs() > MAX_ALTITUDE_M) {
-            return Err(ApiError::field(
-                "altitude_m",
-                format!("altitude_m must be within ±{MAX_ALTITUDE_M} m, got {a}"),
-            ));
+        if let Some(a) = self.altitude_m {
+            Bounds::of::<FormationRequest>("altitude_m").check("altitude_m", a, "m")?;
         }
         for (i, o) in self.offsets.iter().flatten().enumerate() {
             let parts = [
@@ -91,22 +84,16 @@ impl FormationRequest {
                 ("right_m", o.right_m),
                 ("down_m", o.down_m.unwrap_or(0.0)),
             ];
-            if let Some((name, v)) = parts.iter().find(|(_, v)| v.abs() > MAX_FORMATION_M) {
-                let field = format!("offsets[{i}].{name}");
-                return Err(ApiError::field(
-                    &field,
-                    format!("{field} must be within ±{MAX_FORMATION_M} m, got {v}"),
-                ));
+            for (name, v) in parts {
+                Bounds::of::<OffsetRequest>(name).check(&format!("offsets[{i}].{name}"), v, "m")?;
             }
         }
         let spacing_m = match (self.spacing_m, custom) {
-            (Some(s), false) if s <= 0.0 => {
-                return Err(ApiError::field(
-                    "spacing_m",
-                    format!("spacing_m must be above 0 m, got {s}"),
-                ));
+            (Some(s), false) => {
+                spacing.lower().check("spacing_m", s, "m")?;
+                s
             }
-            (Some(s), _) => s,
+            (Some(s), true) => s,
             (None, true) => 0.0,
             (None, false) => {
                 return Err(ApiError::field(
@@ -144,6 +131,13 @@ pub fn formation(body: &[u8]) -> Result<FormationSpec, ApiError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_contract_states_the_coordinators_standoff_range() {
+        let (lo, hi) = skein_swarm::coordinator::track_leader::STANDOFF_RANGE_M;
+        let b = Bounds::of::<FormationRequest>("standoff_m");
+        assert_eq!((b.minimum, b.maximum), (Some(lo), Some(hi)));
+    }
 
     fn field_of(r: Result<impl std::fmt::Debug, ApiError>) -> String {
         r.unwrap_err().field.unwrap_or_default()

@@ -6,20 +6,23 @@
 //! problem into a 400 `{"error", "field"}` whose `field` is the path of the culprit
 //! (`offsets[2].right_m`, `waypoints[0].east_m`), found by `serde_path_to_error`. The
 //! checks serde cannot express (ranges, non-empty names, `confirm: true`) follow in each
-//! type's conversion into the domain type of `skein_swarm` / `skein_model`.
+//! type's conversion into the domain type of `skein_swarm` / `skein_model`; numeric ranges
+//! are read from the type's own schema ([`schema_bounds`]), and names that must not be
+//! blank say so in theirs (`pattern: \S`), so the contract states what is checked.
 //!
 //! One module per concept: [`commands`] (vehicle and swarm commands), [`formation`],
 //! [`leader`] (leader motion), [`payloads`] (attach), [`plugins`], [`faults`],
-//! [`params`].
+//! [`px4_param_write`], [`recording`], [`tracks`].
 
 pub mod commands;
 pub mod faults;
 pub mod formation;
 pub mod leader;
-pub mod params;
 pub mod payloads;
 pub mod plugins;
+pub mod px4_param_write;
 pub mod recording;
+pub mod schema_bounds;
 pub mod tracks;
 
 pub use commands::{Command, CommandRequest};

@@ -11,13 +11,14 @@ use utoipa::ToSchema;
 #[derive(Debug, Clone, PartialEq, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct AttachRequest {
-    /// Slot name, unique on the vehicle, without `/`.
-    #[schema(min_length = 1, pattern = "^[^/]*$")]
+    /// Slot name, unique on the vehicle, without `/`, not blank.
+    #[schema(min_length = 1, pattern = "^[^/]*[^\\s/][^/]*$")]
     pub slot: String,
-    /// The payload kind a loaded plugin (or the built-in provider) provides.
-    #[schema(min_length = 1)]
+    /// The payload kind a loaded plugin (or the built-in provider) provides; not blank.
+    #[schema(min_length = 1, pattern = "\\S")]
     pub kind: String,
-    /// The plugin to take it from; default: any that provides `kind`.
+    /// The plugin to take it from, not blank; default: any that provides `kind`.
+    #[schema(pattern = "\\S")]
     pub plugin: Option<String>,
     /// Hosting; default `in_process`.
     pub isolation: Option<Isolation>,

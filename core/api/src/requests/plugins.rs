@@ -10,8 +10,8 @@ use utoipa::ToSchema;
 #[serde(deny_unknown_fields)]
 pub struct LoadRequest {
     /// The library file, relative to the plugin directory (an absolute path must be
-    /// inside it).
-    #[schema(min_length = 1)]
+    /// inside it); not blank.
+    #[schema(min_length = 1, pattern = "\\S")]
     pub file: String,
 }
 
@@ -19,8 +19,8 @@ pub struct LoadRequest {
 #[derive(Debug, Clone, PartialEq, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct UnloadRequest {
-    /// The plugin's name.
-    #[schema(min_length = 1)]
+    /// The plugin's name; not blank.
+    #[schema(min_length = 1, pattern = "\\S")]
     pub name: String,
     /// Stop the library's instances first (their slots wait again); default false.
     pub force: Option<bool>,
@@ -30,8 +30,8 @@ pub struct UnloadRequest {
 #[derive(Debug, Clone, PartialEq, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ReloadRequest {
-    /// The plugin's name.
-    #[schema(min_length = 1)]
+    /// The plugin's name; not blank.
+    #[schema(min_length = 1, pattern = "\\S")]
     pub name: String,
 }
 

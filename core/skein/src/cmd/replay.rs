@@ -1,5 +1,5 @@
 //! `skein replay FILE.mcap`: plays a recording back into the dashboard (read-only API,
-//! see `skein_api::replay`).
+//! see `skein_api::replay_server`).
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -34,7 +34,7 @@ pub async fn run(args: ReplayArgs) -> Result<ExitCode, String> {
         .map_err(|e| format!("{}: {e}", args.file.display()))?;
     let duration_s = timeline.duration_s();
     let messages = timeline.messages.len();
-    let state = skein_api::replay::ReplayState::new(&args.file, timeline, args.speed);
+    let state = skein_api::replay_server::ReplayState::new(&args.file, timeline, args.speed);
     let player = state.spawn_player();
     let listener = tokio::net::TcpListener::bind(args.http)
         .await
@@ -45,9 +45,10 @@ pub async fn run(args: ReplayArgs) -> Result<ExitCode, String> {
         args.file.display(),
         args.speed
     );
-    let result = skein_api::replay::serve(listener, state, crate::process::shutdown_signal())
-        .await
-        .map_err(|e| e.to_string());
+    let result =
+        skein_api::replay_server::serve(listener, state, crate::process::shutdown_signal())
+            .await
+            .map_err(|e| e.to_string());
     player.abort();
     result.map(|()| ExitCode::SUCCESS)
 }

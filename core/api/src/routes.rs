@@ -1,0 +1,89 @@
+//! Every route of the API, declared once. Each handler states its path, method and
+//! OpenAPI operation with `#[utoipa::path(...)]` next to its code; here it is registered
+//! in the router of the role it needs. The axum router ([`crate::app`]: one
+//! authentication `route_layer` per role), the role table ([`crate::auth::routes`]) and
+//! the served contract ([`crate::openapi`], with each operation's role) are all built
+//! from `by_role`, so they cannot disagree.
+//!
+//! Adding a route touches the handler (with its `#[utoipa::path]`), one line here in its
+//! role's router, and its row in `docs/api.md` (a test holds the doc to the contract).
+
+use crate::auth::{Access, Role};
+use crate::{
+    ApiState, auth, election, fault_injection, formation_control, openapi, payloads, plugins,
+    px4_params, recording, stream, swarm_status, tracks, vehicles, video,
+};
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes;
+
+/// The routes of each role: who may call them, and the handlers with their operations.
+pub(crate) fn by_role() -> [(Access, OpenApiRouter<ApiState>); 4] {
+    [
+        (Access::Public, public()),
+        (Access::Role(Role::Viewer), viewer()),
+        (Access::Role(Role::Operator), operator()),
+        (Access::Role(Role::Admin), admin()),
+    ]
+}
+
+/// Anyone, without a token: health, and the contract (it holds no swarm data).
+fn public() -> OpenApiRouter<ApiState> {
+    OpenApiRouter::default()
+        .routes(routes!(swarm_status::health))
+        .routes(routes!(openapi::serve))
+}
+
+/// Reads (every GET) and the WebSocket stream.
+fn viewer() -> OpenApiRouter<ApiState> {
+    OpenApiRouter::default()
+        .routes(routes!(auth::whoami))
+        .routes(routes!(vehicles::list_vehicles))
+        .routes(routes!(vehicles::get_vehicle))
+        .routes(routes!(px4_params::list_params))
+        .routes(routes!(px4_params::get_param))
+        .routes(routes!(formation_control::get_formation))
+        .routes(routes!(formation_control::shapes))
+        .routes(routes!(payloads::list_payloads))
+        .routes(routes!(video::payload_snapshot))
+        .routes(routes!(video::payload_stream))
+        .routes(routes!(plugins::listing))
+        .routes(routes!(swarm_status::supervision_tree))
+        .routes(routes!(swarm_status::metrics))
+        .routes(routes!(swarm_status::links))
+        .routes(routes!(swarm_status::geofence))
+        .routes(routes!(election::status))
+        .routes(routes!(tracks::list_tracks))
+        .routes(routes!(tracks::sim_truth))
+        .routes(routes!(recording::status))
+        .routes(routes!(stream::stream))
+}
+
+/// Flying: commands, the formation and its leader, payloads, tracks, recordings.
+fn operator() -> OpenApiRouter<ApiState> {
+    OpenApiRouter::default()
+        .routes(routes!(vehicles::vehicle_command))
+        .routes(routes!(vehicles::swarm_command))
+        .routes(routes!(formation_control::put_formation))
+        .routes(routes!(formation_control::delete_formation))
+        .routes(routes!(formation_control::leader_goto))
+        .routes(routes!(formation_control::leader_waypoints))
+        .routes(routes!(formation_control::leader_orbit))
+        .routes(routes!(formation_control::leader_hold))
+        .routes(routes!(payloads::attach_payload))
+        .routes(routes!(payloads::payload_command))
+        .routes(routes!(payloads::detach_payload))
+        .routes(routes!(tracks::observe))
+        .routes(routes!(tracks::stop_observing))
+        .routes(routes!(recording::start))
+        .routes(routes!(recording::stop))
+}
+
+/// Everything else: PX4 parameter writes, plugin libraries, fault injection.
+fn admin() -> OpenApiRouter<ApiState> {
+    OpenApiRouter::default()
+        .routes(routes!(px4_params::put_param))
+        .routes(routes!(plugins::load))
+        .routes(routes!(plugins::unload))
+        .routes(routes!(plugins::reload))
+        .routes(routes!(fault_injection::inject_fault))
+}

@@ -1,0 +1,66 @@
+//! What the swarm says about itself, read-only: `GET /api/v1/health` (public),
+//! `GET /api/v1/supervision` (the actor tree), `GET /metrics` (Prometheus),
+//! `GET /api/v1/links` (MAVLink counters per endpoint) and `GET /api/v1/geofence`.
+
+use crate::ApiState;
+use crate::error::ApiError;
+use axum::Json;
+use axum::extract::State;
+use axum::http::header;
+use axum::response::{IntoResponse, Response};
+use skein_model::safety::Geofence;
+use skein_swarm::CoordinatorMsg;
+use skein_swarm::coordinator::messages::{EndpointStats, Health};
+use skein_swarm::supervision::TreeNode;
+
+/// Swarm health (never needs a token)
+#[utoipa::path(get, path = "/api/v1/health",
+    responses((status = 200, body = Health), (status = 503)))]
+pub(crate) async fn health(State(s): State<ApiState>) -> Result<Json<Health>, ApiError> {
+    let mut h = s.ask(CoordinatorMsg::Health).await?;
+    h.coordinator_role = s.election.as_ref().map(|e| e.borrow().role);
+    Ok(Json(h))
+}
+
+/// The actor tree: status, restarts, failures
+#[utoipa::path(get, path = "/api/v1/supervision",
+    responses((status = 200, body = TreeNode), (status = 503)))]
+pub(crate) async fn supervision_tree(
+    State(s): State<ApiState>,
+) -> Result<Json<TreeNode>, ApiError> {
+    Ok(Json(s.ask(CoordinatorMsg::GetSupervision).await?))
+}
+
+/// Prometheus / OpenMetrics counters
+#[utoipa::path(get, path = "/metrics",
+    responses((status = 200, body = String, content_type = "application/openmetrics-text"),
+        (status = 503)))]
+pub(crate) async fn metrics(State(s): State<ApiState>) -> Result<Response, ApiError> {
+    let text = s.ask(CoordinatorMsg::RenderMetrics).await?;
+    Ok((
+        [(
+            header::CONTENT_TYPE,
+            "application/openmetrics-text; version=1.0.0; charset=utf-8",
+        )],
+        text,
+    )
+        .into_response())
+}
+
+/// MAVLink counters per endpoint
+#[utoipa::path(get, path = "/api/v1/links",
+    responses((status = 200, body = [EndpointStats]), (status = 503)))]
+pub(crate) async fn links(State(s): State<ApiState>) -> Result<Json<Vec<EndpointStats>>, ApiError> {
+    Ok(Json(s.ask(CoordinatorMsg::LinkStats).await?))
+}
+
+/// The geofence every setpoint is clamped into
+#[utoipa::path(get, path = "/api/v1/geofence",
+    responses((status = 200, body = Geofence), (status = 404)))]
+pub(crate) async fn geofence(State(s): State<ApiState>) -> Result<Response, ApiError> {
+    let fence: &Geofence = s
+        .geofence
+        .as_deref()
+        .ok_or_else(|| ApiError::not_found("no geofence configured for this API"))?;
+    Ok(Json(fence).into_response())
+}
