@@ -19,9 +19,10 @@
 //!   [`AgentConfig::lost_action`] with the airborne ones. A coordinator that appears again
 //!   takes them back (the formation joins hovering vehicles).
 
+use crate::envelope::{Envelope, ReportBody, body_or_drop, receive};
 use crate::link::{DdsError, DdsShared, err};
 use crate::msgs::{self, RosMessage};
-use crate::protocol::{Envelope, Reframe, ReportBody, body_or_drop, into_view, receive, reframed};
+use crate::reframe::{Reframe, into_view, reframed};
 use crate::topics;
 use ros2_client::{Name, Node, Subscription};
 use skein_model::fsm::VehicleState;

@@ -7,10 +7,11 @@
 //! - [`lease`]: the coordinator election on `/skein/coordinator` (`skein coordinator`);
 //! - [`convert`]: skein's NED swarm frame to the ENU of REP 103, commands back;
 //! - [`link`]: the supervised `DdsLink` service of `skein up --dds`;
-//! - [`protocol`]: the swarm protocol's carrier between coordinators and agents
-//!   (`/skein/swarm/*`), with [`remote`] (a coordinator's remote vehicles) and [`agent`]
-//!   (an agent's vehicles obeying the active coordinator) and [`mirror`] (the formation a
-//!   standby resumes);
+//! - [`envelope`]: the swarm protocol's envelope and topics between coordinators and
+//!   agents (`/skein/swarm/*`), with [`reframe`] (positions between two processes' swarm
+//!   frames), [`remote`] (a coordinator's remote vehicles), [`agent`] (an agent's
+//!   vehicles obeying the active coordinator) and [`mirror`] (the formation a standby
+//!   resumes);
 //! - [`probe`]: a listener of the pose topics (`skein bench dds`).
 //!
 //! The domain is `--domain-id`, else `ROS_DOMAIN_ID`, else 0 ([`domain_id_from_env`]).
@@ -18,12 +19,13 @@
 
 pub mod agent;
 pub mod convert;
+pub mod envelope;
 pub mod lease;
 pub mod link;
 pub mod mirror;
 pub mod msgs;
 pub mod probe;
-pub mod protocol;
+pub mod reframe;
 pub mod remote;
 pub mod topics;
 

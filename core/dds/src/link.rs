@@ -15,9 +15,9 @@
 
 use crate::agent::Agent;
 use crate::convert;
+use crate::envelope::ProtocolTopics;
 use crate::lease::ElectionLink;
 use crate::msgs::{self, CommandResult, RosMessage};
-use crate::protocol::ProtocolTopics;
 use crate::remote::Remotes;
 use crate::topics;
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};

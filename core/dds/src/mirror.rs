@@ -9,8 +9,9 @@
 //! The topic is transient-local: a standby that starts late gets the last formation at
 //! once.
 
+use crate::envelope::{Envelope, body_or_drop};
 use crate::link::DdsShared;
-use crate::protocol::{Envelope, body_or_drop, into_view, reframed};
+use crate::reframe::{into_view, reframed};
 use skein_swarm::election::CoordinatorRole;
 use skein_swarm::formation::FormationMirror;
 use skein_swarm::{CoordinatorMsg, DistributedMsg};

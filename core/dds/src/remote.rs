@@ -10,8 +10,9 @@
 //! from a local vehicle, and their events on `/skein/swarm/events` to its event stream. The watch channels live in [`Remotes`], outside the `DdsLink`
 //! actor, so a restart of `coordinator/dds` keeps every proxy working.
 
+use crate::envelope::{Envelope, ReportBody, body_or_drop, receive};
 use crate::link::DdsShared;
-use crate::protocol::{Envelope, ReportBody, body_or_drop, into_view, receive, reframed};
+use crate::reframe::{into_view, reframed};
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};

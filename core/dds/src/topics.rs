@@ -27,7 +27,7 @@
 //! would keep only the last writer's).
 //!
 //! The `/skein/swarm/*` topics carry the swarm protocol between coordinators and agents
-//! ([`crate::protocol`]). They are swarm-wide, the vehicle named in each sample, so that a
+//! ([`crate::envelope`]). They are swarm-wide, the vehicle named in each sample, so that a
 //! coordinator finds every agent's vehicles on one topic; each has many writers, hence
 //! depth 64. Reports and targets are like poses (the next one replaces a lost one: a
 //! target carries its time and velocity, the agent moves it on by its age); commands and
