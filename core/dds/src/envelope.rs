@@ -1,19 +1,17 @@
-//! The swarm protocol's DDS envelope (`skein_msgs/SwarmMessage`, [`Envelope`]) and the
-//! `/skein/swarm/*` topics ([`ProtocolTopics`]) that carry `skein_swarm::protocol`
-//! between coordinators and agents. Each envelope carries its sender's swarm origin, for
-//! the receiver's frame conversion ([`crate::reframe`]).
+//! The swarm protocol's DDS envelope: every sample of the `/skein/swarm/*` topics and of
+//! `/skein/formation` is a `skein_msgs/SwarmMessage` ([`Envelope`]) carrying one
+//! `skein_swarm::protocol` type as JSON, with the vehicle it is about, its sender's id
+//! and epoch, and its sender's swarm origin, for the receiver's frame conversion
+//! ([`crate::reframe`]). The topics are in [`crate::topics`]; which role writes and reads
+//! which is in [`crate::agent`], [`crate::remote`] and [`crate::mirror`].
 
-use crate::link::{DdsError, DdsShared, err};
-use crate::msgs::{Header, RosMessage, SwarmMessage};
-use crate::topics;
+use crate::counters::DdsCounters;
+use crate::msgs::{Header, SwarmMessage};
 use ros2_client::builtin_interfaces::Time;
-use ros2_client::{Name, Node, Publisher, QosProfile, Subscription};
 use serde::{Deserialize, Serialize};
 use skein_model::geo::{GeoPoint, NedFrame};
 use skein_model::vehicle::VehicleSnapshot;
-use skein_swarm::protocol::{ToVehicle, VehicleReport};
-use std::sync::Arc;
-use std::sync::atomic::Ordering;
+use skein_swarm::protocol::VehicleReport;
 
 /// The body of a `/skein/swarm/report` sample.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -22,84 +20,6 @@ pub struct ReportBody {
     pub report: VehicleReport,
     /// What the API shows.
     pub snapshot: VehicleSnapshot,
-}
-
-/// A writer and a reader of one `/skein/swarm/*` topic.
-pub struct Topic {
-    /// Writes samples.
-    pub writer: Publisher<SwarmMessage>,
-    /// Reads everyone's samples (its own too: readers skip their own vehicles).
-    pub reader: Arc<Subscription<SwarmMessage>>,
-}
-
-/// The four protocol topics of a coordinator or an agent.
-pub struct ProtocolTopics {
-    /// `/skein/swarm/report`: agent → coordinators.
-    pub report: Topic,
-    /// `/skein/swarm/target`: coordinator → agents, slot targets.
-    pub target: Topic,
-    /// `/skein/swarm/command`: coordinator → agents, every other [`ToVehicle`].
-    pub command: Topic,
-    /// `/skein/swarm/command_result`: agent → coordinators,
-    /// [`FromVehicle`](skein_swarm::protocol::FromVehicle).
-    pub command_result: Topic,
-    /// `/skein/formation`: the active coordinator's formation, for the standbys
-    /// ([`crate::mirror`]).
-    pub formation: Topic,
-    /// `/skein/swarm/events`: agent → coordinators, the events of its vehicles
-    /// ([`skein_swarm::SwarmEvent::vehicle_id`]), for their event streams.
-    pub events: Topic,
-}
-
-fn topic(node: &mut Node, name: &str, qos: &QosProfile) -> Result<Topic, DdsError> {
-    topic_in(node, &format!("{}/swarm", topics::NAMESPACE), name, qos)
-}
-
-fn topic_in(node: &mut Node, ns: &str, name: &str, qos: &QosProfile) -> Result<Topic, DdsError> {
-    let t = node
-        .create_topic(
-            &Name::new(ns, name).map_err(|e| DdsError(format!("{name}: {e:?}")))?,
-            SwarmMessage::type_name(),
-            qos,
-        )
-        .map_err(err(name))?;
-    Ok(Topic {
-        writer: node.create_publisher(&t, None).map_err(err("publisher"))?,
-        reader: Arc::new(
-            node.create_subscription(&t, None)
-                .map_err(err("subscription"))?,
-        ),
-    })
-}
-
-impl ProtocolTopics {
-    /// Creates the topics on `node`.
-    ///
-    /// # Errors
-    /// A topic, reader or writer could not be created.
-    pub fn new(node: &mut Node) -> Result<ProtocolTopics, DdsError> {
-        Ok(ProtocolTopics {
-            report: topic(node, "report", &topics::protocol_stream())?,
-            target: topic(node, "target", &topics::protocol_stream())?,
-            command: topic(node, "command", &topics::protocol_commands())?,
-            command_result: topic(node, "command_result", &topics::protocol_commands())?,
-            events: topic(node, "events", &topics::protocol_commands())?,
-            formation: topic_in(
-                node,
-                topics::NAMESPACE,
-                "formation",
-                &topics::formation_mirror(),
-            )?,
-        })
-    }
-
-    /// The topic that carries `msg`: slot targets go best-effort, the rest reliable.
-    pub fn to_vehicle_topic(&self, msg: &ToVehicle) -> &Topic {
-        match msg {
-            ToVehicle::Slot { .. } => &self.target,
-            _ => &self.command,
-        }
-    }
 }
 
 /// A received [`SwarmMessage`], its origin decoded.
@@ -169,35 +89,17 @@ impl Envelope {
     }
 }
 
-/// The next sample of `reader`, unwrapped; a sample that cannot be read is counted as
-/// malformed, logged naming `what`, and skipped.
-pub(crate) async fn receive(
-    shared: &DdsShared,
-    reader: &Subscription<SwarmMessage>,
-    what: &str,
-) -> Envelope {
-    loop {
-        match reader.async_take().await {
-            Ok((m, _)) => return Envelope::from_msg(m),
-            Err(e) => {
-                shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                tracing::warn!("dds: a {what} sample was dropped: {e:?}");
-            }
-        }
-    }
-}
-
-/// The body of `env` as `B`; one that does not parse is counted as malformed, logged
-/// naming `what` and the vehicle, and dropped (`None`).
+/// The body of `env` as `B`; one that does not parse is counted as malformed in
+/// `counters`, logged naming `what` and the vehicle, and dropped (`None`).
 pub(crate) fn body_or_drop<B: for<'de> Deserialize<'de>>(
-    shared: &DdsShared,
+    counters: &DdsCounters,
     env: &Envelope,
     what: &str,
 ) -> Option<B> {
     match env.body() {
         Ok(b) => Some(b),
         Err(e) => {
-            shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
+            DdsCounters::add(&counters.malformed);
             tracing::warn!(
                 "dds: a {what} of {} from `{}` was dropped: {e}",
                 env.vehicle_id,

@@ -7,12 +7,57 @@
 //! into its own frame through geodetic coordinates. Velocities are not rotated: the
 //! frames' axes differ by the convergence of meridians over the distance between origins
 //! (10⁻⁵ rad for a kilometre), far below a velocity's noise.
+//!
+//! The roles find this process's frame through a [`FrameSource`] ([`SwarmFrame`]): the
+//! coordinator's in skein ([`crate::swarm_adapter`]), an [`AnchoredFrame`] in the unit
+//! tests.
 
 use skein_model::geo::{GeoPoint, Ned, NedFrame};
 use skein_model::vehicle::{Position, VehicleSnapshot};
 use skein_swarm::formation::{FormationMirror, LeaderMotion};
 use skein_swarm::protocol::{ToVehicle, VehicleReport};
-use skein_swarm::view::SwarmView;
+use std::future::Future;
+use std::sync::{Arc, OnceLock};
+
+/// This process's swarm frame: NED about its origin, anchored once.
+pub trait SwarmFrame: Send + Sync {
+    /// The frame, once anchored.
+    fn frame(&self) -> Option<NedFrame>;
+
+    /// Anchors the frame at `origin` unless it is already anchored; the frame in force.
+    fn anchor(&self, origin: GeoPoint) -> NedFrame;
+}
+
+/// Where a role finds this process's [`SwarmFrame`].
+pub trait FrameSource: Send + Sync + 'static {
+    /// The frame; `None` when it cannot be had (the coordinator does not answer).
+    fn swarm_frame(&self) -> impl Future<Output = Option<Arc<dyn SwarmFrame>>> + Send;
+}
+
+/// A [`SwarmFrame`] anchored at a given origin, or at the first one it is asked to.
+#[derive(Debug, Default)]
+pub struct AnchoredFrame(OnceLock<NedFrame>);
+
+impl AnchoredFrame {
+    /// A frame about `origin`; `None`: not anchored until [`SwarmFrame::anchor`].
+    pub fn new(origin: Option<GeoPoint>) -> Self {
+        let cell = OnceLock::new();
+        if let Some(o) = origin {
+            let _ = cell.set(NedFrame::new(o));
+        }
+        AnchoredFrame(cell)
+    }
+}
+
+impl SwarmFrame for AnchoredFrame {
+    fn frame(&self) -> Option<NedFrame> {
+        self.0.get().copied()
+    }
+
+    fn anchor(&self, origin: GeoPoint) -> NedFrame {
+        *self.0.get_or_init(|| NedFrame::new(origin))
+    }
+}
 
 /// Converts positions from a sender's swarm frame to the receiver's.
 #[derive(Debug, Clone, Copy)]
@@ -92,13 +137,13 @@ impl Reframe {
     }
 }
 
-/// The conversion of a received envelope's positions into `view`'s swarm frame. A view
-/// not anchored yet (a coordinator without vehicles of its own) is anchored at the
+/// The conversion of a received envelope's positions into this process's `frame`. A
+/// frame not anchored yet (a coordinator without vehicles of its own) is anchored at the
 /// sender's origin.
-pub fn into_view(view: &SwarmView, origin: Option<GeoPoint>) -> Option<Reframe> {
-    let frame = match (view.frame(), origin) {
+pub fn into_frame(frame: &dyn SwarmFrame, origin: Option<GeoPoint>) -> Option<Reframe> {
+    let frame = match (frame.frame(), origin) {
         (Some(f), _) => f,
-        (None, Some(o)) => view.anchor(o),
+        (None, Some(o)) => frame.anchor(o),
         (None, None) => return None,
     };
     Reframe::new(origin, frame)
