@@ -20,6 +20,9 @@
 //! - [`convert`]: skein's NED swarm frame to the ENU of REP 103, commands back;
 //! - [`probe`]: a listener of the pose topics (`skein bench dds`).
 //!
+//! The roles' scenario tests (`src/scenarios/`) wire several processes together on the
+//! in-memory carrier, on tokio's paused clock.
+//!
 //! The domain is `--domain-id`, else `ROS_DOMAIN_ID`, else 0 ([`domain_id_from_env`]).
 #![warn(missing_docs)]
 
@@ -37,6 +40,8 @@ pub mod msgs;
 pub mod probe;
 pub mod reframe;
 pub mod remote;
+#[cfg(test)]
+mod scenarios;
 pub mod swarm_adapter;
 pub mod topics;
 pub mod vehicles;
