@@ -173,11 +173,6 @@ impl Agent {
         })
     }
 
-    /// Its settings.
-    pub fn config(&self) -> &AgentConfig {
-        &self.config
-    }
-
     fn is_local(&self, id: &str) -> bool {
         self.local
             .lock()

@@ -129,11 +129,6 @@ impl DdsRoles {
         self.candidate.as_ref().map(|c| c.election.subscribe())
     }
 
-    /// The link's counters.
-    pub fn counters(&self) -> &DdsCounters {
-        &self.counters
-    }
-
     /// The service the coordinator starts and supervises as `coordinator/dds`.
     pub fn service(self: &Arc<Self>) -> ServiceSpec {
         let roles = self.clone();
