@@ -38,7 +38,7 @@ use serde_json::{Value, json};
 use std::time::{Duration, Instant};
 use support::bench::bench_report;
 use support::netns::{Host, Lan};
-use support::{EventLog, Skein, assert_no_failsafe_and_no_gap, eventually, summary};
+use support::{EventLog, Skein, assert_no_failsafe_and_no_gap, eventually, steady_for, summary};
 
 /// DDS domain `k` (0 to 2) of this test process's own, apart from `e2e_dds`' 100–219
 /// and `e2e_failover`'s 220–231.
@@ -124,38 +124,40 @@ fn reference_speed(f: &Value) -> f64 {
 }
 
 /// Waits until the formation of `c` cruises at 5 m/s (its reference at speed for 2 s,
-/// past catching up with the acceleration), then samples it for 5 s; asserts the steady
-/// RMS slot error of single-process mode and the separation; returns (mean RMS, worst
-/// RMS, smallest separation), metres.
+/// past catching up with the acceleration), then samples it for 5 s at speed; asserts the
+/// steady RMS slot error of single-process mode and the separation; returns (mean RMS,
+/// worst RMS, smallest separation), metres.
 fn cruise(c: &Skein) -> (f64, f64, f64) {
-    eventually("the reference at 5 m/s", Duration::from_secs(40), || {
-        let f = c.formation();
-        let speed = reference_speed(&f);
+    let at_speed = |f: &Value| {
+        let speed = reference_speed(f);
         if speed > 4.99 {
             Ok(())
         } else {
             Err(format!("{speed:.2} m/s: {f}"))
         }
-    });
-    let at_speed = Instant::now();
-    while at_speed.elapsed() < Duration::from_secs(2) {
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    let mut rms = Vec::new();
-    let mut min_sep = f64::MAX;
-    let steady = Instant::now();
-    while steady.elapsed() < Duration::from_secs(5) {
-        let f = c.formation();
-        rms.push(f["rms_error_m"].as_f64().unwrap_or(f64::INFINITY));
-        min_sep = min_sep.min(f["min_separation_m"].as_f64().unwrap_or(0.0));
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    assert!(rms.len() > 10, "{rms:?}");
-    assert!(
-        reference_speed(&c.formation()) > 4.99,
-        "the wedge slowed down: {}",
-        c.formation()
+    };
+    steady_for(
+        "the reference at 5 m/s",
+        Duration::from_secs(2),
+        Duration::from_secs(40),
+        || at_speed(&c.formation()),
     );
+    let samples = steady_for(
+        "the wedge cruising at 5 m/s",
+        Duration::from_secs(5),
+        Duration::from_secs(20),
+        || {
+            let f = c.formation();
+            at_speed(&f)?;
+            Ok((
+                f["rms_error_m"].as_f64().unwrap_or(f64::INFINITY),
+                f["min_separation_m"].as_f64().unwrap_or(0.0),
+            ))
+        },
+    );
+    let rms: Vec<f64> = samples.iter().map(|(r, _)| *r).collect();
+    let min_sep = samples.iter().map(|(_, s)| *s).fold(f64::MAX, f64::min);
+    assert!(rms.len() > 10, "{rms:?}");
     let mean = rms.iter().sum::<f64>() / rms.len() as f64;
     let worst = rms.iter().copied().fold(0.0, f64::max);
     // Single-process mode measures 0.15-0.19 m (e2e_formation).

@@ -26,7 +26,7 @@ use axum::body::Bytes;
 use axum::extract::{Path, State};
 use serde::Serialize;
 use skein_swarm::CoordinatorMsg;
-use skein_swarm::tracking::TrackView;
+use skein_swarm::tracks::TrackView;
 use utoipa::ToSchema;
 
 /// `GET /api/v1/tracks`.

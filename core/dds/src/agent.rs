@@ -1,8 +1,9 @@
 //! The agent's side of the swarm protocol on DDS (`skein agent`): the vehicles of this
 //! computer, reached by the coordinators of the domain.
 //!
-//! The agent's coordinator actor supervises its vehicles; this carrier, run by the
-//! `DdsLink` service (so it restarts with it):
+//! The agent's coordinator actor supervises its vehicles; this role, run by the
+//! `DdsLink` service (so it restarts with it), reaches them through an [`AgentContext`]
+//! and:
 //!
 //! - publishes every local vehicle's report and snapshot on `/skein/swarm/report` at
 //!   [`AgentConfig::report_rate_hz`];
@@ -19,22 +20,27 @@
 //!   [`AgentConfig::lost_action`] with the airborne ones. A coordinator that appears again
 //!   takes them back (the formation joins hovering vehicles).
 
-use crate::link::{DdsError, DdsShared, err};
-use crate::msgs::{self, RosMessage};
-use crate::protocol::{Envelope, Reframe, ReportBody, body_or_drop, into_view, receive, reframed};
+use crate::carrier::{Carrier, TopicReader, TopicWriter};
+use crate::clock;
+use crate::counters::DdsCounters;
+use crate::envelope::{Envelope, ReportBody, body_or_drop};
+use crate::error::DdsError;
+use crate::lease;
+use crate::msgs::{CoordinatorLease, SwarmMessage};
+use crate::reframe::{FrameSource, Reframe, SwarmFrame, into_frame, reframed};
 use crate::topics;
-use ros2_client::{Name, Node, Subscription};
 use skein_model::fsm::VehicleState;
-use skein_swarm::SwarmContext;
+use skein_model::vehicle::VehicleSnapshot;
+use skein_swarm::SwarmEvent;
+use skein_swarm::election::ElectionConfig;
 use skein_swarm::election::observer::Observer;
-use skein_swarm::election::{ElectionConfig, Lease};
-use skein_swarm::protocol::{ToVehicle, VehicleCommand, VehicleReport};
-use skein_swarm::{CoordinatorMsg, DistributedMsg};
+use skein_swarm::protocol::{FromVehicle, ToVehicle, VehicleCommand, VehicleReport};
 use std::collections::BTreeSet;
+use std::future::Future;
 use std::str::FromStr;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{Duration, Instant};
+use std::time::Duration;
+use tokio::sync::{broadcast, mpsc};
 use tokio::task::JoinSet;
 
 /// What an agent does once its coordinator has been gone for
@@ -91,50 +97,79 @@ impl AgentConfig {
     }
 }
 
-/// Counters of the agent's carrier (in `/metrics` as `skein_dds_samples{what=...}`).
-#[derive(Debug, Default)]
-pub struct AgentCounters {
-    /// Targets and commands handed to a local vehicle.
-    pub obeyed: AtomicU64,
-    /// Targets and commands for a local vehicle dropped: not from the active
-    /// coordinator, or of an old epoch.
-    pub refused: AtomicU64,
+/// What the agent needs from this process: its vehicles (their reports and snapshots,
+/// their answers and events) and a way to hand them the coordinator's messages.
+pub trait AgentContext: FrameSource {
+    /// The latest report of every vehicle of this process, by id (`None`: no answer).
+    fn reports(&self) -> impl Future<Output = Option<Vec<(String, VehicleReport)>>> + Send;
+
+    /// The snapshot of every vehicle of this process (`None`: no answer).
+    fn snapshots(&self) -> impl Future<Output = Option<Vec<VehicleSnapshot>>> + Send;
+
+    /// Hands `msg` to local vehicle `vehicle_id` (dropped when there is no such vehicle).
+    fn to_vehicle(&self, vehicle_id: String, msg: ToVehicle);
+
+    /// Where another agent's vehicle is (its report, in this process's frame), for the
+    /// separation check of this process's vehicles.
+    fn neighbour(&self, vehicle_id: String, report: VehicleReport);
+
+    /// A copy of every [`FromVehicle`] of this process's vehicles from now on.
+    fn tap_uplink(&self) -> mpsc::UnboundedReceiver<FromVehicle>;
+
+    /// This process's events from now on (the role forwards its vehicles' ones).
+    fn vehicle_events(&self) -> broadcast::Receiver<SwarmEvent>;
 }
 
-/// The agent's state that outlives the `DdsLink` actor.
+/// The agent's topics and the state that outlives the `DdsLink` actor.
 pub struct Agent {
     config: AgentConfig,
-    leases: Subscription<msgs::CoordinatorLease>,
+    counters: Arc<DdsCounters>,
+    /// `/skein/coordinator`, read.
+    leases: TopicReader<CoordinatorLease>,
     observer: Mutex<Observer>,
     /// Ids of the vehicles of this process (from the last report tick).
     local: Mutex<BTreeSet<String>>,
-    /// The carrier's counters.
-    pub counters: AgentCounters,
+    /// `/skein/swarm/report`, written (this agent's vehicles) and read (the others').
+    reports_out: TopicWriter<SwarmMessage>,
+    reports_in: Arc<TopicReader<SwarmMessage>>,
+    /// `/skein/swarm/target` and `/skein/swarm/command`, read.
+    targets: Arc<TopicReader<SwarmMessage>>,
+    commands: Arc<TopicReader<SwarmMessage>>,
+    /// `/skein/swarm/command_result` and `/skein/swarm/events`, written.
+    results: TopicWriter<SwarmMessage>,
+    events: TopicWriter<SwarmMessage>,
 }
 
 impl Agent {
-    /// Creates the lease reader on `node`.
+    /// Opens the agent's topics on `carrier`, counting in `counters`.
     ///
     /// # Errors
-    /// The topic or reader could not be created.
-    pub(crate) fn new(node: &mut Node, config: AgentConfig) -> Result<Agent, DdsError> {
-        let topic = node
-            .create_topic(
-                &Name::new(topics::NAMESPACE, "coordinator")
-                    .map_err(|e| DdsError(format!("coordinator topic: {e:?}")))?,
-                msgs::CoordinatorLease::type_name(),
-                &topics::leases(),
-            )
-            .map_err(err("coordinator topic"))?;
-        let leases = node
-            .create_subscription(&topic, None)
-            .map_err(err("coordinator subscription"))?;
+    /// A topic, reader or writer could not be created.
+    pub fn open(
+        carrier: &impl Carrier,
+        config: AgentConfig,
+        counters: &Arc<DdsCounters>,
+    ) -> Result<Agent, DdsError> {
+        let read = |spec: &topics::TopicSpec, what: &str| {
+            TopicReader::open(carrier, spec, counters, what).map(Arc::new)
+        };
         Ok(Agent {
-            config,
-            leases,
-            observer: Mutex::new(Observer::new(ElectionConfig::default(), Instant::now())),
+            leases: TopicReader::open(
+                carrier,
+                &topics::coordinator(),
+                counters,
+                "coordinator lease sample",
+            )?,
+            observer: Mutex::new(Observer::new(ElectionConfig::default(), clock::now())),
             local: Mutex::new(BTreeSet::new()),
-            counters: AgentCounters::default(),
+            reports_out: TopicWriter::open(carrier, &topics::swarm_report(), counters)?,
+            reports_in: read(&topics::swarm_report(), "report sample")?,
+            targets: read(&topics::swarm_target(), "swarm protocol sample")?,
+            commands: read(&topics::swarm_command(), "swarm protocol sample")?,
+            results: TopicWriter::open(carrier, &topics::swarm_command_result(), counters)?,
+            events: TopicWriter::open(carrier, &topics::swarm_events(), counters)?,
+            config,
+            counters: counters.clone(),
         })
     }
 
@@ -145,85 +180,55 @@ impl Agent {
             .contains(id)
     }
 
-    fn drain_leases(&self, shared: &DdsShared) {
-        let now = Instant::now();
+    fn drain_leases(&self) {
+        let now = clock::now();
         let mut o = self.observer.lock().unwrap_or_else(PoisonError::into_inner);
-        loop {
-            match self.leases.take() {
-                Ok(Some((l, _))) => o.heard(
-                    Lease {
-                        coordinator_id: l.coordinator_id,
-                        priority: l.priority,
-                        epoch: l.epoch,
-                        active: l.active,
-                        api_url: l.api_url,
-                    },
-                    now,
-                ),
-                Ok(None) => break,
-                Err(e) => {
-                    shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                    tracing::warn!("dds: a coordinator lease sample was dropped: {e:?}");
-                }
-            }
+        while let Some(l) = self.leases.try_next() {
+            o.heard(lease::from_msg(l), now);
         }
     }
 }
 
-/// Runs the agent's carrier until the task is aborted (see the module docs).
-pub(crate) async fn run(shared: Arc<DdsShared>) {
-    let (Some(agent), Some(topics)) = (shared.agent(), shared.protocol()) else {
-        return;
-    };
-    let Some(view) = shared.view().await else {
+/// Runs the agent until the task is aborted (see the module docs).
+pub async fn run<C: AgentContext>(agent: Arc<Agent>, ctx: Arc<C>) {
+    let Some(frame) = ctx.swarm_frame().await else {
         tracing::error!("dds: the agent's coordinator did not answer: no carrier");
         return;
     };
-    let (tap, mut uplink) = tokio::sync::mpsc::unbounded_channel();
-    let _ = shared
-        .coordinator()
-        .cast(CoordinatorMsg::Distributed(DistributedMsg::TapUplink(tap)));
+    let mut uplink = ctx.tap_uplink();
     let mut tasks = JoinSet::new();
-    for reader in [topics.target.reader.clone(), topics.command.reader.clone()] {
-        let (s, v) = (shared.clone(), view.clone());
-        tasks.spawn(async move { obey(&s, &v, &reader).await });
+    for reader in [agent.targets.clone(), agent.commands.clone()] {
+        let (a, c, f) = (agent.clone(), ctx.clone(), frame.clone());
+        tasks.spawn(async move { obey(&a, c.as_ref(), f.as_ref(), &reader).await });
     }
-    let (s, v) = (shared.clone(), view.clone());
-    tasks.spawn(async move { neighbours(&s, &v).await });
-    let s = shared.clone();
+    let (a, c, f) = (agent.clone(), ctx.clone(), frame.clone());
+    tasks.spawn(async move { neighbours(&a, c.as_ref(), f.as_ref()).await });
+    let a = agent.clone();
     tasks.spawn(async move {
-        let id = s
-            .agent()
-            .map(|a| a.config.agent_id.clone())
-            .unwrap_or_default();
+        let id = &a.config.agent_id;
         while let Some(msg) = uplink.recv().await {
-            if let Some(p) = s.protocol()
-                && let Ok(m) = Envelope::message(msg.vehicle_id(), &id, 0, None, &msg)
-            {
-                s.count(p.command_result.writer.publish(m));
+            if let Ok(m) = Envelope::message(msg.vehicle_id(), id, 0, None, &msg) {
+                let _ = a.results.publish(m);
             }
         }
     });
-    let s = shared.clone();
-    let mut events = shared.events().subscribe();
+    let a = agent.clone();
+    let mut events = ctx.vehicle_events();
     tasks.spawn(async move {
-        let id = s
-            .agent()
-            .map(|a| a.config.agent_id.clone())
-            .unwrap_or_default();
+        let id = &a.config.agent_id;
         loop {
             let ev = match events.recv().await {
                 Ok(ev) => ev,
-                Err(tokio::sync::broadcast::error::RecvError::Lagged(n)) => {
+                Err(broadcast::error::RecvError::Lagged(n)) => {
                     tracing::warn!("dds: {n} events of this agent were not forwarded (lagged)");
                     continue;
                 }
                 Err(_) => return,
             };
-            if let (Some(vehicle), Some(p)) = (ev.vehicle_id(), s.protocol())
-                && let Ok(m) = Envelope::message(vehicle, &id, 0, None, &ev)
+            if let Some(vehicle) = ev.vehicle_id()
+                && let Ok(m) = Envelope::message(vehicle, id, 0, None, &ev)
             {
-                s.count(p.events.writer.publish(m));
+                let _ = a.events.publish(m);
             }
         }
     });
@@ -233,28 +238,25 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
     let mut loss = Loss::default();
     loop {
         tick.tick().await;
-        agent.drain_leases(&shared);
-        let Some(reports) = shared.local_reports().await else {
+        agent.drain_leases();
+        let Some(reports) = ctx.reports().await else {
             continue;
         };
         *agent.local.lock().unwrap_or_else(PoisonError::into_inner) =
             reports.iter().map(|(id, _)| id.clone()).collect();
-        loss.check(&shared, agent, &reports);
-        publish_reports(&shared, agent, &view, reports).await;
+        loss.check(&agent, ctx.as_ref(), &reports);
+        publish_reports(&agent, ctx.as_ref(), frame.as_ref(), reports).await;
     }
 }
 
 /// Publishes each local vehicle's report with its snapshot.
 async fn publish_reports(
-    shared: &DdsShared,
     agent: &Agent,
-    view: &SwarmContext,
+    ctx: &impl AgentContext,
+    frame: &dyn SwarmFrame,
     reports: Vec<(String, VehicleReport)>,
 ) {
-    let Some(topics) = shared.protocol() else {
-        return;
-    };
-    let Some(snapshots) = shared.list_vehicles().await else {
+    let Some(snapshots) = ctx.snapshots().await else {
         return;
     };
     for (id, report) in reports {
@@ -262,8 +264,8 @@ async fn publish_reports(
             continue;
         };
         let body = ReportBody { report, snapshot };
-        if let Ok(m) = Envelope::message(&id, &agent.config.agent_id, 0, view.frame(), &body) {
-            shared.count(topics.report.writer.publish(m));
+        if let Ok(m) = Envelope::message(&id, &agent.config.agent_id, 0, frame.frame(), &body) {
+            let _ = agent.reports_out.publish(m);
         }
     }
 }
@@ -276,12 +278,17 @@ struct Loss {
 }
 
 impl Loss {
-    fn check(&mut self, shared: &DdsShared, agent: &Agent, reports: &[(String, VehicleReport)]) {
+    fn check(
+        &mut self,
+        agent: &Agent,
+        ctx: &impl AgentContext,
+        reports: &[(String, VehicleReport)],
+    ) {
         let lost = agent
             .observer
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
-            .lost_for(Instant::now());
+            .lost_for(clock::now());
         let cfg = &agent.config;
         if lost < cfg.coordinator_timeout {
             if self.held {
@@ -291,15 +298,13 @@ impl Loss {
             return;
         }
         let send = |id: &str, command: VehicleCommand| {
-            let _ = shared.coordinator().cast(CoordinatorMsg::Distributed(
-                DistributedMsg::ToLocalVehicle(
-                    id.to_string(),
-                    ToVehicle::Command {
-                        command_id: 0,
-                        command,
-                    },
-                ),
-            ));
+            ctx.to_vehicle(
+                id.to_string(),
+                ToVehicle::Command {
+                    command_id: 0,
+                    command,
+                },
+            );
         };
         if !self.held {
             self.held = true;
@@ -349,26 +354,28 @@ impl Loss {
 }
 
 /// Hands the active coordinator's targets or commands to the local vehicles.
-async fn obey(shared: &DdsShared, view: &SwarmContext, reader: &Subscription<msgs::SwarmMessage>) {
-    let Some(agent) = shared.agent() else {
-        return;
-    };
+async fn obey(
+    agent: &Agent,
+    ctx: &impl AgentContext,
+    frame: &dyn SwarmFrame,
+    reader: &TopicReader<SwarmMessage>,
+) {
     loop {
-        let env = receive(shared, reader, "swarm protocol").await;
+        let env = Envelope::from_msg(reader.next().await);
         if !agent.is_local(&env.vehicle_id) {
             continue; // another agent's vehicle
         }
-        let Some(msg) = body_or_drop::<ToVehicle>(shared, &env, "message") else {
+        let Some(msg) = body_or_drop::<ToVehicle>(&agent.counters, &env, "message") else {
             continue;
         };
-        agent.drain_leases(shared);
+        agent.drain_leases();
         let verdict = agent
             .observer
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
-            .accepts(&env.sender_id, env.epoch, Instant::now());
+            .accepts(&env.sender_id, env.epoch, clock::now());
         if let Err(why) = verdict {
-            agent.counters.refused.fetch_add(1, Ordering::Relaxed);
+            DdsCounters::add(&agent.counters.protocol_refused);
             tracing::debug!(
                 "dds: {} from `{}` (epoch {}) not obeyed: {why}",
                 env.vehicle_id,
@@ -377,42 +384,28 @@ async fn obey(shared: &DdsShared, view: &SwarmContext, reader: &Subscription<msg
             );
             continue;
         }
-        let reframe = into_view(view, env.origin);
+        let reframe = into_frame(frame, env.origin);
         let msg = reframed(msg, reframe.as_ref(), |r, m| r.to_vehicle(m));
-        agent.counters.obeyed.fetch_add(1, Ordering::Relaxed);
-        let _ =
-            shared
-                .coordinator()
-                .cast(CoordinatorMsg::Distributed(DistributedMsg::ToLocalVehicle(
-                    env.vehicle_id,
-                    msg,
-                )));
+        DdsCounters::add(&agent.counters.protocol_obeyed);
+        ctx.to_vehicle(env.vehicle_id, msg);
     }
 }
 
 /// Gives the local coordinator the other agents' vehicles as neighbours.
-async fn neighbours(shared: &DdsShared, view: &SwarmContext) {
-    let (Some(agent), Some(topics)) = (shared.agent(), shared.protocol()) else {
-        return;
-    };
+async fn neighbours(agent: &Agent, ctx: &impl AgentContext, frame: &dyn SwarmFrame) {
     loop {
-        let env = receive(shared, &topics.report.reader, "report").await;
+        let env = Envelope::from_msg(agent.reports_in.next().await);
         if env.sender_id == agent.config.agent_id || agent.is_local(&env.vehicle_id) {
             continue;
         }
-        let Some(frame) = view.frame() else {
+        let Some(own) = frame.frame() else {
             continue; // no own frame yet: nothing of ours flies
         };
-        let Some(body) = body_or_drop::<ReportBody>(shared, &env, "report") else {
+        let Some(body) = body_or_drop::<ReportBody>(&agent.counters, &env, "report") else {
             continue;
         };
-        let reframe = Reframe::new(env.origin, frame);
+        let reframe = Reframe::new(env.origin, own);
         let report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));
-        let _ = shared
-            .coordinator()
-            .cast(CoordinatorMsg::Distributed(DistributedMsg::Neighbour(
-                env.vehicle_id,
-                report,
-            )));
+        ctx.neighbour(env.vehicle_id, report);
     }
 }

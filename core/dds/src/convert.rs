@@ -12,7 +12,7 @@ use ros2_client::builtin_interfaces::Time;
 use skein_model::geo::Ned;
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::VehicleCommand;
-use skein_swarm::tracking::TrackView;
+use skein_swarm::tracks::TrackView;
 use std::f64::consts::FRAC_PI_2;
 
 /// A header stamped `stamp` in `frame_id`.

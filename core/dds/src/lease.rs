@@ -5,19 +5,23 @@
 //! The election state lives here, outside the `DdsLink` actor, so a restart of
 //! `coordinator/dds` keeps the role and epoch (a restart shorter than the lease timeout
 //! is not even seen by the other candidates). Its status goes to a `watch` channel: the
-//! API reads it for `GET /api/v1/coordinator` and to refuse writes on a standby.
+//! API reads it for `GET /api/v1/coordinator` and to refuse writes on a standby, and the
+//! coordinator's roles read it ([`crate::remote`], [`crate::mirror`]). A change of role
+//! goes to the [`ElectionContext`] (in skein, the `coordinator_role_changed` event).
 
-use crate::link::{DdsCounters, DdsError, err};
-use crate::msgs::{self, CoordinatorLease, Header, RosMessage};
+use crate::carrier::{Carrier, TopicReader, TopicWriter};
+use crate::clock;
+use crate::counters::DdsCounters;
+use crate::error::DdsError;
+use crate::msgs::{CoordinatorLease, Header};
 use crate::topics;
 use ros2_client::builtin_interfaces::Time;
-use ros2_client::{Name, Node, Publisher, Subscription};
-use skein_swarm::SwarmEvent;
-use skein_swarm::election::{Election, ElectionConfig, ElectionStatus, Lease, Transition};
-use std::sync::atomic::Ordering;
-use std::sync::{Mutex, PoisonError};
+use skein_swarm::election::{
+    CoordinatorRole, Election, ElectionConfig, ElectionStatus, Lease, Transition,
+};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
-use tokio::sync::{broadcast, watch};
+use tokio::sync::watch;
 
 /// How often the election is evaluated (the failover delay is the lease timeout plus at
 /// most this).
@@ -36,42 +40,49 @@ pub struct Candidate {
     pub timing: ElectionConfig,
 }
 
+/// A change of this candidate's role, for [`ElectionContext::role_changed`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RoleChange {
+    /// This candidate's id.
+    pub coordinator_id: String,
+    /// Its new role.
+    pub role: CoordinatorRole,
+    /// Its epoch (the one it claimed, or the one it leaves).
+    pub epoch: u64,
+    /// Why it stepped down (`None` when it claimed the role).
+    pub reason: Option<String>,
+}
+
+/// What the election needs from this process.
+pub trait ElectionContext: Send + Sync + 'static {
+    /// This candidate took the role or stepped down.
+    fn role_changed(&self, change: RoleChange);
+}
+
 /// The lease topic and the election state of this candidate.
 pub struct ElectionLink {
     election: Mutex<Election>,
     status: watch::Sender<ElectionStatus>,
-    writer: Publisher<CoordinatorLease>,
-    reader: Subscription<CoordinatorLease>,
-    events: broadcast::Sender<SwarmEvent>,
+    writer: TopicWriter<CoordinatorLease>,
+    reader: TopicReader<CoordinatorLease>,
 }
 
 impl ElectionLink {
-    /// Creates the `/skein/coordinator` reader and writer on `node`; the candidate
-    /// starts as a standby.
+    /// Opens `/skein/coordinator` for reading and writing on `carrier` (counting in
+    /// `counters`); the candidate starts as a standby.
     ///
     /// # Errors
     /// The topic, reader or writer could not be created.
-    pub(crate) fn new(
-        node: &mut Node,
+    pub fn open(
+        carrier: &impl Carrier,
         candidate: Candidate,
-        events: broadcast::Sender<SwarmEvent>,
+        counters: &Arc<DdsCounters>,
     ) -> Result<ElectionLink, DdsError> {
         // One topic, written and read by every candidate.
-        let topic = node
-            .create_topic(
-                &Name::new(topics::NAMESPACE, "coordinator")
-                    .map_err(|e| DdsError(format!("coordinator topic: {e:?}")))?,
-                CoordinatorLease::type_name(),
-                &topics::leases(),
-            )
-            .map_err(err("coordinator topic"))?;
-        let writer = node
-            .create_publisher::<CoordinatorLease>(&topic, None)
-            .map_err(err("coordinator publisher"))?;
-        let reader = node
-            .create_subscription::<CoordinatorLease>(&topic, None)
-            .map_err(err("coordinator subscription"))?;
-        let now = Instant::now();
+        let topic = topics::coordinator();
+        let writer = TopicWriter::open(carrier, &topic, counters)?;
+        let reader = TopicReader::open(carrier, &topic, counters, "coordinator lease sample")?;
+        let now = clock::now();
         let election = Election::new(
             candidate.coordinator_id,
             candidate.priority,
@@ -85,7 +96,6 @@ impl ElectionLink {
             status,
             writer,
             reader,
-            events,
         })
     }
 
@@ -94,9 +104,9 @@ impl ElectionLink {
         self.status.subscribe()
     }
 
-    /// Hears, ticks and publishes until the task is aborted, counting leases written,
-    /// failed writes and unreadable samples (dropped) in `counters`.
-    pub(crate) async fn run(&self, counters: &DdsCounters) {
+    /// Hears, ticks and publishes until the task is aborted; tells `ctx` of every change
+    /// of role.
+    pub async fn run<C: ElectionContext>(self: Arc<Self>, ctx: Arc<C>) {
         let period = self
             .election
             .lock()
@@ -108,17 +118,10 @@ impl ElectionLink {
         let mut last_sent: Option<Instant> = None;
         loop {
             tick.tick().await;
-            let now = Instant::now();
+            let now = clock::now();
             let mut heard = Vec::new();
-            loop {
-                match self.reader.take() {
-                    Ok(Some((l, _))) => heard.push(l),
-                    Ok(None) => break,
-                    Err(e) => {
-                        counters.malformed.fetch_add(1, Ordering::Relaxed);
-                        tracing::warn!("dds: a coordinator lease sample was dropped: {e:?}");
-                    }
-                }
+            while let Some(l) = self.reader.try_next() {
+                heard.push(l);
             }
             let (transition, lease, status) = {
                 let mut e = self.election.lock().unwrap_or_else(PoisonError::into_inner);
@@ -143,7 +146,7 @@ impl ElectionLink {
                 None => None,
             };
             if transition.is_some() {
-                let _ = self.events.send(SwarmEvent::CoordinatorRoleChanged {
+                ctx.role_changed(RoleChange {
                     coordinator_id: lease.coordinator_id.clone(),
                     role: status.role,
                     epoch: lease.epoch,
@@ -152,11 +155,7 @@ impl ElectionLink {
             }
             // A change of role goes out at once; otherwise at the publish period.
             if transition.is_some() || last_sent.is_none_or(|t| now - t >= period) {
-                let c = match self.writer.publish(to_msg(&lease)) {
-                    Ok(()) => &counters.published,
-                    Err(_) => &counters.publish_errors,
-                };
-                c.fetch_add(1, Ordering::Relaxed);
+                let _ = self.writer.publish(to_msg(&lease));
                 last_sent = Some(now);
             }
             self.status.send_replace(status);
@@ -164,7 +163,8 @@ impl ElectionLink {
     }
 }
 
-fn to_msg(l: &Lease) -> CoordinatorLease {
+/// A lease as the topic carries it.
+pub(crate) fn to_msg(l: &Lease) -> CoordinatorLease {
     CoordinatorLease {
         header: Header {
             stamp: Time::now(),
@@ -178,7 +178,8 @@ fn to_msg(l: &Lease) -> CoordinatorLease {
     }
 }
 
-fn from_msg(m: msgs::CoordinatorLease) -> Lease {
+/// A lease heard on the topic.
+pub(crate) fn from_msg(m: CoordinatorLease) -> Lease {
     Lease {
         coordinator_id: m.coordinator_id,
         priority: m.priority,

@@ -4,30 +4,51 @@
 //!
 //! - [`topics`]: names and QoS of every topic (the table there is the contract);
 //! - [`msgs`]: the message types, standard ROS 2 ones and skein's own (`core/dds/msg/*.msg`);
-//! - [`lease`]: the coordinator election on `/skein/coordinator` (`skein coordinator`);
+//! - [`carrier`]: what carries the samples: DDS ([`carrier::ros2`]) or, in unit tests, an
+//!   in-memory bus ([`carrier::memory`]);
+//! - the roles, each with its own topics and a small context trait: [`vehicles`] (the
+//!   vehicles' topics and commands of `skein up --dds`), [`lease`] (the coordinator
+//!   election on `/skein/coordinator`, `skein coordinator`), [`remote`] (a coordinator's
+//!   remote vehicles), [`mirror`] (the formation a standby resumes) and [`agent`] (an
+//!   agent's vehicles obeying the active coordinator, `skein agent`);
+//! - [`envelope`] and [`reframe`]: the swarm protocol's envelope between coordinators
+//!   and agents (`/skein/swarm/*`) and positions between two processes' swarm frames;
+//! - [`swarm_adapter`]: the roles' contexts on `skein_swarm`'s coordinator actor, the
+//!   one module that speaks to it;
+//! - [`link`]: composes the roles ([`DdsRoles`]) and runs them as the supervised
+//!   `DdsLink` service;
 //! - [`convert`]: skein's NED swarm frame to the ENU of REP 103, commands back;
-//! - [`link`]: the supervised `DdsLink` service of `skein up --dds`;
-//! - [`protocol`]: the swarm protocol's carrier between coordinators and agents
-//!   (`/skein/swarm/*`), with [`remote`] (a coordinator's remote vehicles) and [`agent`]
-//!   (an agent's vehicles obeying the active coordinator) and [`mirror`] (the formation a
-//!   standby resumes);
 //! - [`probe`]: a listener of the pose topics (`skein bench dds`).
+//!
+//! The roles' scenario tests (`src/scenarios/`) wire several processes together on the
+//! in-memory carrier, on tokio's paused clock.
 //!
 //! The domain is `--domain-id`, else `ROS_DOMAIN_ID`, else 0 ([`domain_id_from_env`]).
 #![warn(missing_docs)]
 
 pub mod agent;
+pub mod carrier;
+mod clock;
 pub mod convert;
+pub mod counters;
+pub mod envelope;
+pub mod error;
 pub mod lease;
 pub mod link;
 pub mod mirror;
 pub mod msgs;
 pub mod probe;
-pub mod protocol;
+pub mod reframe;
 pub mod remote;
+#[cfg(test)]
+mod scenarios;
+pub mod swarm_adapter;
 pub mod topics;
+pub mod vehicles;
 
-pub use link::{DdsConfig, DdsCounters, DdsError, DdsLink, DdsShared};
+pub use counters::DdsCounters;
+pub use error::DdsError;
+pub use link::{DdsConfig, DdsLink, DdsRoles};
 
 /// The frame of positions on skein's topics: ENU about the swarm origin (its geodetic
 /// point is the `[swarm] origin` of the config, or the first vehicle's home).

@@ -7,19 +7,57 @@
 //! meanwhile, and hold only after `coordinator_timeout_s`.
 //!
 //! The topic is transient-local: a standby that starts late gets the last formation at
-//! once.
+//! once. The role reaches its coordinator through a [`MirrorContext`].
 
-use crate::link::DdsShared;
-use crate::protocol::{Envelope, body_or_drop, into_view, reframed};
-use skein_swarm::election::CoordinatorRole;
+use crate::carrier::{Carrier, TopicReader, TopicWriter};
+use crate::counters::DdsCounters;
+use crate::envelope::{Envelope, body_or_drop};
+use crate::error::DdsError;
+use crate::msgs::SwarmMessage;
+use crate::reframe::{FrameSource, into_frame, reframed};
+use crate::topics;
+use skein_swarm::election::{CoordinatorRole, ElectionStatus};
 use skein_swarm::formation::FormationMirror;
-use skein_swarm::{CoordinatorMsg, DistributedMsg};
+use std::future::Future;
 use std::sync::Arc;
-use std::sync::atomic::Ordering;
 use std::time::Duration;
+use tokio::sync::watch;
 
 /// How often the active coordinator publishes its formation.
 pub const MIRROR_PERIOD: Duration = Duration::from_millis(200);
+
+/// What the mirror needs from this process's coordinator.
+pub trait MirrorContext: FrameSource {
+    /// The formation to mirror (`Some(None)`: none is flown; `None`: no answer).
+    fn formation(&self) -> impl Future<Output = Option<Option<FormationMirror>>> + Send;
+
+    /// This coordinator just took the role: fly on `mirror` (in this process's frame),
+    /// the formation of coordinator `from`, unless it flies one.
+    fn resume(&self, mirror: FormationMirror, from: String);
+}
+
+/// The `/skein/formation` topic of a coordinator candidate.
+pub struct Mirror {
+    counters: Arc<DdsCounters>,
+    writer: TopicWriter<SwarmMessage>,
+    reader: TopicReader<SwarmMessage>,
+}
+
+impl Mirror {
+    /// Opens `/skein/formation` for reading and writing on `carrier`, counting in
+    /// `counters`.
+    ///
+    /// # Errors
+    /// The topic, reader or writer could not be created.
+    pub fn open(carrier: &impl Carrier, counters: &Arc<DdsCounters>) -> Result<Self, DdsError> {
+        let topic = topics::formation();
+        Ok(Mirror {
+            writer: TopicWriter::open(carrier, &topic, counters)?,
+            reader: TopicReader::open(carrier, &topic, counters, "formation sample")?,
+            counters: counters.clone(),
+        })
+    }
+}
 
 /// The latest formation heard from another coordinator.
 struct Heard {
@@ -28,12 +66,14 @@ struct Heard {
     mirror: Option<FormationMirror>,
 }
 
-/// Runs the mirror until the task is aborted (see the module docs).
-pub(crate) async fn run(shared: Arc<DdsShared>) {
-    let (Some(topics), Some(election)) = (shared.protocol(), shared.election()) else {
-        return;
-    };
-    let Some(view) = shared.view().await else {
+/// Runs the mirror until the task is aborted (see the module docs); `election` is this
+/// candidate's status.
+pub async fn run<C: MirrorContext>(
+    mirror: Arc<Mirror>,
+    election: watch::Receiver<ElectionStatus>,
+    ctx: Arc<C>,
+) {
+    let Some(frame) = ctx.swarm_frame().await else {
         tracing::error!("dds: the coordinator did not answer: no formation mirror");
         return;
     };
@@ -44,28 +84,21 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
         tick.tick().await;
-        loop {
-            let env = match topics.formation.reader.take() {
-                Ok(Some((m, _))) => Envelope::from_msg(m),
-                Ok(None) => break,
-                Err(e) => {
-                    shared.counters.malformed.fetch_add(1, Ordering::Relaxed);
-                    tracing::warn!("dds: a formation sample was dropped: {e:?}");
-                    continue;
-                }
-            };
+        while let Some(m) = mirror.reader.try_next() {
+            let env = Envelope::from_msg(m);
             if env.sender_id == me || heard.as_ref().is_some_and(|h| h.epoch > env.epoch) {
                 continue;
             }
-            let Some(mirror) = body_or_drop::<Option<FormationMirror>>(&shared, &env, "formation")
+            let Some(formation) =
+                body_or_drop::<Option<FormationMirror>>(&mirror.counters, &env, "formation")
             else {
                 continue;
             };
-            let reframe = into_view(&view, env.origin);
+            let reframe = into_frame(frame.as_ref(), env.origin);
             heard = Some(Heard {
                 from: env.sender_id,
                 epoch: env.epoch,
-                mirror: mirror.map(|m| reframed(m, reframe.as_ref(), |r, x| r.mirror(x))),
+                mirror: formation.map(|m| reframed(m, reframe.as_ref(), |r, x| r.mirror(x))),
             });
         }
         let (active, epoch) = {
@@ -76,18 +109,16 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
             && !was_active
             && let Some(h) = heard.take()
             && h.epoch < epoch
-            && let Some(mirror) = h.mirror
+            && let Some(formation) = h.mirror
         {
-            let _ = shared.coordinator().cast(CoordinatorMsg::Distributed(
-                DistributedMsg::ResumeFormation(mirror, h.from),
-            ));
+            ctx.resume(formation, h.from);
         }
         was_active = active;
         if active
-            && let Some(mirror) = shared.formation_mirror().await
-            && let Ok(m) = Envelope::message("", &me, epoch, view.frame(), &mirror)
+            && let Some(formation) = ctx.formation().await
+            && let Ok(m) = Envelope::message("", &me, epoch, frame.frame(), &formation)
         {
-            shared.count(topics.formation.writer.publish(m));
+            let _ = mirror.writer.publish(m);
         }
     }
 }

@@ -294,7 +294,7 @@ impl RosMessage for CoordinatorLease {
 }
 
 /// `skein_msgs/SwarmMessage` (`msg/SwarmMessage.msg`): one swarm-protocol message between
-/// a coordinator and an agent on `/skein/swarm/*` (see [`crate::protocol`]).
+/// a coordinator and an agent on `/skein/swarm/*` (see [`crate::envelope`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SwarmMessage {
     /// When it was sent; frame [`crate::FRAME_ID`].

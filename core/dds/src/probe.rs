@@ -5,12 +5,12 @@
 //! writes) to its arrival here. Both clocks are the same host's wall clock when the probe
 //! runs beside skein.
 
-use crate::msgs::{PoseStamped, RosMessage, SwarmMessage};
+use crate::carrier::Carrier;
+use crate::carrier::ros2::Ros2Carrier;
+use crate::msgs::{PoseStamped, SwarmMessage};
 use crate::topics;
 use crate::{DdsError, FRAME_ID};
 use ros2_client::builtin_interfaces::Time;
-use ros2_client::dds::rustdds::DomainParticipantBuilder;
-use ros2_client::{Context, Name, NodeName, NodeOptions};
 use std::net::IpAddr;
 use std::sync::{Arc, Mutex, PoisonError};
 use tokio::task::JoinSet;
@@ -21,7 +21,8 @@ pub type Arrival = (String, f64);
 /// Subscriptions to the poses of some vehicles, or to the targets (see the module docs). Dropping it leaves
 /// the domain.
 pub struct PoseProbe {
-    _context: Context,
+    // Kept for the probe's life (dropping it leaves the domain).
+    _carrier: Ros2Carrier,
     arrivals: Arc<Mutex<Vec<Arrival>>>,
     tasks: JoinSet<()>,
 }
@@ -39,39 +40,18 @@ impl PoseProbe {
         vehicles: &[String],
         targets: bool,
     ) -> Result<Self, DdsError> {
-        let mut participant = DomainParticipantBuilder::new(domain_id);
-        if !networks.is_empty() {
-            participant = participant.with_only_networks(networks.iter().copied());
-        }
-        let participant = participant
-            .build()
-            .map_err(|e| DdsError(format!("DDS participant: {e:?}")))?;
-        let context = Context::from_domain_participant(participant)
-            .map_err(|e| DdsError(format!("ROS 2 context: {e:?}")))?;
-        let mut node = context
-            .new_node(
-                NodeName::new("/skein", &format!("skein_probe_{}", std::process::id()))
-                    .map_err(|e| DdsError(format!("node name: {e:?}")))?,
-                NodeOptions::new().enable_rosout(false),
-            )
-            .map_err(|e| DdsError(format!("ROS 2 node: {e:?}")))?;
+        let carrier = Ros2Carrier::join(
+            domain_id,
+            networks,
+            &format!("skein_probe_{}", std::process::id()),
+        )?;
         let arrivals: Arc<Mutex<Vec<Arrival>>> = Arc::new(Mutex::new(Vec::new()));
         let mut tasks = JoinSet::new();
         if targets {
-            let topic = node
-                .create_topic(
-                    &Name::new(&format!("{}/swarm", topics::NAMESPACE), "target")
-                        .map_err(|e| DdsError(format!("{e:?}")))?,
-                    SwarmMessage::type_name(),
-                    &topics::protocol_stream(),
-                )
-                .map_err(|e| DdsError(format!("target topic: {e:?}")))?;
-            let sub = node
-                .create_subscription::<SwarmMessage>(&topic, None)
-                .map_err(|e| DdsError(format!("target subscription: {e:?}")))?;
+            let sub = carrier.reader::<SwarmMessage>(&topics::swarm_target())?;
             let arrivals = arrivals.clone();
             tasks.spawn(async move {
-                while let Ok((m, _)) = sub.async_take().await {
+                while let Ok(m) = sub.take_next().await {
                     let latency_s =
                         (Time::now().to_nanos() - m.header.stamp.to_nanos()) as f64 * 1e-9;
                     arrivals
@@ -82,20 +62,10 @@ impl PoseProbe {
             });
         }
         for id in vehicles {
-            let topic = node
-                .create_topic(
-                    &Name::new(&topics::vehicle_namespace(id), "pose")
-                        .map_err(|e| DdsError(format!("{e:?}")))?,
-                    PoseStamped::type_name(),
-                    &topics::sensor(),
-                )
-                .map_err(|e| DdsError(format!("pose topic: {e:?}")))?;
-            let sub = node
-                .create_subscription::<PoseStamped>(&topic, None)
-                .map_err(|e| DdsError(format!("pose subscription: {e:?}")))?;
+            let sub = carrier.reader::<PoseStamped>(&topics::pose(id))?;
             let (id, arrivals) = (id.clone(), arrivals.clone());
             tasks.spawn(async move {
-                while let Ok((pose, _)) = sub.async_take().await {
+                while let Ok(pose) = sub.take_next().await {
                     if pose.header.frame_id != FRAME_ID {
                         continue;
                     }
@@ -109,7 +79,7 @@ impl PoseProbe {
             });
         }
         Ok(PoseProbe {
-            _context: context,
+            _carrier: carrier,
             arrivals,
             tasks,
         })

@@ -1,25 +1,72 @@
 //! The coordinator's side of the swarm protocol on DDS (`skein coordinator`): the agents'
 //! vehicles as remote proxies.
 //!
-//! A vehicle joins when its first report arrives on `/skein/swarm/report`: the carrier
-//! gives the coordinator a [`RemoteVehicle`] whose port publishes on
-//! `/skein/swarm/target` and `/skein/swarm/command` with this candidate's id and epoch
-//! (a standby's port refuses: only the active coordinator steers), and whose snapshots
-//! and reports follow the agent's, converted into this process's swarm frame. What the
-//! vehicles answer on `/skein/swarm/command_result` goes to the coordinator's mailbox as
-//! from a local vehicle, and their events on `/skein/swarm/events` to its event stream. The watch channels live in [`Remotes`], outside the `DdsLink`
-//! actor, so a restart of `coordinator/dds` keeps every proxy working.
+//! A vehicle joins when its first report arrives on `/skein/swarm/report`: the role
+//! hands the coordinator ([`RemoteContext::joined`]) a [`RemoteJoin`] whose port
+//! publishes on `/skein/swarm/target` and `/skein/swarm/command` with this candidate's id
+//! and epoch (a standby's port refuses: only the active coordinator steers), and whose
+//! snapshots and reports follow the agent's, converted into this process's swarm frame.
+//! What the vehicles answer on `/skein/swarm/command_result` goes to the coordinator as
+//! from a local vehicle, and their events on `/skein/swarm/events` to its event stream.
+//! The topics and the watch channels live in [`Remotes`], outside the `DdsLink` actor,
+//! so a restart of `coordinator/dds` keeps every proxy working.
+//!
+//! A vehicle whose agent falls silent is not removed: its last report ages, and the
+//! coordinator shows it `Lost` once that report is older than its silence timeout; the
+//! next report brings it back through the same channels (no second join).
 
-use crate::link::DdsShared;
-use crate::protocol::{Envelope, ReportBody, body_or_drop, into_view, receive, reframed};
+use crate::carrier::{Carrier, TopicReader, TopicWriter};
+use crate::counters::DdsCounters;
+use crate::envelope::{Envelope, ReportBody, body_or_drop};
+use crate::error::DdsError;
+use crate::msgs::SwarmMessage;
+use crate::reframe::{FrameSource, SwarmFrame, into_frame, reframed};
+use crate::topics;
 use skein_model::vehicle::VehicleSnapshot;
-use skein_swarm::SwarmContext;
+use skein_swarm::SwarmEvent;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
-use skein_swarm::{CoordinatorMsg, DistributedMsg, RemoteVehicle, SwarmEvent};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, PoisonError, Weak};
 use tokio::sync::watch;
+
+/// A vehicle of an agent, joining this coordinator with its first report.
+pub struct RemoteJoin {
+    /// Vehicle id (`"uav-3"`).
+    pub id: String,
+    /// The agent that runs it (its id on the topics).
+    pub agent: String,
+    /// Where its [`ToVehicle`] messages go.
+    pub port: Arc<dyn VehiclePort>,
+    /// Its snapshots, swarm frame of this process.
+    pub snapshots: watch::Receiver<VehicleSnapshot>,
+    /// Its reports, swarm frame of this process (stamped by its agent).
+    pub reports: watch::Receiver<VehicleReport>,
+}
+
+impl std::fmt::Debug for RemoteJoin {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RemoteJoin")
+            .field("id", &self.id)
+            .field("agent", &self.agent)
+            .field("snapshot", &*self.snapshots.borrow())
+            .field("report", &*self.reports.borrow())
+            .finish_non_exhaustive()
+    }
+}
+
+/// What the coordinator's remote vehicles need from this process.
+pub trait RemoteContext: FrameSource {
+    /// A vehicle of another process joins.
+    fn joined(&self, vehicle: RemoteJoin);
+
+    /// A remote vehicle's answer (acks, state changes, payload answers), as from a local
+    /// one.
+    fn answer(&self, msg: FromVehicle);
+
+    /// A remote vehicle's event, for this process's event stream.
+    fn event(&self, event: SwarmEvent);
+}
 
 /// One remote vehicle's channels.
 struct Channels {
@@ -27,13 +74,47 @@ struct Channels {
     reports: watch::Sender<VehicleReport>,
 }
 
-/// The remote vehicles this coordinator has heard, by id.
-#[derive(Default)]
+/// The coordinator's protocol topics and the remote vehicles it has heard, by id.
 pub struct Remotes {
+    counters: Arc<DdsCounters>,
     vehicles: Mutex<BTreeMap<String, Channels>>,
+    /// `/skein/swarm/report`, read.
+    reports: TopicReader<SwarmMessage>,
+    /// `/skein/swarm/target` and `/skein/swarm/command`, written.
+    targets: TopicWriter<SwarmMessage>,
+    commands: TopicWriter<SwarmMessage>,
+    /// `/skein/swarm/command_result` and `/skein/swarm/events`, read.
+    results: TopicReader<SwarmMessage>,
+    events: TopicReader<SwarmMessage>,
 }
 
 impl Remotes {
+    /// Opens the coordinator's protocol topics on `carrier`, counting in `counters`.
+    ///
+    /// # Errors
+    /// A topic, reader or writer could not be created.
+    pub fn open(carrier: &impl Carrier, counters: &Arc<DdsCounters>) -> Result<Self, DdsError> {
+        Ok(Remotes {
+            reports: TopicReader::open(
+                carrier,
+                &topics::swarm_report(),
+                counters,
+                "report sample",
+            )?,
+            targets: TopicWriter::open(carrier, &topics::swarm_target(), counters)?,
+            commands: TopicWriter::open(carrier, &topics::swarm_command(), counters)?,
+            results: TopicReader::open(
+                carrier,
+                &topics::swarm_command_result(),
+                counters,
+                "answer sample",
+            )?,
+            events: TopicReader::open(carrier, &topics::swarm_events(), counters, "event sample")?,
+            counters: counters.clone(),
+            vehicles: Mutex::new(BTreeMap::new()),
+        })
+    }
+
     /// True for a vehicle of another process.
     pub fn contains(&self, id: &str) -> bool {
         self.vehicles
@@ -41,21 +122,28 @@ impl Remotes {
             .unwrap_or_else(PoisonError::into_inner)
             .contains_key(id)
     }
+
+    /// The topic that carries `msg`: slot targets go best-effort, the rest reliable.
+    fn topic_of(&self, msg: &ToVehicle) -> &TopicWriter<SwarmMessage> {
+        match msg {
+            ToVehicle::Slot { .. } => &self.targets,
+            _ => &self.commands,
+        }
+    }
 }
 
 /// The port of one remote vehicle: publishes on the protocol topics while this candidate
 /// is active.
 struct DdsPort {
-    shared: Weak<DdsShared>,
+    remotes: Weak<Remotes>,
     vehicle_id: String,
     election: watch::Receiver<ElectionStatus>,
-    view: Arc<SwarmContext>,
+    frame: Arc<dyn SwarmFrame>,
 }
 
 impl VehiclePort for DdsPort {
     fn send(&self, msg: ToVehicle) -> Result<(), String> {
-        let shared = self.shared.upgrade().ok_or("the DDS link has stopped")?;
-        let topics = shared.protocol().ok_or("no swarm protocol topics")?;
+        let remotes = self.remotes.upgrade().ok_or("the DDS link has stopped")?;
         let (id, epoch) = {
             let status = self.election.borrow();
             if status.role != CoordinatorRole::Active {
@@ -69,57 +157,52 @@ impl VehiclePort for DdsPort {
             }
             (status.this.coordinator_id.clone(), status.this.epoch)
         };
-        let topic = topics.to_vehicle_topic(&msg);
-        let m = Envelope::message(&self.vehicle_id, &id, epoch, self.view.frame(), &msg)
+        let m = Envelope::message(&self.vehicle_id, &id, epoch, self.frame.frame(), &msg)
             .map_err(|e| e.to_string())?;
-        let r = topic.writer.publish(m);
-        let failed = r.is_err();
-        shared.count(r);
-        if failed {
-            return Err(format!("DDS write to {} failed", self.vehicle_id));
-        }
-        Ok(())
+        remotes
+            .topic_of(&msg)
+            .publish(m)
+            .map_err(|_| format!("DDS write to {} failed", self.vehicle_id))
     }
 }
 
-/// Runs the coordinator's carrier until the task is aborted (see the module docs).
-pub(crate) async fn run(shared: Arc<DdsShared>) {
-    let (Some(topics), Some(election)) = (shared.protocol(), shared.election()) else {
-        return;
-    };
-    let Some(view) = shared.view().await else {
+/// Runs the coordinator's remote vehicles until the task is aborted (see the module
+/// docs); `election` is this candidate's status.
+pub async fn run<C: RemoteContext>(
+    remotes: Arc<Remotes>,
+    election: watch::Receiver<ElectionStatus>,
+    ctx: Arc<C>,
+) {
+    let Some(frame) = ctx.swarm_frame().await else {
         tracing::error!("dds: the coordinator did not answer: no remote vehicles");
         return;
     };
     let answers = tokio::spawn(forward(
-        shared.clone(),
-        topics.command_result.reader.clone(),
+        remotes.clone(),
+        ctx.clone(),
+        |r| &r.results,
         "answer",
-        |s, msg: FromVehicle| {
-            let _ = s.coordinator().cast(CoordinatorMsg::FromVehicle(msg));
-        },
+        |c, msg| c.answer(msg),
     ));
     let forwarded = tokio::spawn(forward(
-        shared.clone(),
-        topics.events.reader.clone(),
+        remotes.clone(),
+        ctx.clone(),
+        |r| &r.events,
         "event",
-        |s, ev: SwarmEvent| {
-            let _ = s.events().send(ev);
-        },
+        |c, ev| c.event(ev),
     ));
     // Aborted with this task.
     let _tasks = (AbortOnDrop(answers), AbortOnDrop(forwarded));
     loop {
-        let env = receive(&shared, &topics.report.reader, "report").await;
-        let Some(body) = body_or_drop::<ReportBody>(&shared, &env, "report") else {
+        let env = Envelope::from_msg(remotes.reports.next().await);
+        let Some(body) = body_or_drop::<ReportBody>(&remotes.counters, &env, "report") else {
             continue;
         };
         // A coordinator without vehicles of its own anchors at the first agent's origin.
-        let reframe = into_view(&view, env.origin);
+        let reframe = into_frame(frame.as_ref(), env.origin);
         let report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));
         let snapshot = reframed(body.snapshot, reframe.as_ref(), |r, x| r.snapshot(x));
-        let mut map = shared
-            .remotes()
+        let mut map = remotes
             .vehicles
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
@@ -133,37 +216,37 @@ pub(crate) async fn run(shared: Arc<DdsShared>) {
         map.insert(env.vehicle_id.clone(), Channels { snapshots, reports });
         drop(map);
         let port = DdsPort {
-            shared: Arc::downgrade(&shared),
+            remotes: Arc::downgrade(&remotes),
             vehicle_id: env.vehicle_id.clone(),
             election: election.clone(),
-            view: view.clone(),
+            frame: frame.clone(),
         };
-        let _ = shared.coordinator().cast(CoordinatorMsg::Distributed(
-            DistributedMsg::AddRemoteVehicle(RemoteVehicle {
-                id: env.vehicle_id,
-                port: Arc::new(port),
-                snapshots: snapshots_rx,
-                reports: reports_rx,
-                agent: env.sender_id,
-            }),
-        ));
+        ctx.joined(RemoteJoin {
+            id: env.vehicle_id,
+            agent: env.sender_id,
+            port: Arc::new(port),
+            snapshots: snapshots_rx,
+            reports: reports_rx,
+        });
     }
 }
 
-/// Hands every `B` sample of `reader` about a remote vehicle to `deliver`; samples about
-/// other vehicles are skipped, unreadable ones counted and dropped.
-async fn forward<B: for<'de> serde::Deserialize<'de>>(
-    shared: Arc<DdsShared>,
-    reader: Arc<ros2_client::Subscription<crate::msgs::SwarmMessage>>,
-    what: &'static str,
-    deliver: impl Fn(&DdsShared, B),
+/// Hands every `B` sample (a `what`) of the topic `reader` picks about a remote vehicle
+/// to `deliver`; samples about other vehicles are skipped, unreadable ones counted and
+/// dropped.
+async fn forward<C, B: for<'de> serde::Deserialize<'de>>(
+    remotes: Arc<Remotes>,
+    ctx: Arc<C>,
+    reader: impl Fn(&Remotes) -> &TopicReader<SwarmMessage>,
+    what: &str,
+    deliver: impl Fn(&C, B),
 ) {
     loop {
-        let env = receive(&shared, &reader, what).await;
-        if shared.remotes().contains(&env.vehicle_id)
-            && let Some(b) = body_or_drop::<B>(&shared, &env, what)
+        let env = Envelope::from_msg(reader(&remotes).next().await);
+        if remotes.contains(&env.vehicle_id)
+            && let Some(b) = body_or_drop::<B>(&remotes.counters, &env, what)
         {
-            deliver(&shared, b);
+            deliver(&ctx, b);
         }
     }
 }

@@ -27,13 +27,17 @@
 //! would keep only the last writer's).
 //!
 //! The `/skein/swarm/*` topics carry the swarm protocol between coordinators and agents
-//! ([`crate::protocol`]). They are swarm-wide, the vehicle named in each sample, so that a
+//! ([`crate::envelope`]). They are swarm-wide, the vehicle named in each sample, so that a
 //! coordinator finds every agent's vehicles on one topic; each has many writers, hence
 //! depth 64. Reports and targets are like poses (the next one replaces a lost one: a
 //! target carries its time and velocity, the agent moves it on by its age); commands and
 //! their results are reliable, so none is lost or merged. `/skein/formation` is the
 //! active coordinator's formation for the standbys to resume: transient-local, so a
 //! standby that starts late gets the last one at once.
+//!
+//! Each row is a [`TopicSpec`] made by one function here ([`pose`], [`swarm_report`] …);
+//! the roles open their topics from these, on DDS or on the in-memory carrier of the
+//! unit tests ([`crate::carrier`]).
 //!
 //! Names: a ROS 2 name holds letters, digits and underscores only, so a vehicle id is
 //! written with every other character as `_` ([`ros_name`]): `uav-1` publishes on
@@ -44,6 +48,107 @@ use ros2_client::qos::{Durability, History, WhenFull};
 
 /// Namespace of every topic.
 pub const NAMESPACE: &str = "/skein";
+
+/// Namespace of the swarm protocol's topics.
+pub const SWARM_NAMESPACE: &str = "/skein/swarm";
+
+/// One topic: its ROS 2 namespace and name, and its QoS (a row of the table above).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TopicSpec {
+    /// ROS 2 namespace (`/skein`, `/skein/swarm`, `/skein/uav_1`).
+    pub namespace: String,
+    /// Name within it (`pose`, `report`).
+    pub name: &'static str,
+    /// Its QoS.
+    pub qos: QosProfile,
+}
+
+impl TopicSpec {
+    fn new(namespace: impl Into<String>, name: &'static str, qos: QosProfile) -> Self {
+        TopicSpec {
+            namespace: namespace.into(),
+            name,
+            qos,
+        }
+    }
+}
+
+impl std::fmt::Display for TopicSpec {
+    /// The full ROS 2 name (`/skein/swarm/report`).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.namespace, self.name)
+    }
+}
+
+/// `/skein/<vehicle>/pose`.
+pub fn pose(vehicle_id: &str) -> TopicSpec {
+    TopicSpec::new(vehicle_namespace(vehicle_id), "pose", sensor())
+}
+
+/// `/skein/<vehicle>/navsat`.
+pub fn navsat(vehicle_id: &str) -> TopicSpec {
+    TopicSpec::new(vehicle_namespace(vehicle_id), "navsat", sensor())
+}
+
+/// `/skein/<vehicle>/battery`.
+pub fn battery(vehicle_id: &str) -> TopicSpec {
+    TopicSpec::new(vehicle_namespace(vehicle_id), "battery", sensor())
+}
+
+/// `/skein/<vehicle>/state`.
+pub fn state(vehicle_id: &str) -> TopicSpec {
+    TopicSpec::new(vehicle_namespace(vehicle_id), "state", latest_state())
+}
+
+/// `/skein/<vehicle>/command`.
+pub fn command(vehicle_id: &str) -> TopicSpec {
+    TopicSpec::new(vehicle_namespace(vehicle_id), "command", commands())
+}
+
+/// `/skein/<vehicle>/command_result`.
+pub fn command_result(vehicle_id: &str) -> TopicSpec {
+    TopicSpec::new(vehicle_namespace(vehicle_id), "command_result", commands())
+}
+
+/// `/skein/tracks`.
+pub fn tracks() -> TopicSpec {
+    TopicSpec::new(NAMESPACE, "tracks", latest_state())
+}
+
+/// `/skein/coordinator`: the candidates' leases.
+pub fn coordinator() -> TopicSpec {
+    TopicSpec::new(NAMESPACE, "coordinator", leases())
+}
+
+/// `/skein/swarm/report`: agent → coordinators, reports and snapshots.
+pub fn swarm_report() -> TopicSpec {
+    TopicSpec::new(SWARM_NAMESPACE, "report", protocol_stream())
+}
+
+/// `/skein/swarm/target`: coordinator → agents, slot targets.
+pub fn swarm_target() -> TopicSpec {
+    TopicSpec::new(SWARM_NAMESPACE, "target", protocol_stream())
+}
+
+/// `/skein/swarm/command`: coordinator → agents, every other `ToVehicle`.
+pub fn swarm_command() -> TopicSpec {
+    TopicSpec::new(SWARM_NAMESPACE, "command", protocol_commands())
+}
+
+/// `/skein/swarm/command_result`: agent → coordinators, `FromVehicle`.
+pub fn swarm_command_result() -> TopicSpec {
+    TopicSpec::new(SWARM_NAMESPACE, "command_result", protocol_commands())
+}
+
+/// `/skein/swarm/events`: agent → coordinators, its vehicles' events.
+pub fn swarm_events() -> TopicSpec {
+    TopicSpec::new(SWARM_NAMESPACE, "events", protocol_commands())
+}
+
+/// `/skein/formation`: the active coordinator's formation, for the standbys.
+pub fn formation() -> TopicSpec {
+    TopicSpec::new(NAMESPACE, "formation", formation_mirror())
+}
 
 /// A vehicle id as a ROS 2 name token: letters, digits and `_` kept, anything else
 /// becomes `_`, and a leading digit gets a `v` before it (`"uav-1"` → `"uav_1"`).
@@ -142,6 +247,8 @@ mod tests {
         assert_eq!(ros_name("scout.7"), "scout_7");
         assert_eq!(ros_name("7"), "v7");
         assert_eq!(vehicle_namespace("uav-12"), "/skein/uav_12");
+        assert_eq!(pose("uav-1").to_string(), "/skein/uav_1/pose");
+        assert_eq!(swarm_report().to_string(), "/skein/swarm/report");
         assert_eq!(same_ros_name(["uav-1", "uav-2"], "uav.1"), Some("uav-1"));
         assert_eq!(same_ros_name(["uav-1", "uav-2"], "uav-1"), None);
         assert_eq!(same_ros_name(["uav-1"], "uav-3"), None);

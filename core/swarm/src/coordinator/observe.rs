@@ -9,7 +9,7 @@
 
 use super::CoordinatorState;
 use crate::protocol::ToVehicle;
-use crate::tracking::{TrackStatus, TrackView};
+use crate::tracks::{TrackStatus, TrackView};
 use serde_json::json;
 
 /// Why an observation was refused.

@@ -8,7 +8,7 @@
 use super::CoordinatorState;
 use super::messages::FieldError;
 use crate::formation::{FormationSpec, LeaderMotion};
-use crate::tracking::{TrackStatus, TrackView};
+use crate::tracks::{TrackStatus, TrackView};
 use skein_model::geo::Ned;
 
 /// Smallest and largest stand-off, metres.
@@ -146,7 +146,7 @@ impl CoordinatorState {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tracking::tracker::{NedJson, VelocityJson};
+    use crate::tracks::{NedJson, VelocityJson};
 
     fn track(id: &str, status: TrackStatus, p: (f64, f64, f64)) -> TrackView {
         TrackView {

@@ -26,6 +26,7 @@ pub mod tracker;
 
 use crate::events::SwarmEvent;
 use crate::metrics::Metrics;
+use crate::tracks::{TrackEvent, TrackView, TrackerCounters};
 use crate::vehicle::fleet::Fleet;
 use nalgebra::Vector3;
 use std::collections::HashMap;
@@ -33,7 +34,7 @@ use std::sync::{Arc, PoisonError, RwLock};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use tokio::sync::broadcast;
 use tokio::task::JoinHandle;
-pub use tracker::{TrackEvent, TrackStatus, TrackView, Tracker, TrackerConfig, TrackerCounters};
+pub use tracker::{Tracker, TrackerConfig};
 
 /// Rate of the tracker's steps, Hz.
 pub const TRACKER_HZ: f64 = 10.0;

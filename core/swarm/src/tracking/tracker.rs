@@ -52,7 +52,7 @@ use pathfinding::prelude::{Matrix, kuhn_munkres_min};
 use std::collections::BTreeMap;
 
 pub use super::track::TrackerConfig;
-pub use crate::tracks::{
+pub(super) use crate::tracks::{
     NedJson, TrackEvent, TrackStatus, TrackView, TrackerCounters, VelocityJson,
 };
 

@@ -369,7 +369,7 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
                     ""
                 }
             );
-            let shared = skein_dds::DdsShared::new(
+            let shared = skein_dds::DdsRoles::new(
                 dds,
                 swarm.coordinator.clone(),
                 swarm.metrics.clone(),

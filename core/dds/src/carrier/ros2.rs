@@ -1,0 +1,112 @@
+//! The DDS carrier: a ROS 2 node (`/skein/<node name>`) on a RustDDS participant,
+//! through ros2-client; its writers are `Publisher`s and its readers `Subscription`s.
+//! Dropping it leaves the domain.
+
+use super::{Carrier, CarrierError, NextSample, Reader, Sample, Writer};
+use crate::error::{DdsError, err};
+use crate::topics::{self, TopicSpec};
+use ros2_client::dds::rustdds::{DomainParticipantBuilder, Topic};
+use ros2_client::{Context, Name, Node, NodeName, NodeOptions, Publisher, Subscription};
+use std::collections::BTreeMap;
+use std::net::IpAddr;
+use std::sync::{Arc, Mutex, PoisonError};
+
+/// A ROS 2 node on the DDS domain (see the module docs).
+pub struct Ros2Carrier {
+    // Kept alive for the node's life (dropping it leaves the domain).
+    _context: Context,
+    node: Mutex<Node>,
+    /// Topics made so far, by ROS name: one DDS topic per name, however many readers and
+    /// writers it has.
+    topics: Mutex<BTreeMap<String, Topic>>,
+}
+
+impl Ros2Carrier {
+    /// Joins DDS domain `domain_id` (0–232) as node `/skein/<node_name>`; with
+    /// `networks`, DDS uses only the interfaces of those local addresses (RustDDS
+    /// `with_only_networks`), else every interface.
+    ///
+    /// # Errors
+    /// The participant (sockets), context or node (name) could not be created.
+    pub fn join(domain_id: u16, networks: &[IpAddr], node_name: &str) -> Result<Self, DdsError> {
+        let mut participant = DomainParticipantBuilder::new(domain_id);
+        if !networks.is_empty() {
+            participant = participant.with_only_networks(networks.iter().copied());
+        }
+        let participant = participant.build().map_err(err("DDS participant"))?;
+        let context =
+            Context::from_domain_participant(participant).map_err(err("ROS 2 context"))?;
+        let node = context
+            .new_node(
+                NodeName::new(topics::NAMESPACE, node_name).map_err(err("node name"))?,
+                NodeOptions::new().enable_rosout(false),
+            )
+            .map_err(err("ROS 2 node"))?;
+        Ok(Ros2Carrier {
+            _context: context,
+            node: Mutex::new(node),
+            topics: Mutex::new(BTreeMap::new()),
+        })
+    }
+
+    /// The node, and the DDS topic of `spec` carrying `M` (made the first time).
+    fn topic<M: Sample>(
+        &self,
+        spec: &TopicSpec,
+    ) -> Result<(Topic, std::sync::MutexGuard<'_, Node>), DdsError> {
+        let node = self.node.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut topics = self.topics.lock().unwrap_or_else(PoisonError::into_inner);
+        let key = spec.to_string();
+        if let Some(t) = topics.get(&key) {
+            return Ok((t.clone(), node));
+        }
+        let name = Name::new(&spec.namespace, spec.name).map_err(err(spec.name))?;
+        let t = node
+            .create_topic(&name, M::type_name(), &spec.qos)
+            .map_err(err(spec.name))?;
+        topics.insert(key, t.clone());
+        Ok((t, node))
+    }
+}
+
+impl Carrier for Ros2Carrier {
+    fn writer<M: Sample>(&self, spec: &TopicSpec) -> Result<Arc<dyn Writer<M>>, DdsError> {
+        let (topic, mut node) = self.topic::<M>(spec)?;
+        let p: Publisher<M> = node
+            .create_publisher(&topic, None)
+            .map_err(err("publisher"))?;
+        Ok(Arc::new(p))
+    }
+
+    fn reader<M: Sample>(&self, spec: &TopicSpec) -> Result<Arc<dyn Reader<M>>, DdsError> {
+        let (topic, mut node) = self.topic::<M>(spec)?;
+        let s: Subscription<M> = node
+            .create_subscription(&topic, None)
+            .map_err(err("subscription"))?;
+        Ok(Arc::new(s))
+    }
+}
+
+impl<M: Sample> Writer<M> for Publisher<M> {
+    fn write(&self, sample: M) -> Result<(), CarrierError> {
+        self.publish(sample)
+            .map_err(|e| CarrierError(e.to_string()))
+    }
+}
+
+impl<M: Sample> Reader<M> for Subscription<M> {
+    fn try_take(&self) -> Result<Option<M>, CarrierError> {
+        self.take()
+            .map(|s| s.map(|(m, _)| m))
+            .map_err(|e| CarrierError(format!("{e:?}")))
+    }
+
+    fn take_next(&self) -> NextSample<'_, M> {
+        Box::pin(async move {
+            self.async_take()
+                .await
+                .map(|(m, _)| m)
+                .map_err(|e| CarrierError(format!("{e:?}")))
+        })
+    }
+}

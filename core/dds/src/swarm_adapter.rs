@@ -1,0 +1,201 @@
+//! The one place where the DDS roles meet `skein_swarm`'s coordinator actor: the
+//! [`SwarmAdapter`] implements every role's context ([`ElectionContext`],
+//! [`AgentContext`], [`RemoteContext`], [`MirrorContext`], [`VehiclesContext`]) with
+//! messages to the coordinator (`CoordinatorMsg`, `DistributedMsg`), its swarm context (the
+//! frame), its event bus and its metrics. When the coordinator's messages or its view
+//! change, this file changes; the roles do not.
+
+use crate::agent::AgentContext;
+use crate::counters::DdsCounters;
+use crate::lease::{ElectionContext, RoleChange};
+use crate::mirror::MirrorContext;
+use crate::reframe::{FrameSource, SwarmFrame};
+use crate::remote::{RemoteContext, RemoteJoin};
+use crate::vehicles::VehiclesContext;
+use ractor::ActorRef;
+use ractor::rpc::CallResult;
+use skein_model::geo::{GeoPoint, NedFrame};
+use skein_model::vehicle::VehicleSnapshot;
+use skein_swarm::SwarmContext;
+use skein_swarm::formation::FormationMirror;
+use skein_swarm::metrics::Metrics;
+use skein_swarm::protocol::{FromVehicle, ToVehicle, VehicleReport};
+use skein_swarm::tracks::TrackView;
+use skein_swarm::{CoordinatorMsg, DistributedMsg, RemoteVehicle, SwarmEvent, VehicleCommand};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::{broadcast, mpsc};
+
+/// How long a coordinator query may take before the role's tick is skipped.
+const COORDINATOR_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// How long a command from `/skein/<vehicle>/command` may wait for the coordinator.
+const COMMAND_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// The roles' contexts on this process's coordinator actor (see the module docs).
+pub struct SwarmAdapter {
+    coordinator: ActorRef<CoordinatorMsg>,
+    metrics: Arc<Metrics>,
+    events: broadcast::Sender<SwarmEvent>,
+}
+
+impl SwarmAdapter {
+    /// The contexts on `coordinator`, its `metrics` and its event bus `events`.
+    pub fn new(
+        coordinator: ActorRef<CoordinatorMsg>,
+        metrics: Arc<Metrics>,
+        events: broadcast::Sender<SwarmEvent>,
+    ) -> Self {
+        SwarmAdapter {
+            coordinator,
+            metrics,
+            events,
+        }
+    }
+
+    /// Asks the coordinator; `None` when it does not answer within
+    /// [`COORDINATOR_TIMEOUT`].
+    async fn ask<T: Send + 'static>(
+        &self,
+        msg: impl FnOnce(ractor::RpcReplyPort<T>) -> CoordinatorMsg,
+    ) -> Option<T> {
+        match self.coordinator.call(msg, Some(COORDINATOR_TIMEOUT)).await {
+            Ok(CallResult::Success(v)) => Some(v),
+            _ => None,
+        }
+    }
+
+    fn distributed(&self, msg: DistributedMsg) {
+        let _ = self.coordinator.cast(CoordinatorMsg::Distributed(msg));
+    }
+
+    /// Copies `counters` into `/metrics` (`skein_dds_samples{what=...}`).
+    pub fn export_counters(&self, counters: &DdsCounters) {
+        for (what, n) in counters.values() {
+            self.metrics
+                .dds_samples
+                .get_or_create(&Metrics::label("what", what))
+                .set(n as i64);
+        }
+    }
+}
+
+/// The coordinator's swarm context holds this process's frame.
+impl SwarmFrame for SwarmContext {
+    fn frame(&self) -> Option<NedFrame> {
+        SwarmContext::frame(self)
+    }
+
+    fn anchor(&self, origin: GeoPoint) -> NedFrame {
+        SwarmContext::anchor(self, origin)
+    }
+}
+
+impl FrameSource for SwarmAdapter {
+    async fn swarm_frame(&self) -> Option<Arc<dyn SwarmFrame>> {
+        let view: Arc<SwarmContext> = self
+            .ask(|r| CoordinatorMsg::Distributed(DistributedMsg::GetContext(r)))
+            .await?;
+        Some(view)
+    }
+}
+
+impl ElectionContext for SwarmAdapter {
+    fn role_changed(&self, change: RoleChange) {
+        let _ = self.events.send(SwarmEvent::CoordinatorRoleChanged {
+            coordinator_id: change.coordinator_id,
+            role: change.role,
+            epoch: change.epoch,
+            reason: change.reason,
+        });
+    }
+}
+
+impl AgentContext for SwarmAdapter {
+    async fn reports(&self) -> Option<Vec<(String, VehicleReport)>> {
+        self.ask(|r| CoordinatorMsg::Distributed(DistributedMsg::ListReports(r)))
+            .await
+    }
+
+    async fn snapshots(&self) -> Option<Vec<VehicleSnapshot>> {
+        self.ask(CoordinatorMsg::ListVehicles).await
+    }
+
+    fn to_vehicle(&self, vehicle_id: String, msg: ToVehicle) {
+        self.distributed(DistributedMsg::ToLocalVehicle(vehicle_id, msg));
+    }
+
+    fn neighbour(&self, vehicle_id: String, report: VehicleReport) {
+        self.distributed(DistributedMsg::Neighbour(vehicle_id, report));
+    }
+
+    fn tap_uplink(&self) -> mpsc::UnboundedReceiver<FromVehicle> {
+        let (tap, uplink) = mpsc::unbounded_channel();
+        self.distributed(DistributedMsg::TapUplink(tap));
+        uplink
+    }
+
+    fn vehicle_events(&self) -> broadcast::Receiver<SwarmEvent> {
+        self.events.subscribe()
+    }
+}
+
+impl RemoteContext for SwarmAdapter {
+    fn joined(&self, v: RemoteJoin) {
+        self.distributed(DistributedMsg::AddRemoteVehicle(RemoteVehicle {
+            id: v.id,
+            port: v.port,
+            snapshots: v.snapshots,
+            reports: v.reports,
+            agent: v.agent,
+        }));
+    }
+
+    fn answer(&self, msg: FromVehicle) {
+        let _ = self.coordinator.cast(CoordinatorMsg::FromVehicle(msg));
+    }
+
+    fn event(&self, event: SwarmEvent) {
+        let _ = self.events.send(event);
+    }
+}
+
+impl MirrorContext for SwarmAdapter {
+    async fn formation(&self) -> Option<Option<FormationMirror>> {
+        self.ask(|r| CoordinatorMsg::Distributed(DistributedMsg::GetFormationMirror(r)))
+            .await
+    }
+
+    fn resume(&self, mirror: FormationMirror, from: String) {
+        self.distributed(DistributedMsg::ResumeFormation(mirror, from));
+    }
+}
+
+impl VehiclesContext for SwarmAdapter {
+    async fn vehicles(&self) -> Option<Vec<VehicleSnapshot>> {
+        self.ask(CoordinatorMsg::ListVehicles).await
+    }
+
+    async fn tracks(&self) -> Option<Vec<TrackView>> {
+        self.ask(CoordinatorMsg::GetTracks)
+            .await
+            .map(|(views, _)| views)
+    }
+
+    async fn command(&self, vehicle_id: String, command: VehicleCommand) -> Result<u64, String> {
+        let id = vehicle_id.clone();
+        match self
+            .coordinator
+            .call(
+                move |r| CoordinatorMsg::VehicleCommand(id, command, r),
+                Some(COMMAND_TIMEOUT),
+            )
+            .await
+        {
+            Ok(CallResult::Success(Ok(outcome))) => Ok(outcome.command_id),
+            Ok(CallResult::Success(Err(Some(reason)))) => Err(reason),
+            Ok(CallResult::Success(Err(None))) => Err(format!("no vehicle `{vehicle_id}`")),
+            _ => Err("the coordinator did not answer in 5 s".into()),
+        }
+    }
+}

@@ -1,0 +1,262 @@
+//! The vehicles of this process on their ROS 2 topics, for any ROS 2 node (`skein up
+//! --dds`, and the agents' and coordinators' own vehicles):
+//!
+//! - at the publish rate it asks this process for every vehicle and publishes its pose,
+//!   navsat and state (battery at a tenth of the rate) on `/skein/<vehicle>/*`, opening a
+//!   vehicle's topics the first time it is seen; every other tick it publishes the
+//!   tracks on `/skein/tracks`. A vehicle another process publishes (a coordinator's
+//!   remote vehicle: its agent does) is skipped;
+//! - with `accept_commands`, it takes `skein_msgs/Command`s from each vehicle's
+//!   `command` topic, hands each to this process as the API would
+//!   ([`VehiclesContext::command`]), and answers on `command_result` (a malformed sample
+//!   is counted and dropped; a command the vehicle state forbids is refused with the
+//!   FSM's reason).
+
+use crate::carrier::{Carrier, TopicReader, TopicWriter};
+use crate::convert;
+use crate::counters::DdsCounters;
+use crate::error::DdsError;
+use crate::msgs::{self, CommandResult};
+use crate::topics;
+use ros2_client::builtin_interfaces::Time;
+use skein_model::vehicle::VehicleSnapshot;
+use skein_swarm::VehicleCommand;
+use skein_swarm::tracks::TrackView;
+use std::collections::{BTreeMap, BTreeSet};
+use std::future::Future;
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
+use tokio::task::JoinSet;
+
+/// What the vehicles' topics need from this process.
+pub trait VehiclesContext: Send + Sync + 'static {
+    /// Every vehicle, sorted by id (`None`: no answer).
+    fn vehicles(&self) -> impl Future<Output = Option<Vec<VehicleSnapshot>>> + Send;
+
+    /// The counter-UAS tracks (`None`: no answer).
+    fn tracks(&self) -> impl Future<Output = Option<Vec<TrackView>>> + Send;
+
+    /// Hands `command` to vehicle `vehicle_id` as `POST /api/v1/vehicles/{id}/commands`
+    /// would: its command id when accepted, else why not (the FSM's reason, no such
+    /// vehicle, no answer).
+    fn command(
+        &self,
+        vehicle_id: String,
+        command: VehicleCommand,
+    ) -> impl Future<Output = Result<u64, String>> + Send;
+}
+
+/// A vehicle's command reader and result writer.
+type CommandTopics = (
+    Arc<TopicReader<msgs::Command>>,
+    Arc<TopicWriter<CommandResult>>,
+);
+
+/// One vehicle's writers and, with commands on, its command reader.
+struct VehicleTopics {
+    pose: TopicWriter<msgs::PoseStamped>,
+    navsat: TopicWriter<msgs::NavSatFix>,
+    battery: TopicWriter<msgs::BatteryState>,
+    state: TopicWriter<msgs::VehicleState>,
+    command: Option<CommandTopics>,
+}
+
+/// The vehicles' topics, opened as vehicles appear, and `/skein/tracks`.
+pub struct Vehicles<C> {
+    carrier: Arc<C>,
+    counters: Arc<DdsCounters>,
+    publish_rate_hz: f64,
+    accept_commands: bool,
+    /// True for a vehicle another process publishes.
+    elsewhere: Box<dyn Fn(&str) -> bool + Send + Sync>,
+    tracks: TopicWriter<msgs::Tracks>,
+    vehicles: Mutex<BTreeMap<String, Arc<VehicleTopics>>>,
+}
+
+impl<C: Carrier> Vehicles<C> {
+    /// Opens `/skein/tracks` on `carrier` (the vehicles' topics come as vehicles do),
+    /// counting in `counters`; publishes `publish_rate_hz` times a second (0.1–100);
+    /// with `accept_commands`, reads the vehicles' commands; skips the vehicles for which
+    /// `elsewhere` is true.
+    ///
+    /// # Errors
+    /// The tracks topic or writer could not be created.
+    pub fn open(
+        carrier: Arc<C>,
+        counters: &Arc<DdsCounters>,
+        publish_rate_hz: f64,
+        accept_commands: bool,
+        elsewhere: Box<dyn Fn(&str) -> bool + Send + Sync>,
+    ) -> Result<Self, DdsError> {
+        Ok(Vehicles {
+            tracks: TopicWriter::open(carrier.as_ref(), &topics::tracks(), counters)?,
+            carrier,
+            counters: counters.clone(),
+            publish_rate_hz,
+            accept_commands,
+            elsewhere,
+            vehicles: Mutex::new(BTreeMap::new()),
+        })
+    }
+
+    /// The topics of vehicle `id`, opened on first use.
+    ///
+    /// # Errors
+    /// A topic could not be created, or another vehicle already publishes under the
+    /// same ROS name (`uav-1` and `uav.1` are both `uav_1`): the second is not published,
+    /// and the error names both.
+    fn topics(&self, id: &str) -> Result<Arc<VehicleTopics>, DdsError> {
+        let mut map = self.vehicles.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(t) = map.get(id) {
+            return Ok(t.clone());
+        }
+        if let Some(other) = topics::same_ros_name(map.keys().map(String::as_str), id) {
+            return Err(DdsError(format!(
+                "vehicle `{id}` is not published: `{other}` already publishes under the ROS \
+                 name `{}` (rename one of them)",
+                topics::ros_name(id)
+            )));
+        }
+        let (carrier, counters) = (self.carrier.as_ref(), &self.counters);
+        let command = if self.accept_commands {
+            let sub = TopicReader::open(
+                carrier,
+                &topics::command(id),
+                counters,
+                format!("command sample for {id}"),
+            )?;
+            let result = TopicWriter::open(carrier, &topics::command_result(id), counters)?;
+            Some((Arc::new(sub), Arc::new(result)))
+        } else {
+            None
+        };
+        let t = Arc::new(VehicleTopics {
+            pose: TopicWriter::open(carrier, &topics::pose(id), counters)?,
+            navsat: TopicWriter::open(carrier, &topics::navsat(id), counters)?,
+            battery: TopicWriter::open(carrier, &topics::battery(id), counters)?,
+            state: TopicWriter::open(carrier, &topics::state(id), counters)?,
+            command,
+        });
+        map.insert(id.to_string(), t.clone());
+        Ok(t)
+    }
+}
+
+/// Publishes one vehicle's topics (battery when `battery`).
+fn publish_vehicle(t: &VehicleTopics, v: &VehicleSnapshot, battery: bool) {
+    let now = Time::now();
+    if let Some(m) = convert::pose(v, now) {
+        let _ = t.pose.publish(m);
+    }
+    if let Some(m) = convert::navsat(v, now) {
+        let _ = t.navsat.publish(m);
+    }
+    if battery && let Some(m) = convert::battery(v, now) {
+        let _ = t.battery.publish(m);
+    }
+    let _ = t.state.publish(convert::state(v, now));
+}
+
+/// Publishes at the rate and serves commands until the task is aborted (see the module
+/// docs); the command tasks are in a local `JoinSet`, so aborting this task aborts them
+/// too.
+pub async fn run<C: Carrier, X: VehiclesContext>(vehicles: Arc<Vehicles<C>>, ctx: Arc<X>) {
+    let mut commands = JoinSet::new();
+    let period = Duration::from_secs_f64(1.0 / vehicles.publish_rate_hz.clamp(0.1, 100.0));
+    let mut tick = tokio::time::interval(period);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut n: u64 = 0;
+    let mut serving: BTreeSet<String> = BTreeSet::new();
+    // Vehicles whose topics could not be made: logged once each.
+    let mut refused: BTreeSet<String> = BTreeSet::new();
+    loop {
+        tick.tick().await;
+        n += 1;
+        let Some(list) = ctx.vehicles().await else {
+            continue;
+        };
+        for v in list.iter().filter(|v| !(vehicles.elsewhere)(&v.id)) {
+            let topics = match vehicles.topics(&v.id) {
+                Ok(t) => t,
+                Err(e) => {
+                    if refused.insert(v.id.clone()) {
+                        tracing::error!("dds: no topics for {}: {e}", v.id);
+                    }
+                    continue;
+                }
+            };
+            if let Some((sub, results)) = &topics.command
+                && serving.insert(v.id.clone())
+            {
+                commands.spawn(serve_commands(
+                    ctx.clone(),
+                    vehicles.counters.clone(),
+                    v.id.clone(),
+                    sub.clone(),
+                    results.clone(),
+                ));
+            }
+            publish_vehicle(&topics, v, n % 10 == 1);
+        }
+        if n.is_multiple_of(2)
+            && let Some(views) = ctx.tracks().await
+        {
+            let _ = vehicles
+                .tracks
+                .publish(convert::tracks(&views, Time::now()));
+        }
+    }
+}
+
+/// Takes a vehicle's commands until the task is aborted.
+async fn serve_commands<X: VehiclesContext>(
+    ctx: Arc<X>,
+    counters: Arc<DdsCounters>,
+    id: String,
+    sub: Arc<TopicReader<msgs::Command>>,
+    results: Arc<TopicWriter<CommandResult>>,
+) {
+    loop {
+        let cmd = sub.next().await;
+        DdsCounters::add(&counters.commands);
+        let result = obey(ctx.as_ref(), &counters, &id, &cmd).await;
+        let _ = results.publish(result);
+    }
+}
+
+/// Hands one command to this process; the answer for `command_result`.
+async fn obey(
+    ctx: &impl VehiclesContext,
+    counters: &DdsCounters,
+    id: &str,
+    cmd: &msgs::Command,
+) -> CommandResult {
+    let refused = |reason: String| CommandResult {
+        request_id: cmd.request_id,
+        command_id: 0,
+        accepted: false,
+        reason,
+    };
+    let command = match convert::command(cmd) {
+        Ok(c) => c,
+        Err(e) => {
+            DdsCounters::add(&counters.malformed);
+            return refused(e.to_string());
+        }
+    };
+    tracing::info!(
+        "dds: {} from `{}` for {id} (request {})",
+        command.name(),
+        cmd.source,
+        cmd.request_id
+    );
+    match ctx.command(id.to_string(), command).await {
+        Ok(command_id) => CommandResult {
+            request_id: cmd.request_id,
+            command_id,
+            accepted: true,
+            reason: String::new(),
+        },
+        Err(reason) => refused(reason),
+    }
+}
