@@ -76,7 +76,7 @@ pub(crate) async fn vehicle_command(
                 .map_err(|e| refused(&id, e))?;
             Ok(Json(Cleared { cleared: id }).into_response())
         }
-        Command::Vehicle(cmd) => {
+        cmd => {
             let outcome = s
                 .ask(move |r| CoordinatorMsg::VehicleCommand(id2, cmd, r))
                 .await?

@@ -8,7 +8,7 @@ use skein_link::{Identity, LinkSetup, TelemetryProfile};
 use skein_model::fsm::VehicleState;
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::{
-    CoordinatorMsg, EndpointSpec, Swarm, SwarmConfig, SwarmServices, VehicleCommand, VehicleSpec,
+    Command, CoordinatorMsg, EndpointSpec, Swarm, SwarmConfig, SwarmServices, VehicleSpec,
 };
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::time::{Duration, Instant};
@@ -110,7 +110,7 @@ pub(crate) async fn list_vehicles(swarm: &Swarm) -> Result<Vec<VehicleSnapshot>,
 /// refused it.
 pub(crate) async fn command(
     swarm: &Swarm,
-    cmd: &VehicleCommand,
+    cmd: &Command,
     only: Option<&[String]>,
 ) -> Result<Vec<String>, String> {
     let Some(ids) = only else {
@@ -157,9 +157,9 @@ pub(crate) async fn take_off_all(
     deadline: Instant,
 ) -> Result<usize, String> {
     let n = args.vehicles;
-    let takeoff = VehicleCommand::Takeoff {
+    let takeoff = Command::Takeoff(skein_model::command::Takeoff {
         altitude_m: Some(args.altitude_m),
-    };
+    });
     let ready = |v: &VehicleSnapshot| {
         v.state == VehicleState::Landed && v.position.is_some() && v.link.connected
     };

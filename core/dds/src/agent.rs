@@ -34,7 +34,7 @@ use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::SwarmEvent;
 use skein_swarm::election::ElectionConfig;
 use skein_swarm::election::observer::Observer;
-use skein_swarm::protocol::{FromVehicle, ToVehicle, VehicleCommand, VehicleReport};
+use skein_swarm::protocol::{Command, FromVehicle, ToVehicle, VehicleReport};
 use std::collections::BTreeSet;
 use std::future::Future;
 use std::str::FromStr;
@@ -297,7 +297,7 @@ impl Loss {
             *self = Loss::default();
             return;
         }
-        let send = |id: &str, command: VehicleCommand| {
+        let send = |id: &str, command: Command| {
             ctx.to_vehicle(
                 id.to_string(),
                 ToVehicle::Command {
@@ -324,15 +324,15 @@ impl Loss {
                 }
             );
             for id in steered {
-                send(id, VehicleCommand::Hold);
+                send(id, Command::Hold);
             }
         }
         if !self.acted && lost >= cfg.coordinator_timeout + cfg.lost_action_after {
             self.acted = true;
             let command = match cfg.lost_action {
                 LostAction::Hold => return,
-                LostAction::Land => VehicleCommand::Land,
-                LostAction::Rtl => VehicleCommand::Rtl,
+                LostAction::Land => Command::Land,
+                LostAction::Rtl => Command::Rtl,
             };
             for (id, r) in reports.iter().filter(|(_, r)| {
                 matches!(

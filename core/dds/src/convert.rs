@@ -9,9 +9,10 @@ use crate::msgs::{
     Track, Tracks, Vector3, VehicleState,
 };
 use ros2_client::builtin_interfaces::Time;
+use serde_json::{Map, json};
+use skein_model::command::Command as OperatorCommand;
 use skein_model::geo::Ned;
 use skein_model::vehicle::VehicleSnapshot;
-use skein_swarm::VehicleCommand;
 use skein_swarm::tracks::TrackView;
 use std::f64::consts::FRAC_PI_2;
 
@@ -152,10 +153,11 @@ pub fn tracks(views: &[TrackView], stamp: Time) -> Tracks {
     }
 }
 
-/// Why a `skein_msgs/Command` is not a skein command: the field at fault and the reason.
+/// Why a `skein_msgs/Command` is not a skein command: the message field at fault and the
+/// reason.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CommandError {
-    /// The message field (`"command"`, `"altitude_m"`, `"target"`).
+    /// The message field (`"command"`, `"altitude_m"`, `"force"`, `"target"`).
     pub field: &'static str,
     /// Why.
     pub reason: String,
@@ -167,34 +169,36 @@ impl std::fmt::Display for CommandError {
     }
 }
 
-/// The skein command a `skein_msgs/Command` asks for.
+/// The skein command a `skein_msgs/Command` asks for: its fields laid out as the
+/// command's JSON object (`disarm` with `force` is `force_disarm`; a NaN `altitude_m` is
+/// the default; `target` is ENU, the command's point NED) and read by
+/// [`OperatorCommand::from_object`], so a ROS node and the API get the same commands
+/// with the same checks.
 ///
 /// # Errors
-/// An unknown `command`, a takeoff `altitude_m` that is not NaN and not in (0, 1000] m, a
-/// goto `target` with a non-finite coordinate.
-pub fn command(c: &Command) -> Result<VehicleCommand, CommandError> {
-    Ok(match c.command.as_str() {
-        "arm" => VehicleCommand::Arm,
-        "disarm" => VehicleCommand::Disarm { force: c.force },
-        "takeoff" => VehicleCommand::Takeoff {
-            altitude_m: if c.altitude_m.is_nan() {
-                None
-            } else if c.altitude_m > 0.0 && c.altitude_m <= 1000.0 {
-                Some(c.altitude_m)
-            } else {
+/// An unknown `command`, a takeoff `altitude_m` that is neither NaN nor a finite height
+/// above home, a goto `target` with a non-finite coordinate; named by the message's own
+/// field.
+pub fn command(c: &Command) -> Result<OperatorCommand, CommandError> {
+    let name = match (c.command.as_str(), c.force) {
+        ("disarm", true) => "force_disarm",
+        (name, _) => name,
+    };
+    let mut m = Map::new();
+    m.insert("command".into(), json!(name));
+    match name {
+        "force_disarm" => {
+            m.insert("confirm".into(), json!(true));
+        }
+        "takeoff" if !c.altitude_m.is_nan() => {
+            if !c.altitude_m.is_finite() {
                 return Err(CommandError {
                     field: "altitude_m",
-                    reason: format!(
-                        "{} m is not a takeoff altitude (0 < altitude_m <= 1000, or NaN for \
-                         the default)",
-                        c.altitude_m
-                    ),
+                    reason: format!("{} is not a height (NaN for the default)", c.altitude_m),
                 });
-            },
-        },
-        "land" => VehicleCommand::Land,
-        "rtl" => VehicleCommand::Rtl,
-        "hold" => VehicleCommand::Hold,
+            }
+            m.insert("altitude_m".into(), json!(c.altitude_m));
+        }
         "goto" => {
             let t = c.target;
             if !(t.x.is_finite() && t.y.is_finite() && t.z.is_finite()) {
@@ -203,25 +207,28 @@ pub fn command(c: &Command) -> Result<VehicleCommand, CommandError> {
                     reason: "every coordinate must be a finite number of metres".into(),
                 });
             }
-            VehicleCommand::GoTo { target: ned_of(&t) }
+            let p = ned_of(&t);
+            m.insert("north_m".into(), json!(p.north_m));
+            m.insert("east_m".into(), json!(p.east_m));
+            m.insert("down_m".into(), json!(p.down_m));
         }
-        "join_formation" => VehicleCommand::JoinFormation,
-        "leave_formation" => VehicleCommand::LeaveFormation,
-        other => {
-            return Err(CommandError {
-                field: "command",
-                reason: format!(
-                    "unknown command `{other}` (arm, disarm, takeoff, land, rtl, hold, goto, \
-                     join_formation, leave_formation)"
-                ),
-            });
-        }
+        _ => {}
+    }
+    OperatorCommand::from_object(m).map_err(|e| CommandError {
+        field: match e.field.as_str() {
+            "altitude_m" => "altitude_m",
+            "confirm" => "force",
+            "north_m" | "east_m" | "down_m" => "target",
+            _ => "command",
+        },
+        reason: e.error,
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use skein_model::command::{ForceDisarm, Takeoff};
 
     fn cmd(name: &str) -> Command {
         Command {
@@ -255,7 +262,7 @@ mod tests {
     fn commands_parse_and_bad_fields_are_named() {
         assert_eq!(
             command(&cmd("takeoff")).unwrap(),
-            VehicleCommand::Takeoff { altitude_m: None }
+            OperatorCommand::Takeoff(Takeoff { altitude_m: None })
         );
         let mut c = cmd("takeoff");
         c.altitude_m = -3.0;
@@ -268,14 +275,22 @@ mod tests {
         };
         assert_eq!(
             command(&c).unwrap(),
-            VehicleCommand::GoTo {
-                target: Ned::new(20.0, 5.0, -10.0)
-            }
+            OperatorCommand::GoTo(Ned::new(20.0, 5.0, -10.0).into())
         );
         c.target.z = f64::INFINITY;
         assert_eq!(command(&c).unwrap_err().field, "target");
         let e = command(&cmd("explode")).unwrap_err();
         assert_eq!(e.field, "command");
         assert!(e.reason.contains("explode"), "{e}");
+        let mut c = cmd("disarm");
+        assert_eq!(command(&c).unwrap(), OperatorCommand::Disarm);
+        c.force = true;
+        assert_eq!(
+            command(&c).unwrap(),
+            OperatorCommand::ForceDisarm(ForceDisarm { confirm: true })
+        );
+        let mut c = cmd("takeoff");
+        c.altitude_m = f64::INFINITY;
+        assert_eq!(command(&c).unwrap_err().field, "altitude_m");
     }
 }

@@ -128,9 +128,9 @@ impl Reframe {
                 target.goal = self.point(target.goal);
             }
             ToVehicle::Command {
-                command: skein_swarm::VehicleCommand::GoTo { target },
+                command: skein_swarm::Command::GoTo(goto),
                 ..
-            } => *target = self.point(*target),
+            } => *goto = self.point(goto.target()).into(),
             _ => {}
         }
         msg

@@ -21,7 +21,7 @@ use skein_swarm::formation::FormationMirror;
 use skein_swarm::metrics::Metrics;
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehicleReport};
 use skein_swarm::tracks::TrackView;
-use skein_swarm::{CoordinatorMsg, DistributedMsg, RemoteVehicle, SwarmEvent, VehicleCommand};
+use skein_swarm::{Command, CoordinatorMsg, DistributedMsg, RemoteVehicle, SwarmEvent};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{broadcast, mpsc};
@@ -182,7 +182,7 @@ impl VehiclesContext for SwarmAdapter {
             .map(|(views, _)| views)
     }
 
-    async fn command(&self, vehicle_id: String, command: VehicleCommand) -> Result<u64, String> {
+    async fn command(&self, vehicle_id: String, command: Command) -> Result<u64, String> {
         let id = vehicle_id.clone();
         match self
             .coordinator

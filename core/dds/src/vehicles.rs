@@ -20,7 +20,7 @@ use crate::msgs::{self, CommandResult};
 use crate::topics;
 use ros2_client::builtin_interfaces::Time;
 use skein_model::vehicle::VehicleSnapshot;
-use skein_swarm::VehicleCommand;
+use skein_swarm::Command as OperatorCommand;
 use skein_swarm::tracks::TrackView;
 use std::collections::{BTreeMap, BTreeSet};
 use std::future::Future;
@@ -42,7 +42,7 @@ pub trait VehiclesContext: Send + Sync + 'static {
     fn command(
         &self,
         vehicle_id: String,
-        command: VehicleCommand,
+        command: OperatorCommand,
     ) -> impl Future<Output = Result<u64, String>> + Send;
 }
 

@@ -16,6 +16,7 @@
 //!   reports its own failure ([`Event::ProcedureFailed`]).
 //! - [`VehicleState::Failsafe`] means "airborne and not under skein's control".
 
+pub use crate::command::CommandKind;
 use crate::px4::{LandedState, Px4Mode};
 use serde::{Deserialize, Serialize};
 
@@ -114,65 +115,6 @@ impl std::fmt::Display for VehicleState {
     }
 }
 
-/// An operator command, as far as the FSM needs to know it (targets and altitudes are
-/// carried by the caller).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum Command {
-    /// Arm the motors (`MAV_CMD_COMPONENT_ARM_DISARM`, param1 = 1).
-    Arm,
-    /// Disarm; `force` uses PX4's magic value and is allowed in the air (kills the motors).
-    Disarm {
-        /// Emergency disarm, allowed in any connected state.
-        force: bool,
-    },
-    /// Arm if needed, enter offboard and climb to an altitude.
-    Takeoff,
-    /// Land where the vehicle is (PX4 LAND mode).
-    Land,
-    /// Return to launch (PX4 RTL mode).
-    Rtl,
-    /// Hold the current position under offboard control.
-    Hold,
-    /// Fly to a point under offboard control.
-    GoTo,
-    /// Track a formation slot.
-    JoinFormation,
-    /// Stop tracking the formation slot and hold.
-    LeaveFormation,
-}
-
-impl Command {
-    /// Every command (with both disarm variants), for exhaustive tests.
-    pub const ALL: [Command; 10] = [
-        Command::Arm,
-        Command::Disarm { force: false },
-        Command::Disarm { force: true },
-        Command::Takeoff,
-        Command::Land,
-        Command::Rtl,
-        Command::Hold,
-        Command::GoTo,
-        Command::JoinFormation,
-        Command::LeaveFormation,
-    ];
-
-    /// The command's name as the API spells it (`"takeoff"`, `"force_disarm"` …).
-    pub fn name(self) -> &'static str {
-        match self {
-            Command::Arm => "arm",
-            Command::Disarm { force: false } => "disarm",
-            Command::Disarm { force: true } => "force_disarm",
-            Command::Takeoff => "takeoff",
-            Command::Land => "land",
-            Command::Rtl => "rtl",
-            Command::Hold => "hold",
-            Command::GoTo => "goto",
-            Command::JoinFormation => "join_formation",
-            Command::LeaveFormation => "leave_formation",
-        }
-    }
-}
-
 /// What telemetry says about the vehicle: armed flag and mode from `HEARTBEAT`, landed
 /// state from `EXTENDED_SYS_STATE`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -198,8 +140,8 @@ impl Observed {
 /// An input to the FSM.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Event {
-    /// An operator command: may be refused.
-    Command(Command),
+    /// An operator command ([`crate::command::Command`]'s kind): may be refused.
+    Command(CommandKind),
     /// Fresh telemetry.
     Observed(Observed),
     /// First heartbeat of a vehicle never heard from before.
@@ -220,7 +162,7 @@ pub enum Event {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Refusal {
     /// The command that was refused.
-    pub command: Command,
+    pub command: CommandKind,
     /// The state that refused it.
     pub state: VehicleState,
     /// Human-readable reason, naming the state.
@@ -345,8 +287,8 @@ fn on_observed(state: VehicleState, obs: Observed) -> VehicleState {
     }
 }
 
-fn on_command(state: VehicleState, cmd: Command) -> Result<VehicleState, Refusal> {
-    use Command as C;
+fn on_command(state: VehicleState, cmd: CommandKind) -> Result<VehicleState, Refusal> {
+    use CommandKind as C;
     use VehicleState as S;
     let refuse = |why: &str| {
         Err(Refusal {
@@ -355,6 +297,9 @@ fn on_command(state: VehicleState, cmd: Command) -> Result<VehicleState, Refusal
             reason: format!("{} refused: vehicle is {state} ({why})", cmd.name()),
         })
     };
+    if cmd == C::ClearHazard {
+        return refuse("clear_hazard is the coordinator's: it changes the formation's hazards");
+    }
     if !state.is_connected() {
         return refuse("no link to the vehicle");
     }
@@ -364,8 +309,8 @@ fn on_command(state: VehicleState, cmd: Command) -> Result<VehicleState, Refusal
             S::Armed => refuse("already armed"),
             _ => refuse("already airborne"),
         },
-        C::Disarm { force: true } => Ok(state),
-        C::Disarm { force: false } => match state {
+        C::ForceDisarm => Ok(state),
+        C::Disarm => match state {
             S::Armed => Ok(S::Armed),
             S::Landed => refuse("already disarmed"),
             _ => refuse("airborne: land first, or force_disarm in an emergency"),
@@ -419,6 +364,7 @@ fn on_command(state: VehicleState, cmd: Command) -> Result<VehicleState, Refusal
             S::InFormation => Ok(S::Hovering),
             _ => refuse("not in formation"),
         },
+        C::ClearHazard => unreachable!("refused above"),
     }
 }
 
@@ -426,6 +372,7 @@ fn on_command(state: VehicleState, cmd: Command) -> Result<VehicleState, Refusal
 mod tests {
     use super::*;
     use VehicleState as S;
+    use strum::IntoEnumIterator;
 
     fn obs(armed: bool, mode: Px4Mode, landed: LandedState) -> Observed {
         Observed {
@@ -457,7 +404,7 @@ mod tests {
     }
 
     fn all_events() -> Vec<Event> {
-        let mut v: Vec<Event> = Command::ALL.into_iter().map(Event::Command).collect();
+        let mut v: Vec<Event> = CommandKind::iter().map(Event::Command).collect();
         v.extend([Event::LinkLost, Event::TakeoffComplete, Event::GoToReached]);
         for o in all_observations() {
             v.extend([
@@ -472,8 +419,8 @@ mod tests {
 
     /// The expected command table, written out independently of `on_command`:
     /// `Some(next)` = accepted, `None` = refused.
-    fn expected_command(state: S, cmd: Command) -> Option<S> {
-        use Command as C;
+    fn expected_command(state: S, cmd: CommandKind) -> Option<S> {
+        use CommandKind as C;
         let airborne_cmds_from = [
             S::TakingOff,
             S::Hovering,
@@ -489,9 +436,9 @@ mod tests {
         match (cmd, state) {
             (C::Arm, S::Landed) => Some(S::Landed),
             (C::Arm, _) => None,
-            (C::Disarm { force: true }, s) => Some(s),
-            (C::Disarm { force: false }, S::Armed) => Some(S::Armed),
-            (C::Disarm { force: false }, _) => None,
+            (C::ForceDisarm, s) => Some(s),
+            (C::Disarm, S::Armed) => Some(S::Armed),
+            (C::Disarm, _) => None,
             (C::Takeoff, S::Landed | S::Armed) => Some(S::TakingOff),
             (C::Takeoff, _) => None,
             (C::Land, S::Landing) => None,
@@ -508,13 +455,15 @@ mod tests {
             (C::JoinFormation, _) => None,
             (C::LeaveFormation, S::InFormation) => Some(S::Hovering),
             (C::LeaveFormation, _) => None,
+            // The coordinator's, never the vehicle's.
+            (C::ClearHazard, _) => None,
         }
     }
 
     #[test]
     fn every_state_times_every_command_matches_the_table() {
         for state in S::ALL {
-            for cmd in Command::ALL {
+            for cmd in CommandKind::iter() {
                 let got = transition(state, Event::Command(cmd));
                 match (expected_command(state, cmd), got) {
                     (Some(next), Ok(s)) => assert_eq!(s, next, "{state} + {cmd:?}"),
@@ -537,7 +486,7 @@ mod tests {
     #[test]
     fn every_state_times_every_event_is_defined_and_only_commands_refuse() {
         let events = all_events();
-        assert_eq!(events.len(), 10 + 3 + 4 * 2 * 15 * 5);
+        assert_eq!(events.len(), 11 + 3 + 4 * 2 * 15 * 5);
         for state in S::ALL {
             for &ev in &events {
                 let r = transition(state, ev);
@@ -597,7 +546,7 @@ mod tests {
         let step = |s: &mut S, e: Event| *s = transition(*s, e).unwrap();
         step(&mut s, Event::Connected(ground));
         assert_eq!(s, S::Landed);
-        step(&mut s, Event::Command(Command::Takeoff));
+        step(&mut s, Event::Command(CommandKind::Takeoff));
         assert_eq!(s, S::TakingOff);
         // Still disarmed on the ground while the procedure arms: no bounce to Landed.
         step(&mut s, Event::Observed(ground));
@@ -608,9 +557,9 @@ mod tests {
         );
         step(&mut s, Event::TakeoffComplete);
         assert_eq!(s, S::Hovering);
-        step(&mut s, Event::Command(Command::JoinFormation));
+        step(&mut s, Event::Command(CommandKind::JoinFormation));
         assert_eq!(s, S::InFormation);
-        step(&mut s, Event::Command(Command::Land));
+        step(&mut s, Event::Command(CommandKind::Land));
         assert_eq!(s, S::Landing);
         step(
             &mut s,

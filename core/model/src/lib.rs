@@ -4,6 +4,8 @@
 //!   each vehicle's own local NED frame), converted through global positions with `map_3d`.
 //! - [`px4`]: PX4 flight modes as carried in `HEARTBEAT.custom_mode`, landed states and
 //!   `SET_POSITION_TARGET_LOCAL_NED` type masks.
+//! - [`command`]: the operator's commands, one type for the API, the swarm protocol, DDS
+//!   and (as [`command::CommandKind`]) the FSM.
 //! - [`fsm`]: the vehicle state machine (GenericUAVModel) as a plain transition function.
 //! - [`formation`]: formation shapes, slot offsets and optimal slot assignment.
 //! - [`geofence`]: the cylinder (and optional polygon) every setpoint is clamped into.
@@ -16,6 +18,7 @@
 //! unit- and property-tested directly.
 #![warn(missing_docs)]
 
+pub mod command;
 pub mod formation;
 pub mod fsm;
 pub mod geo;

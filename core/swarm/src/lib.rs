@@ -55,6 +55,6 @@ pub use coordinator::{
 };
 pub use events::SwarmEvent;
 pub use formation::{FormationSpec, FormationStatus};
-pub use protocol::VehicleCommand;
+pub use protocol::{Command, CommandKind};
 pub use services::{SimulatorControl, SwarmServices};
 pub use vehicle::VehicleMsg;

@@ -13,7 +13,8 @@
 //! negative age counts as zero, and the extrapolation is capped).
 
 use serde::{Deserialize, Serialize};
-use skein_model::fsm::{Command, VehicleState};
+pub use skein_model::command::{Command, CommandKind};
+use skein_model::fsm::VehicleState;
 use skein_model::geo::Ned;
 use std::sync::Arc;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -36,64 +37,6 @@ pub const REPORT_EXTRAPOLATION: Duration = Duration::from_millis(200);
 /// Age of a wall-clock stamp ([`wall_us`]) now; zero for a stamp from the future.
 pub fn age_of(stamp_us: u64) -> Duration {
     Duration::from_micros(wall_us().saturating_sub(stamp_us))
-}
-
-/// An operator command with its parameters (`POST /api/v1/vehicles/{id}/commands`).
-/// Serialised with a `"command"` tag in snake case (`{"command": "takeoff",
-/// "altitude_m": 10.0}`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "command", rename_all = "snake_case")]
-pub enum VehicleCommand {
-    /// Arm on the ground.
-    Arm,
-    /// Disarm (forced: in any state, stops the motors).
-    Disarm {
-        /// Emergency disarm (MAV_CMD_COMPONENT_ARM_DISARM param2 21196).
-        force: bool,
-    },
-    /// Arm if needed, enter offboard, climb to `altitude_m` above home.
-    Takeoff {
-        /// Altitude above home, metres; `None` = the configured default.
-        altitude_m: Option<f64>,
-    },
-    /// Land where it is (MAV_CMD_NAV_LAND).
-    Land,
-    /// Return to launch (PX4 AUTO.RTL).
-    Rtl,
-    /// Hold the current position under offboard control.
-    Hold,
-    /// Fly to a swarm-frame point under offboard control.
-    #[serde(rename = "goto")]
-    GoTo {
-        /// Target, swarm-frame NED metres.
-        target: Ned,
-    },
-    /// Track the formation slot the coordinator gives.
-    JoinFormation,
-    /// Stop tracking the slot and hold.
-    LeaveFormation,
-}
-
-impl VehicleCommand {
-    /// The FSM's view of the command.
-    pub fn fsm(&self) -> Command {
-        match self {
-            VehicleCommand::Arm => Command::Arm,
-            VehicleCommand::Disarm { force } => Command::Disarm { force: *force },
-            VehicleCommand::Takeoff { .. } => Command::Takeoff,
-            VehicleCommand::Land => Command::Land,
-            VehicleCommand::Rtl => Command::Rtl,
-            VehicleCommand::Hold => Command::Hold,
-            VehicleCommand::GoTo { .. } => Command::GoTo,
-            VehicleCommand::JoinFormation => Command::JoinFormation,
-            VehicleCommand::LeaveFormation => Command::LeaveFormation,
-        }
-    }
-
-    /// The API name (`"takeoff"`).
-    pub fn name(&self) -> &'static str {
-        self.fsm().name()
-    }
 }
 
 /// A formation slot target from the coordinator (swarm frame).
@@ -128,7 +71,7 @@ pub enum ToVehicle {
         /// Command id (the API's 202 answer carries it).
         command_id: u64,
         /// The command.
-        command: VehicleCommand,
+        command: Command,
     },
     /// A new formation slot target, or `None` to drop the slot.
     Slot {
@@ -304,19 +247,17 @@ mod tests {
 
     #[test]
     fn commands_round_trip_as_the_api_spells_them() {
-        let goto = VehicleCommand::GoTo {
-            target: Ned::new(1.0, 2.0, -3.0),
-        };
+        let goto = Command::GoTo(Ned::new(1.0, 2.0, -3.0).into());
         let json = serde_json::to_value(&goto).unwrap();
         assert_eq!(json["command"], "goto");
-        assert_eq!(json["target"]["east_m"], 2.0);
-        let back: VehicleCommand = serde_json::from_value(json).unwrap();
+        assert_eq!(json["east_m"], 2.0);
+        let back: Command = serde_json::from_value(json).unwrap();
         assert_eq!(back, goto);
         let msg = ToVehicle::Command {
             command_id: 7,
-            command: VehicleCommand::Takeoff {
+            command: Command::Takeoff(skein_model::command::Takeoff {
                 altitude_m: Some(10.0),
-            },
+            }),
         };
         let text = serde_json::to_string(&msg).unwrap();
         assert!(text.contains("\"type\":\"command\""), "{text}");

@@ -25,7 +25,7 @@ pub mod recording;
 pub mod schema_bounds;
 pub mod tracks;
 
-pub use commands::{Command, CommandRequest};
+pub use commands::Command;
 
 use crate::error::ApiError;
 use serde::de::DeserializeOwned;

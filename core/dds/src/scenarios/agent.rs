@@ -9,7 +9,7 @@ use crate::msgs::SwarmMessage;
 use crate::topics;
 use skein_model::fsm::VehicleState;
 use skein_model::geo::Ned;
-use skein_swarm::protocol::{SlotTarget, ToVehicle, VehicleCommand};
+use skein_swarm::protocol::{Command, SlotTarget, ToVehicle};
 use std::collections::BTreeSet;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -32,7 +32,7 @@ fn slot(north_m: f64) -> ToVehicle {
     }
 }
 
-fn command(command: VehicleCommand) -> ToVehicle {
+fn command(command: Command) -> ToVehicle {
     ToVehicle::Command {
         command_id: 9,
         command,
@@ -90,7 +90,7 @@ async fn handed(calls: &mut Calls, within: Duration) -> Vec<(String, ToVehicle)>
 async fn commanded(
     calls: &mut Calls,
     n: usize,
-    what: &VehicleCommand,
+    what: &Command,
     within: Duration,
     start: tokio::time::Instant,
 ) -> (BTreeSet<String>, f64) {
@@ -136,20 +136,8 @@ async fn an_agent_obeys_only_the_active_coordinator_of_the_highest_epoch() {
     targets.send("uav-1", "gcs-a", 1, origin_b(), &slot(3.0));
     targets.send("uav-9", "gcs-a", 2, origin_b(), &slot(4.0)); // another agent's vehicle
     targets.send("uav-1", "gcs-a", 2, origin_b(), &slot(5.0));
-    commands.send(
-        "uav-1",
-        "gcs-b",
-        2,
-        origin_b(),
-        &command(VehicleCommand::Land),
-    );
-    commands.send(
-        "uav-1",
-        "gcs-a",
-        2,
-        origin_b(),
-        &command(VehicleCommand::Hold),
-    );
+    commands.send("uav-1", "gcs-b", 2, origin_b(), &command(Command::Land));
+    commands.send("uav-1", "gcs-a", 2, origin_b(), &command(Command::Hold));
 
     let mut got = handed(&mut calls, Duration::from_millis(500)).await;
     got.sort_by_key(|(_, m)| matches!(m, ToVehicle::Command { .. }));
@@ -161,7 +149,7 @@ async fn an_agent_obeys_only_the_active_coordinator_of_the_highest_epoch() {
         panic!("not one slot and one command for uav-1: {got:?}");
     };
     assert_eq!((id.as_str(), id2.as_str()), ("uav-1", "uav-1"));
-    assert_eq!(*command, VehicleCommand::Hold);
+    assert_eq!(*command, Command::Hold);
     // gcs-a's slot 5 m north of B's origin, in the agent's frame.
     assert!(
         (t.position - Ned::new(35.0, 10.0, -10.0)).norm() < 0.01,
@@ -199,7 +187,7 @@ async fn an_agent_without_a_coordinator_holds_its_steered_vehicles_after_1_5_s_t
     let (held, at) = commanded(
         &mut calls,
         2,
-        &VehicleCommand::Hold,
+        &Command::Hold,
         Duration::from_secs(2),
         silent,
     )
@@ -213,7 +201,7 @@ async fn an_agent_without_a_coordinator_holds_its_steered_vehicles_after_1_5_s_t
     let (landed, at) = commanded(
         &mut calls,
         3,
-        &VehicleCommand::Land,
+        &Command::Land,
         Duration::from_secs(5),
         silent,
     )
@@ -243,14 +231,7 @@ async fn an_agent_that_holds_obeys_a_coordinator_of_a_new_epoch_and_then_does_no
     let leases = Arc::new(Peer::leases(&bus));
     leases.lease("gcs-a", 1, true);
     let start = tokio::time::Instant::now();
-    commanded(
-        &mut calls,
-        1,
-        &VehicleCommand::Hold,
-        Duration::from_secs(2),
-        start,
-    )
-    .await;
+    commanded(&mut calls, 1, &Command::Hold, Duration::from_secs(2), start).await;
 
     // A standby claims the role in epoch 2 and keeps it.
     let l = leases.clone();

@@ -6,7 +6,7 @@
 
 use super::CoordinatorState;
 use super::messages::CoordinatorMsg;
-use crate::protocol::{PayloadCommandError, ToVehicle, VehicleCommand};
+use crate::protocol::{Command, PayloadCommandError, ToVehicle};
 use ractor::{ActorRef, RpcReplyPort};
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet};
@@ -87,7 +87,7 @@ impl CoordinatorState {
         &mut self,
         myself: &ActorRef<CoordinatorMsg>,
         targets: Vec<String>,
-        cmd: VehicleCommand,
+        cmd: Command,
         reply: CommandReply,
     ) {
         self.in_flight.next_command_id += 1;
@@ -137,7 +137,7 @@ impl CoordinatorState {
 
     /// Sends one of the coordinator's own commands (formation joins and leaves): no
     /// command id, no outcome event; a refusal is only logged.
-    pub(super) fn internal_command(&self, id: &str, cmd: VehicleCommand) {
+    pub(super) fn internal_command(&self, id: &str, cmd: Command) {
         if let Some(v) = self.vehicles.get(id).filter(|v| !v.failed)
             && let Err(e) = v.send(ToVehicle::Command {
                 command_id: 0,

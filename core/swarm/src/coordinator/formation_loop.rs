@@ -6,7 +6,7 @@ use super::CoordinatorState;
 use crate::events::SwarmEvent;
 use crate::formation::{FormationStatus, Member};
 use crate::metrics::Metrics;
-use crate::protocol::{SlotTarget, ToVehicle, VehicleCommand, wall_us};
+use crate::protocol::{Command, SlotTarget, ToVehicle, wall_us};
 use skein_model::fsm::VehicleState;
 use skein_model::geo::Ned;
 use std::collections::BTreeMap;
@@ -31,7 +31,7 @@ impl CoordinatorState {
         }
         for (id, v) in &self.vehicles {
             if !v.failed && v.state() == VehicleState::Hovering {
-                self.internal_command(id, VehicleCommand::JoinFormation);
+                self.internal_command(id, Command::JoinFormation);
             }
         }
     }
@@ -40,7 +40,7 @@ impl CoordinatorState {
     /// formation.
     pub(super) fn on_state_changed(&self, id: &str, to: VehicleState) {
         if to == VehicleState::Hovering && self.formation.is_active() {
-            self.internal_command(id, VehicleCommand::JoinFormation);
+            self.internal_command(id, Command::JoinFormation);
         }
     }
 

@@ -5,7 +5,7 @@ use super::children::Node;
 use super::commands::CommandOutcome;
 use crate::formation::{FormationSpec, FormationStatus, LeaderMotion};
 use crate::payload::PayloadShared;
-use crate::protocol::{FromVehicle, PayloadCommandError, VehicleCommand};
+use crate::protocol::{Command, FromVehicle, PayloadCommandError};
 use crate::supervision::TreeNode;
 use ractor::{ActorCell, ActorId, ActorProcessingErr, ActorRef, RpcReplyPort};
 use serde::Serialize;
@@ -154,11 +154,11 @@ pub enum CoordinatorMsg {
     /// What the DDS carrier of the distributed roles asks ([`super::remote`]).
     Distributed(super::remote::DistributedMsg),
     /// A command for every vehicle.
-    SwarmCommand(VehicleCommand, RpcReplyPort<CommandOutcome>),
+    SwarmCommand(Command, RpcReplyPort<CommandOutcome>),
     /// A command for one vehicle; `Err(None)` when the vehicle does not exist.
     VehicleCommand(
         String,
-        VehicleCommand,
+        Command,
         RpcReplyPort<Result<CommandOutcome, Option<String>>>,
     ),
     /// All vehicles, sorted by id.

@@ -57,7 +57,7 @@ use crate::events::SwarmEvent;
 use crate::formation::{FormationEngine, LeaderMotion};
 use crate::metrics::Metrics;
 use crate::neighbours::NeighbourBoard;
-use crate::protocol::{FromVehicle, PayloadCommandError, ToVehicle, VehicleCommand};
+use crate::protocol::{Command, FromVehicle, PayloadCommandError, ToVehicle};
 use crate::services::SwarmServices;
 use crate::supervision::{self, Children, Supervision};
 use crate::vehicle::fleet::FleetRegistry;
@@ -332,9 +332,7 @@ impl Actor for Coordinator {
             CoordinatorMsg::FromVehicle(msg) => state.on_from_vehicle(msg),
             CoordinatorMsg::Distributed(msg) => state.on_distributed(msg),
             CoordinatorMsg::SwarmCommand(cmd, reply) => {
-                if matches!(cmd, VehicleCommand::Land | VehicleCommand::Rtl)
-                    && state.formation.is_active()
-                {
+                if matches!(cmd, Command::Land | Command::Rtl) && state.formation.is_active() {
                     state.formation.deactivate();
                     state.formation_changed();
                 }
@@ -344,6 +342,13 @@ impl Actor for Coordinator {
             CoordinatorMsg::VehicleCommand(id, cmd, reply) => {
                 if !state.vehicles.contains_key(&id) {
                     let _ = reply.send(Err(None));
+                } else if cmd == Command::ClearHazard {
+                    // The formation's, not the vehicle's: done here, nothing to wait for.
+                    let _ = reply.send(state.clear_hazard(&id).map(|()| CommandOutcome {
+                        command_id: 0,
+                        accepted: vec![id],
+                        refused: vec![],
+                    }));
                 } else {
                     state.run_command(&myself, vec![id], cmd, CommandReply::Vehicle(reply));
                 }
@@ -416,7 +421,7 @@ impl Actor for Coordinator {
                     .map(|(id, _)| id.clone())
                     .collect();
                 for id in members {
-                    state.internal_command(&id, VehicleCommand::LeaveFormation);
+                    state.internal_command(&id, Command::LeaveFormation);
                 }
                 let status = state.formation_status();
                 state.emit(SwarmEvent::FormationChanged {

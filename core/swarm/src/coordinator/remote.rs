@@ -167,7 +167,7 @@ impl CoordinatorState {
         self.last_rejoin = std::time::Instant::now();
         for (id, v) in &self.vehicles {
             if v.local.is_none() && !v.failed && v.state() == VehicleState::Hovering {
-                self.internal_command(id, crate::protocol::VehicleCommand::JoinFormation);
+                self.internal_command(id, crate::protocol::Command::JoinFormation);
             }
         }
     }

@@ -9,7 +9,7 @@ use super::procedures::Procedure;
 use super::shared::Memory;
 use crate::config::SwarmConfig;
 use crate::events::SwarmEvent;
-use crate::protocol::{FromVehicle, VehicleCommand};
+use crate::protocol::{Command, FromVehicle};
 use ractor::ActorRef;
 use skein_link::LinkCommand;
 use skein_link::px4link::LinkEvent;
@@ -96,16 +96,13 @@ impl VehicleActorState {
     pub(super) fn command(
         &self,
         myself: &ActorRef<VehicleMsg>,
-        cmd: VehicleCommand,
+        cmd: Command,
         command_id: u64,
     ) -> Result<(), String> {
         let mut mem = self.shared.memory();
         let name = cmd.name();
         // Checks that need telemetry, before the FSM: a clear reason, state unchanged.
-        let needs_position = matches!(
-            cmd,
-            VehicleCommand::Takeoff { .. } | VehicleCommand::Hold | VehicleCommand::GoTo { .. }
-        );
+        let needs_position = matches!(cmd, Command::Takeoff(_) | Command::Hold | Command::GoTo(_));
         let frame = self.swarm_frame();
         let current = frame.and_then(|f| self.shared.position(&f));
         let has_local_frame = self
@@ -118,9 +115,9 @@ impl VehicleActorState {
                 self.shared.id
             ));
         }
-        if let VehicleCommand::Takeoff {
+        if let Command::Takeoff(skein_model::command::Takeoff {
             altitude_m: Some(a),
-        } = cmd
+        }) = cmd
             && !(a.is_finite() && a > 0.0 && a <= self.config().geofence.max_altitude_m)
         {
             return Err(format!(
@@ -128,7 +125,7 @@ impl VehicleActorState {
                 self.config().geofence.max_altitude_m
             ));
         }
-        self.apply(&mut mem, Event::Command(cmd.fsm()))
+        self.apply(&mut mem, Event::Command(cmd.kind()))
             .map_err(|r| r.reason)?;
         let yaw = self
             .shared
@@ -136,35 +133,37 @@ impl VehicleActorState {
             .with_telemetry(|t| t.attitude.map(|a| a.yaw_rad))
             .unwrap_or(0.0);
         match cmd {
-            VehicleCommand::Arm => self.start_procedure(
+            Command::Arm => self.start_procedure(
                 myself,
                 &mut mem,
                 command_id,
                 name,
                 Procedure::Link(LinkCommand::Arm),
             ),
-            VehicleCommand::Disarm { force } => self.start_procedure(
+            Command::Disarm | Command::ForceDisarm(_) => self.start_procedure(
                 myself,
                 &mut mem,
                 command_id,
                 name,
-                Procedure::Link(LinkCommand::Disarm { force }),
+                Procedure::Link(LinkCommand::Disarm {
+                    force: matches!(cmd, Command::ForceDisarm(_)),
+                }),
             ),
-            VehicleCommand::Land => self.start_procedure(
+            Command::Land => self.start_procedure(
                 myself,
                 &mut mem,
                 command_id,
                 name,
                 Procedure::Link(LinkCommand::Land),
             ),
-            VehicleCommand::Rtl => self.start_procedure(
+            Command::Rtl => self.start_procedure(
                 myself,
                 &mut mem,
                 command_id,
                 name,
                 Procedure::Link(LinkCommand::SetMode(Px4Mode::Rtl)),
             ),
-            VehicleCommand::Takeoff { altitude_m } => {
+            Command::Takeoff(skein_model::command::Takeoff { altitude_m }) => {
                 let current = current.expect("checked above");
                 mem.yaw_rad = yaw;
                 mem.takeoff_altitude_m =
@@ -180,7 +179,7 @@ impl VehicleActorState {
                     Procedure::EnterOffboard { arm: !armed },
                 );
             }
-            VehicleCommand::Hold | VehicleCommand::GoTo { .. } => {
+            Command::Hold | Command::GoTo(_) => {
                 let current = current.expect("checked above");
                 let offboard = self.observed().is_some_and(|o| o.mode == Px4Mode::Offboard);
                 if !offboard {
@@ -188,7 +187,8 @@ impl VehicleActorState {
                     mem.yaw_rad = yaw;
                 }
                 let target = match cmd {
-                    VehicleCommand::GoTo { target } => {
+                    Command::GoTo(g) => {
+                        let target = g.target();
                         mem.goto_target = Some(target);
                         Target::Hold(target)
                     }
@@ -211,17 +211,19 @@ impl VehicleActorState {
                     );
                 }
             }
-            VehicleCommand::JoinFormation => {
+            Command::JoinFormation => {
                 // The slot arrives with the next formation tick; hold until then.
                 self.emit_result(command_id, name, Ok(()));
             }
-            VehicleCommand::LeaveFormation => {
+            Command::LeaveFormation => {
                 let here = mem.shaper.as_ref().map(|s| s.carrot());
                 if let (Some(here), Some(cur)) = (here, current) {
                     self.set_target(&mut mem, Target::Hold(here), cur);
                 }
                 self.emit_result(command_id, name, Ok(()));
             }
+            // The FSM refused it above: the coordinator's command, not the vehicle's.
+            Command::ClearHazard => return Err(format!("{name} is the coordinator's")),
         }
         Ok(())
     }
