@@ -54,7 +54,7 @@ use attitude::{Attitude, euler_from_quaternion, quaternion_from_euler, slew};
 use skein_plugin_sdk::args::{Args, command_name};
 use skein_plugin_sdk::dialect::{GIMBAL_DEVICE_ATTITUDE_STATUS_DATA, GimbalDeviceFlags};
 use skein_plugin_sdk::geometry::{
-    GeoPoint, Ned, geodetic_to_local, look_angles, wrap_deg_180, wrap_deg_360,
+    GeoPoint, Ned, NedFrame, look_angles, wrap_deg_180, wrap_deg_360,
 };
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::vehicle::Vehicle;
@@ -263,12 +263,8 @@ impl Gimbal {
                 let pos = vehicle
                     .position
                     .ok_or("the vehicle's position is not known yet")?;
-                let own = GeoPoint {
-                    lat_deg: pos.lat_deg,
-                    lon_deg: pos.lon_deg,
-                    alt_amsl_m: pos.alt_amsl_m,
-                };
-                geodetic_to_local(own, *g)
+                let own = GeoPoint::new(pos.lat_deg, pos.lon_deg, pos.alt_amsl_m);
+                NedFrame::new(own).to_ned(g)
             }
             Target::RoiVehicle(id) => {
                 let own = vehicle

@@ -5,7 +5,7 @@ use skein_plugin_sdk::dialect::{
     COMMAND_INT_DATA, COMMAND_LONG_DATA, GIMBAL_MANAGER_SET_PITCHYAW_DATA, GimbalManagerFlags,
     MavCmd, MavFrame,
 };
-use skein_plugin_sdk::geometry::{GeoPoint, local_to_geodetic};
+use skein_plugin_sdk::geometry::{GeoPoint, NedFrame};
 use skein_plugin_sdk::vehicle::Vehicle;
 use skein_plugin_sdk::{Context, MavMessage};
 
@@ -182,12 +182,8 @@ impl LinkState {
                         let pos = vehicle.position.ok_or(
                             "an ROI in the swarm frame needs the vehicle's position, not known yet",
                         )?;
-                        let own = GeoPoint {
-                            lat_deg: pos.lat_deg,
-                            lon_deg: pos.lon_deg,
-                            alt_amsl_m: pos.alt_amsl_m,
-                        };
-                        local_to_geodetic(own, *p - pos.ned())
+                        let own = GeoPoint::new(pos.lat_deg, pos.lon_deg, pos.alt_amsl_m);
+                        NedFrame::new(own).to_geo(*p - pos.ned())
                     }
                 };
                 ctx.send_mavlink(&MavMessage::COMMAND_INT(COMMAND_INT_DATA {
