@@ -15,6 +15,8 @@
 //!   PX4 local origin from `HOME_POSITION`.
 //! - [`look_angles`], [`direction`]: azimuth / elevation / range between two NED points
 //!   (the gimbal and camera conventions), and angle wrapping.
+//! - [`Position`], [`Velocity`]: a vehicle's position (swarm-frame NED plus geodetic) and
+//!   NED velocity, as the vehicle snapshot carries them to the API and to plugins.
 //!
 //! Why a crate of its own: the swarm's model (`skein-model`) and the payload plugins both
 //! need this geodesy, and the plugin SDK (`plugins/sdk`), the only crate a plugin links, is
@@ -30,8 +32,10 @@ mod angles;
 mod frame;
 mod ned;
 mod point;
+mod position;
 
 pub use angles::{LookAngles, direction, look_angles, wrap_deg_180, wrap_deg_360, wrap_pi};
 pub use frame::NedFrame;
 pub use ned::Ned;
 pub use point::GeoPoint;
+pub use position::{Position, Velocity};

@@ -263,8 +263,7 @@ impl Gimbal {
                 let pos = vehicle
                     .position
                     .ok_or("the vehicle's position is not known yet")?;
-                let own = GeoPoint::new(pos.lat_deg, pos.lon_deg, pos.alt_amsl_m);
-                NedFrame::new(own).to_ned(g)
+                NedFrame::new(pos.geo()).to_ned(g)
             }
             Target::RoiVehicle(id) => {
                 let own = vehicle

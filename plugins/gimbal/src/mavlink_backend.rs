@@ -5,7 +5,7 @@ use skein_plugin_sdk::dialect::{
     COMMAND_INT_DATA, COMMAND_LONG_DATA, GIMBAL_MANAGER_SET_PITCHYAW_DATA, GimbalManagerFlags,
     MavCmd, MavFrame,
 };
-use skein_plugin_sdk::geometry::{GeoPoint, NedFrame};
+use skein_plugin_sdk::geometry::NedFrame;
 use skein_plugin_sdk::vehicle::Vehicle;
 use skein_plugin_sdk::{Context, MavMessage};
 
@@ -182,8 +182,7 @@ impl LinkState {
                         let pos = vehicle.position.ok_or(
                             "an ROI in the swarm frame needs the vehicle's position, not known yet",
                         )?;
-                        let own = GeoPoint::new(pos.lat_deg, pos.lon_deg, pos.alt_amsl_m);
-                        NedFrame::new(own).to_geo(*p - pos.ned())
+                        NedFrame::new(pos.geo()).to_geo(*p - pos.ned())
                     }
                 };
                 ctx.send_mavlink(&MavMessage::COMMAND_INT(COMMAND_INT_DATA {
