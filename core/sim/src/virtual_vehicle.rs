@@ -202,19 +202,7 @@ pub mod client {
 
     /// COMMAND_LONG `cmd` with `params` 1–7.
     pub fn command(cmd: MavCmd, p: [f32; 7]) -> MavMessage {
-        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            param1: p[0],
-            param2: p[1],
-            param3: p[2],
-            param4: p[3],
-            param5: p[4],
-            param6: p[5],
-            param7: p[6],
-            command: cmd,
-            target_system: 1,
-            target_component: 1,
-            confirmation: 0,
-        })
+        skein_mavlink::command_long(skein_mavlink::CommandTarget::new(1, 1), cmd, p, 0)
     }
 
     /// SET_POSITION_TARGET_LOCAL_NED: position (m), velocity (m/s), acceleration (m/s²),

@@ -13,7 +13,7 @@
 //!   `catch_unwind`, so a panicking plugin becomes an error for skein instead of an abort;
 //! - helpers: [`args`] to read commands with errors naming the field, [`geometry`] for
 //!   pointing maths, [`vehicle`] for the typed snapshot, and the MAVLink common dialect
-//!   ([`MavMessage`], [`dialect`]).
+//!   ([`MavMessage`], [`dialect`], [`command_long`] / [`command_int`] for commands).
 //!
 //! Nothing but bytes crosses the boundary (JSON, MAVLink frames, JPEG): see [`abi`] for the
 //! layout, the entry symbol and the versioning rules, and `plugins/README.md` for the
@@ -66,6 +66,9 @@ pub use skein_mavlink::MavMessage;
 pub use skein_mavlink::MessageData;
 /// The MAVLink common dialect (message structs, enums, flags), as skein compiles it.
 pub use skein_mavlink::dialect;
+/// The command protocol's frames (`COMMAND_LONG`, `COMMAND_INT`), built as skein's own link
+/// builds them.
+pub use skein_mavlink::{CommandPosition, CommandTarget, command_int, command_long};
 /// MAVLink framing (for plugins that talk MAVLink to devices of their own).
 pub use skein_mavlink::{Decoder, Encoder};
 
