@@ -11,7 +11,7 @@
 //! - [`export_plugin!`], which exports the versioned C entry point `skein_plugin_entry`
 //!   returning the plugin's [`abi::PluginVTable`], and wraps every export in
 //!   `catch_unwind`, so a panicking plugin becomes an error for skein instead of an abort;
-//! - helpers: [`args`] to read commands with errors naming the field, [`geometry`] for
+//! - helpers: [`args`] to read configs and commands with serde, errors naming the field, [`geometry`] for
 //!   pointing maths, [`vehicle`] for the typed snapshot, and the MAVLink common dialect
 //!   ([`MavMessage`], [`dialect`], [`command_long`] / [`command_int`] for commands).
 //!
@@ -59,6 +59,8 @@ pub mod vehicle;
 
 pub use context::Context;
 pub use plugin::{MavlinkInterest, Plugin};
+/// serde, for a plugin's own types (derive with `#[serde(crate = "skein_plugin_sdk::serde")]`).
+pub use serde;
 pub use serde_json;
 /// A MAVLink message of the common dialect.
 pub use skein_mavlink::MavMessage;
