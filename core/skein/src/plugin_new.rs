@@ -202,7 +202,7 @@ use skein_plugin_sdk::{Context, Plugin, export_plugin};
 
 /// The slot's config. serde reads it (the SDK re-exports serde, hence `crate = ...`);
 /// `deny_unknown_fields` refuses a typo, naming it.
-#[derive(Debug, Default, Deserialize)]
+#[derive(Deserialize)]
 #[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
 struct Config {
     /// Tick rate, Hz, 0 to 100; default 1.
@@ -212,12 +212,9 @@ struct Config {
 }
 
 /// The commands: one variant per `command` name (snake_case), its fields inside.
-#[derive(Debug, Deserialize)]
-#[serde(
-    crate = "skein_plugin_sdk::serde",
-    rename_all = "snake_case",
-    deny_unknown_fields
-)]
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 enum Command {
     /// `{"command": "ping"}`.
     Ping,

@@ -87,7 +87,7 @@ enum SourceKind {
 /// The configuration (see the crate docs): every field optional, ranges checked in
 /// `create`. Pixel counts and the JPEG quality are read as numbers, as they
 /// always were (`640.0` is 640).
-#[derive(Debug, Default, Deserialize)]
+#[derive(Deserialize)]
 #[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
 struct Config {
     source: Option<SourceKind>,
@@ -106,13 +106,10 @@ struct Config {
     aircraft_span_m: Option<f64>,
 }
 
-/// The commands (see the crate docs).
-#[derive(Debug, Deserialize)]
-#[serde(
-    crate = "skein_plugin_sdk::serde",
-    rename_all = "snake_case",
-    deny_unknown_fields
-)]
+/// The camera's commands (see the crate docs), tagged by `command`.
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 enum Command {
     Capture,
     SetFocalLength { focal_length_mm: f64 },

@@ -139,7 +139,7 @@ pub fn decode_frame(jpeg: &[u8]) -> Result<(FrameMeta, Vec<u8>), String> {
 
 /// The configuration (see the crate docs): every field optional, ranges checked in
 /// `create`; counts are read as numbers, as they always were.
-#[derive(Debug, Default, Deserialize)]
+#[derive(Deserialize)]
 #[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
 struct Config {
     camera_slot: Option<String>,
@@ -154,13 +154,10 @@ struct Config {
     max_detections: Option<f64>,
 }
 
-/// The commands (see the crate docs).
-#[derive(Debug, Deserialize)]
-#[serde(
-    crate = "skein_plugin_sdk::serde",
-    rename_all = "snake_case",
-    deny_unknown_fields
-)]
+/// The detector's two commands: `status`, and `detect` (the latest frame, now).
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 enum Command {
     Status,
     Detect,

@@ -34,7 +34,7 @@ const VERSION: &str = match option_env!("SKEIN_EXAMPLE_VERSION") {
 
 /// The configuration: every field optional, unknown ones refused (a typo is an error that
 /// names it, not a silently ignored setting).
-#[derive(Debug, Deserialize)]
+#[derive(Deserialize)]
 #[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
 struct Config {
     /// Returned by `ping`; default `"hello"`.
@@ -44,12 +44,9 @@ struct Config {
 }
 
 /// The commands, one variant per `command` name (`args::command` reads the tag).
-#[derive(Debug, Deserialize)]
-#[serde(
-    crate = "skein_plugin_sdk::serde",
-    rename_all = "snake_case",
-    deny_unknown_fields
-)]
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 enum Command {
     /// `{"command": "ping"}`.
     Ping,

@@ -8,12 +8,9 @@ use skein_plugin_sdk::geometry::{GeoPoint, Ned};
 use skein_plugin_sdk::serde::Deserialize;
 
 /// A command as written, one variant per `command` name.
-#[derive(Debug, Deserialize)]
-#[serde(
-    crate = "skein_plugin_sdk::serde",
-    rename_all = "snake_case",
-    deny_unknown_fields
-)]
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum Command {
     /// Hold angles: pitch (degrees, positive up) and yaw (degrees, in `yaw_frame`,
     /// default the vehicle's), either may be left out to keep its current target.
@@ -82,29 +79,20 @@ impl Command {
                 yaw_frame,
             } => {
                 let yaw_frame = yaw_frame.unwrap_or(YawFrame::Vehicle);
-                if let Some(p) = pitch_deg
-                    && !(cfg.pitch_min_deg..=cfg.pitch_max_deg).contains(&p)
-                {
-                    return Err(field_error(
+                if let Some(p) = pitch_deg {
+                    within_limits(
                         "pitch_deg",
-                        format!(
-                            "{p} is outside the gimbal's pitch range [{}, {}]",
-                            cfg.pitch_min_deg, cfg.pitch_max_deg
-                        ),
-                    ));
+                        "pitch",
+                        p,
+                        cfg.pitch_min_deg,
+                        cfg.pitch_max_deg,
+                    )?;
                 }
                 if let Some(y) = yaw_deg
                     && yaw_frame == YawFrame::Vehicle
                     && !cfg.yaw_continuous()
-                    && !(cfg.yaw_min_deg..=cfg.yaw_max_deg).contains(&y)
                 {
-                    return Err(field_error(
-                        "yaw_deg",
-                        format!(
-                            "{y} is outside the gimbal's yaw range [{}, {}]",
-                            cfg.yaw_min_deg, cfg.yaw_max_deg
-                        ),
-                    ));
+                    within_limits("yaw_deg", "yaw", y, cfg.yaw_min_deg, cfg.yaw_max_deg)?;
                 }
                 if pitch_deg.is_none() && yaw_deg.is_none() {
                     return Err("command `set_angles`: give `pitch_deg`, `yaw_deg` or both".into());
@@ -198,6 +186,19 @@ impl Command {
             Command::Neutral => Target::Neutral,
             Command::Status => return Ok(None),
         }))
+    }
+}
+
+/// `Ok` when `value` (the command's `field`) lies within the gimbal's `axis` range
+/// `[min, max]`, degrees.
+fn within_limits(field: &str, axis: &str, value: f64, min: f64, max: f64) -> Result<(), String> {
+    if (min..=max).contains(&value) {
+        Ok(())
+    } else {
+        Err(field_error(
+            field,
+            format!("{value} is outside the gimbal's {axis} range [{min}, {max}]"),
+        ))
     }
 }
 

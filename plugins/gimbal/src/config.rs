@@ -1,11 +1,11 @@
 //! The gimbal's configuration: the JSON a payload slot gives (see the crate docs), read
 //! with serde and range-checked into a [`GimbalConfig`].
 
-use skein_plugin_sdk::args::{self, field_error, in_range};
+use skein_plugin_sdk::args::{self, DeviceMode, field_error, in_range};
 use skein_plugin_sdk::serde::Deserialize;
 use skein_plugin_sdk::serde_json::Value;
 
-/// Which device the instance drives.
+/// Which device the instance drives (its `mode`, resolved).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Backend {
     /// A simulated gimbal moved by this plugin.
@@ -14,21 +14,13 @@ pub enum Backend {
     Mavlink,
 }
 
-/// `mode` as written in the configuration.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(crate = "skein_plugin_sdk::serde", rename_all = "snake_case")]
-enum Mode {
-    Auto,
-    Simulated,
-    Mavlink,
-}
-
 /// The configuration as written: every field optional. Ids are read as numbers, as they
 /// always were (`1.0` is 1).
 #[derive(Debug, Default, Deserialize)]
 #[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
 struct Settings {
-    mode: Option<Mode>,
+    #[serde(default)]
+    mode: DeviceMode,
     max_rate_deg_s: Option<f64>,
     pitch_min_deg: Option<f64>,
     pitch_max_deg: Option<f64>,
@@ -43,8 +35,8 @@ struct Settings {
 /// Configuration of an instance (see the crate docs for the JSON).
 #[derive(Debug, Clone, PartialEq)]
 pub struct GimbalConfig {
-    /// `None` = auto (simulated when the vehicle is).
-    pub backend: Option<Backend>,
+    /// `mode`: auto (simulated when the vehicle is), simulated or mavlink.
+    pub mode: DeviceMode,
     /// Slew-rate limit of each axis, deg/s.
     pub max_rate_deg_s: f64,
     /// Lowest pitch, degrees (negative looks down).
@@ -73,11 +65,7 @@ impl GimbalConfig {
     pub fn parse(config: Value) -> Result<GimbalConfig, String> {
         let s: Settings = args::config(config)?;
         let cfg = GimbalConfig {
-            backend: match s.mode {
-                None | Some(Mode::Auto) => None,
-                Some(Mode::Simulated) => Some(Backend::Simulated),
-                Some(Mode::Mavlink) => Some(Backend::Mavlink),
-            },
+            mode: s.mode,
             max_rate_deg_s: in_range(
                 "max_rate_deg_s",
                 s.max_rate_deg_s.unwrap_or(60.0),
@@ -118,30 +106,36 @@ impl GimbalConfig {
                 255.0,
             )? as u8,
         };
-        if cfg.pitch_min_deg >= cfg.pitch_max_deg {
-            return Err(field_error(
-                "pitch_min_deg",
-                format!(
-                    "{} must be below `pitch_max_deg` ({})",
-                    cfg.pitch_min_deg, cfg.pitch_max_deg
-                ),
-            ));
-        }
-        if cfg.yaw_min_deg >= cfg.yaw_max_deg {
-            return Err(field_error(
-                "yaw_min_deg",
-                format!(
-                    "{} must be below `yaw_max_deg` ({})",
-                    cfg.yaw_min_deg, cfg.yaw_max_deg
-                ),
-            ));
-        }
+        below(
+            "pitch_min_deg",
+            cfg.pitch_min_deg,
+            "pitch_max_deg",
+            cfg.pitch_max_deg,
+        )?;
+        below(
+            "yaw_min_deg",
+            cfg.yaw_min_deg,
+            "yaw_max_deg",
+            cfg.yaw_max_deg,
+        )?;
         Ok(cfg)
     }
 
     /// True when yaw turns all the way round.
     pub fn yaw_continuous(&self) -> bool {
         self.yaw_max_deg - self.yaw_min_deg >= 360.0
+    }
+}
+
+/// `Ok` when the lower limit `min_field` lies below the upper one, `max_field`.
+fn below(min_field: &str, min: f64, max_field: &str, max: f64) -> Result<(), String> {
+    if min < max {
+        Ok(())
+    } else {
+        Err(field_error(
+            min_field,
+            format!("{min} must be below `{max_field}` ({max})"),
+        ))
     }
 }
 

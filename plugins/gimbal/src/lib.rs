@@ -380,11 +380,11 @@ impl Plugin for Gimbal {
 
     fn create(_kind: &str, config: Value, ctx: &Context) -> Result<Self, String> {
         let cfg = GimbalConfig::parse(config)?;
-        let backend = cfg.backend.unwrap_or(if ctx.simulated() {
+        let backend = if cfg.mode.simulated(ctx.simulated()) {
             Backend::Simulated
         } else {
             Backend::Mavlink
-        });
+        };
         let mut g = Gimbal {
             backend,
             target: Target::Neutral,

@@ -37,7 +37,7 @@
 //!  "radio_status": null, "model": {"tx_power_dbm": 20.0, ...}}
 //! ```
 
-use skein_plugin_sdk::args;
+use skein_plugin_sdk::args::{self, DeviceMode};
 use skein_plugin_sdk::dialect::RADIO_STATUS_DATA;
 use skein_plugin_sdk::geometry::Ned;
 use skein_plugin_sdk::serde::{Deserialize, Serialize};
@@ -86,23 +86,23 @@ pub struct RadioModel {
 /// `set_model` command); a field left out keeps its value.
 #[derive(Debug, Clone, Default, PartialEq, Deserialize)]
 #[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
-pub struct ModelUpdate {
+struct ModelUpdate {
     /// [`RadioModel::tx_power_dbm`], -30..60 dBm.
-    pub tx_power_dbm: Option<f64>,
+    tx_power_dbm: Option<f64>,
     /// [`RadioModel::frequency_mhz`], 1..100 000 MHz.
-    pub frequency_mhz: Option<f64>,
+    frequency_mhz: Option<f64>,
     /// [`RadioModel::path_loss_exponent`], 1.5..6.
-    pub path_loss_exponent: Option<f64>,
+    path_loss_exponent: Option<f64>,
     /// [`RadioModel::sensitivity_dbm`], -150..0 dBm.
-    pub sensitivity_dbm: Option<f64>,
+    sensitivity_dbm: Option<f64>,
     /// [`RadioModel::loss_slope_db`], 0.1..20 dB.
-    pub loss_slope_db: Option<f64>,
+    loss_slope_db: Option<f64>,
     /// [`RadioModel::base_latency_ms`], 0..10 000 ms.
-    pub base_latency_ms: Option<f64>,
+    base_latency_ms: Option<f64>,
     /// [`RadioModel::retry_latency_ms`], 0..10 000 ms.
-    pub retry_latency_ms: Option<f64>,
+    retry_latency_ms: Option<f64>,
     /// [`RadioModel::max_latency_ms`], `base_latency_ms`..60 000 ms.
-    pub max_latency_ms: Option<f64>,
+    max_latency_ms: Option<f64>,
 }
 
 impl Default for RadioModel {
@@ -125,7 +125,7 @@ impl RadioModel {
     ///
     /// # Errors
     /// A field out of range, named (`path_loss_exponent: 9 is outside [1.5, 6]`).
-    pub fn update(&mut self, u: &ModelUpdate) -> Result<(), String> {
+    fn update(&mut self, u: &ModelUpdate) -> Result<(), String> {
         let set = |field, current: f64, new: Option<f64>, min, max| {
             args::in_range(field, new.unwrap_or(current), min, max)
         };
@@ -232,15 +232,6 @@ struct Current {
     metrics: Option<LinkMetrics>,
 }
 
-/// `mode` of the configuration.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(crate = "skein_plugin_sdk::serde", rename_all = "snake_case")]
-enum Mode {
-    Auto,
-    Simulated,
-    Mavlink,
-}
-
 /// The swarm-frame position of the ground station (each part optional, default 0).
 #[derive(Debug, Clone, Copy, Default, Deserialize)]
 #[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
@@ -254,7 +245,8 @@ struct GroundStation {
 #[derive(Debug, Default, Deserialize)]
 #[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
 struct StationConfig {
-    mode: Option<Mode>,
+    #[serde(default)]
+    mode: DeviceMode,
     ground_station: Option<GroundStation>,
     rate_hz: Option<f64>,
 }
@@ -297,13 +289,10 @@ impl StationConfig {
     }
 }
 
-/// The commands (see the crate docs).
-#[derive(Debug, Deserialize)]
-#[serde(
-    crate = "skein_plugin_sdk::serde",
-    rename_all = "snake_case",
-    deny_unknown_fields
-)]
+/// The radio's commands (see the crate docs); `set_model` takes any model field.
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 enum Command {
     Status,
     SetModel(ModelUpdate),
@@ -436,11 +425,10 @@ impl Plugin for Radio {
 
     fn create(_kind: &str, config: Value, ctx: &Context) -> Result<Self, String> {
         let (cfg, model_update) = StationConfig::parse(config)?;
-        let backend = match cfg.mode {
-            Some(Mode::Simulated) => Backend::Simulated,
-            Some(Mode::Mavlink) => Backend::Mavlink,
-            _ if ctx.simulated() => Backend::Simulated,
-            _ => Backend::Mavlink,
+        let backend = if cfg.mode.simulated(ctx.simulated()) {
+            Backend::Simulated
+        } else {
+            Backend::Mavlink
         };
         let mut model = RadioModel::default();
         model.update(&model_update)?;
@@ -591,7 +579,7 @@ mod tests {
             "mode": "simulated", "rate_hz": 4, "ground_station": {"east_m": 5}, "tx_power_dbm": 27
         }))
         .unwrap();
-        assert_eq!((cfg.mode, cfg.rate_hz), (Some(Mode::Simulated), Some(4.0)));
+        assert_eq!((cfg.mode, cfg.rate_hz), (DeviceMode::Simulated, Some(4.0)));
         assert_eq!(cfg.ground_station().unwrap(), Ned::new(0.0, 5.0, 0.0));
         assert_eq!(model.tx_power_dbm, Some(27.0));
         assert!(StationConfig::parse(Value::Null).is_ok());

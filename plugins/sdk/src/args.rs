@@ -34,9 +34,38 @@
 //! assert_eq!(e, "command: unknown command `fly`, expected `set_angles` or `neutral`");
 //! ```
 
+use serde::Deserialize;
 use serde::de::DeserializeOwned;
 use serde_json::{Map, Value};
 use std::fmt::Display;
+
+/// The `mode` setting of a payload that drives a real device or simulates one (the gimbal,
+/// the radio): `"auto"` (the default: simulated on a simulated vehicle, see
+/// [`crate::Context::simulated`]), `"simulated"`, or `"mavlink"` (the real device, over the
+/// vehicle's MAVLink link).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DeviceMode {
+    /// Simulated when the vehicle is.
+    #[default]
+    Auto,
+    /// Always simulated.
+    Simulated,
+    /// Always the real device.
+    Mavlink,
+}
+
+impl DeviceMode {
+    /// True when the payload simulates its device, on a vehicle that is simulated
+    /// (`vehicle_simulated`) or not.
+    pub fn simulated(self, vehicle_simulated: bool) -> bool {
+        match self {
+            DeviceMode::Auto => vehicle_simulated,
+            DeviceMode::Simulated => true,
+            DeviceMode::Mavlink => false,
+        }
+    }
+}
 
 /// Reads a configuration (`PayloadSpec.config`; `null`, when the slot has none, reads as
 /// `{}`, so a struct whose fields all have defaults accepts it).
@@ -307,6 +336,25 @@ mod tests {
             "points[0].north_m: missing field `north_m`"
         );
         assert!(config::<Tuning>(json!("fast")).is_err());
+    }
+
+    #[test]
+    fn device_modes_resolve_auto_by_the_vehicle() {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Cfg {
+            #[serde(default)]
+            mode: DeviceMode,
+        }
+        let mode = |v: Value| config::<Cfg>(v).map(|c| c.mode);
+        assert_eq!(mode(Value::Null), Ok(DeviceMode::Auto));
+        assert!(DeviceMode::Auto.simulated(true) && !DeviceMode::Auto.simulated(false));
+        assert_eq!(mode(json!({"mode": "mavlink"})), Ok(DeviceMode::Mavlink));
+        assert!(!DeviceMode::Mavlink.simulated(true) && DeviceMode::Simulated.simulated(false));
+        assert_eq!(
+            mode(json!({"mode": "real"})).unwrap_err(),
+            "mode: unknown variant `real`, expected one of `auto`, `simulated`, `mavlink`"
+        );
     }
 
     #[test]
