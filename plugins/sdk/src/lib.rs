@@ -11,9 +11,10 @@
 //! - [`export_plugin!`], which exports the versioned C entry point `skein_plugin_entry`
 //!   returning the plugin's [`abi::PluginVTable`], and wraps every export in
 //!   `catch_unwind`, so a panicking plugin becomes an error for skein instead of an abort;
-//! - helpers: [`args`] to read configs and commands with serde, errors naming the field, [`geometry`] for
-//!   pointing maths, [`vehicle`] for the typed snapshot, and the MAVLink common dialect
-//!   ([`MavMessage`], [`dialect`], [`command_long`] / [`command_int`] for commands).
+//! - helpers: [`args`] to read configs and commands with serde (errors naming the
+//!   field), [`geometry`] for pointing maths (skein's own geodesy), [`vehicle`] for the
+//!   typed snapshot, and the MAVLink common dialect ([`MavMessage`], [`dialect`],
+//!   [`command_long`] / [`command_int`] for commands).
 //!
 //! Nothing but bytes crosses the boundary (JSON, MAVLink frames, JPEG): see [`abi`] for the
 //! layout, the entry symbol and the versioning rules, and `plugins/README.md` for the

@@ -25,8 +25,9 @@ use skein_sim::{SimConfig, SimVehicleConfig, Simulator};
 use std::time::{Duration, Instant};
 use tokio::net::UdpSocket;
 
-/// Client system id / component id (a GCS-like sender).
+/// The UDP clients' system id (a GCS-like sender).
 pub const CLIENT_SYSID: u8 = 245;
+/// The UDP clients' component id (`MAV_COMP_ID_MISSIONPLANNER`).
 pub const CLIENT_COMPID: u8 = 190;
 
 /// Starts a simulator with `n` vehicles whose targets are `n` fresh client sockets;
