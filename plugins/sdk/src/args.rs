@@ -108,9 +108,7 @@ pub fn command<C: DeserializeOwned>(command: Value) -> Result<C, String> {
     };
     // serde's external form of a command without fields is its bare name.
     let unit = || serde_json::from_value::<C>(Value::String(name.clone()));
-    if fields.is_empty()
-        && let Ok(c) = unit()
-    {
+    if let Some(c) = fields.is_empty().then(unit).and_then(Result::ok) {
         return Ok(c);
     }
     let first_field = fields.keys().next().cloned();
