@@ -40,6 +40,20 @@ async fn fly_offboard_to(c: &mut VirtualClient, n: f32, e: f32, z: f32) {
     assert!(reached.is_some(), "never reached ({n}, {e}, {z})");
 }
 
+/// True once EXTENDED_SYS_STATE reports `state` within `timeout`.
+async fn reports_landed_state(
+    c: &mut VirtualClient,
+    state: MavLandedState,
+    timeout: Duration,
+) -> bool {
+    c.wait_for(timeout, |f| match &f.msg {
+        MavMessage::EXTENDED_SYS_STATE(s) if s.landed_state == state => Some(()),
+        _ => None,
+    })
+    .await
+    .is_some()
+}
+
 /// Parameters of MAV_CMD_NAV_TAKEOFF / MAV_CMD_NAV_LAND that leave yaw, position and
 /// altitude to PX4 (NaN): take off to MIS_TAKEOFF_ALT, land where it is.
 const AT_DEFAULTS: [f32; 7] = [0.0, 0.0, 0.0, f32::NAN, f32::NAN, f32::NAN, f32::NAN];
@@ -182,17 +196,10 @@ async fn takeoff_land_cycle_and_arming_refused_in_land() {
     assert!(c.wait_mode(Px4Mode::Takeoff, SECS(3)).await);
     assert_eq!(c.vehicle.truth().local_ned_m.down_m, 0.0);
     assert_eq!(c.arm(true).await, MavResult::MAV_RESULT_ACCEPTED);
-    let takeoff_state = c
-        .wait_for(SECS(5), |f| match &f.msg {
-            MavMessage::EXTENDED_SYS_STATE(s)
-                if s.landed_state == MavLandedState::MAV_LANDED_STATE_TAKEOFF =>
-            {
-                Some(())
-            }
-            _ => None,
-        })
-        .await;
-    assert!(takeoff_state.is_some(), "never reported TAKEOFF");
+    assert!(
+        reports_landed_state(&mut c, MavLandedState::MAV_LANDED_STATE_TAKEOFF, SECS(5)).await,
+        "never reported TAKEOFF"
+    );
     // Takeoff completes into HOLD at MIS_TAKEOFF_ALT (2.5 m).
     assert!(
         c.wait_mode(Px4Mode::Hold, SECS(10)).await,
@@ -208,17 +215,10 @@ async fn takeoff_land_cycle_and_arming_refused_in_land() {
     let r = c.command(MavCmd::MAV_CMD_NAV_LAND, AT_DEFAULTS).await;
     assert_eq!(r, MavResult::MAV_RESULT_ACCEPTED);
     assert!(c.wait_mode(Px4Mode::Land, SECS(3)).await);
-    let landing = c
-        .wait_for(SECS(3), |f| match &f.msg {
-            MavMessage::EXTENDED_SYS_STATE(s)
-                if s.landed_state == MavLandedState::MAV_LANDED_STATE_LANDING =>
-            {
-                Some(())
-            }
-            _ => None,
-        })
-        .await;
-    assert!(landing.is_some(), "never reported LANDING");
+    assert!(
+        reports_landed_state(&mut c, MavLandedState::MAV_LANDED_STATE_LANDING, SECS(3)).await,
+        "never reported LANDING"
+    );
     assert!(
         c.wait_armed(false, SECS(15)).await,
         "never disarmed after landing"

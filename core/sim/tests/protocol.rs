@@ -19,19 +19,17 @@ use std::time::{Duration, Instant};
 const SECS: fn(u64) -> Duration = Duration::from_secs;
 
 async fn param_read_by_name(c: &mut Client, name: &str) -> PARAM_VALUE_DATA {
-    c.send(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+    let read = MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
         param_index: -1,
         target_system: c.sysid,
         target_component: 1,
         param_id: name.into(),
-    }))
-    .await;
-    c.wait_for(SECS(2), |f| match &f.msg {
+    });
+    c.request(&read, &format!("PARAM_VALUE for {name}"), |m| match m {
         MavMessage::PARAM_VALUE(v) if v.param_id.to_str().ok() == Some(name) => Some(v.clone()),
         _ => None,
     })
     .await
-    .unwrap_or_else(|| panic!("no PARAM_VALUE for {name}"))
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -374,14 +372,12 @@ async fn identity_autopilot_version_home_ping_timesync() {
         [148.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         0,
     );
-    c.send(&msg).await;
     let av = c
-        .wait_for(SECS(2), |f| match &f.msg {
+        .request(&msg, "AUTOPILOT_VERSION", |m| match m {
             MavMessage::AUTOPILOT_VERSION(v) => Some(v.clone()),
             _ => None,
         })
-        .await
-        .expect("AUTOPILOT_VERSION");
+        .await;
     for cap in [
         MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MAVLINK2,
         MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_COMMAND_INT,
@@ -416,38 +412,35 @@ async fn identity_autopilot_version_home_ping_timesync() {
     );
 
     // TIMESYNC request → tc1 = own time, ts1 echoed, addressed to us.
-    c.send(&MavMessage::TIMESYNC(TIMESYNC_DATA {
-        tc1: 0,
+    let timesync = TIMESYNC_DATA {
         ts1: 123_456_789,
-        target_system: 0,
-        target_component: 0,
-    }))
-    .await;
+        ..Default::default()
+    };
     let ts = c
-        .wait_for(SECS(2), |f| match &f.msg {
-            MavMessage::TIMESYNC(t) if t.ts1 == 123_456_789 => Some(t.clone()),
-            _ => None,
-        })
-        .await
-        .expect("TIMESYNC reply");
+        .request(
+            &MavMessage::TIMESYNC(timesync),
+            "TIMESYNC reply",
+            |m| match m {
+                MavMessage::TIMESYNC(t) if t.ts1 == 123_456_789 => Some(t.clone()),
+                _ => None,
+            },
+        )
+        .await;
     assert!(ts.tc1 > 0);
     assert_eq!(ts.target_system, CLIENT_SYSID);
 
-    // PING request → echoed with our ids.
-    c.send(&MavMessage::PING(PING_DATA {
+    // PING request (to every system) → echoed with our ids.
+    let ping = PING_DATA {
         time_usec: 42,
         seq: 7,
-        target_system: 0,
-        target_component: 0,
-    }))
-    .await;
+        ..Default::default()
+    };
     let ping = c
-        .wait_for(SECS(2), |f| match &f.msg {
-            MavMessage::PING(p) if p.target_system == CLIENT_SYSID => Some(p.clone()),
-            _ => None,
+        .request(&MavMessage::PING(ping), "PING reply", |m| {
+            let MavMessage::PING(p) = m else { return None };
+            (p.target_system == CLIENT_SYSID).then(|| p.clone())
         })
-        .await
-        .expect("PING reply");
+        .await;
     assert_eq!(
         (ping.seq, ping.time_usec, ping.target_component),
         (7, 42, CLIENT_COMPID)

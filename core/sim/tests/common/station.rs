@@ -43,6 +43,21 @@ pub trait GroundStation {
         None
     }
 
+    /// Sends `request` and returns what `reply` picks out of the first frame it matches
+    /// within 2 s; panics naming `what` otherwise.
+    async fn request<T>(
+        &mut self,
+        request: &MavMessage,
+        what: &str,
+        reply: impl FnMut(&MavMessage) -> Option<T>,
+    ) -> T {
+        let mut reply = reply;
+        self.send(request).await;
+        self.wait_for(Duration::from_secs(2), |f| reply(&f.msg))
+            .await
+            .unwrap_or_else(|| panic!("no {what}"))
+    }
+
     /// A HEARTBEAT of `mavtype` (GCS, onboard controller...).
     async fn heartbeat(&mut self, mavtype: MavType) {
         self.send(&client::heartbeat(mavtype)).await;
