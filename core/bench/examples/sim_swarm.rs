@@ -288,20 +288,9 @@ fn main() {
     streaming.store(true, Ordering::Relaxed);
     settle("pre-stream", Duration::from_millis(1500));
     let (main, sub) = Px4Mode::Offboard.main_sub();
+    // Broadcast (target system 0) to every simulated autopilot.
     let command = |command: MavCmd, p: [f32; 7]| {
-        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            param1: p[0],
-            param2: p[1],
-            param3: p[2],
-            param4: p[3],
-            param5: p[4],
-            param6: p[5],
-            param7: p[6],
-            command,
-            target_system: 0,
-            target_component: 1,
-            confirmation: 0,
-        })
+        skein_mavlink::command_long(skein_mavlink::CommandTarget::new(0, 1), command, p, 0)
     };
     commands.lock().expect("lock").push(command(
         MavCmd::MAV_CMD_DO_SET_MODE,

@@ -2,10 +2,8 @@
 //! answered by `COMMAND_ACK`), their encoding, and how their results map to errors.
 
 use serde::Serialize;
-use skein_mavlink::MavMessage;
-use skein_mavlink::dialect::{
-    COMMAND_INT_DATA, COMMAND_LONG_DATA, MavCmd, MavDoRepositionFlags, MavFrame, MavResult,
-};
+use skein_mavlink::dialect::{MavCmd, MavDoRepositionFlags, MavFrame, MavResult};
+use skein_mavlink::{CommandPosition, CommandTarget, MavMessage, command_int, command_long};
 use skein_model::geo::GeoPoint;
 use skein_model::px4::{FORCE_ARM_DISARM_MAGIC, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, Px4Mode};
 
@@ -89,21 +87,8 @@ impl LinkCommand {
     /// The frame to send: `COMMAND_LONG`, or `COMMAND_INT` where coordinates need integer
     /// precision. `confirmation` counts resends (0 for the first transmission).
     pub fn encode(&self, target_system: u8, target_component: u8, confirmation: u8) -> MavMessage {
-        let long = |params: [f32; 7]| {
-            MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-                param1: params[0],
-                param2: params[1],
-                param3: params[2],
-                param4: params[3],
-                param5: params[4],
-                param6: params[5],
-                param7: params[6],
-                command: self.mav_cmd(),
-                target_system,
-                target_component,
-                confirmation,
-            })
-        };
+        let to = CommandTarget::new(target_system, target_component);
+        let long = |params: [f32; 7]| command_long(to, self.mav_cmd(), params, confirmation);
         let nan = f32::NAN;
         match self {
             LinkCommand::Arm => long([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
@@ -159,21 +144,22 @@ impl LinkCommand {
                 ground_speed_m_s,
             } => {
                 let (lat, lon, _) = target.to_mavlink();
-                MavMessage::COMMAND_INT(COMMAND_INT_DATA {
-                    param1: ground_speed_m_s.map_or(-1.0, |v| v as f32),
-                    param2: MavDoRepositionFlags::MAV_DO_REPOSITION_FLAGS_CHANGE_MODE.bits() as f32,
-                    param3: 0.0,
-                    param4: nan,
-                    x: lat,
-                    y: lon,
-                    z: target.alt_amsl_m as f32,
-                    command: self.mav_cmd(),
-                    target_system,
-                    target_component,
-                    frame: MavFrame::MAV_FRAME_GLOBAL,
-                    current: 0,
-                    autocontinue: 0,
-                })
+                command_int(
+                    to,
+                    self.mav_cmd(),
+                    [
+                        ground_speed_m_s.map_or(-1.0, |v| v as f32),
+                        MavDoRepositionFlags::MAV_DO_REPOSITION_FLAGS_CHANGE_MODE.bits() as f32,
+                        0.0,
+                        nan,
+                    ],
+                    CommandPosition {
+                        frame: MavFrame::MAV_FRAME_GLOBAL,
+                        x: lat,
+                        y: lon,
+                        z: target.alt_amsl_m as f32,
+                    },
+                )
             }
         }
     }

@@ -8,16 +8,20 @@
 //!   malformed datagram is visible in the API instead of silently lost.
 //! - [`Encoder`]: serialises MAVLink 2 frames with a per-sender sequence number.
 //!
+//! - [`command`]: the command protocol's `COMMAND_LONG` / `COMMAND_INT` frames, built in one
+//!   place for the link, the simulator's clients and the plugins.
 //! - [`param`]: parameter values in PX4's bytewise wire encoding.
 //! - [`signing`]: MAVLink 2 message signing (keys, signing, replay protection).
 //!
 //! Only the common dialect is compiled (one feature set for the whole workspace).
 #![warn(missing_docs)]
 
+pub mod command;
 pub mod param;
 pub mod signing;
 
 /// Per-message constants (`ID`, `EXTRA_CRC`) of the dialect's message structs.
+pub use command::{CommandPosition, CommandTarget, command_int, command_long};
 pub use mavlink::MessageData;
 pub use mavlink::dialects::common as dialect;
 pub use mavlink::dialects::common::MavMessage;

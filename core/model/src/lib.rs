@@ -1,7 +1,8 @@
 //! The pure model of a skein swarm: everything that can be decided without I/O.
 //!
 //! - [`geo`]: geodetic points, NED vectors and tangent-plane frames (the swarm frame and
-//!   each vehicle's own local NED frame), converted through global positions with `map_3d`.
+//!   each vehicle's own local NED frame): the `skein-geo` crate, re-exported (it lives
+//!   apart so the plugin SDK can share it without this crate's dependencies).
 //! - [`px4`]: PX4 flight modes as carried in `HEARTBEAT.custom_mode`, landed states and
 //!   `SET_POSITION_TARGET_LOCAL_NED` type masks.
 //! - [`command`]: the operator's commands, one type for the API, the swarm protocol, DDS
@@ -21,7 +22,7 @@
 pub mod command;
 pub mod formation;
 pub mod fsm;
-pub mod geo;
+pub use skein_geo as geo;
 pub mod geofence;
 pub mod px4;
 pub mod safety;

@@ -2,60 +2,12 @@
 //! and the dashboard show of one vehicle. Serialises to the JSON of the design brief.
 
 use crate::fsm::VehicleState;
-use crate::geo::{GeoPoint, Ned, NedFrame};
+use crate::geo::Ned;
 use serde::{Deserialize, Serialize};
 
-/// Position of a vehicle: swarm-frame NED plus its geodetic position.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
-pub struct Position {
-    /// North of the swarm origin, metres.
-    pub north_m: f64,
-    /// East of the swarm origin, metres.
-    pub east_m: f64,
-    /// Down from the swarm origin, metres (negative is above it).
-    pub down_m: f64,
-    /// Latitude, degrees (`GLOBAL_POSITION_INT.lat`).
-    pub lat_deg: f64,
-    /// Longitude, degrees (`GLOBAL_POSITION_INT.lon`).
-    pub lon_deg: f64,
-    /// Altitude above mean sea level, metres (`GLOBAL_POSITION_INT.alt`).
-    pub alt_amsl_m: f64,
-    /// Height above the vehicle's home, metres (`GLOBAL_POSITION_INT.relative_alt`).
-    pub relative_alt_m: f64,
-}
-
-impl Position {
-    /// Builds the position from a geodetic point, its height above home, and the swarm
-    /// frame.
-    pub fn from_geo(geo: GeoPoint, relative_alt_m: f64, swarm: &NedFrame) -> Position {
-        let ned = swarm.to_ned(&geo);
-        Position {
-            north_m: ned.north_m,
-            east_m: ned.east_m,
-            down_m: ned.down_m,
-            lat_deg: geo.lat_deg,
-            lon_deg: geo.lon_deg,
-            alt_amsl_m: geo.alt_amsl_m,
-            relative_alt_m,
-        }
-    }
-
-    /// The swarm-frame NED part.
-    pub fn ned(&self) -> Ned {
-        Ned::new(self.north_m, self.east_m, self.down_m)
-    }
-}
-
-/// Velocity, NED, metres per second (`GLOBAL_POSITION_INT.vx/vy/vz`).
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, utoipa::ToSchema)]
-pub struct Velocity {
-    /// North, m/s.
-    pub north_m_s: f64,
-    /// East, m/s.
-    pub east_m_s: f64,
-    /// Down, m/s.
-    pub down_m_s: f64,
-}
+// Position and velocity are shared with the plugin SDK (plugins read them from the same
+// JSON), so they live with the geodesy.
+pub use crate::geo::{Position, Velocity};
 
 /// Battery (`BATTERY_STATUS` / `SYS_STATUS`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
@@ -133,6 +85,7 @@ pub struct VehicleSnapshot {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geo::{GeoPoint, NedFrame};
 
     #[test]
     fn snapshot_serialises_to_the_contract_shape() {

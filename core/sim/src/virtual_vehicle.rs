@@ -1,16 +1,38 @@
 //! One simulated vehicle on a virtual clock, without sockets: MAVLink messages go in
 //! through the vehicle's own message handling and everything it sends (telemetry at the
 //! profile's rates, ACKs, STATUSTEXT) comes out decoded, time-stamped on the virtual
-//! clock. A minute of flight runs in milliseconds, deterministically; the trace-replay
-//! test (PX4 v1.16 recordings against the simulator) and offline studies of the flight
-//! model use it.
+//! clock. A minute of flight runs in milliseconds, deterministically; the simulator's
+//! flight and protocol tests, the trace-replay test (PX4 v1.16 recordings against the
+//! simulator), the swarm's rehearsals and offline studies of the flight model use it.
 
 use crate::config::{SimConfig, TelemetryProfile};
+use crate::report::{SimTruth, truth_of};
 use crate::vehicle::{Environment, Outbox, Vehicle};
 use skein_mavlink::dialect::MavCmd;
 use skein_mavlink::{Decoder, Encoder, Frame, MavMessage};
 use skein_model::geo::Ned;
 use std::time::{Duration, Instant};
+
+/// The system id [`VirtualVehicle::send`] speaks as (a ground station's).
+pub const GCS_SYSID: u8 = 255;
+/// The component id [`VirtualVehicle::send`] speaks as (`MAV_COMP_ID_MISSIONPLANNER`).
+pub const GCS_COMPID: u8 = 190;
+
+/// What a virtual vehicle has counted and knows of its peers: the protocol part of
+/// [`crate::SimVehicleStats`] (a virtual vehicle has no socket to count).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct VirtualStats {
+    /// SET_POSITION_TARGET_LOCAL_NED messages received.
+    pub setpoints_received: u64,
+    /// Offboard-loss failsafes taken (`COM_OF_LOSS_T` without a setpoint).
+    pub offboard_loss_failsafes: u64,
+    /// Commands (COMMAND_LONG / COMMAND_INT) received.
+    pub commands_received: u64,
+    /// A MAV_TYPE_GCS heartbeat arrived within PX4's heartbeat timeout (1.5 s).
+    pub gcs_connected: bool,
+    /// A MAV_TYPE_ONBOARD_CONTROLLER heartbeat arrived within the timeout.
+    pub onboard_controller_connected: bool,
+}
 
 /// A simulated vehicle (sysid 1) driven by a virtual clock.
 pub struct VirtualVehicle {
@@ -47,7 +69,7 @@ impl VirtualVehicle {
         VirtualVehicle {
             vehicle: Vehicle::new(1, cfg.home, env, start),
             encoder: Encoder::new(1, 1),
-            client: Encoder::new(255, 190),
+            client: Encoder::new(GCS_SYSID, GCS_COMPID),
             decoder: Decoder::default(),
             buf: Vec::with_capacity(4096),
             start,
@@ -61,23 +83,42 @@ impl VirtualVehicle {
         self.now.duration_since(self.start).as_secs_f64()
     }
 
+    /// The virtual clock as an `Instant` (it starts at the real time of
+    /// [`VirtualVehicle::new`] and advances only with [`VirtualVehicle::step`]): deadlines
+    /// on the virtual clock are `now() + timeout`.
+    pub fn now(&self) -> Instant {
+        self.now
+    }
+
     /// The simulation step, s.
     pub fn tick_s(&self) -> f64 {
         self.tick.as_secs_f64()
     }
 
-    fn drain(&mut self, out: &mut Vec<(f64, MavMessage)>) {
-        let t = self.time_s();
-        let buf = std::mem::take(&mut self.buf);
-        self.decoder
-            .decode_datagram(&buf, |f: Frame| out.push((t, f.msg)));
-        self.buf = buf;
+    /// The frames sent since the last drain, decoded.
+    fn drain(&mut self) -> Vec<Frame> {
+        let mut frames = Vec::new();
+        self.decoder.decode_datagram(&self.buf, |f| frames.push(f));
         self.buf.clear();
+        frames
     }
 
-    /// Delivers `msg` (as if sent by a ground station, sysid 255 / compid 190) at the
-    /// current virtual time; returns what the vehicle answered at once.
+    /// `frames` time-stamped with the virtual time now.
+    fn stamped(&self, frames: Vec<Frame>) -> Vec<(f64, MavMessage)> {
+        let t = self.time_s();
+        frames.into_iter().map(|f| (t, f.msg)).collect()
+    }
+
+    /// Delivers `msg` (as if sent by a ground station, [`GCS_SYSID`] / [`GCS_COMPID`]) at
+    /// the current virtual time; returns what the vehicle answered at once.
     pub fn send(&mut self, msg: &MavMessage) -> Vec<(f64, MavMessage)> {
+        let frames = self.send_frames(msg);
+        self.stamped(frames)
+    }
+
+    /// [`VirtualVehicle::send`], the answers as the frames they were (sysid, compid,
+    /// sequence number).
+    pub fn send_frames(&mut self, msg: &MavMessage) -> Vec<Frame> {
         let mut wire = Vec::with_capacity(64);
         self.client.encode_into(msg, &mut wire);
         let mut frames = Vec::new();
@@ -92,14 +133,18 @@ impl VirtualVehicle {
                 self.vehicle.handle_frame(self.now, f, &mut out);
             }
         }
-        let mut answers = Vec::new();
-        self.drain(&mut answers);
-        answers
+        self.drain()
     }
 
     /// Advances one tick: physics, then the telemetry that is due; returns what the
     /// vehicle sent, time-stamped.
     pub fn step(&mut self) -> Vec<(f64, MavMessage)> {
+        let frames = self.step_frames();
+        self.stamped(frames)
+    }
+
+    /// [`VirtualVehicle::step`], what was sent as the frames it was.
+    pub fn step_frames(&mut self) -> Vec<Frame> {
         self.now += self.tick;
         {
             let mut out = Outbox {
@@ -111,9 +156,7 @@ impl VirtualVehicle {
             self.vehicle.step(self.now, dt, &mut out);
             self.vehicle.emit_due_streams(self.now, &mut out);
         }
-        let mut sent = Vec::new();
-        self.drain(&mut sent);
-        sent
+        self.drain()
     }
 
     /// Runs until virtual time `t_s`; returns everything sent.
@@ -123,6 +166,23 @@ impl VirtualVehicle {
             all.extend(self.step());
         }
         all
+    }
+
+    /// Ground truth now, as [`crate::Simulator::truth`] gives it for a simulator's vehicle.
+    pub fn truth(&self) -> SimTruth {
+        truth_of(&self.vehicle, self.now)
+    }
+
+    /// The vehicle's counters and peers now.
+    pub fn stats(&self) -> VirtualStats {
+        let v = &self.vehicle;
+        VirtualStats {
+            setpoints_received: v.counters.setpoints_received,
+            offboard_loss_failsafes: v.counters.offboard_loss_failsafes,
+            commands_received: v.counters.commands_received,
+            gcs_connected: v.gcs_connected(self.now),
+            onboard_controller_connected: v.onboard_controller_connected(self.now),
+        }
     }
 
     /// Ground truth: local NED position, m.
@@ -190,9 +250,15 @@ pub mod client {
 
     /// A MAV_TYPE_GCS HEARTBEAT (keeps PX4's GCS-loss failsafe away).
     pub fn gcs_heartbeat() -> MavMessage {
+        heartbeat(MavType::MAV_TYPE_GCS)
+    }
+
+    /// The HEARTBEAT of a component of type `mavtype` that is not an autopilot (a ground
+    /// station, an onboard controller).
+    pub fn heartbeat(mavtype: MavType) -> MavMessage {
         MavMessage::HEARTBEAT(HEARTBEAT_DATA {
             custom_mode: 0,
-            mavtype: MavType::MAV_TYPE_GCS,
+            mavtype,
             autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
             base_mode: MavModeFlag::empty(),
             system_status: MavState::MAV_STATE_ACTIVE,
@@ -202,19 +268,7 @@ pub mod client {
 
     /// COMMAND_LONG `cmd` with `params` 1–7.
     pub fn command(cmd: MavCmd, p: [f32; 7]) -> MavMessage {
-        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            param1: p[0],
-            param2: p[1],
-            param3: p[2],
-            param4: p[3],
-            param5: p[4],
-            param6: p[5],
-            param7: p[6],
-            command: cmd,
-            target_system: 1,
-            target_component: 1,
-            confirmation: 0,
-        })
+        skein_mavlink::command_long(skein_mavlink::CommandTarget::new(1, 1), cmd, p, 0)
     }
 
     /// SET_POSITION_TARGET_LOCAL_NED: position (m), velocity (m/s), acceleration (m/s²),

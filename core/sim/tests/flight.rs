@@ -1,31 +1,34 @@
-//! Flight behaviour over real UDP: offboard entry and control, takeoff/land, auto-disarm,
-//! offboard-loss failsafe, RTL and reposition.
+//! Flight behaviour: offboard entry and control, takeoff/land, auto-disarm, offboard-loss
+//! failsafe, RTL and reposition. On the virtual clock ([`VirtualClient`]): the vehicle
+//! runs the simulator's own message handling, flight logic and telemetry, and PX4's
+//! timers are measured exactly, without waiting for them. The UDP wire is
+//! `protocol.rs`'s and `rates.rs`'s subject.
 #![allow(deprecated)]
 
 mod common;
 
 use common::*;
-use skein_mavlink::MavMessage;
 use skein_mavlink::dialect::*;
+use skein_mavlink::{CommandPosition, CommandTarget, MavMessage, command_int};
 use skein_model::px4::{Px4Mode, type_mask};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 const SECS: fn(u64) -> Duration = Duration::from_secs;
 
 /// Streams a position setpoint, switches to OFFBOARD (retrying until accepted), arms, and
 /// waits until the vehicle is at (`n`, `e`, `z`).
-async fn fly_offboard_to(c: &mut Client, n: f32, e: f32, z: f32) -> Streamer {
+async fn fly_offboard_to(c: &mut VirtualClient, n: f32, e: f32, z: f32) {
     c.wait_home().await;
-    let streamer = Streamer::start(c, position_setpoint(c.sysid, n, e, z), 20.0);
-    let deadline = Instant::now() + SECS(5);
+    c.stream(position_setpoint(c.sysid(), n, e, z), 20.0);
+    let deadline = c.now() + SECS(5);
     loop {
         let (first, second) = c.set_mode(Px4Mode::Offboard).await;
         assert_eq!(first, MavResult::MAV_RESULT_ACCEPTED);
         if second == MavResult::MAV_RESULT_ACCEPTED {
             break;
         }
-        assert!(Instant::now() < deadline, "OFFBOARD never accepted");
-        tokio::time::sleep(Duration::from_millis(100)).await;
+        assert!(c.now() < deadline, "OFFBOARD never accepted");
+        c.run_for(Duration::from_millis(100));
     }
     assert!(c.wait_mode(Px4Mode::Offboard, SECS(3)).await);
     assert_eq!(c.arm(true).await, MavResult::MAV_RESULT_ACCEPTED);
@@ -35,13 +38,29 @@ async fn fly_offboard_to(c: &mut Client, n: f32, e: f32, z: f32) -> Streamer {
         })
         .await;
     assert!(reached.is_some(), "never reached ({n}, {e}, {z})");
-    streamer
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+/// True once EXTENDED_SYS_STATE reports `state` within `timeout`.
+async fn reports_landed_state(
+    c: &mut VirtualClient,
+    state: MavLandedState,
+    timeout: Duration,
+) -> bool {
+    c.wait_for(timeout, |f| match &f.msg {
+        MavMessage::EXTENDED_SYS_STATE(s) if s.landed_state == state => Some(()),
+        _ => None,
+    })
+    .await
+    .is_some()
+}
+
+/// Parameters of MAV_CMD_NAV_TAKEOFF / MAV_CMD_NAV_LAND that leave yaw, position and
+/// altitude to PX4 (NaN): take off to MIS_TAKEOFF_ALT, land where it is.
+const AT_DEFAULTS: [f32; 7] = [0.0, 0.0, 0.0, f32::NAN, f32::NAN, f32::NAN, f32::NAN];
+
+#[tokio::test]
 async fn offboard_refused_without_setpoints_then_tracks_position_velocity_and_feedforward() {
-    let (sim, mut clients) = start(1, |_| {}).await;
-    let c = &mut clients[0];
+    let mut c = start_virtual(|_| {});
     c.wait_home().await;
 
     // No setpoints yet: the first ACK is ACCEPTED, the second refuses, the mode stays.
@@ -49,18 +68,21 @@ async fn offboard_refused_without_setpoints_then_tracks_position_velocity_and_fe
     assert_eq!(first, MavResult::MAV_RESULT_ACCEPTED);
     assert_ne!(second, MavResult::MAV_RESULT_ACCEPTED);
     assert!(c.wait_mode(Px4Mode::Hold, SECS(3)).await);
-    assert_eq!(sim.truth(1).expect("truth").mode, Px4Mode::Hold);
+    assert_eq!(c.vehicle.truth().mode, Px4Mode::Hold);
     // Arming in HOLD works, disarm again (landed).
-    let streamer = fly_offboard_to(c, 0.0, 0.0, -5.0).await;
+    fly_offboard_to(&mut c, 0.0, 0.0, -5.0).await;
 
     // Velocity setpoint: 1.5 m/s north.
-    streamer.set(setpoint(
-        c.sysid,
-        type_mask::VELOCITY_YAW_RATE,
-        [0.0; 3],
-        [1.5, 0.0, 0.0],
-        0.0,
-    ));
+    c.stream(
+        setpoint(
+            c.sysid(),
+            type_mask::VELOCITY_YAW_RATE,
+            [0.0; 3],
+            [1.5, 0.0, 0.0],
+            0.0,
+        ),
+        20.0,
+    );
     // PX4's velocity loop does not know SIH's drag: its slow integrator (MPC_XY_VEL_I_ACC
     // 0.4) closes the last few tenths of a m/s over some 15 s, as on PX4.
     let steady = c
@@ -81,11 +103,10 @@ async fn offboard_refused_without_setpoints_then_tracks_position_velocity_and_fe
 
     // Position + velocity feed-forward: follow a target moving east at 2 m/s. With the
     // feed-forward the tracking error vanishes (without it, it would be v/P ≈ 2.1 m).
-    streamer.stop();
     let start_y = later.y;
     let x_hold = later.x;
-    let sysid = c.sysid;
-    let ff = Streamer::start_fn(c, 20.0, move |t| {
+    let sysid = c.sysid();
+    c.stream_fn(20.0, move |t| {
         setpoint(
             sysid,
             type_mask::POSITION_VELOCITY_YAW,
@@ -94,18 +115,15 @@ async fn offboard_refused_without_setpoints_then_tracks_position_velocity_and_fe
             0.0,
         )
     });
-    let ff_start = ff.started;
-    tokio::time::sleep(Duration::from_millis(50)).await;
     // Let the vehicle settle on the moving target, then check the error stays small.
-    let settled = Instant::now() + SECS(4);
+    c.run_for(SECS(4));
+    c.clear();
+    let check_until = c.now() + SECS(2);
     let mut worst: f32 = 0.0;
     let mut samples = 0;
-    let check_until = settled + SECS(2);
     while let Some(f) = c.next(check_until).await {
-        if let MavMessage::LOCAL_POSITION_NED(p) = f.msg
-            && Instant::now() >= settled
-        {
-            let expected = start_y + 2.0 * ff_start.elapsed().as_secs_f32();
+        if let MavMessage::LOCAL_POSITION_NED(p) = f.msg {
+            let expected = start_y + 2.0 * c.stream_age().as_secs_f32();
             worst = worst.max((p.y - expected).abs());
             samples += 1;
             assert!((p.vy - 2.0).abs() < 0.2, "vy {}", p.vy);
@@ -116,96 +134,72 @@ async fn offboard_refused_without_setpoints_then_tracks_position_velocity_and_fe
     // slow integrator, MPC_XY_VEL_I_ACC 0.4, needs some 15 s, as above), which leaves
     // 0.5–0.62 m (measured) of position error; without the feed-forward it is ≈ 2.1 m.
     assert!(worst < 0.8, "feed-forward tracking error {worst} m");
-    ff.stop();
-    sim.shutdown().await;
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[tokio::test]
 async fn offboard_needs_one_second_of_stream_or_with_the_relaxed_rule_a_fresh_setpoint() {
     use MavResult::*;
     // PX4 v1.16's offboardCheck (the default): a setpoint younger than COM_OF_LOSS_T.
-    let (sim, mut clients) = start(1, |_| {}).await;
-    let c = &mut clients[0];
+    let mut c = start_virtual(|_| {});
     c.wait_home().await;
-    let streamer = Streamer::start(c, position_setpoint(c.sysid, 0.0, 0.0, -3.0), 20.0);
-    assert!(eventually(SECS(2), || sim.stats()[0].setpoints_received >= 2).await);
-    streamer.stop();
+    c.stream(position_setpoint(c.sysid(), 0.0, 0.0, -3.0), 20.0);
+    assert!(c.run_until(SECS(2), |v| v.stats().setpoints_received >= 2));
+    c.stop_stream();
     // Stale stream (older than COM_OF_LOSS_T = 1 s): refused.
-    let stopped = Instant::now();
-    while stopped.elapsed() < Duration::from_millis(1200) {
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
+    c.run_for(Duration::from_millis(1200));
     assert_eq!(
         c.set_mode(Px4Mode::Offboard).await,
         (MAV_RESULT_ACCEPTED, MAV_RESULT_TEMPORARILY_REJECTED)
     );
     // One fresh setpoint is enough.
-    let sp = position_setpoint(c.sysid, 0.0, 0.0, -3.0);
+    let sp = position_setpoint(c.sysid(), 0.0, 0.0, -3.0);
     c.send(&sp).await;
     assert_eq!(
         c.set_mode(Px4Mode::Offboard).await,
         (MAV_RESULT_ACCEPTED, MAV_RESULT_ACCEPTED)
     );
     assert!(c.wait_mode(Px4Mode::Offboard, SECS(2)).await);
-    sim.shutdown().await;
 
     // The documented "> 1 s at > 2 Hz" rule: the stricter option.
-    let (sim, mut clients) = start(1, |cfg| cfg.offboard_min_stream_s = 1.0).await;
-    let c = &mut clients[0];
+    let mut c = start_virtual(|cfg| cfg.offboard_min_stream_s = 1.0);
     c.wait_home().await;
-    let streamer = Streamer::start(c, position_setpoint(c.sysid, 0.0, 0.0, -3.0), 20.0);
-    assert!(eventually(SECS(2), || sim.stats()[0].setpoints_received >= 2).await);
+    c.stream(position_setpoint(c.sysid(), 0.0, 0.0, -3.0), 20.0);
+    assert!(c.run_until(SECS(2), |v| v.stats().setpoints_received >= 2));
     let (first, second) = c.set_mode(Px4Mode::Offboard).await;
     assert_eq!(first, MAV_RESULT_ACCEPTED);
-    if streamer.started.elapsed() < Duration::from_millis(900) {
-        assert_eq!(
-            second, MAV_RESULT_TEMPORARILY_REJECTED,
-            "accepted a young stream"
-        );
-    }
-    let deadline = Instant::now() + SECS(5);
+    assert!(c.stream_age() < Duration::from_millis(900));
+    assert_eq!(
+        second, MAV_RESULT_TEMPORARILY_REJECTED,
+        "accepted a young stream"
+    );
+    let deadline = c.now() + SECS(5);
     loop {
         let (_, second) = c.set_mode(Px4Mode::Offboard).await;
         if second == MAV_RESULT_ACCEPTED {
             break;
         }
-        assert!(Instant::now() < deadline, "never accepted");
-        tokio::time::sleep(Duration::from_millis(100)).await;
+        assert!(c.now() < deadline, "never accepted");
+        c.run_for(Duration::from_millis(100));
     }
-    assert!(streamer.started.elapsed() >= Duration::from_millis(1000));
-    streamer.stop();
-    sim.shutdown().await;
+    assert!(c.stream_age() >= Duration::from_millis(1000));
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[tokio::test]
 async fn takeoff_land_cycle_and_arming_refused_in_land() {
-    let (sim, mut clients) = start(1, |_| {}).await;
-    let c = &mut clients[0];
+    let mut c = start_virtual(|_| {});
     c.heartbeat(MavType::MAV_TYPE_GCS).await;
     c.wait_home().await;
 
     // PX4 accepts the takeoff while disarmed and waits for arming.
-    let r = c
-        .command(
-            MavCmd::MAV_CMD_NAV_TAKEOFF,
-            [0.0, 0.0, 0.0, f32::NAN, f32::NAN, f32::NAN, f32::NAN],
-        )
-        .await;
+    let r = c.command(MavCmd::MAV_CMD_NAV_TAKEOFF, AT_DEFAULTS).await;
     assert_eq!(r, MavResult::MAV_RESULT_ACCEPTED);
     assert!(c.wait_mode(Px4Mode::Takeoff, SECS(3)).await);
-    assert_eq!(sim.truth(1).expect("truth").local_ned_m.down_m, 0.0);
+    assert_eq!(c.vehicle.truth().local_ned_m.down_m, 0.0);
     assert_eq!(c.arm(true).await, MavResult::MAV_RESULT_ACCEPTED);
-    let takeoff_state = c
-        .wait_for(SECS(5), |f| match &f.msg {
-            MavMessage::EXTENDED_SYS_STATE(s)
-                if s.landed_state == MavLandedState::MAV_LANDED_STATE_TAKEOFF =>
-            {
-                Some(())
-            }
-            _ => None,
-        })
-        .await;
-    assert!(takeoff_state.is_some(), "never reported TAKEOFF");
+    assert!(
+        reports_landed_state(&mut c, MavLandedState::MAV_LANDED_STATE_TAKEOFF, SECS(5)).await,
+        "never reported TAKEOFF"
+    );
     // Takeoff completes into HOLD at MIS_TAKEOFF_ALT (2.5 m).
     assert!(
         c.wait_mode(Px4Mode::Hold, SECS(10)).await,
@@ -218,30 +212,18 @@ async fn takeoff_land_cycle_and_arming_refused_in_land() {
     c.heartbeat(MavType::MAV_TYPE_GCS).await;
 
     // Land: LANDING state, then ON_GROUND, then auto-disarm (COM_DISARM_LAND 2 s).
-    let r = c
-        .command(
-            MavCmd::MAV_CMD_NAV_LAND,
-            [0.0, 0.0, 0.0, f32::NAN, f32::NAN, f32::NAN, f32::NAN],
-        )
-        .await;
+    let r = c.command(MavCmd::MAV_CMD_NAV_LAND, AT_DEFAULTS).await;
     assert_eq!(r, MavResult::MAV_RESULT_ACCEPTED);
     assert!(c.wait_mode(Px4Mode::Land, SECS(3)).await);
-    let landing = c
-        .wait_for(SECS(3), |f| match &f.msg {
-            MavMessage::EXTENDED_SYS_STATE(s)
-                if s.landed_state == MavLandedState::MAV_LANDED_STATE_LANDING =>
-            {
-                Some(())
-            }
-            _ => None,
-        })
-        .await;
-    assert!(landing.is_some(), "never reported LANDING");
+    assert!(
+        reports_landed_state(&mut c, MavLandedState::MAV_LANDED_STATE_LANDING, SECS(3)).await,
+        "never reported LANDING"
+    );
     assert!(
         c.wait_armed(false, SECS(15)).await,
         "never disarmed after landing"
     );
-    let truth = sim.truth(1).expect("truth");
+    let truth = c.vehicle.truth();
     assert!(truth.local_ned_m.down_m.abs() < 0.05);
     assert_eq!(truth.mode, Px4Mode::Land);
 
@@ -255,7 +237,7 @@ async fn takeoff_land_cycle_and_arming_refused_in_land() {
     c.send(&msg).await;
     let mut reason = None;
     let mut result = None;
-    let deadline = Instant::now() + SECS(3);
+    let deadline = c.now() + SECS(3);
     while (reason.is_none() || result.is_none())
         && let Some(f) = c.next(deadline).await
     {
@@ -269,94 +251,80 @@ async fn takeoff_land_cycle_and_arming_refused_in_land() {
     }
     assert_eq!(result, Some(MavResult::MAV_RESULT_TEMPORARILY_REJECTED));
     assert!(reason.expect("reason").contains("Arming denied"));
-    sim.shutdown().await;
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[tokio::test]
 async fn auto_disarm_without_takeoff_after_com_disarm_prflt() {
-    let (sim, mut clients) = start(1, |_| {}).await;
-    let c = &mut clients[0];
+    let mut c = start_virtual(|_| {});
     c.wait_home().await;
     c.param_set_f32("COM_DISARM_PRFLT", 1.5).await;
-    let armed_at = Instant::now();
+    let armed_at = c.now();
     assert_eq!(c.arm(true).await, MavResult::MAV_RESULT_ACCEPTED);
     assert!(c.wait_armed(true, SECS(3)).await);
     assert!(c.wait_armed(false, SECS(6)).await, "never auto-disarmed");
-    let after = armed_at.elapsed();
+    let after = c.now().duration_since(armed_at);
     assert!(
         after >= Duration::from_millis(1300),
         "disarmed after {after:?}, before COM_DISARM_PRFLT"
     );
-    sim.shutdown().await;
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[tokio::test]
 async fn offboard_loss_default_action_lands() {
-    let (sim, mut clients) = start(1, |_| {}).await;
-    let c = &mut clients[0];
-    let streamer = fly_offboard_to(c, 0.0, 0.0, -5.0).await;
-    sim.reset_stats();
-    streamer.stop();
-    let stopped = Instant::now();
+    let mut c = start_virtual(|_| {});
+    fly_offboard_to(&mut c, 0.0, 0.0, -5.0).await;
+    assert_eq!(c.vehicle.stats().offboard_loss_failsafes, 0);
+    c.stop_stream();
+    let stopped = c.now();
     assert!(
         c.wait_mode(Px4Mode::Land, SECS(4)).await,
         "no failsafe to LAND"
     );
-    assert!(stopped.elapsed() >= Duration::from_millis(900));
-    let stats = &sim.stats()[0];
-    assert_eq!(stats.offboard_loss_failsafes, 1);
-    assert!(stats.truth.failsafe);
+    assert!(c.now().duration_since(stopped) >= Duration::from_millis(900));
+    assert_eq!(c.vehicle.stats().offboard_loss_failsafes, 1);
+    assert!(c.vehicle.truth().failsafe);
     // It descends.
-    let z0 = sim.truth(1).expect("truth").local_ned_m.down_m;
+    let z0 = c.vehicle.truth().local_ned_m.down_m;
     assert!(
         c.wait_local(SECS(5), |p| f64::from(p.z) > z0 + 1.0)
             .await
             .is_some(),
         "not descending"
     );
-    sim.shutdown().await;
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[tokio::test]
 async fn offboard_loss_with_com_obl_rc_act_5_holds() {
-    let (sim, mut clients) = start(1, |_| {}).await;
-    let c = &mut clients[0];
+    let mut c = start_virtual(|_| {});
     c.wait_home().await;
     c.param_set_i32("COM_OBL_RC_ACT", 5).await;
-    let streamer = fly_offboard_to(c, 0.0, 0.0, -5.0).await;
-    streamer.stop();
+    fly_offboard_to(&mut c, 0.0, 0.0, -5.0).await;
+    c.stop_stream();
     assert!(
         c.wait_mode(Px4Mode::Hold, SECS(4)).await,
         "no failsafe to HOLD"
     );
-    assert_eq!(sim.stats()[0].offboard_loss_failsafes, 1);
+    assert_eq!(c.vehicle.stats().offboard_loss_failsafes, 1);
     // Keeps its altitude for a while.
-    let deadline = Instant::now() + SECS(2);
+    let deadline = c.now() + SECS(2);
     while let Some(f) = c.next(deadline).await {
         if let MavMessage::LOCAL_POSITION_NED(p) = f.msg {
             assert!((p.z + 5.0).abs() < 0.5, "altitude not held: {}", p.z);
         }
     }
-    sim.shutdown().await;
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[tokio::test]
 async fn reposition_then_rtl_returns_home_and_lands() {
-    let (sim, mut clients) = start(1, |cfg| {
+    let mut c = start_virtual(|cfg| {
         cfg.params = vec![
             ("MIS_TAKEOFF_ALT".into(), 5.0),
             ("RTL_RETURN_ALT".into(), 8.0),
         ];
-    })
-    .await;
-    let c = &mut clients[0];
+    });
     let home = c.wait_home().await;
     assert_eq!(
-        c.command(
-            MavCmd::MAV_CMD_NAV_TAKEOFF,
-            [0.0, 0.0, 0.0, f32::NAN, f32::NAN, f32::NAN, f32::NAN]
-        )
-        .await,
+        c.command(MavCmd::MAV_CMD_NAV_TAKEOFF, AT_DEFAULTS).await,
         MavResult::MAV_RESULT_ACCEPTED
     );
     assert_eq!(c.arm(true).await, MavResult::MAV_RESULT_ACCEPTED);
@@ -366,26 +334,22 @@ async fn reposition_then_rtl_returns_home_and_lands() {
     );
 
     // DO_REPOSITION (COMMAND_INT, relative altitude) to 15 m north, 10 m east, 6 m up.
-    let origin = sim.truth(1).expect("truth").local_origin;
+    let origin = c.vehicle.truth().local_origin;
     let target =
         skein_model::geo::NedFrame::new(origin).to_geo(skein_model::geo::Ned::new(15.0, 10.0, 0.0));
     let (lat, lon, _) = target.to_mavlink();
-    c.send(&MavMessage::COMMAND_INT(COMMAND_INT_DATA {
-        param1: -1.0,
-        param2: 1.0,
-        param3: 0.0,
-        param4: f32::NAN,
-        x: lat,
-        y: lon,
-        z: 6.0,
-        command: MavCmd::MAV_CMD_DO_REPOSITION,
-        target_system: c.sysid,
-        target_component: 1,
-        frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-        current: 0,
-        autocontinue: 0,
-    }))
-    .await;
+    let reposition = command_int(
+        CommandTarget::new(c.sysid(), 1),
+        MavCmd::MAV_CMD_DO_REPOSITION,
+        [-1.0, 1.0, 0.0, f32::NAN],
+        CommandPosition {
+            frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            x: lat,
+            y: lon,
+            z: 6.0,
+        },
+    );
+    c.send(&reposition).await;
     assert_eq!(
         c.wait_ack(MavCmd::MAV_CMD_DO_REPOSITION, SECS(3)).await,
         Some(MavResult::MAV_RESULT_ACCEPTED)
@@ -396,7 +360,7 @@ async fn reposition_then_rtl_returns_home_and_lands() {
         })
         .await;
     assert!(there.is_some(), "reposition target never reached");
-    assert_eq!(sim.truth(1).expect("truth").mode, Px4Mode::Hold);
+    assert_eq!(c.vehicle.truth().mode, Px4Mode::Hold);
 
     // RTL: climbs to RTL_RETURN_ALT (8 m), flies home, lands, disarms.
     assert_eq!(
@@ -420,12 +384,11 @@ async fn reposition_then_rtl_returns_home_and_lands() {
         c.wait_armed(false, SECS(40)).await,
         "never landed and disarmed"
     );
-    let truth = sim.truth(1).expect("truth");
+    let truth = c.vehicle.truth();
     assert!(
         truth.local_ned_m.horizontal_norm() < 1.0,
         "landed at {:?}",
         truth.local_ned_m
     );
     assert!(truth.local_ned_m.down_m.abs() < 0.05);
-    sim.shutdown().await;
 }

@@ -1,32 +1,35 @@
-//! MAVLink protocol behaviour over real UDP: parameters, STATUSTEXT gating, lock-on,
-//! link cut, reboot, decoding, command protocol, identity.
+//! MAVLink protocol behaviour: over real UDP where the wire is the subject (parameters,
+//! lock-on, link cut, reboot, decoding, identity, several vehicles on one target), on the
+//! virtual clock where PX4's timers are ([`VirtualClient`]: STATUSTEXT gating by the GCS
+//! heartbeat, the command protocol with a takeoff, arming before the EKF's fix).
 #![allow(deprecated)]
 
 mod common;
 
 use common::*;
 use skein_mavlink::dialect::*;
-use skein_mavlink::{Decoder, Encoder, MavMessage};
+use skein_mavlink::{
+    CommandPosition, CommandTarget, Decoder, Encoder, MavMessage, command_int, command_long,
+};
 use skein_model::px4::Px4Mode;
+use skein_sim::virtual_vehicle::{GCS_COMPID, GCS_SYSID, client};
 use skein_sim::{PX4_FLIGHT_SW_VERSION, SimConfig, SimVehicleConfig, Simulator};
 use std::time::{Duration, Instant};
 
 const SECS: fn(u64) -> Duration = Duration::from_secs;
 
 async fn param_read_by_name(c: &mut Client, name: &str) -> PARAM_VALUE_DATA {
-    c.send(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+    let read = MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
         param_index: -1,
         target_system: c.sysid,
         target_component: 1,
         param_id: name.into(),
-    }))
-    .await;
-    c.wait_for(SECS(2), |f| match &f.msg {
+    });
+    c.request(&read, &format!("PARAM_VALUE for {name}"), |m| match m {
         MavMessage::PARAM_VALUE(v) if v.param_id.to_str().ok() == Some(name) => Some(v.clone()),
         _ => None,
     })
     .await
-    .unwrap_or_else(|| panic!("no PARAM_VALUE for {name}"))
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -115,18 +118,12 @@ async fn parameters_get_set_bytewise_and_list() {
 
 /// Sends DO_SET_MODE and collects the ACK results and STATUSTEXTs for `window`.
 async fn set_mode_collect(
-    c: &mut Client,
+    c: &mut impl GroundStation,
     mode: Px4Mode,
     window: Duration,
 ) -> (Vec<MavResult>, Vec<String>) {
-    let (main, sub) = mode.main_sub();
-    let msg = c.command_long_msg(
-        MavCmd::MAV_CMD_DO_SET_MODE,
-        [1.0, f32::from(main), f32::from(sub), 0.0, 0.0, 0.0, 0.0],
-        0,
-    );
-    c.send(&msg).await;
-    let deadline = Instant::now() + window;
+    c.send(&set_mode_msg(c.sysid(), mode)).await;
+    let deadline = c.now() + window;
     let mut acks = Vec::new();
     let mut texts = Vec::new();
     while let Some(f) = c.next(deadline).await {
@@ -141,25 +138,26 @@ async fn set_mode_collect(
     (acks, texts)
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[tokio::test]
 async fn statustext_only_while_a_gcs_heartbeat_is_fresh() {
-    let (sim, mut clients) = start(1, |_| {}).await;
-    let c = &mut clients[0];
+    let mut c = start_virtual(|_| {});
     c.wait_home().await;
     use MavResult::*;
     // An onboard controller's heartbeat does not count.
     c.heartbeat(MavType::MAV_TYPE_ONBOARD_CONTROLLER).await;
-    let (acks, texts) = set_mode_collect(c, Px4Mode::Offboard, Duration::from_millis(700)).await;
+    let (acks, texts) =
+        set_mode_collect(&mut c, Px4Mode::Offboard, Duration::from_millis(700)).await;
     assert_eq!(
         acks,
         vec![MAV_RESULT_ACCEPTED, MAV_RESULT_TEMPORARILY_REJECTED]
     );
     assert!(texts.is_empty(), "{texts:?}");
-    assert!(sim.stats()[0].onboard_controller_connected);
+    assert!(c.vehicle.stats().onboard_controller_connected);
 
-    let hb_at = Instant::now();
+    let hb_at = c.now();
     c.heartbeat(MavType::MAV_TYPE_GCS).await;
-    let (acks, texts) = set_mode_collect(c, Px4Mode::Offboard, Duration::from_millis(700)).await;
+    let (acks, texts) =
+        set_mode_collect(&mut c, Px4Mode::Offboard, Duration::from_millis(700)).await;
     assert_eq!(
         acks,
         vec![MAV_RESULT_ACCEPTED, MAV_RESULT_TEMPORARILY_REJECTED]
@@ -168,25 +166,23 @@ async fn statustext_only_while_a_gcs_heartbeat_is_fresh() {
         texts.iter().any(|t| t.contains("Offboard")),
         "expected the refusal reason, got {texts:?}"
     );
-    assert!(sim.stats()[0].gcs_connected);
+    assert!(c.vehicle.stats().gcs_connected);
 
     // 2.5 s after the last GCS heartbeat, STATUSTEXT stops again.
     assert!(
-        eventually(SECS(5), || !sim.stats()[0].gcs_connected).await,
+        c.run_until(SECS(5), |v| !v.stats().gcs_connected),
         "GCS never timed out"
     );
-    assert!(hb_at.elapsed() >= Duration::from_millis(1400));
-    while hb_at.elapsed() < Duration::from_millis(2600) {
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
+    assert!(c.now().duration_since(hb_at) >= Duration::from_millis(1400));
+    c.run_for((hb_at + Duration::from_millis(2600)).saturating_duration_since(c.now()));
     c.clear();
-    let (acks, texts) = set_mode_collect(c, Px4Mode::Offboard, Duration::from_millis(500)).await;
+    let (acks, texts) =
+        set_mode_collect(&mut c, Px4Mode::Offboard, Duration::from_millis(500)).await;
     assert_eq!(
         acks,
         vec![MAV_RESULT_ACCEPTED, MAV_RESULT_TEMPORARILY_REJECTED]
     );
     assert!(texts.is_empty(), "{texts:?}");
-    sim.shutdown().await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -204,10 +200,13 @@ async fn locks_onto_first_sender_and_reboot_unlocks() {
         sim.stats()[0].peer,
         Some(b.sock.local_addr().expect("addr"))
     );
-    // A hears nothing more (after what was already in flight), even when it talks.
+    // Everything sent before the lock still on its way to A: a cut link stops the
+    // vehicle's sending, and then A and B together have received all it sent.
+    sim.set_silent(1, true);
+    clear_through(&mut [&mut *a, &mut b], sim.stats()[0].datagrams_sent).await;
+    sim.set_silent(1, false);
+    // A hears nothing more, even when it talks.
     a.heartbeat(MavType::MAV_TYPE_GCS).await;
-    tokio::time::sleep(Duration::from_millis(100)).await;
-    a.clear();
     assert!(
         a.next(Instant::now() + Duration::from_millis(600))
             .await
@@ -254,8 +253,7 @@ async fn silent_link_sends_nothing_and_drops_input() {
     let c = &mut clients[0];
     c.wait_home().await;
     sim.set_silent(1, true);
-    tokio::time::sleep(Duration::from_millis(50)).await;
-    c.clear();
+    clear_through(&mut [&mut *c], sim.stats()[0].datagrams_sent).await;
     assert!(
         c.next(Instant::now() + Duration::from_millis(500))
             .await
@@ -279,20 +277,22 @@ async fn silent_link_sends_nothing_and_drops_input() {
     assert!(sim.stats()[0].silent);
     assert!(sim.stats()[0].datagrams_dropped_silent >= 1);
     sim.set_silent(1, false);
-    assert!(c.wait_heartbeat(SECS(3), |_| true).await.is_some());
+    assert!(
+        c.next(Instant::now() + SECS(3)).await.is_some(),
+        "never heard again"
+    );
 
-    // Timed silence (the stats socket's `silence <sysid> <ms>`).
-    sim.silence_for(1, Duration::from_millis(400));
-    tokio::time::sleep(Duration::from_millis(30)).await;
-    c.clear();
+    // Timed silence (the stats socket's `silence <sysid> <ms>`): nothing sent in it
+    // arrives, the first frame after it is at least its length later.
     let cut = Instant::now();
-    assert!(c.wait_heartbeat(SECS(3), |_| true).await.is_some());
-    assert!(cut.elapsed() >= Duration::from_millis(300));
+    sim.silence_for(1, Duration::from_millis(400));
+    clear_through(&mut [&mut *c], sim.stats()[0].datagrams_sent).await;
+    assert!(c.next(cut + SECS(3)).await.is_some(), "never heard again");
+    assert!(cut.elapsed() >= Duration::from_millis(400));
 
     // Kill: gone for good.
     sim.kill(1);
-    tokio::time::sleep(Duration::from_millis(50)).await;
-    c.clear();
+    clear_through(&mut [&mut *c], sim.stats()[0].datagrams_sent).await;
     assert!(
         c.next(Instant::now() + Duration::from_millis(500))
             .await
@@ -324,17 +324,7 @@ async fn everything_sent_decodes_without_error_and_malformed_input_is_counted() 
     // Garbage, a bad CRC and a truncated frame: counted, dropped, no harm.
     c.send_raw(b"definitely not mavlink").await;
     let mut enc = Encoder::new(CLIENT_SYSID, CLIENT_COMPID);
-    let good = enc
-        .encode(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            custom_mode: 0,
-            mavtype: MavType::MAV_TYPE_GCS,
-            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-            base_mode: MavModeFlag::empty(),
-            system_status: MavState::MAV_STATE_ACTIVE,
-            mavlink_version: 3,
-        }))
-        .as_bytes()
-        .to_vec();
+    let good = enc.encode(&client::gcs_heartbeat()).as_bytes().to_vec();
     let mut bad = good.clone();
     let n = bad.len();
     bad[n - 1] ^= 0x55;
@@ -382,14 +372,12 @@ async fn identity_autopilot_version_home_ping_timesync() {
         [148.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         0,
     );
-    c.send(&msg).await;
     let av = c
-        .wait_for(SECS(2), |f| match &f.msg {
+        .request(&msg, "AUTOPILOT_VERSION", |m| match m {
             MavMessage::AUTOPILOT_VERSION(v) => Some(v.clone()),
             _ => None,
         })
-        .await
-        .expect("AUTOPILOT_VERSION");
+        .await;
     for cap in [
         MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MAVLINK2,
         MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_COMMAND_INT,
@@ -424,38 +412,35 @@ async fn identity_autopilot_version_home_ping_timesync() {
     );
 
     // TIMESYNC request → tc1 = own time, ts1 echoed, addressed to us.
-    c.send(&MavMessage::TIMESYNC(TIMESYNC_DATA {
-        tc1: 0,
+    let timesync = TIMESYNC_DATA {
         ts1: 123_456_789,
-        target_system: 0,
-        target_component: 0,
-    }))
-    .await;
+        ..Default::default()
+    };
     let ts = c
-        .wait_for(SECS(2), |f| match &f.msg {
-            MavMessage::TIMESYNC(t) if t.ts1 == 123_456_789 => Some(t.clone()),
-            _ => None,
-        })
-        .await
-        .expect("TIMESYNC reply");
+        .request(
+            &MavMessage::TIMESYNC(timesync),
+            "TIMESYNC reply",
+            |m| match m {
+                MavMessage::TIMESYNC(t) if t.ts1 == 123_456_789 => Some(t.clone()),
+                _ => None,
+            },
+        )
+        .await;
     assert!(ts.tc1 > 0);
     assert_eq!(ts.target_system, CLIENT_SYSID);
 
-    // PING request → echoed with our ids.
-    c.send(&MavMessage::PING(PING_DATA {
+    // PING request (to every system) → echoed with our ids.
+    let ping = PING_DATA {
         time_usec: 42,
         seq: 7,
-        target_system: 0,
-        target_component: 0,
-    }))
-    .await;
+        ..Default::default()
+    };
     let ping = c
-        .wait_for(SECS(2), |f| match &f.msg {
-            MavMessage::PING(p) if p.target_system == CLIENT_SYSID => Some(p.clone()),
-            _ => None,
+        .request(&MavMessage::PING(ping), "PING reply", |m| {
+            let MavMessage::PING(p) = m else { return None };
+            (p.target_system == CLIENT_SYSID).then(|| p.clone())
         })
-        .await
-        .expect("PING reply");
+        .await;
     assert_eq!(
         (ping.seq, ping.time_usec, ping.target_component),
         (7, 42, CLIENT_COMPID)
@@ -463,23 +448,34 @@ async fn identity_autopilot_version_home_ping_timesync() {
     sim.shutdown().await;
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+/// MAV_CMD_NAV_TAKEOFF to `altitude_amsl_m` (param 7) for `to`, transmission number
+/// `confirmation`.
+fn takeoff_to(to: CommandTarget, altitude_amsl_m: f64, confirmation: u8) -> MavMessage {
+    let nan = f32::NAN;
+    command_long(
+        to,
+        MavCmd::MAV_CMD_NAV_TAKEOFF,
+        [0.0, 0.0, 0.0, nan, nan, nan, altitude_amsl_m as f32],
+        confirmation,
+    )
+}
+
+#[tokio::test]
 async fn commands_honour_targets_and_retransmissions_do_not_execute_twice() {
-    let (sim, mut clients) = start(1, |_| {}).await;
-    let c = &mut clients[0];
+    let mut c = start_virtual(|_| {});
     let home = c.wait_home().await;
     let origin_alt = f64::from(home.altitude) / 1000.0;
 
     // Addressed to another system: ignored, no ACK.
-    let mut msg = c.command_long_msg(
+    let arm = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    let elsewhere = CommandTarget::new(42, 1);
+    c.send(&command_long(
+        elsewhere,
         MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        arm,
         0,
-    );
-    if let MavMessage::COMMAND_LONG(ref mut l) = msg {
-        l.target_system = 42;
-    }
-    c.send(&msg).await;
+    ))
+    .await;
     assert!(
         c.wait_ack(
             MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
@@ -488,27 +484,11 @@ async fn commands_honour_targets_and_retransmissions_do_not_execute_twice() {
         .await
         .is_none()
     );
-    assert!(!sim.truth(1).expect("truth").armed);
+    assert!(!c.vehicle.truth().armed);
 
     // Broadcast (target 0) works; the ACK is addressed to the sender.
-    let mut msg = c.command_long_msg(
-        MavCmd::MAV_CMD_NAV_TAKEOFF,
-        [
-            0.0,
-            0.0,
-            0.0,
-            f32::NAN,
-            f32::NAN,
-            f32::NAN,
-            (origin_alt + 3.0) as f32,
-        ],
-        0,
-    );
-    if let MavMessage::COMMAND_LONG(ref mut l) = msg {
-        l.target_system = 0;
-        l.target_component = 0;
-    }
-    c.send(&msg).await;
+    c.send(&takeoff_to(CommandTarget::new(0, 0), origin_alt + 3.0, 0))
+        .await;
     let ack = c
         .wait_for(SECS(2), |f| match &f.msg {
             MavMessage::COMMAND_ACK(a) if a.command == MavCmd::MAV_CMD_NAV_TAKEOFF => {
@@ -521,25 +501,13 @@ async fn commands_honour_targets_and_retransmissions_do_not_execute_twice() {
     assert_eq!(ack.result, MavResult::MAV_RESULT_ACCEPTED);
     assert_eq!(
         (ack.target_system, ack.target_component),
-        (CLIENT_SYSID, CLIENT_COMPID)
+        (GCS_SYSID, GCS_COMPID)
     );
 
     // A retransmission (confirmation 1) with another altitude is answered again but not
     // executed again: the vehicle climbs to the first altitude.
-    let msg = c.command_long_msg(
-        MavCmd::MAV_CMD_NAV_TAKEOFF,
-        [
-            0.0,
-            0.0,
-            0.0,
-            f32::NAN,
-            f32::NAN,
-            f32::NAN,
-            (origin_alt + 6.0) as f32,
-        ],
-        1,
-    );
-    c.send(&msg).await;
+    let autopilot = CommandTarget::new(c.sysid(), 1);
+    c.send(&takeoff_to(autopilot, origin_alt + 6.0, 1)).await;
     assert_eq!(
         c.wait_ack(MavCmd::MAV_CMD_NAV_TAKEOFF, SECS(2)).await,
         Some(MavResult::MAV_RESULT_ACCEPTED)
@@ -549,28 +517,24 @@ async fn commands_honour_targets_and_retransmissions_do_not_execute_twice() {
         c.wait_mode(Px4Mode::Hold, SECS(10)).await,
         "takeoff never completed"
     );
-    let z = sim.truth(1).expect("truth").local_ned_m.down_m;
+    let z = c.vehicle.truth().local_ned_m.down_m;
     assert!(
         (z + 3.0).abs() < 0.4,
         "climbed to {z}, the retransmission was executed"
     );
 
     // COMMAND_INT works too (NAV_LAND).
-    c.send(&MavMessage::COMMAND_INT(COMMAND_INT_DATA {
-        param1: 0.0,
-        param2: 0.0,
-        param3: 0.0,
-        param4: f32::NAN,
-        x: 0,
-        y: 0,
-        z: f32::NAN,
-        command: MavCmd::MAV_CMD_NAV_LAND,
-        target_system: c.sysid,
-        target_component: 1,
-        frame: MavFrame::MAV_FRAME_GLOBAL,
-        current: 0,
-        autocontinue: 0,
-    }))
+    c.send(&command_int(
+        autopilot,
+        MavCmd::MAV_CMD_NAV_LAND,
+        [0.0, 0.0, 0.0, f32::NAN],
+        CommandPosition {
+            frame: MavFrame::MAV_FRAME_GLOBAL,
+            x: 0,
+            y: 0,
+            z: f32::NAN,
+        },
+    ))
     .await;
     assert_eq!(
         c.wait_ack(MavCmd::MAV_CMD_NAV_LAND, SECS(2)).await,
@@ -579,15 +543,13 @@ async fn commands_honour_targets_and_retransmissions_do_not_execute_twice() {
     assert!(c.wait_mode(Px4Mode::Land, SECS(2)).await);
     // Disarming in the air is refused unless forced.
     assert_eq!(c.arm(false).await, MavResult::MAV_RESULT_DENIED);
-    assert!(sim.truth(1).expect("truth").armed);
-    assert!(sim.stats()[0].commands_received >= 5);
-    sim.shutdown().await;
+    assert!(c.vehicle.truth().armed);
+    assert!(c.vehicle.stats().commands_received >= 5);
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[tokio::test]
 async fn arming_refused_until_the_ekf_has_a_position() {
-    let (sim, mut clients) = start(1, |cfg| cfg.ekf_fix_delay_s = 1.5).await;
-    let c = &mut clients[0];
+    let mut c = start_virtual(|cfg| cfg.ekf_fix_delay_s = 1.5);
     let gps = c
         .wait_for(SECS(2), |f| match &f.msg {
             MavMessage::GPS_RAW_INT(g) => Some(g.fix_type),
@@ -619,7 +581,6 @@ async fn arming_refused_until_the_ekf_has_a_position() {
         .await,
         MavResult::MAV_RESULT_ACCEPTED
     );
-    sim.shutdown().await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

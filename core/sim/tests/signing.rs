@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::start;
+use common::{GroundStation, start};
 use skein_mavlink::MavMessage;
 use skein_mavlink::dialect::*;
 use skein_mavlink::signing::{LinkSigning, SigningKey, timestamp_now};

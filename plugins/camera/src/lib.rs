@@ -41,8 +41,9 @@ pub mod render;
 pub mod source;
 
 use render::Pinhole;
-use skein_plugin_sdk::args::{Args, command_name};
+use skein_plugin_sdk::args::{self, in_range};
 use skein_plugin_sdk::frame_meta::FrameMeta;
+use skein_plugin_sdk::serde::Deserialize;
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::{Context, Plugin, export_plugin};
 use source::{CapturedFrame, FrameData, FrameSource, SimulatedSource};
@@ -74,6 +75,47 @@ pub fn encode_jpeg(
         .encode(rgb, w, h, jpeg_encoder::ColorType::Rgb)
         .map_err(|e| format!("JPEG encoding failed: {e}"))?;
     Ok(out)
+}
+
+/// Where frames come from (`source`): the one provided renders the simulated world.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde", rename_all = "snake_case")]
+enum SourceKind {
+    Simulated,
+}
+
+/// The configuration (see the crate docs): every field optional, ranges checked in
+/// `create`. Pixel counts and the JPEG quality are read as numbers, as they
+/// always were (`640.0` is 640).
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
+struct Config {
+    source: Option<SourceKind>,
+    width_px: Option<f64>,
+    height_px: Option<f64>,
+    frame_rate_hz: Option<f64>,
+    focal_length_mm: Option<f64>,
+    focal_min_mm: Option<f64>,
+    focal_max_mm: Option<f64>,
+    sensor_width_mm: Option<f64>,
+    jpeg_quality: Option<f64>,
+    gimbal_slot: Option<String>,
+    mount_pitch_deg: Option<f64>,
+    mount_yaw_deg: Option<f64>,
+    ground_down_m: Option<f64>,
+    aircraft_span_m: Option<f64>,
+}
+
+/// The camera's commands (see the crate docs), tagged by `command`.
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+enum Command {
+    Capture,
+    SetFocalLength { focal_length_mm: f64 },
+    SetZoom { zoom: f64 },
+    SetFrameRate { frame_rate_hz: f64 },
+    Status,
 }
 
 /// One camera instance.
@@ -160,59 +202,72 @@ impl Plugin for Camera {
     const KINDS: &'static [&'static str] = &["camera"];
 
     fn create(_kind: &str, config: Value, _ctx: &Context) -> Result<Self, String> {
-        let a = Args::new(
-            &config,
-            "camera config",
-            &[
-                "source",
-                "width_px",
-                "height_px",
-                "frame_rate_hz",
-                "focal_length_mm",
-                "focal_min_mm",
-                "focal_max_mm",
-                "sensor_width_mm",
-                "jpeg_quality",
-                "gimbal_slot",
-                "mount_pitch_deg",
-                "mount_yaw_deg",
-                "ground_down_m",
-                "aircraft_span_m",
-            ],
+        let c: Config = args::config(config)?;
+        let focal_min_mm = in_range("focal_min_mm", c.focal_min_mm.unwrap_or(4.0), 0.5, 500.0)?;
+        let focal_max_mm = in_range(
+            "focal_max_mm",
+            c.focal_max_mm.unwrap_or(48.0),
+            focal_min_mm,
+            2000.0,
         )?;
-        a.opt_choice("source", &["simulated"])?;
-        let focal_min_mm = a.f64_in("focal_min_mm", 4.0, 0.5, 500.0)?;
-        let focal_max_mm = a.f64_in("focal_max_mm", 48.0, focal_min_mm, 2000.0)?;
         let optics = Pinhole {
-            width_px: a.f64_in("width_px", 640.0, 16.0, 4096.0)? as u32,
-            height_px: a.f64_in("height_px", 480.0, 16.0, 4096.0)? as u32,
-            focal_length_mm: a.f64_in(
+            width_px: in_range("width_px", c.width_px.unwrap_or(640.0), 16.0, 4096.0)? as u32,
+            height_px: in_range("height_px", c.height_px.unwrap_or(480.0), 16.0, 4096.0)? as u32,
+            focal_length_mm: in_range(
                 "focal_length_mm",
-                focal_min_mm,
+                c.focal_length_mm.unwrap_or(focal_min_mm),
                 focal_min_mm,
                 focal_max_mm,
             )?,
-            sensor_width_mm: a.f64_in("sensor_width_mm", 6.17, 1.0, 100.0)?,
+            sensor_width_mm: in_range(
+                "sensor_width_mm",
+                c.sensor_width_mm.unwrap_or(6.17),
+                1.0,
+                100.0,
+            )?,
         };
-        let gimbal_slot = match a.opt_str("gimbal_slot")? {
+        let gimbal_slot = match c.gimbal_slot.as_deref() {
             None => Some("gimbal".to_string()),
             Some("") => None,
             Some(s) => Some(s.to_string()),
         };
-        let source = SimulatedSource {
-            gimbal_slot,
-            mount_pitch_deg: a.f64_in("mount_pitch_deg", 0.0, -90.0, 90.0)?,
-            mount_yaw_deg: a.f64_in("mount_yaw_deg", 0.0, -180.0, 180.0)?,
-            ground_down_m: a.f64_in("ground_down_m", 0.0, -10_000.0, 10_000.0)?,
-            aircraft_span_m: a.f64_in("aircraft_span_m", 1.0, 0.05, 100.0)?,
+        let source: Box<dyn FrameSource> = match c.source.unwrap_or(SourceKind::Simulated) {
+            SourceKind::Simulated => Box::new(SimulatedSource {
+                gimbal_slot,
+                mount_pitch_deg: in_range(
+                    "mount_pitch_deg",
+                    c.mount_pitch_deg.unwrap_or(0.0),
+                    -90.0,
+                    90.0,
+                )?,
+                mount_yaw_deg: in_range(
+                    "mount_yaw_deg",
+                    c.mount_yaw_deg.unwrap_or(0.0),
+                    -180.0,
+                    180.0,
+                )?,
+                ground_down_m: in_range(
+                    "ground_down_m",
+                    c.ground_down_m.unwrap_or(0.0),
+                    -10_000.0,
+                    10_000.0,
+                )?,
+                aircraft_span_m: in_range(
+                    "aircraft_span_m",
+                    c.aircraft_span_m.unwrap_or(1.0),
+                    0.05,
+                    100.0,
+                )?,
+            }),
         };
         Ok(Camera {
             optics,
             focal_min_mm,
             focal_max_mm,
-            frame_rate_hz: a.f64_in("frame_rate_hz", 5.0, 0.0, 60.0)?,
-            jpeg_quality: a.f64_in("jpeg_quality", 75.0, 1.0, 100.0)? as u8,
-            source: Box::new(source),
+            frame_rate_hz: in_range("frame_rate_hz", c.frame_rate_hz.unwrap_or(5.0), 0.0, 60.0)?,
+            jpeg_quality: in_range("jpeg_quality", c.jpeg_quality.unwrap_or(75.0), 1.0, 100.0)?
+                as u8,
+            source,
             frames: 0,
             last_frame_bytes: 0,
             last_info: Value::Null,
@@ -237,45 +292,31 @@ impl Plugin for Camera {
     }
 
     fn handle(&mut self, ctx: &Context, command: Value) -> Result<Value, String> {
-        let name = command_name(
-            &command,
-            &[
-                "capture",
-                "set_focal_length",
-                "set_zoom",
-                "set_frame_rate",
-                "status",
-            ],
-        )?;
-        let what = format!("command `{name}`");
-        let reply = match name {
-            "capture" => {
-                Args::new(&command, what, &["command"])?;
+        let reply = match args::command(command)? {
+            Command::Capture => {
                 let reply = self.capture(ctx)?;
                 ctx.publish_state(&self.state())?;
                 return Ok(reply);
             }
-            "set_focal_length" => {
-                let a = Args::new(&command, what, &["command", "focal_length_mm"])?;
-                self.optics.focal_length_mm =
-                    a.f64_required_in("focal_length_mm", self.focal_min_mm, self.focal_max_mm)?;
+            Command::SetFocalLength { focal_length_mm } => {
+                self.optics.focal_length_mm = in_range(
+                    "focal_length_mm",
+                    focal_length_mm,
+                    self.focal_min_mm,
+                    self.focal_max_mm,
+                )?;
                 self.state()
             }
-            "set_zoom" => {
-                let a = Args::new(&command, what, &["command", "zoom"])?;
-                let zoom = a.f64_required_in("zoom", 1.0, self.focal_max_mm / self.focal_min_mm)?;
+            Command::SetZoom { zoom } => {
+                let zoom = in_range("zoom", zoom, 1.0, self.focal_max_mm / self.focal_min_mm)?;
                 self.optics.focal_length_mm = self.focal_min_mm * zoom;
                 self.state()
             }
-            "set_frame_rate" => {
-                let a = Args::new(&command, what, &["command", "frame_rate_hz"])?;
-                self.frame_rate_hz = a.f64_required_in("frame_rate_hz", 0.0, 60.0)?;
+            Command::SetFrameRate { frame_rate_hz } => {
+                self.frame_rate_hz = in_range("frame_rate_hz", frame_rate_hz, 0.0, 60.0)?;
                 self.state()
             }
-            _ => {
-                Args::new(&command, what, &["command"])?;
-                self.state()
-            }
+            Command::Status => self.state(),
         };
         ctx.publish_state(&reply)?;
         Ok(reply)

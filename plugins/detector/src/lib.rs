@@ -45,9 +45,10 @@
 pub mod blobs;
 
 use blobs::{Blob, BlobParams, find_blobs};
-use skein_plugin_sdk::args::{Args, command_name};
+use skein_plugin_sdk::args::{self, in_range};
 use skein_plugin_sdk::frame_meta::FrameMeta;
 use skein_plugin_sdk::geometry::{Ned, direction, look_angles};
+use skein_plugin_sdk::serde::Deserialize;
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::{Context, Plugin, export_plugin};
 
@@ -134,6 +135,32 @@ pub fn decode_frame(jpeg: &[u8]) -> Result<(FrameMeta, Vec<u8>), String> {
         return Err("frame size differs from its metadata".into());
     }
     Ok((meta, pixels))
+}
+
+/// The configuration (see the crate docs): every field optional, ranges checked in
+/// `create`; counts are read as numbers, as they always were.
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
+struct Config {
+    camera_slot: Option<String>,
+    rate_hz: Option<f64>,
+    threshold: Option<f64>,
+    min_area_px: Option<f64>,
+    background_radius_px: Option<f64>,
+    max_size_px: Option<f64>,
+    max_aspect: Option<f64>,
+    min_fill: Option<f64>,
+    join_gap: Option<f64>,
+    max_detections: Option<f64>,
+}
+
+/// The detector's two commands: `status`, and `detect` (the latest frame, now).
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+enum Command {
+    Status,
+    Detect,
 }
 
 /// One detector instance.
@@ -230,41 +257,47 @@ impl Plugin for Detector {
     const KINDS: &'static [&'static str] = &["detector"];
 
     fn create(_kind: &str, config: Value, _ctx: &Context) -> Result<Self, String> {
-        let a = Args::new(
-            &config,
-            "detector config",
-            &[
-                "camera_slot",
-                "rate_hz",
-                "threshold",
-                "min_area_px",
-                "background_radius_px",
-                "max_size_px",
-                "max_aspect",
-                "min_fill",
-                "join_gap",
-                "max_detections",
-            ],
-        )?;
+        let c: Config = args::config(config)?;
         let d = BlobParams::default();
         Ok(Detector {
-            camera_slot: a.opt_str("camera_slot")?.unwrap_or("camera").to_string(),
-            rate_hz: a.f64_in("rate_hz", 10.0, 0.0, 60.0)?,
+            camera_slot: c.camera_slot.unwrap_or_else(|| "camera".to_string()),
+            rate_hz: in_range("rate_hz", c.rate_hz.unwrap_or(10.0), 0.0, 60.0)?,
             params: BlobParams {
-                background_radius_px: a.f64_in(
+                background_radius_px: in_range(
                     "background_radius_px",
-                    f64::from(d.background_radius_px),
+                    c.background_radius_px
+                        .unwrap_or(f64::from(d.background_radius_px)),
                     2.0,
                     200.0,
                 )? as u32,
-                threshold: a.f64_in("threshold", d.threshold, 1.0, 255.0)?,
-                min_area_px: a.f64_in("min_area_px", d.min_area_px as f64, 1.0, 1e6)? as usize,
-                max_size_px: a.f64_in("max_size_px", f64::from(d.max_size_px), 2.0, 4096.0)? as u32,
-                max_aspect: a.f64_in("max_aspect", d.max_aspect, 1.0, 100.0)?,
-                min_fill: a.f64_in("min_fill", d.min_fill, 0.0, 1.0)?,
-                join_gap: a.f64_in("join_gap", d.join_gap, 0.0, 10.0)?,
+                threshold: in_range("threshold", c.threshold.unwrap_or(d.threshold), 1.0, 255.0)?,
+                min_area_px: in_range(
+                    "min_area_px",
+                    c.min_area_px.unwrap_or(d.min_area_px as f64),
+                    1.0,
+                    1e6,
+                )? as usize,
+                max_size_px: in_range(
+                    "max_size_px",
+                    c.max_size_px.unwrap_or(f64::from(d.max_size_px)),
+                    2.0,
+                    4096.0,
+                )? as u32,
+                max_aspect: in_range(
+                    "max_aspect",
+                    c.max_aspect.unwrap_or(d.max_aspect),
+                    1.0,
+                    100.0,
+                )?,
+                min_fill: in_range("min_fill", c.min_fill.unwrap_or(d.min_fill), 0.0, 1.0)?,
+                join_gap: in_range("join_gap", c.join_gap.unwrap_or(d.join_gap), 0.0, 10.0)?,
             },
-            max_detections: a.f64_in("max_detections", 20.0, 1.0, 1000.0)? as usize,
+            max_detections: in_range(
+                "max_detections",
+                c.max_detections.unwrap_or(20.0),
+                1.0,
+                1000.0,
+            )? as usize,
             frames: 0,
             detections_total: 0,
             last_frame: None,
@@ -296,14 +329,14 @@ impl Plugin for Detector {
     }
 
     fn handle(&mut self, ctx: &Context, command: Value) -> Result<Value, String> {
-        let name = command_name(&command, &["status", "detect"])?;
-        Args::new(&command, format!("command `{name}`"), &["command"])?;
-        if name == "detect" {
-            let ev = self.process(ctx, true)?.unwrap_or(Value::Null);
-            ctx.publish_state(&self.state())?;
-            return Ok(ev);
+        match args::command(command)? {
+            Command::Detect => {
+                let ev = self.process(ctx, true)?.unwrap_or(Value::Null);
+                ctx.publish_state(&self.state())?;
+                Ok(ev)
+            }
+            Command::Status => Ok(self.state()),
         }
-        Ok(self.state())
     }
 }
 

@@ -17,8 +17,10 @@
 //! Published state: `{"ticks": 12, "version": "0.1.0", "relative_alt_m": 10.0 | null,
 //! "vehicle_state": "Hovering"}`.
 
-// Everything a plugin needs comes from the SDK, the only crate it links.
-use skein_plugin_sdk::args::{Args, command_name};
+// Everything a plugin needs comes from the SDK, the only crate it links (serde included:
+// derives name it with `crate = "skein_plugin_sdk::serde"`).
+use skein_plugin_sdk::args;
+use skein_plugin_sdk::serde::Deserialize;
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::{Context, Plugin, export_plugin};
 
@@ -29,6 +31,35 @@ const VERSION: &str = match option_env!("SKEIN_EXAMPLE_VERSION") {
     Some(v) => v,
     None => env!("CARGO_PKG_VERSION"),
 };
+
+/// The configuration: every field optional, unknown ones refused (a typo is an error that
+/// names it, not a silently ignored setting).
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
+struct Config {
+    /// Returned by `ping`; default `"hello"`.
+    greeting: Option<String>,
+    /// Tick rate, Hz, 0–100; default 1.
+    rate_hz: Option<f64>,
+}
+
+/// The commands, one variant per `command` name (`args::command` reads the tag).
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+enum Command {
+    /// `{"command": "ping"}`.
+    Ping,
+    /// `{"command": "echo", "data": <any JSON>}` (`data` may be left out: `null`).
+    Echo {
+        #[serde(default)]
+        data: Value,
+    },
+    /// `{"command": "status"}`.
+    Status,
+    /// `{"command": "emit", "message": "text"}`.
+    Emit { message: String },
+}
 
 /// One instance of the `example` payload (one slot on one vehicle).
 pub struct Example {
@@ -63,10 +94,10 @@ impl Plugin for Example {
     const KINDS: &'static [&'static str] = &["example"];
 
     fn create(_kind: &str, config: Value, ctx: &Context) -> Result<Self, String> {
-        // `Args` refuses unknown fields (typos) and names the field in every error.
-        let cfg = Args::new(&config, "example config", &["greeting", "rate_hz"])?;
-        let greeting = cfg.opt_str("greeting")?.unwrap_or("hello").to_string();
-        let rate_hz = cfg.f64_in("rate_hz", 1.0, 0.0, 100.0)?;
+        // Errors name the field (`rate_hz: 500 is outside [0, 100]`).
+        let cfg: Config = args::config(config)?;
+        let greeting = cfg.greeting.unwrap_or_else(|| "hello".to_string());
+        let rate_hz = args::in_range("rate_hz", cfg.rate_hz.unwrap_or(1.0), 0.0, 100.0)?;
         ctx.log_info(&format!("example payload created on {}", ctx.vehicle_id()));
         Ok(Example {
             greeting,
@@ -85,33 +116,20 @@ impl Plugin for Example {
     }
 
     fn handle(&mut self, ctx: &Context, command: Value) -> Result<Value, String> {
-        match command_name(&command, &["ping", "echo", "status", "emit"])? {
-            "ping" => {
-                Args::new(&command, "command `ping`", &["command"])?;
-                Ok(json!({
-                    "pong": true,
-                    "plugin": Self::NAME,
-                    "version": VERSION,
-                    "vehicle": ctx.vehicle_id(),
-                    "greeting": self.greeting,
-                }))
-            }
-            "echo" => {
-                let args = Args::new(&command, "command `echo`", &["command", "data"])?;
-                Ok(json!({ "echo": args.get("data").cloned().unwrap_or(Value::Null) }))
-            }
-            "status" => {
-                Args::new(&command, "command `status`", &["command"])?;
-                Ok(self.state(ctx))
-            }
-            "emit" => {
-                let args = Args::new(&command, "command `emit`", &["command", "message"])?;
-                let message = args.str("message")?;
+        match args::command(command)? {
+            Command::Ping => Ok(json!({
+                "pong": true,
+                "plugin": Self::NAME,
+                "version": VERSION,
+                "vehicle": ctx.vehicle_id(),
+                "greeting": self.greeting,
+            })),
+            Command::Echo { data } => Ok(json!({ "echo": data })),
+            Command::Status => Ok(self.state(ctx)),
+            Command::Emit { message } => {
                 ctx.emit_event("example", &json!({ "message": message }))?;
                 Ok(json!({ "emitted": true }))
             }
-            // `command_name` only returns one of the names listed above.
-            other => Err(format!("unhandled command `{other}`")),
         }
     }
 }

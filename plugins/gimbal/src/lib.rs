@@ -48,20 +48,25 @@
 //! reported its attitude.
 
 mod attitude;
+mod commands;
+mod config;
 mod mavlink_backend;
 
 use attitude::{Attitude, euler_from_quaternion, quaternion_from_euler, slew};
-use skein_plugin_sdk::args::{Args, command_name};
+pub use config::{Backend, GimbalConfig};
+use skein_plugin_sdk::args;
 use skein_plugin_sdk::dialect::{GIMBAL_DEVICE_ATTITUDE_STATUS_DATA, GimbalDeviceFlags};
 use skein_plugin_sdk::geometry::{
-    GeoPoint, Ned, geodetic_to_local, look_angles, wrap_deg_180, wrap_deg_360,
+    GeoPoint, Ned, NedFrame, look_angles, wrap_deg_180, wrap_deg_360,
 };
+use skein_plugin_sdk::serde::Deserialize;
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::vehicle::Vehicle;
 use skein_plugin_sdk::{Context, MavMessage, MavlinkInterest, MessageData, Plugin, export_plugin};
 
-/// The frame a commanded yaw is given in.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The frame a commanded yaw is given in (`yaw_frame`: `"vehicle"` or `"earth"`).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde", rename_all = "snake_case")]
 pub enum YawFrame {
     /// Relative to the vehicle's heading (`GIMBAL_MANAGER_FLAGS_YAW_IN_VEHICLE_FRAME`).
     Vehicle,
@@ -117,100 +122,6 @@ impl Target {
     }
 }
 
-/// Which device the instance drives.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Backend {
-    /// A simulated gimbal moved by this plugin.
-    Simulated,
-    /// PX4's gimbal manager, over the vehicle's MAVLink link.
-    Mavlink,
-}
-
-/// Configuration of an instance (see the crate docs for the JSON).
-#[derive(Debug, Clone, PartialEq)]
-pub struct GimbalConfig {
-    /// `None` = auto (simulated when the vehicle is).
-    pub backend: Option<Backend>,
-    /// Slew-rate limit of each axis, deg/s.
-    pub max_rate_deg_s: f64,
-    /// Lowest pitch, degrees (negative looks down).
-    pub pitch_min_deg: f64,
-    /// Highest pitch, degrees.
-    pub pitch_max_deg: f64,
-    /// Lowest yaw relative to the vehicle, degrees.
-    pub yaw_min_deg: f64,
-    /// Highest yaw relative to the vehicle, degrees.
-    pub yaw_max_deg: f64,
-    /// Tick (and state publication) rate, Hz.
-    pub rate_hz: f64,
-    /// Rate of pitch/yaw setpoints sent while tracking a vehicle (mavlink backend), Hz.
-    pub track_send_hz: f64,
-    /// `gimbal_device_id` of the Gimbal Protocol v2 messages (0 = all gimbals).
-    pub gimbal_device_id: u8,
-    /// Component id of the gimbal manager (PX4: the autopilot, 1).
-    pub manager_compid: u8,
-}
-
-impl GimbalConfig {
-    /// Parses the configuration JSON.
-    ///
-    /// # Errors
-    /// An unknown field, a wrong type, or a value out of range, naming the field.
-    pub fn parse(config: &Value) -> Result<GimbalConfig, String> {
-        let a = Args::new(
-            config,
-            "gimbal config",
-            &[
-                "mode",
-                "max_rate_deg_s",
-                "pitch_min_deg",
-                "pitch_max_deg",
-                "yaw_min_deg",
-                "yaw_max_deg",
-                "rate_hz",
-                "track_send_hz",
-                "gimbal_device_id",
-                "manager_compid",
-            ],
-        )?;
-        let backend = match a.opt_choice("mode", &["auto", "simulated", "mavlink"])? {
-            None | Some("auto") => None,
-            Some("simulated") => Some(Backend::Simulated),
-            _ => Some(Backend::Mavlink),
-        };
-        let cfg = GimbalConfig {
-            backend,
-            max_rate_deg_s: a.f64_in("max_rate_deg_s", 60.0, 0.1, 720.0)?,
-            pitch_min_deg: a.f64_in("pitch_min_deg", -90.0, -180.0, 180.0)?,
-            pitch_max_deg: a.f64_in("pitch_max_deg", 30.0, -180.0, 180.0)?,
-            yaw_min_deg: a.f64_in("yaw_min_deg", -180.0, -360.0, 360.0)?,
-            yaw_max_deg: a.f64_in("yaw_max_deg", 180.0, -360.0, 360.0)?,
-            rate_hz: a.f64_in("rate_hz", 20.0, 1.0, 200.0)?,
-            track_send_hz: a.f64_in("track_send_hz", 10.0, 0.5, 50.0)?,
-            gimbal_device_id: a.f64_in("gimbal_device_id", 0.0, 0.0, 255.0)? as u8,
-            manager_compid: a.f64_in("manager_compid", 1.0, 0.0, 255.0)? as u8,
-        };
-        if cfg.pitch_min_deg >= cfg.pitch_max_deg {
-            return Err(format!(
-                "gimbal config: field `pitch_min_deg`: {} must be below `pitch_max_deg` ({})",
-                cfg.pitch_min_deg, cfg.pitch_max_deg
-            ));
-        }
-        if cfg.yaw_min_deg >= cfg.yaw_max_deg {
-            return Err(format!(
-                "gimbal config: field `yaw_min_deg`: {} must be below `yaw_max_deg` ({})",
-                cfg.yaw_min_deg, cfg.yaw_max_deg
-            ));
-        }
-        Ok(cfg)
-    }
-
-    /// True when yaw turns all the way round.
-    pub fn yaw_continuous(&self) -> bool {
-        self.yaw_max_deg - self.yaw_min_deg >= 360.0
-    }
-}
-
 /// One gimbal instance.
 pub struct Gimbal {
     cfg: GimbalConfig,
@@ -263,12 +174,7 @@ impl Gimbal {
                 let pos = vehicle
                     .position
                     .ok_or("the vehicle's position is not known yet")?;
-                let own = GeoPoint {
-                    lat_deg: pos.lat_deg,
-                    lon_deg: pos.lon_deg,
-                    alt_amsl_m: pos.alt_amsl_m,
-                };
-                geodetic_to_local(own, *g)
+                NedFrame::new(pos.geo()).to_ned(g)
             }
             Target::RoiVehicle(id) => {
                 let own = vehicle
@@ -430,155 +336,6 @@ impl Gimbal {
         })
     }
 
-    /// Parses a command into a target.
-    fn parse_command(&self, command: &Value) -> Result<Option<Target>, String> {
-        let name = command_name(
-            command,
-            &[
-                "set_angles",
-                "set_rates",
-                "roi_location",
-                "roi_vehicle",
-                "roi_none",
-                "neutral",
-                "status",
-            ],
-        )?;
-        let what = format!("command `{name}`");
-        let cfg = &self.cfg;
-        Ok(Some(match name {
-            "set_angles" => {
-                let a = Args::new(
-                    command,
-                    what,
-                    &["command", "pitch_deg", "yaw_deg", "yaw_frame"],
-                )?;
-                let pitch_deg = match a.opt_f64("pitch_deg")? {
-                    Some(p) if !(cfg.pitch_min_deg..=cfg.pitch_max_deg).contains(&p) => {
-                        return Err(a.error(
-                            "pitch_deg",
-                            format!(
-                                "{p} is outside the gimbal's pitch range [{}, {}]",
-                                cfg.pitch_min_deg, cfg.pitch_max_deg
-                            ),
-                        ));
-                    }
-                    p => p,
-                };
-                let yaw_frame = match a.opt_choice("yaw_frame", &["vehicle", "earth"])? {
-                    Some("earth") => YawFrame::Earth,
-                    _ => YawFrame::Vehicle,
-                };
-                let yaw_deg = match a.opt_f64("yaw_deg")? {
-                    Some(y)
-                        if yaw_frame == YawFrame::Vehicle
-                            && !cfg.yaw_continuous()
-                            && !(cfg.yaw_min_deg..=cfg.yaw_max_deg).contains(&y) =>
-                    {
-                        return Err(a.error(
-                            "yaw_deg",
-                            format!(
-                                "{y} is outside the gimbal's yaw range [{}, {}]",
-                                cfg.yaw_min_deg, cfg.yaw_max_deg
-                            ),
-                        ));
-                    }
-                    y => y,
-                };
-                if pitch_deg.is_none() && yaw_deg.is_none() {
-                    return Err("command `set_angles`: give `pitch_deg`, `yaw_deg` or both".into());
-                }
-                Target::Angles {
-                    pitch_deg,
-                    yaw_deg,
-                    yaw_frame,
-                }
-            }
-            "set_rates" => {
-                let a = Args::new(
-                    command,
-                    what,
-                    &["command", "pitch_rate_deg_s", "yaw_rate_deg_s"],
-                )?;
-                let max = cfg.max_rate_deg_s;
-                Target::Rates {
-                    pitch_rate_deg_s: a.f64_in("pitch_rate_deg_s", 0.0, -max, max)?,
-                    yaw_rate_deg_s: a.f64_in("yaw_rate_deg_s", 0.0, -max, max)?,
-                }
-            }
-            "roi_location" => {
-                let a = Args::new(
-                    command,
-                    what,
-                    &[
-                        "command",
-                        "north_m",
-                        "east_m",
-                        "down_m",
-                        "lat_deg",
-                        "lon_deg",
-                        "alt_amsl_m",
-                    ],
-                )?;
-                if a.has("lat_deg") || a.has("lon_deg") || a.has("alt_amsl_m") {
-                    if a.has("north_m") || a.has("east_m") || a.has("down_m") {
-                        return Err("command `roi_location`: give either `north_m`/`east_m`/`down_m` (swarm frame) or `lat_deg`/`lon_deg`/`alt_amsl_m`, not both".into());
-                    }
-                    Target::RoiLocation(RoiPoint::Geo(GeoPoint {
-                        lat_deg: a.f64_required_in("lat_deg", -90.0, 90.0)?,
-                        lon_deg: a.f64_required_in("lon_deg", -180.0, 180.0)?,
-                        alt_amsl_m: a.f64_required_in("alt_amsl_m", -500.0, 20_000.0)?,
-                    }))
-                } else {
-                    Target::RoiLocation(RoiPoint::Ned(Ned::new(
-                        a.f64("north_m")?,
-                        a.f64("east_m")?,
-                        a.opt_f64("down_m")?.unwrap_or(0.0),
-                    )))
-                }
-            }
-            "roi_vehicle" => {
-                let a = Args::new(command, what, &["command", "vehicle", "sysid"])?;
-                match (a.opt_str("vehicle")?, a.opt_u64("sysid")?) {
-                    (Some(id), None) => Target::RoiVehicle(id.to_string()),
-                    (None, Some(s)) if (1..=255).contains(&s) => {
-                        Target::RoiVehicle(format!("sysid:{s}"))
-                    }
-                    (None, Some(s)) => {
-                        return Err(
-                            a.error("sysid", format!("{s} is not a MAVLink system id (1..255)"))
-                        );
-                    }
-                    _ => {
-                        return Err(
-                            "command `roi_vehicle`: give `vehicle` (an id such as \"uav-2\") or `sysid`, one of them".into(),
-                        );
-                    }
-                }
-            }
-            "roi_none" => {
-                Args::new(command, what, &["command"])?;
-                let (p, y) = self
-                    .attitude
-                    .map(|a| (a.pitch_deg, a.yaw_deg))
-                    .unwrap_or((0.0, 0.0));
-                Target::Angles {
-                    pitch_deg: Some(p),
-                    yaw_deg: Some(y),
-                    yaw_frame: YawFrame::Vehicle,
-                }
-            }
-            "neutral" => {
-                Args::new(command, what, &["command"])?;
-                Target::Neutral
-            }
-            _ => {
-                Args::new(command, what, &["command"])?;
-                return Ok(None);
-            }
-        }))
-    }
-
     fn on_attitude_status(&mut self, s: &GIMBAL_DEVICE_ATTITUDE_STATUS_DATA) {
         if self.cfg.gimbal_device_id != 0
             && s.gimbal_device_id != 0
@@ -622,12 +379,12 @@ impl Plugin for Gimbal {
     const KINDS: &'static [&'static str] = &["gimbal"];
 
     fn create(_kind: &str, config: Value, ctx: &Context) -> Result<Self, String> {
-        let cfg = GimbalConfig::parse(&config)?;
-        let backend = cfg.backend.unwrap_or(if ctx.simulated() {
+        let cfg = GimbalConfig::parse(config)?;
+        let backend = if cfg.mode.simulated(ctx.simulated()) {
             Backend::Simulated
         } else {
             Backend::Mavlink
-        });
+        };
         let mut g = Gimbal {
             backend,
             target: Target::Neutral,
@@ -685,7 +442,8 @@ impl Plugin for Gimbal {
     }
 
     fn handle(&mut self, ctx: &Context, command: Value) -> Result<Value, String> {
-        let Some(target) = self.parse_command(&command)? else {
+        let command: commands::Command = args::command(command)?;
+        let Some(target) = command.into_target(&self.cfg, self.attitude)? else {
             return Ok(self.state());
         };
         let vehicle = ctx.vehicle()?;
@@ -731,19 +489,6 @@ export_plugin!(Gimbal);
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn config_defaults_and_errors() {
-        let c = GimbalConfig::parse(&Value::Null).unwrap();
-        assert_eq!(c.max_rate_deg_s, 60.0);
-        assert!(c.yaw_continuous());
-        let e = GimbalConfig::parse(&json!({"max_rate_deg": 3})).unwrap_err();
-        assert!(e.contains("unknown field `max_rate_deg`"), "{e}");
-        let e = GimbalConfig::parse(&json!({"pitch_min_deg": 10, "pitch_max_deg": 0})).unwrap_err();
-        assert!(e.contains("`pitch_min_deg`"), "{e}");
-        let e = GimbalConfig::parse(&json!({"mode": "magic"})).unwrap_err();
-        assert!(e.contains("field `mode`"), "{e}");
-    }
 
     #[test]
     fn vehicles_are_found_by_id_or_sysid() {

@@ -2,12 +2,13 @@
 
 use crate::{GimbalConfig, RoiPoint, Target, YawFrame};
 use skein_plugin_sdk::dialect::{
-    COMMAND_INT_DATA, COMMAND_LONG_DATA, GIMBAL_MANAGER_SET_PITCHYAW_DATA, GimbalManagerFlags,
-    MavCmd, MavFrame,
+    GIMBAL_MANAGER_SET_PITCHYAW_DATA, GimbalManagerFlags, MavCmd, MavFrame,
 };
-use skein_plugin_sdk::geometry::{GeoPoint, local_to_geodetic};
+use skein_plugin_sdk::geometry::NedFrame;
 use skein_plugin_sdk::vehicle::Vehicle;
-use skein_plugin_sdk::{Context, MavMessage};
+use skein_plugin_sdk::{
+    CommandPosition, CommandTarget, Context, MavMessage, command_int, command_long,
+};
 
 /// Sender-side state of the mavlink backend.
 #[derive(Debug, Default)]
@@ -18,20 +19,19 @@ pub struct LinkState {
     last_track_send_s: Option<f64>,
 }
 
-fn command_long(target: &Vehicle, compid: u8, command: MavCmd, params: [f32; 7]) -> MavMessage {
-    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        param1: params[0],
-        param2: params[1],
-        param3: params[2],
-        param4: params[3],
-        param5: params[4],
-        param6: params[5],
-        param7: params[6],
+/// `COMMAND_LONG` `command` to the gimbal manager of `vehicle` (first transmission).
+fn to_manager(
+    vehicle: &Vehicle,
+    cfg: &GimbalConfig,
+    command: MavCmd,
+    params: [f32; 7],
+) -> MavMessage {
+    command_long(
+        CommandTarget::new(vehicle.sysid, cfg.manager_compid),
         command,
-        target_system: target.sysid,
-        target_component: compid,
-        confirmation: 0,
-    })
+        params,
+        0,
+    )
 }
 
 impl LinkState {
@@ -42,9 +42,9 @@ impl LinkState {
     /// When the vehicle or the link is not available.
     pub fn take_control(&mut self, ctx: &Context, cfg: &GimbalConfig) -> Result<(), String> {
         let vehicle = ctx.vehicle()?;
-        ctx.send_mavlink(&command_long(
+        ctx.send_mavlink(&to_manager(
             &vehicle,
-            cfg.manager_compid,
+            cfg,
             MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE,
             [
                 -2.0,
@@ -67,9 +67,9 @@ impl LinkState {
     pub fn release_control(&mut self, ctx: &Context, cfg: &GimbalConfig) -> Result<(), String> {
         let vehicle = ctx.vehicle()?;
         self.configured = false;
-        ctx.send_mavlink(&command_long(
+        ctx.send_mavlink(&to_manager(
             &vehicle,
-            cfg.manager_compid,
+            cfg,
             MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE,
             [
                 -3.0,
@@ -182,36 +182,28 @@ impl LinkState {
                         let pos = vehicle.position.ok_or(
                             "an ROI in the swarm frame needs the vehicle's position, not known yet",
                         )?;
-                        let own = GeoPoint {
-                            lat_deg: pos.lat_deg,
-                            lon_deg: pos.lon_deg,
-                            alt_amsl_m: pos.alt_amsl_m,
-                        };
-                        local_to_geodetic(own, *p - pos.ned())
+                        NedFrame::new(pos.geo()).to_geo(*p - pos.ned())
                     }
                 };
-                ctx.send_mavlink(&MavMessage::COMMAND_INT(COMMAND_INT_DATA {
-                    param1: f32::from(cfg.gimbal_device_id),
-                    param2: 0.0,
-                    param3: 0.0,
-                    param4: 0.0,
-                    x: (geo.lat_deg * 1e7).round() as i32,
-                    y: (geo.lon_deg * 1e7).round() as i32,
-                    z: geo.alt_amsl_m as f32,
-                    command: MavCmd::MAV_CMD_DO_SET_ROI_LOCATION,
-                    target_system: vehicle.sysid,
-                    target_component: cfg.manager_compid,
-                    frame: MavFrame::MAV_FRAME_GLOBAL,
-                    current: 0,
-                    autocontinue: 0,
-                }))
+                let (x, y, _) = geo.to_mavlink();
+                ctx.send_mavlink(&command_int(
+                    CommandTarget::new(vehicle.sysid, cfg.manager_compid),
+                    MavCmd::MAV_CMD_DO_SET_ROI_LOCATION,
+                    [f32::from(cfg.gimbal_device_id), 0.0, 0.0, 0.0],
+                    CommandPosition {
+                        frame: MavFrame::MAV_FRAME_GLOBAL,
+                        x,
+                        y,
+                        z: geo.alt_amsl_m as f32,
+                    },
+                ))
             }
             Target::RoiVehicle(_) => {
                 // Cancel any ROI the autopilot follows; the tick takes over.
                 self.last_track_send_s = None;
-                ctx.send_mavlink(&command_long(
+                ctx.send_mavlink(&to_manager(
                     vehicle,
-                    cfg.manager_compid,
+                    cfg,
                     MavCmd::MAV_CMD_DO_SET_ROI_NONE,
                     [
                         f32::from(cfg.gimbal_device_id),

@@ -37,10 +37,11 @@
 //!  "radio_status": null, "model": {"tx_power_dbm": 20.0, ...}}
 //! ```
 
-use skein_plugin_sdk::args::{Args, command_name};
+use skein_plugin_sdk::args::{self, DeviceMode};
 use skein_plugin_sdk::dialect::RADIO_STATUS_DATA;
 use skein_plugin_sdk::geometry::Ned;
-use skein_plugin_sdk::serde_json::{Value, json};
+use skein_plugin_sdk::serde::{Deserialize, Serialize};
+use skein_plugin_sdk::serde_json::{Map, Value, json};
 use skein_plugin_sdk::{Context, MavMessage, MavlinkInterest, MessageData, Plugin, export_plugin};
 
 /// Speed of light, metres per millisecond.
@@ -59,8 +60,9 @@ pub struct LinkMetrics {
     pub latency_ms: f64,
 }
 
-/// The log-distance radio model (see the crate docs).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The log-distance radio model (see the crate docs); serialises as the state's `model`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
 pub struct RadioModel {
     /// Transmit power, dBm.
     pub tx_power_dbm: f64,
@@ -80,16 +82,28 @@ pub struct RadioModel {
     pub max_latency_ms: f64,
 }
 
-const MODEL_FIELDS: [&str; 8] = [
-    "tx_power_dbm",
-    "frequency_mhz",
-    "path_loss_exponent",
-    "sensitivity_dbm",
-    "loss_slope_db",
-    "base_latency_ms",
-    "retry_latency_ms",
-    "max_latency_ms",
-];
+/// New values for some fields of the [`RadioModel`] (the config's model fields, and the
+/// `set_model` command); a field left out keeps its value.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
+struct ModelUpdate {
+    /// [`RadioModel::tx_power_dbm`], -30..60 dBm.
+    tx_power_dbm: Option<f64>,
+    /// [`RadioModel::frequency_mhz`], 1..100 000 MHz.
+    frequency_mhz: Option<f64>,
+    /// [`RadioModel::path_loss_exponent`], 1.5..6.
+    path_loss_exponent: Option<f64>,
+    /// [`RadioModel::sensitivity_dbm`], -150..0 dBm.
+    sensitivity_dbm: Option<f64>,
+    /// [`RadioModel::loss_slope_db`], 0.1..20 dB.
+    loss_slope_db: Option<f64>,
+    /// [`RadioModel::base_latency_ms`], 0..10 000 ms.
+    base_latency_ms: Option<f64>,
+    /// [`RadioModel::retry_latency_ms`], 0..10 000 ms.
+    retry_latency_ms: Option<f64>,
+    /// [`RadioModel::max_latency_ms`], `base_latency_ms`..60 000 ms.
+    max_latency_ms: Option<f64>,
+}
 
 impl Default for RadioModel {
     fn default() -> Self {
@@ -107,23 +121,67 @@ impl Default for RadioModel {
 }
 
 impl RadioModel {
-    /// Updates the fields present in `a` (each range-checked), keeping the others.
+    /// Takes the fields `u` gives, keeping the others; every field is range-checked.
     ///
     /// # Errors
-    /// A field out of range or of the wrong type, named.
-    pub fn update(&mut self, a: &Args) -> Result<(), String> {
-        self.tx_power_dbm = a.f64_in("tx_power_dbm", self.tx_power_dbm, -30.0, 60.0)?;
-        self.frequency_mhz = a.f64_in("frequency_mhz", self.frequency_mhz, 1.0, 100_000.0)?;
-        self.path_loss_exponent =
-            a.f64_in("path_loss_exponent", self.path_loss_exponent, 1.5, 6.0)?;
-        self.sensitivity_dbm = a.f64_in("sensitivity_dbm", self.sensitivity_dbm, -150.0, 0.0)?;
-        self.loss_slope_db = a.f64_in("loss_slope_db", self.loss_slope_db, 0.1, 20.0)?;
-        self.base_latency_ms = a.f64_in("base_latency_ms", self.base_latency_ms, 0.0, 10_000.0)?;
-        self.retry_latency_ms =
-            a.f64_in("retry_latency_ms", self.retry_latency_ms, 0.0, 10_000.0)?;
-        self.max_latency_ms = a.f64_in(
+    /// A field out of range, named (`path_loss_exponent: 9 is outside [1.5, 6]`).
+    fn update(&mut self, u: &ModelUpdate) -> Result<(), String> {
+        let set = |field, current: f64, new: Option<f64>, min, max| {
+            args::in_range(field, new.unwrap_or(current), min, max)
+        };
+        self.tx_power_dbm = set(
+            "tx_power_dbm",
+            self.tx_power_dbm,
+            u.tx_power_dbm,
+            -30.0,
+            60.0,
+        )?;
+        self.frequency_mhz = set(
+            "frequency_mhz",
+            self.frequency_mhz,
+            u.frequency_mhz,
+            1.0,
+            100_000.0,
+        )?;
+        self.path_loss_exponent = set(
+            "path_loss_exponent",
+            self.path_loss_exponent,
+            u.path_loss_exponent,
+            1.5,
+            6.0,
+        )?;
+        self.sensitivity_dbm = set(
+            "sensitivity_dbm",
+            self.sensitivity_dbm,
+            u.sensitivity_dbm,
+            -150.0,
+            0.0,
+        )?;
+        self.loss_slope_db = set(
+            "loss_slope_db",
+            self.loss_slope_db,
+            u.loss_slope_db,
+            0.1,
+            20.0,
+        )?;
+        self.base_latency_ms = set(
+            "base_latency_ms",
+            self.base_latency_ms,
+            u.base_latency_ms,
+            0.0,
+            10_000.0,
+        )?;
+        self.retry_latency_ms = set(
+            "retry_latency_ms",
+            self.retry_latency_ms,
+            u.retry_latency_ms,
+            0.0,
+            10_000.0,
+        )?;
+        self.max_latency_ms = set(
             "max_latency_ms",
             self.max_latency_ms,
+            u.max_latency_ms,
             self.base_latency_ms,
             60_000.0,
         )?;
@@ -156,19 +214,6 @@ impl RadioModel {
             latency_ms,
         }
     }
-
-    fn to_json(self) -> Value {
-        json!({
-            "tx_power_dbm": self.tx_power_dbm,
-            "frequency_mhz": self.frequency_mhz,
-            "path_loss_exponent": self.path_loss_exponent,
-            "sensitivity_dbm": self.sensitivity_dbm,
-            "loss_slope_db": self.loss_slope_db,
-            "base_latency_ms": self.base_latency_ms,
-            "retry_latency_ms": self.retry_latency_ms,
-            "max_latency_ms": self.max_latency_ms,
-        })
-    }
 }
 
 /// Which radio the instance reports on.
@@ -185,6 +230,77 @@ pub enum Backend {
 struct Current {
     distance_m: Option<f64>,
     metrics: Option<LinkMetrics>,
+}
+
+/// The swarm-frame position of the ground station (each part optional, default 0).
+#[derive(Debug, Clone, Copy, Default, Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
+struct GroundStation {
+    north_m: Option<f64>,
+    east_m: Option<f64>,
+    down_m: Option<f64>,
+}
+
+/// The configuration's own fields; the model's are a [`ModelUpdate`].
+#[derive(Debug, Default, Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
+struct StationConfig {
+    #[serde(default)]
+    mode: DeviceMode,
+    ground_station: Option<GroundStation>,
+    rate_hz: Option<f64>,
+}
+
+impl StationConfig {
+    /// The fields of [`StationConfig`], which a config holds beside a [`ModelUpdate`]'s.
+    const FIELDS: [&'static str; 3] = ["mode", "ground_station", "rate_hz"];
+
+    /// Splits a configuration into its own fields and the model's, each read with the SDK
+    /// (a field neither knows is refused by the model's).
+    fn parse(config: Value) -> Result<(StationConfig, ModelUpdate), String> {
+        let mut model = match config {
+            Value::Null => Map::new(),
+            Value::Object(m) => m,
+            other => return Err(format!("a radio config is a JSON object, got {other}")),
+        };
+        let own: Map<String, Value> = Self::FIELDS
+            .iter()
+            .filter_map(|k| model.remove_entry(*k))
+            .collect();
+        Ok((
+            args::config(Value::Object(own))?,
+            args::config(Value::Object(model))?,
+        ))
+    }
+
+    /// The ground station's position, range-checked.
+    fn ground_station(&self) -> Result<Ned, String> {
+        let g = self.ground_station.unwrap_or_default();
+        Ok(Ned::new(
+            args::in_range(
+                "ground_station.north_m",
+                g.north_m.unwrap_or(0.0),
+                -1e6,
+                1e6,
+            )?,
+            args::in_range("ground_station.east_m", g.east_m.unwrap_or(0.0), -1e6, 1e6)?,
+            args::in_range("ground_station.down_m", g.down_m.unwrap_or(0.0), -1e5, 1e5)?,
+        ))
+    }
+}
+
+/// The radio's commands (see the crate docs); `set_model` takes any model field.
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+enum Command {
+    Status,
+    SetModel(ModelUpdate),
+    Override {
+        loss_fraction: f64,
+        latency_ms: Option<f64>,
+    },
+    ClearOverride,
 }
 
 /// One radio instance.
@@ -220,7 +336,7 @@ impl Radio {
             "applied_to_simulator": self.applied_ok,
             "override": self.override_link.map(|(l, t)| json!({"loss_fraction": l, "latency_ms": t})),
             "radio_status": self.radio_status,
-            "model": self.model.to_json(),
+            "model": self.model,
             "ground_station": {"north_m": self.ground_station.north_m, "east_m": self.ground_station.east_m, "down_m": self.ground_station.down_m},
         })
     }
@@ -308,31 +424,19 @@ impl Plugin for Radio {
     const KINDS: &'static [&'static str] = &["radio"];
 
     fn create(_kind: &str, config: Value, ctx: &Context) -> Result<Self, String> {
-        let mut allowed = vec!["mode", "ground_station", "rate_hz"];
-        allowed.extend(MODEL_FIELDS);
-        let a = Args::new(&config, "radio config", &allowed)?;
-        let backend = match a.opt_choice("mode", &["auto", "simulated", "mavlink"])? {
-            Some("simulated") => Backend::Simulated,
-            Some("mavlink") => Backend::Mavlink,
-            _ if ctx.simulated() => Backend::Simulated,
-            _ => Backend::Mavlink,
+        let (cfg, model_update) = StationConfig::parse(config)?;
+        let backend = if cfg.mode.simulated(ctx.simulated()) {
+            Backend::Simulated
+        } else {
+            Backend::Mavlink
         };
         let mut model = RadioModel::default();
-        model.update(&a)?;
-        let ground_station =
-            match a.opt_object("ground_station", &["north_m", "east_m", "down_m"])? {
-                Some(g) => Ned::new(
-                    g.f64_in("north_m", 0.0, -1e6, 1e6)?,
-                    g.f64_in("east_m", 0.0, -1e6, 1e6)?,
-                    g.f64_in("down_m", 0.0, -1e5, 1e5)?,
-                ),
-                None => Ned::default(),
-            };
+        model.update(&model_update)?;
         Ok(Radio {
             backend,
             model,
-            ground_station,
-            rate_hz: a.f64_in("rate_hz", 2.0, 0.1, 50.0)?,
+            ground_station: cfg.ground_station()?,
+            rate_hz: args::in_range("rate_hz", cfg.rate_hz.unwrap_or(2.0), 0.1, 50.0)?,
             current: Current::default(),
             override_link: None,
             applied: None,
@@ -357,41 +461,36 @@ impl Plugin for Radio {
     }
 
     fn handle(&mut self, ctx: &Context, command: Value) -> Result<Value, String> {
-        let name = command_name(
-            &command,
-            &["status", "set_model", "override", "clear_override"],
-        )?;
-        let what = format!("command `{name}`");
-        match name {
-            "set_model" => {
-                let mut allowed = vec!["command"];
-                allowed.extend(MODEL_FIELDS);
-                let a = Args::new(&command, what, &allowed)?;
+        let command: Command = args::command(command)?;
+        match &command {
+            Command::SetModel(update) => {
                 let mut model = self.model;
-                model.update(&a)?;
+                model.update(update)?;
                 self.model = model;
             }
-            "override" => {
-                let a = Args::new(&command, what, &["command", "loss_fraction", "latency_ms"])?;
+            Command::Override {
+                loss_fraction,
+                latency_ms,
+            } => {
                 if self.backend != Backend::Simulated {
                     return Err(
                         "command `override`: only a simulated radio link can be degraded".into(),
                     );
                 }
                 self.override_link = Some((
-                    a.f64_required_in("loss_fraction", 0.0, 1.0)?,
-                    a.f64_in("latency_ms", self.model.base_latency_ms, 0.0, 60_000.0)?,
+                    args::in_range("loss_fraction", *loss_fraction, 0.0, 1.0)?,
+                    args::in_range(
+                        "latency_ms",
+                        latency_ms.unwrap_or(self.model.base_latency_ms),
+                        0.0,
+                        60_000.0,
+                    )?,
                 ));
             }
-            "clear_override" => {
-                Args::new(&command, what, &["command"])?;
-                self.override_link = None;
-            }
-            _ => {
-                Args::new(&command, what, &["command"])?;
-            }
+            Command::ClearOverride => self.override_link = None,
+            Command::Status => {}
         }
-        if self.backend == Backend::Simulated && name != "status" {
+        if self.backend == Backend::Simulated && !matches!(command, Command::Status) {
             self.update_simulated(ctx, true)?;
         }
         let mut s = self.state();
@@ -458,14 +557,37 @@ mod tests {
     #[test]
     fn model_update_checks_ranges() {
         let mut m = RadioModel::default();
-        let v = json!({"path_loss_exponent": 9});
-        let a = Args::new(&v, "command `set_model`", &MODEL_FIELDS).unwrap();
-        let e = m.update(&a).unwrap_err();
-        assert!(e.contains("`path_loss_exponent`"), "{e}");
-        let v = json!({"tx_power_dbm": 27});
-        let a = Args::new(&v, "x", &MODEL_FIELDS).unwrap();
-        m.update(&a).unwrap();
+        let e = m
+            .update(&ModelUpdate {
+                path_loss_exponent: Some(9.0),
+                ..Default::default()
+            })
+            .unwrap_err();
+        assert_eq!(e, "path_loss_exponent: 9 is outside [1.5, 6]");
+        m.update(&ModelUpdate {
+            tx_power_dbm: Some(27.0),
+            ..Default::default()
+        })
+        .unwrap();
         assert_eq!(m.tx_power_dbm, 27.0);
         assert_eq!(m.path_loss_exponent, 2.7);
+    }
+
+    #[test]
+    fn the_config_splits_into_station_and_model_fields() {
+        let (cfg, model) = StationConfig::parse(json!({
+            "mode": "simulated", "rate_hz": 4, "ground_station": {"east_m": 5}, "tx_power_dbm": 27
+        }))
+        .unwrap();
+        assert_eq!((cfg.mode, cfg.rate_hz), (DeviceMode::Simulated, Some(4.0)));
+        assert_eq!(cfg.ground_station().unwrap(), Ned::new(0.0, 5.0, 0.0));
+        assert_eq!(model.tx_power_dbm, Some(27.0));
+        assert!(StationConfig::parse(Value::Null).is_ok());
+        let e = StationConfig::parse(json!({"colour": 1})).unwrap_err();
+        assert!(e.starts_with("colour: unknown field `colour`"), "{e}");
+        let e = StationConfig::parse(json!({"ground_station": {"north": 1}})).unwrap_err();
+        assert!(e.starts_with("ground_station.north: unknown field"), "{e}");
+        let e = StationConfig::parse(json!({"mode": "radio"})).unwrap_err();
+        assert!(e.starts_with("mode: unknown variant `radio`"), "{e}");
     }
 }

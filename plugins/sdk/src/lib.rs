@@ -11,9 +11,10 @@
 //! - [`export_plugin!`], which exports the versioned C entry point `skein_plugin_entry`
 //!   returning the plugin's [`abi::PluginVTable`], and wraps every export in
 //!   `catch_unwind`, so a panicking plugin becomes an error for skein instead of an abort;
-//! - helpers: [`args`] to read commands with errors naming the field, [`geometry`] for
-//!   pointing maths, [`vehicle`] for the typed snapshot, and the MAVLink common dialect
-//!   ([`MavMessage`], [`dialect`]).
+//! - helpers: [`args`] to read configs and commands with serde (errors naming the
+//!   field), [`geometry`] for pointing maths (skein's own geodesy), [`vehicle`] for the
+//!   typed snapshot, and the MAVLink common dialect ([`MavMessage`], [`dialect`],
+//!   [`command_long`] / [`command_int`] for commands).
 //!
 //! Nothing but bytes crosses the boundary (JSON, MAVLink frames, JPEG): see [`abi`] for the
 //! layout, the entry symbol and the versioning rules, and `plugins/README.md` for the
@@ -59,6 +60,8 @@ pub mod vehicle;
 
 pub use context::Context;
 pub use plugin::{MavlinkInterest, Plugin};
+/// serde, for a plugin's own types (derive with `#[serde(crate = "skein_plugin_sdk::serde")]`).
+pub use serde;
 pub use serde_json;
 /// A MAVLink message of the common dialect.
 pub use skein_mavlink::MavMessage;
@@ -66,6 +69,9 @@ pub use skein_mavlink::MavMessage;
 pub use skein_mavlink::MessageData;
 /// The MAVLink common dialect (message structs, enums, flags), as skein compiles it.
 pub use skein_mavlink::dialect;
+/// The command protocol's frames (`COMMAND_LONG`, `COMMAND_INT`), built as skein's own link
+/// builds them.
+pub use skein_mavlink::{CommandPosition, CommandTarget, command_int, command_long};
 /// MAVLink framing (for plugins that talk MAVLink to devices of their own).
 pub use skein_mavlink::{Decoder, Encoder};
 

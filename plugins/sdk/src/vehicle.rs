@@ -1,51 +1,20 @@
 //! A plugin's typed view of the vehicle snapshot JSON the host sends (the object of
 //! `GET /api/v1/vehicles/{id}`, see skein's `VehicleSnapshot`).
 //!
-//! Every field has a default and unknown fields are ignored, so a plugin keeps working when
+//! Every field of [`Vehicle`] has a default and unknown fields are ignored, so a plugin keeps working when
 //! skein adds fields to the snapshot; a field whose *meaning* changes bumps
-//! [`crate::abi::MESSAGES_VERSION`].
+//! [`crate::abi::MESSAGES_VERSION`]. [`Position`] and [`Velocity`] are skein's own types
+//! (`skein-geo`), shared rather than mirrored; [`Vehicle`] itself stays a view of its own:
+//! skein's `VehicleSnapshot` lives in `skein-model` (which a plugin does not link) and
+//! holds typed states (`VehicleState`, `LandedState`) a plugin built against an older SDK
+//! must not fail on, so here `state` is a string and every field has a default.
 
 use crate::geometry::Ned;
 use serde::{Deserialize, Serialize};
 
-/// Position of a vehicle: swarm-frame NED plus geodetic.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-#[serde(default)]
-pub struct Position {
-    /// North of the swarm origin, metres.
-    pub north_m: f64,
-    /// East of the swarm origin, metres.
-    pub east_m: f64,
-    /// Down from the swarm origin, metres (negative is above it).
-    pub down_m: f64,
-    /// Latitude, degrees (WGS84).
-    pub lat_deg: f64,
-    /// Longitude, degrees (WGS84).
-    pub lon_deg: f64,
-    /// Altitude above mean sea level, metres.
-    pub alt_amsl_m: f64,
-    /// Height above the vehicle's home, metres.
-    pub relative_alt_m: f64,
-}
-
-impl Position {
-    /// The swarm-frame NED part.
-    pub fn ned(&self) -> Ned {
-        Ned::new(self.north_m, self.east_m, self.down_m)
-    }
-}
-
-/// Velocity, NED, metres per second.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-#[serde(default)]
-pub struct Velocity {
-    /// North, m/s.
-    pub north_m_s: f64,
-    /// East, m/s.
-    pub east_m_s: f64,
-    /// Down, m/s.
-    pub down_m_s: f64,
-}
+/// Position (swarm-frame NED plus geodetic) and velocity (NED, m/s): skein's own types,
+/// the very ones the host serialises into the snapshot.
+pub use skein_geo::{Position, Velocity};
 
 /// Link health of the vehicle's MAVLink link.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]

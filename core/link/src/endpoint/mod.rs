@@ -637,6 +637,3 @@ async fn stream_session(
         tracing::info!("{connector:?}: stream closed, reopening");
     }
 }
-
-#[cfg(test)]
-mod tests;

@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::config::{PX4_SITL_HOME, TelemetryProfile};
+use crate::virtual_vehicle::client;
 use skein_mavlink::Decoder;
 
 fn env(wind: WindConfig, gps_noise_m: f64, seed: u64) -> Environment {
@@ -75,42 +76,12 @@ impl Harness {
     }
 
     fn command(&mut self, command: MavCmd, p: [f32; 7]) -> Vec<MavResult> {
-        self.input(MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            param1: p[0],
-            param2: p[1],
-            param3: p[2],
-            param4: p[3],
-            param5: p[4],
-            param6: p[5],
-            param7: p[6],
-            command,
-            target_system: 1,
-            target_component: 1,
-            confirmation: 0,
-        }))
+        self.input(client::command(command, p))
     }
 
     fn setpoint(&mut self, mask: u16, pos: [f32; 3], vel: [f32; 3]) {
-        self.input(MavMessage::SET_POSITION_TARGET_LOCAL_NED(
-            SET_POSITION_TARGET_LOCAL_NED_DATA {
-                time_boot_ms: 0,
-                x: pos[0],
-                y: pos[1],
-                z: pos[2],
-                vx: vel[0],
-                vy: vel[1],
-                vz: vel[2],
-                afx: 0.0,
-                afy: 0.0,
-                afz: 0.0,
-                yaw: 0.0,
-                yaw_rate: 0.0,
-                type_mask: PositionTargetTypemask::from_bits_retain(mask),
-                target_system: 1,
-                target_component: 1,
-                coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
-            },
-        ));
+        let ned = |v: [f32; 3]| Ned::new(v[0].into(), v[1].into(), v[2].into());
+        self.input(client::setpoint(mask, ned(pos), ned(vel), Ned::ZERO, 0.0));
     }
 
     fn takeoff(&mut self) {
@@ -284,16 +255,7 @@ fn gcs_link_loss_takes_nav_dll_act() {
     let mut e = env(WindConfig::default(), 0.0, 0);
     e.params = vec![("NAV_DLL_ACT".into(), 2.0), ("COM_DL_LOSS_T".into(), 2.0)];
     let mut h = Harness::new(e);
-    let gcs = || {
-        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            custom_mode: 0,
-            mavtype: MavType::MAV_TYPE_GCS,
-            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-            base_mode: MavModeFlag::empty(),
-            system_status: MavState::MAV_STATE_ACTIVE,
-            mavlink_version: 3,
-        })
-    };
+    let gcs = client::gcs_heartbeat;
     h.input(gcs());
     h.run(0.1);
     let nan = f32::NAN;

@@ -181,9 +181,10 @@ pub fn run(args: NewArgs) -> Result<PathBuf, String> {
 /// `src/lib.rs` of a new plugin (`__NAME__`, `__KIND__`, `__TYPE__` replaced).
 const TEMPLATE: &str = r#"//! `__NAME__`: a skein payload plugin providing the payload kind `__KIND__`.
 //!
-//! Made by `skein plugin new`; replace the bodies with your device. The logic sits in
-//! plain methods (`from_config`, `command`) so `cargo test` checks it without skein; the
-//! `Plugin` impl wires it to skein's host services.
+//! Made by `skein plugin new`; replace the bodies with your device. The config and the
+//! commands are serde types read by the SDK's `args` (errors name the field); the logic
+//! sits in plain methods (`from_config`, `command`) so `cargo test` checks it without
+//! skein; the `Plugin` impl wires it to skein's host services.
 //!
 //! Config (all optional): `{"rate_hz": 1.0, "value": 0.0}`.
 //! Commands (`POST /api/v1/vehicles/{id}/payloads/{slot}`):
@@ -194,9 +195,34 @@ const TEMPLATE: &str = r#"//! `__NAME__`: a skein payload plugin providing the p
 //! Published state: `{"value": 2.5, "ticks": 12}`. At shutdown it raises a `__NAME__`
 //! event `{"shutdown": true, "value"}` on skein's stream.
 
-use skein_plugin_sdk::args::{Args, command_name};
+use skein_plugin_sdk::args;
+use skein_plugin_sdk::serde::Deserialize;
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::{Context, Plugin, export_plugin};
+
+/// The slot's config. serde reads it (the SDK re-exports serde, hence `crate = ...`);
+/// `deny_unknown_fields` refuses a typo, naming it.
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
+struct Config {
+    /// Tick rate, Hz, 0 to 100; default 1.
+    rate_hz: Option<f64>,
+    /// The initial value; default 0.
+    value: Option<f64>,
+}
+
+/// The commands: one variant per `command` name (snake_case), its fields inside.
+#[derive(Deserialize)]
+#[serde(crate = "skein_plugin_sdk::serde")]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+enum Command {
+    /// `{"command": "ping"}`.
+    Ping,
+    /// `{"command": "set", "value": 2.5}`.
+    Set { value: f64 },
+    /// `{"command": "status"}`.
+    Status,
+}
 
 /// One instance of the `__KIND__` payload (one slot on one vehicle).
 pub struct __TYPE__ {
@@ -210,12 +236,13 @@ pub struct __TYPE__ {
 
 impl __TYPE__ {
     /// Reads the slot's config (`Value::Null` when the slot has none).
-    fn from_config(config: &Value) -> Result<Self, String> {
-        // `Args` refuses unknown fields (typos) and names the field in every error.
-        let cfg = Args::new(config, "__NAME__ config", &["rate_hz", "value"])?;
+    fn from_config(config: Value) -> Result<Self, String> {
+        // Every error starts with the field at fault (`rate_hz: 500 is outside [0, 100]`),
+        // which skein's API answers as `"field": "rate_hz"`.
+        let cfg: Config = args::config(config)?;
         Ok(__TYPE__ {
-            rate_hz: cfg.f64_in("rate_hz", 1.0, 0.0, 100.0)?,
-            value: cfg.opt_f64("value")?.unwrap_or(0.0),
+            rate_hz: args::in_range("rate_hz", cfg.rate_hz.unwrap_or(1.0), 0.0, 100.0)?,
+            value: cfg.value.unwrap_or(0.0),
             ticks: 0,
         })
     }
@@ -226,24 +253,17 @@ impl __TYPE__ {
     }
 
     /// An operator command, without host services.
-    fn command(&mut self, command: &Value) -> Result<Value, String> {
-        match command_name(command, &["ping", "set", "status"])? {
-            "ping" => {
-                Args::new(command, "command `ping`", &["command"])?;
+    fn command(&mut self, command: Value) -> Result<Value, String> {
+        // Unknown commands and fields, missing and mistyped ones: refused, naming them.
+        match args::command(command)? {
+            Command::Ping => {
                 Ok(json!({"pong": true, "plugin": Self::NAME, "version": Self::VERSION}))
             }
-            "set" => {
-                let args = Args::new(command, "command `set`", &["command", "value"])?;
-                self.value = args
-                    .opt_f64("value")?
-                    .ok_or("command `set`: missing field `value`")?;
+            Command::Set { value } => {
+                self.value = value;
                 Ok(self.state())
             }
-            "status" => {
-                Args::new(command, "command `status`", &["command"])?;
-                Ok(self.state())
-            }
-            other => Err(format!("unhandled command `{other}`")),
+            Command::Status => Ok(self.state()),
         }
     }
 }
@@ -256,7 +276,7 @@ impl Plugin for __TYPE__ {
     const KINDS: &'static [&'static str] = &["__KIND__"];
 
     fn create(_kind: &str, config: Value, ctx: &Context) -> Result<Self, String> {
-        let me = Self::from_config(&config)?;
+        let me = Self::from_config(config)?;
         ctx.log_info(&format!("__NAME__ payload created on {}", ctx.vehicle_id()));
         Ok(me)
     }
@@ -271,7 +291,7 @@ impl Plugin for __TYPE__ {
     }
 
     fn handle(&mut self, ctx: &Context, command: Value) -> Result<Value, String> {
-        let mut answer = self.command(&command)?;
+        let mut answer = self.command(command)?;
         if answer.get("pong").is_some() {
             answer["vehicle"] = json!(ctx.vehicle_id());
         } else {
@@ -296,21 +316,28 @@ mod tests {
 
     #[test]
     fn config_has_defaults_and_refuses_unknown_fields() {
-        let p = __TYPE__::from_config(&Value::Null).unwrap();
+        let p = __TYPE__::from_config(Value::Null).unwrap();
         assert_eq!((p.rate_hz, p.value), (1.0, 0.0));
-        let e = __TYPE__::from_config(&json!({"rate": 2.0})).err().unwrap();
-        assert!(e.contains("rate"), "{e}");
+        let e = __TYPE__::from_config(json!({"rate": 2.0})).err().unwrap();
+        assert!(e.starts_with("rate: unknown field `rate`"), "{e}");
+        let e = __TYPE__::from_config(json!({"rate_hz": 500})).err().unwrap();
+        assert_eq!(e, "rate_hz: 500 is outside [0, 100]");
     }
 
     #[test]
     fn commands_change_and_report_the_state() {
-        let mut p = __TYPE__::from_config(&json!({"rate_hz": 0.0})).unwrap();
-        assert_eq!(p.command(&json!({"command": "ping"})).unwrap()["pong"], true);
-        let s = p.command(&json!({"command": "set", "value": 2.5})).unwrap();
+        let mut p = __TYPE__::from_config(json!({"rate_hz": 0.0})).unwrap();
+        assert_eq!(p.command(json!({"command": "ping"})).unwrap()["pong"], true);
+        let s = p.command(json!({"command": "set", "value": 2.5})).unwrap();
         assert_eq!(s["value"], 2.5);
-        assert_eq!(p.command(&json!({"command": "status"})).unwrap()["value"], 2.5);
-        assert!(p.command(&json!({"command": "set"})).is_err());
-        assert!(p.command(&json!({"command": "explode"})).is_err());
+        assert_eq!(
+            p.command(json!({"command": "status"})).unwrap()["value"],
+            2.5
+        );
+        let e = p.command(json!({"command": "set"})).unwrap_err();
+        assert_eq!(e, "value: missing field `value`");
+        let e = p.command(json!({"command": "explode"})).unwrap_err();
+        assert!(e.starts_with("command: unknown command `explode`"), "{e}");
     }
 }
 "#;

@@ -1,0 +1,73 @@
+//! [`GeoPoint`]: a geodetic position on the WGS84 ellipsoid, and its MAVLink encoding.
+
+use serde::{Deserialize, Serialize};
+
+/// A geodetic position on the WGS84 ellipsoid.
+///
+/// `alt_amsl_m` is the altitude above mean sea level as PX4 reports it in
+/// `GLOBAL_POSITION_INT.alt` (treated as ellipsoid height for the tangent-plane maths: the
+/// geoid offset is a constant over a swarm's extent and cancels out).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(deny_unknown_fields)]
+pub struct GeoPoint {
+    /// Latitude, degrees, positive north.
+    pub lat_deg: f64,
+    /// Longitude, degrees, positive east.
+    pub lon_deg: f64,
+    /// Altitude above mean sea level, metres.
+    pub alt_amsl_m: f64,
+}
+
+impl GeoPoint {
+    /// Builds a point from degrees and metres.
+    pub const fn new(lat_deg: f64, lon_deg: f64, alt_amsl_m: f64) -> Self {
+        Self {
+            lat_deg,
+            lon_deg,
+            alt_amsl_m,
+        }
+    }
+
+    /// Builds a point from MAVLink integer encoding: latitude and longitude in degE7,
+    /// altitude in millimetres (as in `GLOBAL_POSITION_INT` and `HOME_POSITION`).
+    pub fn from_mavlink(lat_e7: i32, lon_e7: i32, alt_mm: i32) -> Self {
+        Self::new(
+            f64::from(lat_e7) * 1e-7,
+            f64::from(lon_e7) * 1e-7,
+            f64::from(alt_mm) * 1e-3,
+        )
+    }
+
+    /// The MAVLink integer encoding `(lat degE7, lon degE7, alt mm)`.
+    pub fn to_mavlink(&self) -> (i32, i32, i32) {
+        (
+            (self.lat_deg * 1e7).round() as i32,
+            (self.lon_deg * 1e7).round() as i32,
+            (self.alt_amsl_m * 1e3).round() as i32,
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mavlink_integer_encoding_round_trips() {
+        let zurich = GeoPoint::new(47.397_742, 8.545_594, 488.0);
+        let (lat, lon, alt) = zurich.to_mavlink();
+        assert_eq!((lat, lon, alt), (473_977_420, 85_455_940, 488_000));
+        let back = GeoPoint::from_mavlink(lat, lon, alt);
+        assert!((back.lat_deg - zurich.lat_deg).abs() < 1e-9);
+    }
+
+    #[test]
+    fn unknown_fields_are_refused() {
+        let e = serde_json::from_str::<GeoPoint>(
+            r#"{"lat_deg": 1, "lon_deg": 2, "alt_amsl_m": 3, "alt_m": 4}"#,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("unknown field `alt_m`"), "{e}");
+    }
+}
