@@ -121,8 +121,12 @@ impl From<PayloadCommandError> for ApiError {
                 let field = why
                     .split_once(':')
                     .map(|(f, _)| f.trim())
+                    // A field path as the plugins' serde errors give it
+                    // (`ground_station.north_m`, `waypoints[2]`).
                     .filter(|f| {
-                        !f.is_empty() && f.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+                        !f.is_empty()
+                            && f.chars()
+                                .all(|c| c.is_ascii_alphanumeric() || "_.[]".contains(c))
                     })
                     .map(str::to_string);
                 ApiError {
@@ -240,6 +244,13 @@ mod tests {
         );
         let refused = PayloadCommandError::Refused("on: must be a boolean".into());
         assert_eq!(status_and_field(refused).1.as_deref(), Some("on"));
+        let nested = PayloadCommandError::Refused("ground_station.north_m: expected f64".into());
+        assert_eq!(
+            status_and_field(nested).1.as_deref(),
+            Some("ground_station.north_m")
+        );
+        let prose = PayloadCommandError::Refused("the gimbal says: no".into());
+        assert_eq!(status_and_field(prose).1, None);
         let waiting = PayloadCommandError::Unavailable("waiting".into());
         assert_eq!(status_and_field(waiting).0, StatusCode::SERVICE_UNAVAILABLE);
     }
