@@ -1,0 +1,318 @@
+//! A running `skein up` driven over its HTTP API only: requests, waits on vehicle
+//! states, the usual flights.
+
+use super::{Process, eventually};
+use serde_json::{Value, json};
+use std::time::Duration;
+
+/// A running `skein up` with its dashboard URL.
+pub struct Skein {
+    /// The process.
+    pub process: Process,
+    /// `http://127.0.0.1:PORT`
+    pub base: String,
+    agent: ureq::Agent,
+}
+
+impl Skein {
+    /// `skein up <args> --http 127.0.0.1:0` and waits for the dashboard line.
+    pub fn up(args: &[&str]) -> Skein {
+        Skein::launch("up", args)
+    }
+
+    /// `skein coordinator <args> --http 127.0.0.1:0` (a candidate of the election, no
+    /// vehicles) and waits for the dashboard line.
+    pub fn coordinator(args: &[&str]) -> Skein {
+        Skein::launch("coordinator", args)
+    }
+
+    /// `skein <subcommand> --http 127.0.0.1:0 <args>` and waits for the dashboard line.
+    fn launch(subcommand: &str, args: &[&str]) -> Skein {
+        let mut all = vec!["--http", "127.0.0.1:0"];
+        all.extend_from_slice(args);
+        Skein::launch_in(None, subcommand, &all)
+    }
+
+    /// `skein <subcommand> <args>` in network namespace `netns` (`args` give `--http`),
+    /// and waits for the dashboard line.
+    pub fn launch_in(netns: Option<&str>, subcommand: &str, args: &[&str]) -> Skein {
+        let mut all = vec![subcommand];
+        all.extend_from_slice(args);
+        let mut process = Process::start_in(netns, &all);
+        let line = process.wait_line("dashboard at", Duration::from_secs(60));
+        let url = line
+            .split_whitespace()
+            .find(|w| w.starts_with("http://"))
+            .expect("url in the dashboard line")
+            .trim_end_matches('/')
+            .to_string();
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .timeout_global(Some(Duration::from_secs(20)))
+            .build()
+            .into();
+        Skein {
+            process,
+            base: url,
+            agent,
+        }
+    }
+
+    /// `skein up --sim n` on free ports.
+    pub fn sim(n: usize) -> Skein {
+        let n = n.to_string();
+        Skein::up(&["--sim", &n, "--sim-base-port", "0"])
+    }
+
+    fn read(mut r: ureq::http::Response<ureq::Body>) -> (u16, Value) {
+        let status = r.status().as_u16();
+        let text = r.body_mut().read_to_string().unwrap_or_default();
+        let v = serde_json::from_str(&text).unwrap_or(Value::String(text));
+        (status, v)
+    }
+
+    /// `GET path` → (status, JSON). A GET is idempotent: a connection cut by an API
+    /// restart (a pooled keep-alive connection the old server closed) is retried on a
+    /// new one, as browsers do.
+    pub fn get(&self, path: &str) -> (u16, Value) {
+        let url = format!("{}{path}", self.base);
+        let mut last = None;
+        for _ in 0..3 {
+            match self.agent.get(&url).call() {
+                Ok(r) => return Self::read(r),
+                Err(e) => last = Some(e),
+            }
+        }
+        panic!("GET {url}: {last:?}")
+    }
+
+    /// `POST path` with a JSON body.
+    pub fn post(&self, path: &str, body: Value) -> (u16, Value) {
+        Self::read(
+            self.agent
+                .post(format!("{}{path}", self.base))
+                .send_json(body)
+                .expect("POST"),
+        )
+    }
+
+    /// `PUT path` with a JSON body.
+    pub fn put(&self, path: &str, body: Value) -> (u16, Value) {
+        Self::read(
+            self.agent
+                .put(format!("{}{path}", self.base))
+                .send_json(body)
+                .expect("PUT"),
+        )
+    }
+
+    /// `DELETE path`.
+    pub fn delete(&self, path: &str) -> (u16, Value) {
+        Self::read(
+            self.agent
+                .delete(format!("{}{path}", self.base))
+                .call()
+                .expect("DELETE"),
+        )
+    }
+
+    /// `method path` with a raw body.
+    pub fn raw(&self, method: &str, path: &str, body: &str) -> (u16, Value) {
+        let url = format!("{}{path}", self.base);
+        let r = match method {
+            "POST" => self
+                .agent
+                .post(url)
+                .header("content-type", "application/json")
+                .send(body),
+            "PUT" => self
+                .agent
+                .put(url)
+                .header("content-type", "application/json")
+                .send(body),
+            other => panic!("unsupported method {other}"),
+        };
+        Self::read(r.expect("request"))
+    }
+
+    /// The vehicles, sorted by id.
+    pub fn vehicles(&self) -> Vec<Value> {
+        let (status, v) = self.get("/api/v1/vehicles");
+        assert_eq!(status, 200, "{v}");
+        v.as_array().cloned().unwrap_or_default()
+    }
+
+    /// Waits until `pred` holds for every one of exactly `n` vehicles.
+    pub fn wait_all(
+        &self,
+        what: &str,
+        n: usize,
+        timeout: Duration,
+        pred: impl Fn(&Value) -> bool,
+    ) -> Vec<Value> {
+        eventually(what, timeout, || {
+            let vs = self.vehicles();
+            if vs.len() == n && vs.iter().all(&pred) {
+                Ok(vs)
+            } else {
+                Err(summary(&vs))
+            }
+        })
+    }
+}
+
+/// A one-line picture of the vehicles for failure messages.
+pub fn summary(vs: &[Value]) -> String {
+    vs.iter()
+        .map(|v| {
+            format!(
+                "{}:{}/{}/armed={}/alt={:.1}",
+                v["id"].as_str().unwrap_or("?"),
+                v["state"].as_str().unwrap_or("?"),
+                v["px4_mode"].as_str().unwrap_or("?"),
+                v["armed"],
+                v["position"]["relative_alt_m"].as_f64().unwrap_or(f64::NAN)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+impl Skein {
+    /// `POST path` that returns `None` when the connection is cut (the API server itself
+    /// may be what the request restarts).
+    pub fn try_post(&self, path: &str, body: Value) -> Option<(u16, Value)> {
+        self.agent
+            .post(format!("{}{path}", self.base))
+            .send_json(body)
+            .ok()
+            .map(Self::read)
+    }
+
+    /// The supervision record at `path` (`restarts`, `status`, `last_failure` …).
+    pub fn supervised(&self, path: &str) -> Option<Value> {
+        fn find(node: &Value, path: &str) -> Option<Value> {
+            if node["path"] == path {
+                return Some(node.clone());
+            }
+            node["children"]
+                .as_array()?
+                .iter()
+                .find_map(|c| find(c, path))
+        }
+        let (status, tree) = self.get("/api/v1/supervision");
+        assert_eq!(status, 200, "{tree}");
+        find(&tree, path)
+    }
+
+    /// Kills the process with SIGKILL (no goodbye: no last lease, no clean shutdown) and
+    /// waits for it to exit.
+    pub fn kill_hard(&mut self) {
+        let status = std::process::Command::new("kill")
+            .args(["-KILL", &self.process.pid().to_string()])
+            .status()
+            .expect("kill");
+        assert!(status.success());
+        let _ = self.process.wait_exit(Duration::from_secs(10));
+    }
+
+    /// The `host:port` of the simulator stats socket (`--sim-stats`), from stdout.
+    pub fn sim_stats_addr(&self) -> String {
+        let out = self.process.stdout.lock().unwrap();
+        out.iter()
+            .find_map(|l| l.strip_prefix("skein: simulator stats at "))
+            .expect("skein printed its simulator stats address (--sim-stats)")
+            .to_string()
+    }
+}
+
+impl Skein {
+    /// `skein up --sim n` with its simulator on free ports and its stats socket on
+    /// (`sim_stats_addr`), plus `extra` arguments.
+    pub fn up_sim(n: usize, extra: &[&str]) -> Skein {
+        let n = n.to_string();
+        let mut args = vec![
+            "--sim",
+            &n,
+            "--sim-base-port",
+            "0",
+            "--sim-stats",
+            "127.0.0.1:0",
+        ];
+        args.extend_from_slice(extra);
+        Skein::up(&args)
+    }
+
+    /// `GET /api/v1/formation`.
+    pub fn formation(&self) -> Value {
+        self.get("/api/v1/formation").1
+    }
+
+    /// Waits until every one of `n` members is within `tol` metres of its slot.
+    pub fn settled(&self, n: usize, tol: f64, within: Duration) {
+        eventually(&format!("{n} members within {tol} m"), within, || {
+            let f = self.formation();
+            let members = f["members"].as_array().cloned().unwrap_or_default();
+            if members.len() == n
+                && members
+                    .iter()
+                    .all(|m| m["error_m"].as_f64().unwrap_or(99.0) < tol)
+            {
+                Ok(())
+            } else {
+                Err(format!("{f}"))
+            }
+        });
+    }
+
+    /// Waits until `n` vehicles are connected with a position and a home (a vehicle
+    /// without home refuses takeoff), takes the swarm off to `altitude_m` and waits until
+    /// all `n` hover.
+    pub fn take_off(&self, n: usize, altitude_m: f64) {
+        self.wait_all(
+            "connected with positions and homes",
+            n,
+            Duration::from_secs(60),
+            |v| {
+                v["link"]["connected"] == true && v["position"].is_object() && v["home"].is_object()
+            },
+        );
+        let (status, body) = self.post(
+            "/api/v1/swarm/commands",
+            json!({"command": "takeoff", "altitude_m": altitude_m}),
+        );
+        assert_eq!(status, 202, "{body}");
+        assert_eq!(body["refused"], json!([]), "{body}");
+        self.wait_all("hovering", n, Duration::from_secs(90), |v| {
+            v["state"] == "Hovering"
+        });
+    }
+
+    /// Restarts of the supervised actor at `path` so far.
+    pub fn restarts(&self, path: &str) -> u64 {
+        self.supervised(path)
+            .unwrap_or_else(|| panic!("{path} not in the supervision tree"))["restarts"]
+            .as_u64()
+            .unwrap_or_else(|| panic!("{path}: no restart count"))
+    }
+
+    /// `GET path` → (status, content type, raw body): snapshots and other binary bodies.
+    pub fn get_bytes(&self, path: &str) -> (u16, String, Vec<u8>) {
+        let url = format!("{}{path}", self.base);
+        let mut r = self.agent.get(&url).call().expect("GET");
+        let status = r.status().as_u16();
+        let ctype = r
+            .headers()
+            .get("content-type")
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or_default()
+            .to_string();
+        let body = r
+            .body_mut()
+            .with_config()
+            .limit(64 * 1024 * 1024)
+            .read_to_vec()
+            .expect("read the body");
+        (status, ctype, body)
+    }
+}
