@@ -5,10 +5,8 @@
 use crate::PluginsBenchArgs;
 use serde_json::{Value, json};
 use skein_mavlink::MavMessage;
-use skein_model::fsm::VehicleState;
 use skein_model::geo::{GeoPoint, NedFrame};
-use skein_model::px4::LandedState;
-use skein_model::vehicle::{LinkStatus, Position, VehicleSnapshot, Velocity};
+use skein_model::vehicle::VehicleSnapshot;
 use skein_payload::{
     Isolation, PayloadDriver, PayloadFactory, PayloadHost, PayloadSpec, PayloadState,
 };
@@ -60,27 +58,7 @@ impl BenchHost {
         let frame = NedFrame::new(GeoPoint::new(47.3977, 8.5456, 488.0));
         let ned = skein_model::geo::Ned::new(0.0, 0.0, -10.0);
         BenchHost {
-            snapshot: VehicleSnapshot {
-                id: "bench-1".into(),
-                sysid: 1,
-                connection: String::new(),
-                model: "observation".into(),
-                state: VehicleState::Hovering,
-                armed: true,
-                px4_mode: "OFFBOARD".into(),
-                landed_state: LandedState::InAir,
-                position: Some(Position::from_geo(frame.to_geo(ned), 10.0, &frame)),
-                home: Some(Position::from_geo(frame.origin, 0.0, &frame)),
-                velocity: Velocity::default(),
-                heading_deg: 0.0,
-                battery: None,
-                link: LinkStatus {
-                    connected: true,
-                    last_seen_ms: 0,
-                },
-                formation: None,
-                payloads: vec![],
-            },
+            snapshot: VehicleSnapshot::hovering_at("bench-1", 1, &frame, ned),
         }
     }
 }

@@ -82,6 +82,40 @@ pub struct VehicleSnapshot {
     pub payloads: Vec<serde_json::Value>,
 }
 
+impl VehicleSnapshot {
+    /// A connected vehicle hovering under offboard control at `position` (NED in the swarm
+    /// frame `frame`, home at the frame's origin), model `observation`: what a benchmark's
+    /// payload host or a test presents where no vehicle flies. Change the fields a case
+    /// needs (`state`, `heading_deg` …) after.
+    pub fn hovering_at(id: &str, sysid: u8, frame: &crate::geo::NedFrame, position: Ned) -> Self {
+        VehicleSnapshot {
+            id: id.into(),
+            sysid,
+            connection: String::new(),
+            model: "observation".into(),
+            state: VehicleState::Hovering,
+            armed: true,
+            px4_mode: "OFFBOARD".into(),
+            landed_state: crate::px4::LandedState::InAir,
+            position: Some(Position::from_geo(
+                frame.to_geo(position),
+                -position.down_m,
+                frame,
+            )),
+            home: Some(Position::from_geo(frame.origin, 0.0, frame)),
+            velocity: Velocity::default(),
+            heading_deg: 0.0,
+            battery: None,
+            link: LinkStatus {
+                connected: true,
+                last_seen_ms: 0,
+            },
+            formation: None,
+            payloads: vec![],
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -26,8 +26,7 @@ use crate::topics::{self, TopicSpec};
 use serde::Serialize;
 use skein_model::fsm::VehicleState;
 use skein_model::geo::{GeoPoint, Ned, NedFrame};
-use skein_model::px4::LandedState;
-use skein_model::vehicle::{LinkStatus, Position, VehicleSnapshot, Velocity};
+use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::SwarmEvent;
 use skein_swarm::election::Lease;
 use skein_swarm::formation::FormationMirror;
@@ -211,29 +210,10 @@ pub(super) fn snapshot(
     frame: NedFrame,
 ) -> VehicleSnapshot {
     VehicleSnapshot {
-        id: id.into(),
-        sysid: 1,
-        connection: String::new(),
         model: "generic".into(),
         state,
         armed: state != VehicleState::Landed,
-        px4_mode: "OFFBOARD".into(),
-        landed_state: LandedState::InAir,
-        position: Some(Position::from_geo(
-            frame.to_geo(position),
-            -position.down_m,
-            &frame,
-        )),
-        home: Some(Position::from_geo(frame.origin, 0.0, &frame)),
-        velocity: Velocity::default(),
-        heading_deg: 0.0,
-        battery: None,
-        link: LinkStatus {
-            connected: true,
-            last_seen_ms: 0,
-        },
-        formation: None,
-        payloads: vec![],
+        ..VehicleSnapshot::hovering_at(id, 1, &frame, position)
     }
 }
 

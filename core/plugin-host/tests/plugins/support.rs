@@ -3,10 +3,8 @@
 
 use serde_json::Value;
 use skein_mavlink::MavMessage;
-use skein_model::fsm::VehicleState;
 use skein_model::geo::{GeoPoint, Ned, NedFrame};
-use skein_model::px4::LandedState;
-use skein_model::vehicle::{LinkStatus, Position, VehicleSnapshot, Velocity};
+use skein_model::vehicle::VehicleSnapshot;
 use skein_plugin_host::{ChildCommand, HostConfig, PayloadHost, PluginManager};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -135,27 +133,9 @@ pub const ORIGIN: GeoPoint = GeoPoint::new(47.397_742, 8.545_594, 488.0);
 /// A vehicle snapshot at a swarm-frame NED position with a heading.
 pub fn snapshot(id: &str, sysid: u8, ned: (f64, f64, f64), heading_deg: f64) -> VehicleSnapshot {
     let frame = NedFrame::new(ORIGIN);
-    let geo = frame.to_geo(Ned::new(ned.0, ned.1, ned.2));
     VehicleSnapshot {
-        id: id.into(),
-        sysid,
-        connection: String::new(),
-        model: "observation".into(),
-        state: VehicleState::Hovering,
-        armed: true,
-        px4_mode: "OFFBOARD".into(),
-        landed_state: LandedState::InAir,
-        position: Some(Position::from_geo(geo, -ned.2, &frame)),
-        home: Some(Position::from_geo(ORIGIN, 0.0, &frame)),
-        velocity: Velocity::default(),
         heading_deg,
-        battery: None,
-        link: LinkStatus {
-            connected: true,
-            last_seen_ms: 0,
-        },
-        formation: None,
-        payloads: vec![],
+        ..VehicleSnapshot::hovering_at(id, sysid, &frame, Ned::new(ned.0, ned.1, ned.2))
     }
 }
 
