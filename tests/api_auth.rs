@@ -1,5 +1,5 @@
 //! Roles on every route, over the router without a socket: each operation of the
-//! contract (`skein_api::auth::routes`, the role table read from it) × {no token, viewer,
+//! contract (`skein_api::openapi::route_access`, the role table read from it) × {no token, viewer,
 //! operator, admin} → 401 / 403 / through, and the failed-attempt lockout (429). The
 //! coordinator is a stand-in that drops every request (handlers answer 503 at once): only
 //! the gates' verdict is under test.
@@ -8,7 +8,9 @@
 mod support;
 
 use axum::http::StatusCode;
-use skein_api::auth::{self, Access, Auth};
+use skein_api::auth::{self, Auth};
+use skein_api::openapi::route_access;
+use skein_api::roles::Access;
 use support::{TOKENS, call, concrete, configured, request, router, router_of};
 
 #[derive(Debug, PartialEq)]
@@ -22,7 +24,7 @@ enum Verdict {
 async fn every_route_enforces_its_role() {
     let app = router(configured()).await;
     let mut failures = Vec::new();
-    for route in auth::routes() {
+    for route in route_access() {
         let (method, access) = (route.method.as_str(), route.access);
         let uri = concrete(&route.path);
         for caller in [None, Some(0usize), Some(1), Some(2)] {
@@ -72,7 +74,7 @@ async fn every_route_enforces_its_role() {
 #[tokio::test]
 async fn without_tokens_everything_is_open_and_whoami_says_so() {
     let app = router(Auth::disabled()).await;
-    for route in auth::routes() {
+    for route in route_access() {
         let (method, path) = (route.method.as_str(), &route.path);
         let (status, body) =
             call(&app, request(method, &concrete(path), None, [127, 0, 0, 1])).await;
@@ -199,7 +201,7 @@ async fn a_standby_refuses_every_write_after_authentication_and_answers_reads() 
     let (tx, rx) = tokio::sync::watch::channel(election(CoordinatorRole::Standby));
     let app = router_of(configured(), Some(rx)).await;
     let admin = Some(TOKENS[2].2);
-    for route in auth::routes() {
+    for route in route_access() {
         let (method, access) = (route.method.as_str(), route.access);
         let uri = concrete(&route.path);
         let (status, body) = call(&app, request(method, &uri, admin, [10, 0, 0, 7])).await;

@@ -11,9 +11,9 @@
 //! time (`subtle`).
 //!
 //! Every route has one [`Access`]: the role router it is registered in
-//! ([`crate::routes`]), whose gate ([`require`], one `route_layer` per role) checks it.
-//! The contract states it on each operation (`x-skein-role`), and [`routes`] reads the
-//! table back from there. Any other `/api/…` path needs a viewer token (and answers 404);
+//! ([`crate::openapi::routes`]), whose gate ([`require`], one `route_layer` per role)
+//! checks it. The contract states it on each operation (`x-skein-role`), and
+//! [`crate::openapi::route_access`] reads the table back from there. Any other `/api/…` path needs a viewer token (and answers 404);
 //! a handler cannot be routed without a role. Without tokens configured
 //! ([`Auth::disabled`]) everything is allowed, as before; the binary refuses that on a
 //! non-loopback address unless told `--insecure-no-auth`.
@@ -22,6 +22,7 @@
 //! [`FAILURE_WINDOW`], that IP is answered 429 for [`LOCKOUT`].
 
 use crate::ApiState;
+use crate::roles::{Access, Role};
 use axum::Json;
 use axum::extract::{ConnectInfo, Request, State};
 use axum::http::{HeaderValue, Method, StatusCode, header};
@@ -32,110 +33,10 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
-use std::sync::{Mutex, OnceLock, PoisonError};
+use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 use subtle::ConstantTimeEq;
 use utoipa::ToSchema;
-
-/// What a token may do. Ordered: each role can do what the ones below it can.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize, ToSchema,
-)]
-#[serde(rename_all = "lowercase")]
-pub enum Role {
-    /// Reads (every GET) and the WebSocket stream.
-    Viewer,
-    /// Flies: vehicle and swarm commands, formation, leader motion, payloads.
-    Operator,
-    /// Everything, plugins, parameter writes and fault injection included.
-    Admin,
-}
-
-impl Role {
-    /// The role's name as in the configuration.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Role::Viewer => "viewer",
-            Role::Operator => "operator",
-            Role::Admin => "admin",
-        }
-    }
-}
-
-impl std::str::FromStr for Role {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "viewer" => Ok(Role::Viewer),
-            "operator" => Ok(Role::Operator),
-            "admin" => Ok(Role::Admin),
-            _ => Err(format!(
-                "unknown role `{s}` (known: viewer, operator, admin)"
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for Role {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-/// Who may call a route.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Access {
-    /// Anyone, without a token.
-    Public,
-    /// A token with at least this role.
-    Role(Role),
-}
-
-impl Access {
-    /// As the contract writes it (`x-skein-role`): `public`, or the role's name.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Access::Public => "public",
-            Access::Role(r) => r.as_str(),
-        }
-    }
-}
-
-impl std::str::FromStr for Access {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "public" => Ok(Access::Public),
-            role => role.parse().map(Access::Role),
-        }
-    }
-}
-
-/// One operation of the contract and who may call it.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct RouteAccess {
-    /// HTTP method, upper case (`GET`).
-    pub method: String,
-    /// The route as axum and the contract write it (`/api/v1/vehicles/{id}`).
-    pub path: String,
-    /// Who may call it.
-    pub access: Access,
-}
-
-/// Every operation of [`crate::app`] with its access, read from the contract's
-/// `x-skein-role` (an operation without one would need an admin: fail closed).
-pub fn routes() -> &'static [RouteAccess] {
-    static TABLE: OnceLock<Vec<RouteAccess>> = OnceLock::new();
-    TABLE.get_or_init(|| {
-        crate::openapi::operations(crate::openapi::contract())
-            .map(|(method, path, op)| RouteAccess {
-                method: method.to_string(),
-                path: path.to_string(),
-                access: crate::openapi::access_of(op).unwrap_or(Access::Role(Role::Admin)),
-            })
-            .collect()
-    })
-}
 
 /// The gate of one role's routes: the API's state and the access they need.
 #[derive(Clone)]
@@ -511,53 +412,5 @@ mod tests {
         assert!(Auth::new(&[tc("a", &ok), tc("a", &ok)]).is_err());
         assert!(Auth::new(&[tc("a", &ok)]).unwrap().enabled());
         assert!(!Auth::new(&[]).unwrap().enabled());
-    }
-
-    #[test]
-    fn access_reads_back_as_the_contract_writes_it() {
-        for a in [
-            Access::Public,
-            Access::Role(Role::Viewer),
-            Access::Role(Role::Operator),
-            Access::Role(Role::Admin),
-        ] {
-            assert_eq!(a.as_str().parse::<Access>(), Ok(a));
-        }
-        assert!("root".parse::<Access>().is_err());
-    }
-
-    #[test]
-    fn the_role_table_has_every_operation_once_with_its_role() {
-        let table = routes();
-        let role = |m: &str, p: &str| {
-            table
-                .iter()
-                .find(|r| r.method == m && r.path == p)
-                .map(|r| r.access)
-        };
-        assert_eq!(role("GET", "/api/v1/health"), Some(Access::Public));
-        assert_eq!(
-            role("GET", "/api/v1/vehicles"),
-            Some(Access::Role(Role::Viewer))
-        );
-        assert_eq!(
-            role("POST", "/api/v1/formation/leader/orbit"),
-            Some(Access::Role(Role::Operator))
-        );
-        assert_eq!(
-            role("PUT", "/api/v1/vehicles/{id}/params/{name}"),
-            Some(Access::Role(Role::Admin))
-        );
-        assert_eq!(role("POST", "/api/v1/plugins/{op}"), None);
-        for (i, r) in table.iter().enumerate() {
-            assert!(
-                !table[..i]
-                    .iter()
-                    .any(|o| o.method == r.method && o.path == r.path),
-                "{} {} twice",
-                r.method,
-                r.path
-            );
-        }
     }
 }

@@ -9,7 +9,7 @@
 //! `Authorization: Bearer <token>` with a role (see [`auth`]).
 //!
 //! Every route is declared once, by its handler's `#[utoipa::path]` and its registration
-//! in its role's router ([`routes`]); the router, the role table and the contract
+//! in its role's router ([`openapi::routes`]); the router, the role table and the contract
 //! (`GET /api/v1/openapi.json`, OpenAPI 3.1, see [`openapi`]) are built from that, and
 //! docs/api.md lists them. The handlers, by concept: [`vehicles`] (vehicles and commands),
 //! [`px4_params`], [`formation_control`] (formation and leader motion), [`payloads`] and
@@ -34,7 +34,7 @@ pub mod recording;
 pub mod replay_server;
 pub mod requests;
 pub mod responses;
-pub mod routes;
+pub mod roles;
 pub mod server;
 mod static_files;
 mod stream;
@@ -46,12 +46,12 @@ mod video;
 
 pub use server::ApiServer;
 
-use auth::{Access, Role};
 use axum::Router;
 use axum::middleware::from_fn_with_state;
 use axum::routing::{any, get};
 use error::ApiError;
 use ractor::ActorRef;
+use roles::{Access, Role};
 use skein_swarm::{CoordinatorMsg, SwarmEvent};
 use std::sync::Arc;
 use std::time::Duration;
@@ -177,7 +177,7 @@ impl ApiState {
 /// token), and the dashboard's files for everything else (no token).
 pub fn app(state: ApiState) -> Router {
     let mut router = Router::new();
-    for (access, routes) in routes::by_role() {
+    for (access, routes) in openapi::routes::by_role() {
         let (routes, _) = routes.split_for_parts();
         router = router.merge(gated(routes, &state, access));
     }

@@ -6,14 +6,15 @@
 mod support;
 
 use axum::http::StatusCode;
-use skein_api::auth::{self, Auth};
+use skein_api::auth::Auth;
+use skein_api::openapi::route_access;
 use support::{TOKENS, call, concrete, configured, request, request_with, router};
 
 #[tokio::test]
 async fn every_operation_of_the_contract_is_a_route() {
     let app = router(Auth::disabled()).await;
     let mut missing = Vec::new();
-    for route in auth::routes() {
+    for route in route_access() {
         let uri = concrete(&route.path);
         let (status, body) = call(&app, request(&route.method, &uri, None, [127, 0, 0, 1])).await;
         let unrouted = body["error"]
@@ -24,7 +25,7 @@ async fn every_operation_of_the_contract_is_a_route() {
         }
     }
     assert!(missing.is_empty(), "{}", missing.join("\n"));
-    assert!(auth::routes().len() > 40);
+    assert!(route_access().len() > 40);
 }
 
 #[tokio::test]

@@ -6,7 +6,7 @@
 //! the handler declares as `Option<T>` (read with [`crate::requests::parse_or_empty`]) is
 //! a `T` that may be left out, not a JSON `null`.
 
-use crate::auth::Access;
+use crate::roles::Access;
 use utoipa::openapi::path::Operation;
 use utoipa::openapi::schema::{Schema, SchemaType, Type};
 use utoipa::openapi::security::SecurityRequirement;

@@ -1,5 +1,5 @@
 //! The API contract: an OpenAPI 3.1 document served at `GET /api/v1/openapi.json`, built
-//! from the same declarations as the router ([`crate::routes`]): each handler's
+//! from the same declarations as the router ([`routes`]): each handler's
 //! `#[utoipa::path]` (path, method, parameters, body, answers), the `ToSchema` types it
 //! names (collected with everything they refer to), and the role of the router it is
 //! registered in. What every operation shares is added once, in [`finish`].
@@ -14,9 +14,10 @@
 //! once tokens are configured.
 
 pub mod finish;
+pub mod routes;
 
-use crate::auth::Access;
 use crate::responses::ErrorBody;
+use crate::roles::{Access, Role, RouteAccess};
 use std::sync::OnceLock;
 use utoipa::OpenApi;
 use utoipa::openapi::path::{Operation, PathItem};
@@ -93,7 +94,7 @@ fn build() -> utoipa::openapi::OpenApi {
     let mut doc = Base::openapi();
     doc.info.version = env!("CARGO_PKG_VERSION").to_string();
     doc.info.license = None;
-    for (access, routes) in crate::routes::by_role() {
+    for (access, routes) in routes::by_role() {
         let mut part = routes.into_openapi();
         for (path, item) in &mut part.paths.paths {
             for (method, op) in operations_of_mut(item) {
@@ -117,6 +118,22 @@ fn build() -> utoipa::openapi::OpenApi {
     );
     crate::responses::add_schemas(components);
     doc
+}
+
+/// Every operation of [`crate::app`] with its access (the role table the tests and
+/// `docs/api.md` are checked against), read from the contract's
+/// `x-skein-role` (an operation without one would need an admin: fail closed).
+pub fn route_access() -> &'static [RouteAccess] {
+    static TABLE: OnceLock<Vec<RouteAccess>> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        operations(contract())
+            .map(|(method, path, op)| RouteAccess {
+                method: method.to_string(),
+                path: path.to_string(),
+                access: access_of(op).unwrap_or(Access::Role(Role::Admin)),
+            })
+            .collect()
+    })
 }
 
 /// The contract (built once).

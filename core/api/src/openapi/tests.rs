@@ -148,7 +148,7 @@ fn documented() -> Vec<(String, String, String)> {
 fn docs_api_md_lists_every_operation_with_its_role_and_nothing_else() {
     let docs = documented();
     assert!(docs.len() > 40, "{docs:?}");
-    let table = crate::auth::routes();
+    let table = super::route_access();
     for (m, p, role) in &docs {
         let found = table.iter().find(|r| r.method == *m && r.path == *p);
         let Some(r) = found else {
@@ -173,4 +173,39 @@ fn docs_api_md_lists_every_operation_with_its_role_and_nothing_else() {
 #[test]
 fn dump() {
     std::fs::write("/tmp/openapi.json", document()).unwrap();
+}
+
+#[test]
+fn the_role_table_has_every_operation_once_with_its_role() {
+    let table = super::route_access();
+    let role = |m: &str, p: &str| {
+        table
+            .iter()
+            .find(|r| r.method == m && r.path == p)
+            .map(|r| r.access)
+    };
+    assert_eq!(role("GET", "/api/v1/health"), Some(Access::Public));
+    assert_eq!(
+        role("GET", "/api/v1/vehicles"),
+        Some(Access::Role(Role::Viewer))
+    );
+    assert_eq!(
+        role("POST", "/api/v1/formation/leader/orbit"),
+        Some(Access::Role(Role::Operator))
+    );
+    assert_eq!(
+        role("PUT", "/api/v1/vehicles/{id}/params/{name}"),
+        Some(Access::Role(Role::Admin))
+    );
+    assert_eq!(role("POST", "/api/v1/plugins/{op}"), None);
+    for (i, r) in table.iter().enumerate() {
+        assert!(
+            !table[..i]
+                .iter()
+                .any(|o| o.method == r.method && o.path == r.path),
+            "{} {} twice",
+            r.method,
+            r.path
+        );
+    }
 }

@@ -10,7 +10,7 @@ pub struct TokenCreateArgs {
     /// viewer (reads, the stream), operator (flies: commands, formation, payloads) or
     /// admin (plugins, parameter writes, faults, and everything else).
     #[arg(long)]
-    pub role: skein_api::auth::Role,
+    pub role: skein_api::roles::Role,
     /// Who holds it (shown in the dashboard); default: the role.
     #[arg(long)]
     pub name: Option<String>,

@@ -1,14 +1,14 @@
 //! Every route of the API, declared once. Each handler states its path, method and
 //! OpenAPI operation with `#[utoipa::path(...)]` next to its code; here it is registered
 //! in the router of the role it needs. The axum router ([`crate::app`]: one
-//! authentication `route_layer` per role), the role table ([`crate::auth::routes`]) and
+//! authentication `route_layer` per role), the role table ([`crate::openapi::route_access`]) and
 //! the served contract ([`crate::openapi`], with each operation's role) are all built
 //! from `by_role`, so they cannot disagree.
 //!
 //! Adding a route touches the handler (with its `#[utoipa::path]`), one line here in its
 //! role's router, and its row in `docs/api.md` (a test holds the doc to the contract).
 
-use crate::auth::{Access, Role};
+use crate::roles::{Access, Role};
 use crate::{
     ApiState, auth, election, fault_injection, formation_control, openapi, payloads, plugins,
     px4_params, recording, stream, swarm_status, tracks, vehicles, video,
