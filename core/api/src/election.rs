@@ -1,6 +1,6 @@
 //! The coordinator role in the API (`skein coordinator`): `GET /api/v1/coordinator`
 //! shows the election ([`ElectionStatus`]), and a standby refuses every write with a 409
-//! naming the active coordinator and where its API is ([`standby_refuses_writes`]), so
+//! naming the active coordinator and where its API is (`standby_refuses_writes`), so
 //! an operator is never flying from a coordinator that sends nothing.
 //!
 //! `skein up` is not a candidate: it has no election, the route answers 404, and no

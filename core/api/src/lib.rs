@@ -172,7 +172,7 @@ impl ApiState {
     }
 }
 
-/// The router (no socket: tests call it directly): every route of [`routes`]
+/// The router (no socket: tests call it directly): every route of [`openapi::routes`]
 /// behind its role's gate, `/api/…` paths that are no route (404 JSON, with a viewer
 /// token), and the dashboard's files for everything else (no token).
 pub fn app(state: ApiState) -> Router {
