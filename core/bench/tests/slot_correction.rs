@@ -7,7 +7,7 @@
 
 use skein_mavlink::MavMessage;
 use skein_model::geo::Ned;
-use skein_sim::virtual_vehicle::client;
+use skein_sim::client;
 use skein_sim::{SimConfig, VirtualVehicle};
 use skein_swarm::vehicle::slot_correction::{SlotCorrection, SlotCorrectionGains};
 

@@ -19,6 +19,7 @@
 #![forbid(unsafe_code)]
 
 pub mod cli;
+pub mod client;
 mod config;
 mod histogram;
 mod impairment;
@@ -27,7 +28,6 @@ pub mod px4_params;
 mod report;
 mod runtime;
 mod signing;
-mod telemetry;
 mod vehicle;
 pub mod virtual_vehicle;
 
@@ -40,7 +40,7 @@ pub use report::{
     SimSummary, SimTruth, SimVehicleInfo, SimVehicleStats, TelemetryStreamInfo, telemetry_streams,
 };
 use report::{decode_delta, truth_of};
-pub use telemetry::PX4_FLIGHT_SW_VERSION;
+pub use vehicle::PX4_FLIGHT_SW_VERSION;
 pub use virtual_vehicle::VirtualVehicle;
 
 use impairment::Impairment;

@@ -3,8 +3,8 @@
 //! ([`SimSummary`]), as the stats socket and `GET /api/v1/sim/truth` serve them.
 
 use crate::histogram::{IntervalBucket, IntervalSummary};
-use crate::telemetry;
 use crate::vehicle::Vehicle;
+use crate::vehicle::telemetry;
 use serde::Serialize;
 use skein_mavlink::DecodeCounts;
 use skein_model::geo::{GeoPoint, Ned};

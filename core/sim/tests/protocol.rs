@@ -12,7 +12,8 @@ use skein_mavlink::{
     CommandPosition, CommandTarget, Decoder, Encoder, MavMessage, command_int, command_long,
 };
 use skein_model::px4::Px4Mode;
-use skein_sim::virtual_vehicle::{GCS_COMPID, GCS_SYSID, client};
+use skein_sim::client;
+use skein_sim::virtual_vehicle::{GCS_COMPID, GCS_SYSID};
 use skein_sim::{PX4_FLIGHT_SW_VERSION, SimConfig, SimVehicleConfig, Simulator};
 use std::time::{Duration, Instant};
 

@@ -10,7 +10,7 @@
 use skein_mavlink::MavMessage;
 use skein_mavlink::dialect::*;
 use skein_model::geo::Ned;
-use skein_sim::virtual_vehicle::client;
+use skein_sim::client;
 use skein_sim::{SimConfig, VirtualVehicle};
 use std::fmt::Write as _;
 use std::path::PathBuf;

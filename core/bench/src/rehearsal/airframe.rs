@@ -13,7 +13,7 @@
 //!   changes whose subject is the separation logic, not the tracking.
 
 use skein_model::geo::Ned;
-use skein_sim::virtual_vehicle::client;
+use skein_sim::client;
 use skein_sim::{SimConfig, VirtualVehicle};
 
 /// Position P gain, horizontal (PX4 `MPC_XY_P`), 1/s.

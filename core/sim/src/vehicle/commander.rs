@@ -184,7 +184,7 @@ impl Vehicle {
         self.home = self.origin.to_geo(self.pos);
         self.home_yaw_rad = self.yaw_rad;
         self.streams
-            .force(crate::telemetry::Stream::HomePosition, now);
+            .force(crate::vehicle::telemetry::Stream::HomePosition, now);
     }
 
     /// Switches mode if PX4 would allow it; `Err` carries PX4's refusal text.

@@ -471,7 +471,7 @@ impl Vehicle {
                     self.home = GeoPoint::new(lat, lon, f64::from(p[6]));
                     self.home_local = self.origin.to_ned(&self.home);
                     self.streams
-                        .force(crate::telemetry::Stream::HomePosition, now);
+                        .force(crate::vehicle::telemetry::Stream::HomePosition, now);
                 } else {
                     return (MAV_RESULT_DENIED, None, None);
                 }
@@ -495,7 +495,7 @@ impl Vehicle {
                 let id = p[0] as u32;
                 if self.can_send_message(now, id) {
                     (MAV_RESULT_ACCEPTED, None, Some(Followup::Message(id)))
-                } else if crate::telemetry::is_known_message(id) {
+                } else if crate::vehicle::telemetry::is_known_message(id) {
                     (MAV_RESULT_TEMPORARILY_REJECTED, None, None)
                 } else {
                     (MAV_RESULT_UNSUPPORTED, None, None)
@@ -506,7 +506,9 @@ impl Vehicle {
                     (
                         MAV_RESULT_ACCEPTED,
                         None,
-                        Some(Followup::Message(crate::telemetry::HOME_POSITION_ID)),
+                        Some(Followup::Message(
+                            crate::vehicle::telemetry::HOME_POSITION_ID,
+                        )),
                     )
                 } else {
                     (MAV_RESULT_TEMPORARILY_REJECTED, None, None)
@@ -515,12 +517,16 @@ impl Vehicle {
             MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => (
                 MAV_RESULT_ACCEPTED,
                 None,
-                Some(Followup::Message(crate::telemetry::AUTOPILOT_VERSION_ID)),
+                Some(Followup::Message(
+                    crate::vehicle::telemetry::AUTOPILOT_VERSION_ID,
+                )),
             ),
             MavCmd::MAV_CMD_REQUEST_PROTOCOL_VERSION => (
                 MAV_RESULT_ACCEPTED,
                 None,
-                Some(Followup::Message(crate::telemetry::PROTOCOL_VERSION_ID)),
+                Some(Followup::Message(
+                    crate::vehicle::telemetry::PROTOCOL_VERSION_ID,
+                )),
             ),
             MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN => {
                 if p[0].round() as i32 == 1 {

@@ -15,7 +15,6 @@
 use crate::config::WindConfig;
 use crate::histogram::IntervalHistogram;
 use crate::px4_params::{PARAM_COUNT, Param, ParamValue, Params};
-use crate::telemetry::Streams;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use skein_mavlink::dialect::*;
@@ -23,7 +22,11 @@ use skein_mavlink::{Encoder, Frame, MavMessage};
 use skein_model::geo::{GeoPoint, Ned, NedFrame, wrap_pi};
 use skein_model::px4::{FORCE_ARM_DISARM_MAGIC, LandedState, Px4Mode, type_mask};
 use std::time::{Duration, Instant};
+use telemetry::Streams;
 
+pub(crate) mod telemetry;
+
+pub use telemetry::PX4_FLIGHT_SW_VERSION;
 mod battery;
 mod commander;
 mod dynamics;

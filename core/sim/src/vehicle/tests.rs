@@ -1,8 +1,8 @@
 //! Unit tests of the vehicle: flight logic against the wall-clock protocol timers.
 
 use super::*;
+use crate::client;
 use crate::config::{PX4_SITL_HOME, TelemetryProfile};
-use crate::virtual_vehicle::client;
 use skein_mavlink::Decoder;
 
 fn env(wind: WindConfig, gps_noise_m: f64, seed: u64) -> Environment {

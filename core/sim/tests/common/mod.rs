@@ -20,7 +20,7 @@ pub use virtual_station::{VirtualClient, start_virtual};
 use skein_mavlink::MavMessage;
 use skein_model::geo::Ned;
 use skein_model::px4::type_mask;
-use skein_sim::virtual_vehicle::client;
+use skein_sim::client;
 use skein_sim::{SimConfig, SimVehicleConfig, Simulator};
 use std::time::{Duration, Instant};
 use tokio::net::UdpSocket;

@@ -7,7 +7,7 @@
 use skein_mavlink::dialect::*;
 use skein_mavlink::{CommandTarget, Frame, MavMessage, command_long};
 use skein_model::px4::Px4Mode;
-use skein_sim::virtual_vehicle::client;
+use skein_sim::client;
 use std::time::{Duration, Instant};
 
 /// A MAVLink ground station talking to one simulated vehicle.

@@ -249,7 +249,7 @@ impl Vehicle {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::telemetry::PX4_FLIGHT_SW_VERSION;
+    use crate::vehicle::telemetry::PX4_FLIGHT_SW_VERSION;
 
     #[test]
     fn every_stream_has_a_distinct_id_and_known_rate() {
