@@ -62,6 +62,17 @@ async fn start_agent(
     (counters, task)
 }
 
+/// A process of one vehicle, `uav-1`, flying its slot 10 m up at the origin of frame A.
+fn uav_1_in_formation() -> (Arc<Process>, Calls) {
+    let (process, calls) = Process::new(Some(origin_a()));
+    let process = process.with_vehicle(
+        "uav-1",
+        VehicleState::InFormation,
+        Ned::new(0.0, 0.0, -10.0),
+    );
+    (process, calls)
+}
+
 fn config(lost_action: LostAction) -> AgentConfig {
     AgentConfig {
         lost_action_after: Duration::from_secs(4),
@@ -115,12 +126,7 @@ async fn commanded(
 #[tokio::test(start_paused = true)]
 async fn an_agent_obeys_only_the_active_coordinator_of_the_highest_epoch() {
     let bus = MemoryBus::new();
-    let (process, mut calls) = Process::new(Some(origin_a()));
-    let process = process.with_vehicle(
-        "uav-1",
-        VehicleState::InFormation,
-        Ned::new(0.0, 0.0, -10.0),
-    );
+    let (process, mut calls) = uav_1_in_formation();
     let (counters, _agent) = start_agent(&bus, &process, config(LostAction::Hold)).await;
     let leases = Peer::leases(&bus);
     leases.lease("gcs-old", 1, true); // the other side of a partition, not told yet
@@ -221,12 +227,7 @@ async fn an_agent_without_a_coordinator_holds_its_steered_vehicles_after_1_5_s_t
 #[tokio::test(start_paused = true)]
 async fn an_agent_that_holds_obeys_a_coordinator_of_a_new_epoch_and_then_does_no_lost_action() {
     let bus = MemoryBus::new();
-    let (process, mut calls) = Process::new(Some(origin_a()));
-    let process = process.with_vehicle(
-        "uav-1",
-        VehicleState::InFormation,
-        Ned::new(0.0, 0.0, -10.0),
-    );
+    let (process, mut calls) = uav_1_in_formation();
     let (counters, _agent) = start_agent(&bus, &process, config(LostAction::Land)).await;
     let leases = Arc::new(Peer::leases(&bus));
     leases.lease("gcs-a", 1, true);
