@@ -1,6 +1,7 @@
 //! `GET /api/v1/stream`: the WebSocket of the dashboard. The `vehicles` frames (every
-//! vehicle, [`crate::TELEMETRY_HZ`]) are made once by [`publish_telemetry`] and shared by
-//! every session; each session adds the swarm's events as they happen.
+//! vehicle and the process's load, [`crate::TELEMETRY_HZ`]) are made once by
+//! [`publish_telemetry`] and shared by every session; each session adds the swarm's events
+//! as they happen.
 
 use crate::{ApiState, COORDINATOR_TIMEOUT, TELEMETRY_HZ};
 use axum::extract::State;
@@ -8,24 +9,42 @@ use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::response::Response;
 use ractor::ActorRef;
 use skein_swarm::CoordinatorMsg;
+use skein_swarm::load::ShedWork;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::broadcast;
 
-/// Publishes the `vehicles` frame at [`TELEMETRY_HZ`] while anyone listens; ends when the
-/// coordinator stops.
+/// Publishes the `vehicles` frame at [`TELEMETRY_HZ`] while anyone listens (a fifth of
+/// that while the process sheds optional work, see `skein_swarm::load`); ends when the
+/// coordinator stops. Each frame carries the process's `load` (the dashboard's load
+/// indicator).
 pub(crate) async fn publish_telemetry(
     coordinator: ActorRef<CoordinatorMsg>,
     tx: broadcast::Sender<Arc<str>>,
 ) {
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / TELEMETRY_HZ));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut load = None;
+    let mut round: u64 = 0;
     loop {
         tick.tick().await;
         if tx.receiver_count() == 0 {
             if coordinator.get_status() == ractor::ActorStatus::Stopped {
                 return;
             }
+            continue;
+        }
+        if load.is_none()
+            && let Ok(ractor::rpc::CallResult::Success(l)) = coordinator
+                .call(CoordinatorMsg::GetLoad, Some(COORDINATOR_TIMEOUT))
+                .await
+        {
+            load = Some(l);
+        }
+        round += 1;
+        if let Some(l) = &load
+            && !l.keep(ShedWork::Dashboard, round)
+        {
             continue;
         }
         let Ok(ractor::rpc::CallResult::Success(list)) = coordinator
@@ -37,7 +56,11 @@ pub(crate) async fn publish_telemetry(
             }
             continue;
         };
-        let frame = serde_json::json!({"type": "vehicles", "vehicles": list});
+        let frame = serde_json::json!({
+            "type": "vehicles",
+            "vehicles": list,
+            "load": load.as_ref().map(|l| l.status()),
+        });
         let _ = tx.send(Arc::from(frame.to_string()));
     }
 }

@@ -18,6 +18,7 @@ use skein_model::geo::{GeoPoint, NedFrame};
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::SwarmContext;
 use skein_swarm::formation::FormationMirror;
+use skein_swarm::load::{LoadMonitor, ShedWork};
 use skein_swarm::metrics::Metrics;
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehicleReport};
 use skein_swarm::tracks::TrackView;
@@ -37,6 +38,8 @@ pub struct SwarmAdapter {
     coordinator: ActorRef<CoordinatorMsg>,
     metrics: Arc<Metrics>,
     events: broadcast::Sender<SwarmEvent>,
+    /// The process's load monitor, asked of the coordinator once.
+    load: std::sync::OnceLock<Arc<LoadMonitor>>,
 }
 
 impl SwarmAdapter {
@@ -50,6 +53,7 @@ impl SwarmAdapter {
             coordinator,
             metrics,
             events,
+            load: std::sync::OnceLock::new(),
         }
     }
 
@@ -174,6 +178,15 @@ impl MirrorContext for SwarmAdapter {
 impl VehiclesContext for SwarmAdapter {
     async fn vehicles(&self) -> Option<Vec<VehicleSnapshot>> {
         self.ask(CoordinatorMsg::ListVehicles).await
+    }
+
+    async fn keep_round(&self, round: u64) -> bool {
+        if self.load.get().is_none()
+            && let Some(l) = self.ask(CoordinatorMsg::GetLoad).await
+        {
+            let _ = self.load.set(l);
+        }
+        self.load.get().is_none_or(|l| l.keep(ShedWork::Dds, round))
     }
 
     async fn tracks(&self) -> Option<Vec<TrackView>> {

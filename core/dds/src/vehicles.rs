@@ -44,6 +44,12 @@ pub trait VehiclesContext: Send + Sync + 'static {
         vehicle_id: String,
         command: OperatorCommand,
     ) -> impl Future<Output = Result<u64, String>> + Send;
+
+    /// Whether publishing round `round` goes ahead: every round, unless the process is
+    /// short of CPU and sheds optional work (see `skein_swarm::load`).
+    fn keep_round(&self, _round: u64) -> impl Future<Output = bool> + Send {
+        async { true }
+    }
 }
 
 /// A vehicle's command reader and result writer.
@@ -172,6 +178,10 @@ pub async fn run<C: Carrier, X: VehiclesContext>(vehicles: Arc<Vehicles<C>>, ctx
     loop {
         tick.tick().await;
         n += 1;
+        // Optional work: a fifth of the rounds while the process is short of CPU.
+        if !ctx.keep_round(n).await {
+            continue;
+        }
         let Some(list) = ctx.vehicles().await else {
             continue;
         };

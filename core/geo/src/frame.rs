@@ -71,6 +71,55 @@ impl NedFrame {
     pub fn convert_to(&self, other: &NedFrame, ned: Ned) -> Ned {
         other.to_ned(&self.to_geo(ned))
     }
+
+    /// The map from this frame's NED to `other`'s, worked out once for many positions
+    /// (see [`FrameTransform`]).
+    pub fn transform_to(&self, other: &NedFrame) -> FrameTransform {
+        // Both frames are Cartesian (tangent planes through ECEF), so the map between
+        // them is affine: a rotation and a translation, read off the images of the
+        // origin and of a point along each axis.
+        const STEP_M: f64 = 100.0;
+        let origin = self.convert_to(other, Ned::ZERO);
+        let axis = |unit: Ned| (self.convert_to(other, unit * STEP_M) - origin) * (1.0 / STEP_M);
+        FrameTransform {
+            from: *self,
+            to: *other,
+            columns: [
+                axis(Ned::new(1.0, 0.0, 0.0)),
+                axis(Ned::new(0.0, 1.0, 0.0)),
+                axis(Ned::new(0.0, 0.0, 1.0)),
+            ],
+            translation: origin,
+        }
+    }
+}
+
+/// The map between two [`NedFrame`]s, as [`NedFrame::convert_to`] computes it but without
+/// going through geodetic coordinates for each position: the two tangent planes are
+/// Cartesian frames, so the map is a rotation and a translation (agreeing with
+/// `convert_to` to micrometres over kilometres). A vehicle's control loop converts every
+/// setpoint with it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameTransform {
+    from: NedFrame,
+    to: NedFrame,
+    /// Images of the unit north, east and down vectors (the rotation's columns).
+    columns: [Ned; 3],
+    /// Image of the origin, metres.
+    translation: Ned,
+}
+
+impl FrameTransform {
+    /// True when this is the map from `from` to `to` (to tell when to work out a new one).
+    pub fn maps(&self, from: &NedFrame, to: &NedFrame) -> bool {
+        self.from == *from && self.to == *to
+    }
+
+    /// `ned` in the source frame, re-expressed in the target frame (metres).
+    pub fn apply(&self, ned: Ned) -> Ned {
+        let [n, e, d] = &self.columns;
+        self.translation + *n * ned.north_m + *e * ned.east_m + *d * ned.down_m
+    }
 }
 
 #[cfg(test)]
@@ -116,6 +165,22 @@ mod tests {
         assert!((in_a.east_m - in_b.east_m - 10.0).abs() < 1e-3);
         assert!((in_a.north_m - in_b.north_m).abs() < 1e-3);
         assert!((b.convert_to(&swarm, in_b) - target_swarm).norm() < 1e-6);
+    }
+
+    #[test]
+    fn a_transform_agrees_with_the_conversion_through_geodetic_points() {
+        let swarm = NedFrame::new(ZURICH);
+        let local = NedFrame::new(swarm.to_geo(Ned::new(-830.0, 1250.0, 12.0)));
+        let t = swarm.transform_to(&local);
+        assert!(t.maps(&swarm, &local) && !t.maps(&local, &swarm));
+        for p in [
+            Ned::ZERO,
+            Ned::new(15.0, -3.0, -10.0),
+            Ned::new(2500.0, -1800.0, -120.0),
+        ] {
+            let err = (t.apply(p) - swarm.convert_to(&local, p)).norm();
+            assert!(err < 1e-5, "{p:?}: {err} m off");
+        }
     }
 
     #[test]

@@ -12,7 +12,8 @@
 //!   MAVLink integer encoding (degE7, millimetres).
 //! - [`Ned`]: a north-east-down vector and its arithmetic.
 //! - [`NedFrame`]: a tangent plane anchored at a geodetic origin, and the recovery of a
-//!   PX4 local origin from `HOME_POSITION`.
+//!   PX4 local origin from `HOME_POSITION`; [`FrameTransform`], the map between two of
+//!   them worked out once for a control loop's many conversions.
 //! - [`look_angles`], [`direction`]: azimuth / elevation / range between two NED points
 //!   (the gimbal and camera conventions), and angle wrapping.
 //! - [`Position`], [`Velocity`]: a vehicle's position (swarm-frame NED plus geodetic) and
@@ -35,7 +36,7 @@ mod point;
 mod position;
 
 pub use angles::{LookAngles, direction, look_angles, wrap_deg_180, wrap_deg_360, wrap_pi};
-pub use frame::NedFrame;
+pub use frame::{FrameTransform, NedFrame};
 pub use ned::Ned;
 pub use point::GeoPoint;
 pub use position::{Position, Velocity};

@@ -7,7 +7,8 @@
 //! - [`command`]: the command protocol's operations and errors.
 //! - [`param_client`]: the parameter protocol (PX4's bytewise integers, duplicate answers).
 //! - [`setup`]: what is configured at connect: telemetry rates, parameters.
-//! - [`setpoint`]: the offboard setpoint stream, a task that outlives actor restarts.
+//! - [`setpoint`]: the offboard setpoint streams, one clock per rate on a thread of their
+//!   own, outliving actor restarts; [`priority`]: that thread's scheduling priority.
 //! - [`px4link`]: the `Px4Link` actor tying these together per vehicle.
 //! - [`fault`]: fault injection shared by every supervised actor.
 //! - [`gcs`]: forwarding to a ground station (QGroundControl) and back, setpoints refused.
@@ -24,6 +25,7 @@ pub mod endpoint;
 pub mod fault;
 pub mod gcs;
 pub mod param_client;
+pub mod priority;
 pub mod px4link;
 pub mod setpoint;
 pub mod setup;

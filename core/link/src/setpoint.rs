@@ -2,15 +2,22 @@
 //!
 //! PX4 accepts OFFBOARD only after setpoints have streamed for more than a second, and
 //! fails safe after `COM_OF_LOSS_T` (1 s) without one. The stream is therefore not part
-//! of any actor's message loop: it is a task that lives with the vehicle's link handle
-//! and sends the latest setpoint at a fixed rate whatever the actors are doing, so a
-//! restarting actor never opens a gap. Actors only replace the setpoint.
+//! of any actor's message loop: it lives with the vehicle's link handle and the latest
+//! setpoint is sent at a fixed rate whatever the actors are doing, so a restarting actor
+//! never opens a gap. Actors only replace the setpoint.
 //!
-//! Every stream runs on one thread of its own (`skein-setpoints`, a tokio runtime with one
-//! worker), not on the process's worker threads: a handler that keeps a worker busy (a
-//! plugin call, a large JSON body, a debug build's image processing) or a starved worker
-//! queue cannot delay a setpoint. The thread mostly sleeps, so the kernel wakes it
-//! promptly even when every core is busy. Sending never blocks (`try_send_to`).
+//! Every stream is sent from one thread of its own (`skein-setpoints`, a tokio runtime
+//! with one worker), not from the process's worker threads: a handler that keeps a worker
+//! busy (a plugin call, a large JSON body, a debug build's image processing) or a starved
+//! worker queue cannot delay a setpoint. The thread mostly sleeps, so the kernel wakes it
+//! promptly even when every core is busy, and it asks for a higher priority than the
+//! process's other threads ([`crate::priority`]). Sending never blocks: the socket is
+//! non-blocking, and the thread never waits for a lock another thread may hold (a starved
+//! process can be descheduled anywhere).
+//!
+//! All streams of one rate share one clock on that thread: each period it sends every
+//! stream's setpoint in one pass. A thousand vehicles at 50 Hz cost 50 timer wake-ups a
+//! second, not 50 000, and the datagrams leave in one burst per period.
 //!
 //! A setpoint not refreshed for [`STALE_AFTER`] loses its velocity feed-forward: the
 //! vehicle holds the last position instead of flying on along a stale velocity while its
@@ -24,12 +31,11 @@ use skein_mavlink::dialect::{
 };
 use skein_model::geo::Ned;
 use skein_model::px4::type_mask;
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::time::{Duration, Instant};
 use tokio::runtime::Runtime;
-use tokio::sync::watch;
-use tokio::task::JoinHandle;
 
 /// A setpoint in the vehicle's own local NED frame, as `SET_POSITION_TARGET_LOCAL_NED`
 /// carries it.
@@ -159,25 +165,82 @@ struct Counters {
     stale_holds: AtomicU64,
 }
 
+/// What the owner of one stream wants sent, and since when.
 #[derive(Clone, Copy)]
 struct Current {
     setpoint: Option<LocalSetpoint>,
+    /// When the owner last replaced the setpoint.
     updated: Instant,
 }
 
-/// A running setpoint stream (see module docs). Dropping it stops the task.
-pub struct SetpointStream {
-    tx: watch::Sender<Current>,
-    counters: Arc<Counters>,
-    since: Arc<Mutex<Option<Instant>>>,
-    rate_hz: f64,
-    task: JoinHandle<()>,
+/// One vehicle's stream as its clock sees it.
+///
+/// The owner (a vehicle's control loop, on a worker thread) and the clock (on the
+/// setpoint thread) share only `current`, and the clock never waits for it: if the owner
+/// holds it at the instant of a send (a starved process may deschedule a thread anywhere),
+/// the clock sends its own copy of what it sent last.
+struct Stream {
+    endpoint: Arc<Endpoint>,
+    sysid: u8,
+    compid: u8,
+    /// `time_boot_ms` and the instants below count from here.
+    start: Instant,
+    current: Mutex<Current>,
+    /// The last successful send of this streaming run, µs since `start` + 1 (0: stopped).
+    last_sent_us: AtomicU64,
+    /// Since when setpoints have streamed without interruption, µs since `start` + 1.
+    since_us: AtomicU64,
+    counters: Counters,
 }
 
-impl Drop for SetpointStream {
-    fn drop(&mut self) {
-        self.task.abort();
+impl Stream {
+    fn stamp(&self, t: Instant) -> u64 {
+        t.duration_since(self.start).as_micros() as u64 + 1
     }
+
+    fn instant(&self, stamp: u64) -> Option<Instant> {
+        (stamp != 0).then(|| self.start + Duration::from_micros(stamp - 1))
+    }
+
+    /// Sends `current` at `now` (nothing, and the run ends, when it holds no setpoint).
+    fn send(&self, current: Current, now: Instant) {
+        let Some(mut sp) = current.setpoint else {
+            self.last_sent_us.store(0, Ordering::Relaxed);
+            self.since_us.store(0, Ordering::Relaxed);
+            return;
+        };
+        if now.duration_since(current.updated) > STALE_AFTER {
+            let hold = sp.as_hold();
+            if hold != sp {
+                self.counters.stale_holds.fetch_add(1, Ordering::Relaxed);
+                sp = hold;
+            }
+        }
+        let time_boot_ms = now.duration_since(self.start).as_millis() as u32;
+        let msg = sp.to_mavlink(time_boot_ms, self.sysid, self.compid);
+        match self.endpoint.send(self.sysid, &msg) {
+            Ok(()) => {
+                self.counters.sent.fetch_add(1, Ordering::Relaxed);
+                let stamp = self.stamp(now);
+                match self.last_sent_us.swap(stamp, Ordering::Relaxed) {
+                    0 => self.since_us.store(stamp, Ordering::Relaxed),
+                    prev => {
+                        let gap = stamp.saturating_sub(prev);
+                        self.counters.max_gap_us.fetch_max(gap, Ordering::Relaxed);
+                    }
+                }
+            }
+            Err(_) => {
+                self.counters.send_errors.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+}
+
+/// A running setpoint stream (see module docs). Dropping it stops the stream.
+pub struct SetpointStream {
+    stream: Arc<Stream>,
+    rate_hz: f64,
 }
 
 impl SetpointStream {
@@ -185,47 +248,50 @@ impl SetpointStream {
     /// more than 2 Hz; 20–50 Hz is usual). Nothing is sent until [`SetpointStream::set`]
     /// gives a setpoint.
     pub fn start(endpoint: Arc<Endpoint>, sysid: u8, compid: u8, rate_hz: f64) -> Self {
-        let (tx, rx) = watch::channel(Current {
-            setpoint: None,
-            updated: Instant::now(),
-        });
-        let counters = Arc::new(Counters::default());
-        let since = Arc::new(Mutex::new(None));
-        let task = stream_runtime().spawn(run(
+        let now = Instant::now();
+        let stream = Arc::new(Stream {
             endpoint,
             sysid,
             compid,
-            rate_hz,
-            rx,
-            counters.clone(),
-            since.clone(),
-        ));
-        SetpointStream {
-            tx,
-            counters,
-            since,
-            rate_hz,
-            task,
-        }
+            start: now,
+            current: Mutex::new(Current {
+                setpoint: None,
+                updated: now,
+            }),
+            last_sent_us: AtomicU64::new(0),
+            since_us: AtomicU64::new(0),
+            counters: Counters::default(),
+        });
+        clock_of(rate_hz).join(&stream);
+        SetpointStream { stream, rate_hz }
     }
 
     /// Replaces the streamed setpoint; `None` stops streaming (only after PX4 has been
-    /// switched out of OFFBOARD).
+    /// switched out of OFFBOARD). The clock sends it at its next tick.
     pub fn set(&self, setpoint: Option<LocalSetpoint>) {
-        self.tx.send_replace(Current {
+        *self
+            .stream
+            .current
+            .lock()
+            .unwrap_or_else(|p| p.into_inner()) = Current {
             setpoint,
             updated: Instant::now(),
-        });
+        };
     }
 
     /// The setpoint being streamed.
     pub fn current(&self) -> Option<LocalSetpoint> {
-        self.tx.borrow().setpoint
+        self.stream
+            .current
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .setpoint
     }
 
     /// Since when setpoints have been streaming without interruption (`None` if stopped).
     pub fn streaming_since(&self) -> Option<Instant> {
-        *self.since.lock().expect("since lock")
+        let s = &self.stream;
+        s.instant(s.since_us.load(Ordering::Relaxed))
     }
 
     /// The stream rate, Hz.
@@ -235,13 +301,87 @@ impl SetpointStream {
 
     /// Counters.
     pub fn counts(&self) -> StreamCounts {
+        let c = &self.stream.counters;
         StreamCounts {
-            sent: self.counters.sent.load(Ordering::Relaxed),
-            send_errors: self.counters.send_errors.load(Ordering::Relaxed),
-            max_gap_ms: self.counters.max_gap_us.load(Ordering::Relaxed) as f64 / 1000.0,
-            stale_holds: self.counters.stale_holds.load(Ordering::Relaxed),
+            sent: c.sent.load(Ordering::Relaxed),
+            send_errors: c.send_errors.load(Ordering::Relaxed),
+            max_gap_ms: c.max_gap_us.load(Ordering::Relaxed) as f64 / 1000.0,
+            stale_holds: c.stale_holds.load(Ordering::Relaxed),
         }
     }
+}
+
+/// One stream on its clock, with the clock's own copy of what it sent last.
+struct Entry {
+    stream: Weak<Stream>,
+    last: Option<Current>,
+}
+
+/// The clock of every stream of one rate: one task on the setpoint thread that sends each
+/// stream's setpoint every period, instead of a task and a timer per vehicle (see the
+/// module docs).
+struct Clock {
+    /// Streams started since the last tick (the clock takes them in at its next tick).
+    joining: Mutex<Vec<Weak<Stream>>>,
+}
+
+impl Clock {
+    fn join(&self, stream: &Arc<Stream>) {
+        self.joining
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push(Arc::downgrade(stream));
+    }
+
+    async fn run(self: Arc<Self>, period: Duration) {
+        let mut ticker = tokio::time::interval(period);
+        ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        let mut entries: Vec<Entry> = Vec::new();
+        loop {
+            ticker.tick().await;
+            // New streams join without making the senders wait for a round of sends.
+            if let Ok(mut joining) = self.joining.try_lock() {
+                entries.extend(joining.drain(..).map(|stream| Entry { stream, last: None }));
+            }
+            let now = Instant::now();
+            entries.retain_mut(|e| {
+                let Some(stream) = e.stream.upgrade() else {
+                    return false; // its owner dropped it
+                };
+                let current = match stream.current.try_lock() {
+                    Ok(c) => Some(*c),
+                    Err(std::sync::TryLockError::Poisoned(p)) => Some(*p.into_inner()),
+                    // The owner is writing it right now: send what was sent last.
+                    Err(std::sync::TryLockError::WouldBlock) => e.last,
+                };
+                if let Some(c) = current {
+                    e.last = Some(c);
+                    stream.send(c, now);
+                }
+                true
+            });
+        }
+    }
+}
+
+/// The clock of `rate_hz` (at least 1 Hz), started on first use on the setpoint thread.
+fn clock_of(rate_hz: f64) -> Arc<Clock> {
+    static CLOCKS: OnceLock<Mutex<HashMap<u64, Arc<Clock>>>> = OnceLock::new();
+    let period = Duration::from_secs_f64(1.0 / rate_hz.max(1.0));
+    let mut clocks = CLOCKS
+        .get_or_init(Mutex::default)
+        .lock()
+        .unwrap_or_else(|p| p.into_inner());
+    clocks
+        .entry(period.as_micros() as u64)
+        .or_insert_with(|| {
+            let clock = Arc::new(Clock {
+                joining: Mutex::new(Vec::new()),
+            });
+            stream_runtime().spawn(clock.clone().run(period));
+            clock
+        })
+        .clone()
 }
 
 /// The runtime of every setpoint stream (see the module docs): one worker thread,
@@ -255,67 +395,11 @@ fn stream_runtime() -> &'static Runtime {
         tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .thread_name("skein-setpoints")
+            .on_thread_start(crate::priority::raise_setpoint_thread)
             .enable_time()
             .build()
             .expect("the setpoint stream thread")
     })
-}
-
-async fn run(
-    endpoint: Arc<Endpoint>,
-    sysid: u8,
-    compid: u8,
-    rate_hz: f64,
-    mut rx: watch::Receiver<Current>,
-    counters: Arc<Counters>,
-    since: Arc<Mutex<Option<Instant>>>,
-) {
-    let period = Duration::from_secs_f64(1.0 / rate_hz.max(1.0));
-    let mut ticker = tokio::time::interval(period);
-    ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let start = Instant::now();
-    let mut last_sent: Option<Instant> = None;
-    loop {
-        tokio::select! {
-            _ = ticker.tick() => {}
-            changed = rx.changed() => {
-                if changed.is_err() { return; }
-                // A new setpoint after a pause starts streaming at once; otherwise keep
-                // the fixed rate.
-                if last_sent.is_some() { continue; }
-            }
-        }
-        let current = *rx.borrow_and_update();
-        let Some(mut sp) = current.setpoint else {
-            last_sent = None;
-            *since.lock().expect("since lock") = None;
-            continue;
-        };
-        let now = Instant::now();
-        if now.duration_since(current.updated) > STALE_AFTER {
-            let hold = sp.as_hold();
-            if hold != sp {
-                counters.stale_holds.fetch_add(1, Ordering::Relaxed);
-                sp = hold;
-            }
-        }
-        let msg = sp.to_mavlink(now.duration_since(start).as_millis() as u32, sysid, compid);
-        match endpoint.send(sysid, &msg) {
-            Ok(()) => {
-                counters.sent.fetch_add(1, Ordering::Relaxed);
-                if let Some(prev) = last_sent {
-                    let gap = now.duration_since(prev).as_micros() as u64;
-                    counters.max_gap_us.fetch_max(gap, Ordering::Relaxed);
-                } else {
-                    *since.lock().expect("since lock") = Some(now);
-                }
-                last_sent = Some(now);
-            }
-            Err(_) => {
-                counters.send_errors.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-    }
 }
 
 #[cfg(test)]

@@ -75,6 +75,10 @@ pub struct Home {
     pub geo: GeoPoint,
     /// Home in the vehicle's local NED frame, metres.
     pub local: Ned,
+    /// The local NED frame these two give ([`NedFrame::from_reference`]), worked out once
+    /// when the home arrives, not at every use.
+    #[serde(skip)]
+    pub origin: NedFrame,
 }
 
 /// The latest telemetry of one vehicle.
@@ -150,7 +154,7 @@ impl Telemetry {
 
     /// The vehicle's local NED frame (its EKF origin), recovered from `HOME_POSITION`.
     pub fn local_frame(&self) -> Option<NedFrame> {
-        self.home.map(|h| NedFrame::from_reference(h.geo, h.local))
+        self.home.map(|h| h.origin)
     }
 
     /// Heading in degrees `[0, 360)`, from `GLOBAL_POSITION_INT.hdg` or `ATTITUDE.yaw`.
@@ -248,10 +252,19 @@ impl Telemetry {
                 }
             }
             MavMessage::HOME_POSITION(h) => {
-                self.home = Some(Home {
-                    geo: GeoPoint::from_mavlink(h.latitude, h.longitude, h.altitude),
-                    local: Ned::new(h.x.into(), h.y.into(), h.z.into()),
-                });
+                let geo = GeoPoint::from_mavlink(h.latitude, h.longitude, h.altitude);
+                let local = Ned::new(h.x.into(), h.y.into(), h.z.into());
+                // PX4 repeats it (0.5 Hz here): the frame is worked out when it changes.
+                if self
+                    .home
+                    .is_none_or(|old| old.geo != geo || old.local != local)
+                {
+                    self.home = Some(Home {
+                        geo,
+                        local,
+                        origin: NedFrame::from_reference(geo, local),
+                    });
+                }
             }
             MavMessage::GPS_RAW_INT(g) => {
                 self.gps_fix_type = Some(g.fix_type as u8);

@@ -10,6 +10,8 @@
 //! - [`fsm`]: the vehicle state machine (GenericUAVModel) as a plain transition function.
 //! - [`formation`]: formation shapes, slot offsets and optimal slot assignment.
 //! - [`geofence`]: the cylinder (and optional polygon) every setpoint is clamped into.
+//! - [`obstacles`]: the other vehicles as the separation check sees them, asked by
+//!   distance.
 //! - [`safety`]: the setpoint shaper: geofence clamp, speed and acceleration limiting and
 //!   separation checks that every setpoint passes before it leaves skein.
 //! - [`supervision`]: restart policies, child kinds and statuses, injectable faults.
@@ -24,6 +26,7 @@ pub mod formation;
 pub mod fsm;
 pub use skein_geo as geo;
 pub mod geofence;
+pub mod obstacles;
 pub mod px4;
 pub mod safety;
 pub mod supervision;

@@ -11,6 +11,7 @@
 
 use crate::geo::Ned;
 pub use crate::geofence::{FenceViolation, Geofence};
+pub use crate::obstacles::{Obstacle, ObstacleSource};
 use serde::{Deserialize, Serialize};
 
 /// Motion limits of a vehicle model.
@@ -68,6 +69,8 @@ pub struct SetpointShaper {
     planned_separation_m: f64,
     carrot: Ned,
     velocity: Ned,
+    /// Scratch list of the obstacles near the carrot (kept: no allocation per step).
+    near: Vec<Obstacle>,
 }
 
 /// Gain from carrot-to-target distance to the carrot's desired speed (1/s): the carrot
@@ -78,33 +81,6 @@ pub const FENCE_TRACKING_BUFFER_M: f64 = 0.5;
 /// Fraction of the acceleration limit avoidance counts on for braking (the rest is left
 /// for steering around).
 pub const BRAKE_FRACTION: f64 = 0.6;
-
-/// Another vehicle, as the separation check sees it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Obstacle {
-    /// Where it is, or where it is being sent, swarm frame.
-    pub position: Ned,
-    /// Its velocity, m/s.
-    pub velocity: Ned,
-    /// True when skein steers it too: it takes half of the avoidance.
-    pub reciprocal: bool,
-    /// True when both vehicles fly one formation transition plan, which keeps them apart
-    /// by construction: the shaper then only guards the inner limit (see
-    /// [`SetpointShaper::step`]) instead of shaping the approach.
-    pub planned: bool,
-}
-
-impl Obstacle {
-    /// A vehicle standing still that does not avoid.
-    pub fn fixed(position: Ned) -> Self {
-        Obstacle {
-            position,
-            velocity: Ned::ZERO,
-            reciprocal: false,
-            planned: false,
-        }
-    }
-}
 
 impl SetpointShaper {
     /// A shaper whose carrot starts at `start` (the vehicle's current position) at rest.
@@ -117,6 +93,7 @@ impl SetpointShaper {
             planned_separation_m: min_separation_m,
             carrot: start,
             velocity: Ned::ZERO,
+            near: Vec::new(),
         }
     }
 
@@ -162,7 +139,7 @@ impl SetpointShaper {
         target_velocity: Ned,
         yaw_rad: f64,
         dt_s: f64,
-        others: &[Obstacle],
+        others: &(impl ObstacleSource + ?Sized),
     ) -> ShapedSetpoint {
         // Setpoints stay a tracking buffer inside the fence (see `fence`), so that the
         // vehicle's own overshoot does not take it out.
@@ -180,7 +157,8 @@ impl SetpointShaper {
             target_velocity
         };
         desired = self.limit_speed(desired);
-        desired = self.limit_speed(self.avoid(desired, others));
+        let avoided = self.avoid_near(desired, others);
+        desired = self.limit_speed(avoided);
         // Acceleration limit on the change of the carrot's velocity.
         let dv = desired - self.velocity;
         let dv = dv.clamped_norm(self.limits.max_accel_m_s2 * dt_s);
@@ -197,7 +175,11 @@ impl SetpointShaper {
             // push through it.
             velocity = (next - self.carrot) * (1.0 / dt_s);
         }
-        let separation_hold = self.violates_separation(next, others);
+        let min = self.min_separation_m.max(self.planned_separation_m);
+        let mut near = std::mem::take(&mut self.near);
+        others.near(next, min, self.planned_separation_m, &mut near);
+        let separation_hold = self.violates_separation(next, &near);
+        self.near = near;
         if separation_hold {
             self.velocity = Ned::ZERO;
         } else {
@@ -241,9 +223,13 @@ impl SetpointShaper {
     /// keeps the pair apart by construction; shaping the approach would take the vehicles
     /// off the plan's common time scale): only closing in below the planned separation
     /// is removed.
-    fn avoid(&self, v: Ned, others: &[Obstacle]) -> Ned {
+    ///
+    /// Returns the avoiding velocity and the largest speed it had along the way (what
+    /// bounds the closing speed of every obstacle, see [`SetpointShaper::avoid_near`]).
+    fn avoid(&self, v: Ned, others: &[Obstacle]) -> (Ned, f64) {
         let brake = BRAKE_FRACTION * self.limits.max_accel_m_s2;
         let mut out = v;
+        let mut peak = v.norm();
         for o in others {
             let away = self.carrot - o.position;
             let dist = away.norm();
@@ -255,6 +241,7 @@ impl SetpointShaper {
             if o.planned {
                 if dist < self.planned_separation_m && closing > 0.0 {
                     out = out + n * closing;
+                    peak = peak.max(out.norm());
                 }
                 continue;
             }
@@ -276,9 +263,49 @@ impl SetpointShaper {
                     };
                     out = out + side * excess;
                 }
+                peak = peak.max(out.norm());
             }
         }
+        (out, peak)
+    }
+
+    /// [`SetpointShaper::avoid`] over the obstacles that can matter, asked of `others` by
+    /// distance, with the same result as over all of them.
+    ///
+    /// An obstacle that is not [`Obstacle::planned`] changes the velocity only when the
+    /// closing speed exceeds `share · sqrt(2·a·(d − d_min))`, and the closing speed is at
+    /// most the velocity's speed plus the obstacle's: beyond [`SetpointShaper::reach_m`]
+    /// of that bound it cannot act. A planned one acts only within the planned separation.
+    /// The velocity grows as obstacles act, so the bound is checked afterwards: when the
+    /// velocity grew past it, the pass is made again over the wider reach (rare: it takes
+    /// several obstacles acting at once).
+    fn avoid_near(&mut self, v: Ned, others: &(impl ObstacleSource + ?Sized)) -> Ned {
+        let others_speed = others.max_speed_m_s();
+        let mut bound = v.norm();
+        let mut near = std::mem::take(&mut self.near);
+        let out = loop {
+            let reach = self.reach_m(bound, others_speed);
+            others.near(self.carrot, reach, self.planned_separation_m, &mut near);
+            let (out, peak) = self.avoid(v, &near);
+            if peak <= bound || !peak.is_finite() {
+                break out;
+            }
+            bound = peak;
+        };
+        self.near = near;
         out
+    }
+
+    /// Distance beyond which an obstacle that is not planned cannot change a velocity of
+    /// at most `speed_m_s` when no obstacle is faster than `others_speed_m_s` (the closing
+    /// speed is then below what can still be braked away, whichever side avoids), metres.
+    pub fn reach_m(&self, speed_m_s: f64, others_speed_m_s: f64) -> f64 {
+        let brake = BRAKE_FRACTION * self.limits.max_accel_m_s2;
+        // share ≥ 1/2: closing ≤ sqrt(2·a·spare)/2  ⇔  spare ≥ 2·closing²/a.
+        let closing = speed_m_s + others_speed_m_s;
+        let spare = 2.0 * closing * closing / brake.max(1e-9);
+        // A little more, for rounding.
+        (self.min_separation_m + spare) * 1.001 + 0.01
     }
 
     /// True when moving the carrot to `next` brings it closer to a vehicle that is already

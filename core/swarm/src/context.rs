@@ -1,11 +1,12 @@
-//! What every actor of the swarm is given: the configuration, the process's services, and
-//! the swarm frame (the common NED frame every position is expressed in, anchored once at
+//! What every actor of the swarm is given: the configuration, the process's services, its
+//! clocks ([`Ticker`]), and the swarm frame (the common NED frame every position is expressed in, anchored once at
 //! the configured origin or at the first vehicle's home). Where the other vehicles are is
 //! not here: the coordinator owns the vehicle registry ([`crate::vehicle::fleet`]) and the
 //! neighbour board ([`crate::neighbours`]), and hands out readers.
 
 use crate::config::SwarmConfig;
 use crate::services::{SimulatorControl, SwarmServices};
+use crate::ticker::Ticker;
 use skein_model::geo::{GeoPoint, NedFrame};
 use std::sync::{Arc, OnceLock};
 
@@ -16,6 +17,8 @@ pub struct SwarmContext {
     pub config: SwarmConfig,
     /// Payload factory and simulator hooks.
     pub services: SwarmServices,
+    /// The process's clocks for every actor's periodic messages.
+    pub ticker: Ticker,
 }
 
 impl std::fmt::Debug for SwarmContext {
@@ -37,6 +40,7 @@ impl SwarmContext {
             frame,
             config,
             services,
+            ticker: Ticker::new(),
         }
     }
 

@@ -20,11 +20,15 @@
 //! - [`tracking`]: counter-UAS tracker fusing the detectors' bearings into 3D tracks;
 //!   [`tracks`]: the tracks as everyone else sees them.
 //! - [`metrics`]: Prometheus metrics.
+//! - [`load`]: how late the process runs, what the watchdog forgives and what optional
+//!   work yields when it is short of CPU.
 //! - [`config`], [`services`], [`context`]: configuration, the process's services, and
 //!   the swarm frame, given to every actor;
 //! - [`neighbours`]: where every vehicle is, for the separation check (the coordinator
 //!   owns the board, each vehicle writes its slot and reads the others').
 //! - [`events`]: what the stream and dashboard are told.
+//! - [`ticker`]: one clock per period for every actor's periodic messages, which never
+//!   queue up behind an actor that is late.
 //!
 //! Actors never block in `handle`: link I/O runs in tasks that post results back as
 //! messages; queries use `call` with a timeout.
@@ -37,12 +41,14 @@ pub mod coordinator;
 pub mod election;
 pub mod events;
 pub mod formation;
+pub mod load;
 pub mod metrics;
 pub mod neighbours;
 pub mod payload;
 pub mod protocol;
 pub mod services;
 pub mod supervision;
+pub mod ticker;
 pub mod tracking;
 pub mod tracks;
 pub mod vehicle;

@@ -34,6 +34,8 @@ pub struct Metrics {
     pub mavlink_malformed: Family<Labels, Gauge>,
     /// Setpoints sent, per vehicle (`vehicle` label).
     pub setpoints_sent: Family<Labels, Gauge>,
+    /// Longest pause of each vehicle's setpoint stream while streaming, ms (`vehicle`).
+    pub setpoint_max_gap_ms: Family<Labels, Gauge<f64, AtomicU64>>,
     /// MAVLink frames dropped by signing checks (unsigned, bad signature, replayed, too
     /// old), per endpoint (`connection` label).
     pub mavlink_signing_dropped: Family<Labels, Gauge>,
@@ -51,6 +53,11 @@ pub struct Metrics {
     /// Tracker totals since the start (`what` label: bearings, bearings_excluded_members,
     /// bearings_associated, tracks_created, tracks_confirmed, tracks_lost, tracks_deleted).
     tracker_totals: Family<Labels, Gauge>,
+    /// How late the process runs and what the watchdog forgave (`what` label, see
+    /// [`Metrics::set_load`]).
+    load: Family<Labels, Gauge<f64, AtomicU64>>,
+    /// Optional work shed while short of CPU, by `work`.
+    shed: Family<Labels, Gauge>,
 }
 
 impl std::fmt::Debug for Metrics {
@@ -84,6 +91,7 @@ impl Metrics {
         let slot_error_m = Family::<Labels, Gauge<f64, AtomicU64>>::default();
         let mavlink_malformed = Family::<Labels, Gauge>::default();
         let setpoints_sent = Family::<Labels, Gauge>::default();
+        let setpoint_max_gap_ms = Family::<Labels, Gauge<f64, AtomicU64>>::default();
         let mavlink_signing_dropped = Family::<Labels, Gauge>::default();
         let gcs_forward_frames = Family::<Labels, Gauge>::default();
         let payload_threads_abandoned = Gauge::default();
@@ -96,6 +104,22 @@ impl Metrics {
             dds_samples.clone(),
         );
         let tracker_totals = Family::<Labels, Gauge>::default();
+        let load = Family::<Labels, Gauge<f64, AtomicU64>>::default();
+        registry.register(
+            "load",
+            "How late the process runs and what it did about it: lag_ms (now), max_lag_ms \
+             (last 30 s), shedding (1 while optional work yields), shedding_episodes, \
+             tick_overruns (actor ticks skipped), watchdog_late (late pings forgiven while the \
+             process was late), calls_extended (payload calls given more time), \
+             restarts_deferred (held back by the tree's restart rate limit)",
+            load.clone(),
+        );
+        let shed = Family::<Labels, Gauge>::default();
+        registry.register(
+            "shed",
+            "Units of optional work shed while short of CPU, by work (snapshots, dashboard, dds)",
+            shed.clone(),
+        );
         registry.register(
             "tracks",
             "Tracks of non-cooperative aircraft, by status",
@@ -170,6 +194,12 @@ impl Metrics {
             setpoints_sent.clone(),
         );
         registry.register(
+            "setpoint_max_gap_ms",
+            "Longest pause of each vehicle's offboard setpoint stream while streaming, ms \
+             (PX4 fails safe after COM_OF_LOSS_T, 1 s; skein keeps it under 100 ms)",
+            setpoint_max_gap_ms.clone(),
+        );
+        registry.register(
             "payload_driver_threads_abandoned",
             "Payload driver threads given up because a plugin call did not return within its \
              deadline (each still holds its stuck driver)",
@@ -188,12 +218,37 @@ impl Metrics {
             slot_error_m,
             mavlink_malformed,
             setpoints_sent,
+            setpoint_max_gap_ms,
             mavlink_signing_dropped,
             gcs_forward_frames,
             payload_threads_abandoned,
             dds_samples,
             tracks,
             tracker_totals,
+            load,
+            shed,
+        }
+    }
+
+    /// Sets the load metrics from the process's [`crate::load::LoadStatus`].
+    pub fn set_load(&self, status: &crate::load::LoadStatus) {
+        let shedding = status.level == crate::load::LoadLevel::Shedding;
+        for (what, v) in [
+            ("lag_ms", status.lag_ms),
+            ("max_lag_ms", status.max_lag_ms),
+            ("shedding", if shedding { 1.0 } else { 0.0 }),
+            ("shedding_episodes", status.shedding_episodes as f64),
+            ("tick_overruns", status.tick_overruns as f64),
+            ("watchdog_late", status.watchdog_late as f64),
+            ("calls_extended", status.calls_extended as f64),
+            ("restarts_deferred", status.restarts_deferred as f64),
+        ] {
+            self.load.get_or_create(&Self::label("what", what)).set(v);
+        }
+        for (work, n) in &status.shed {
+            self.shed
+                .get_or_create(&Self::label("work", work))
+                .set(*n as i64);
         }
     }
 

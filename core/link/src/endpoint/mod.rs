@@ -19,13 +19,13 @@ use crate::address::ConnectionAddress;
 use signing::SigningTable;
 use skein_mavlink::dialect::{MavAutopilot, MavType};
 use skein_mavlink::signing::PX4_UNSIGNED_OK;
-use skein_mavlink::{DecodeCounts, DecodeStats, Decoder, Encoder, Frame, MavMessage};
+use skein_mavlink::{DecodeCounts, DecodeStats, Decoder, Frame, MavMessage};
 use std::collections::HashMap;
 use std::io;
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, RwLock, Weak};
-use std::time::Instant;
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError, RwLock, Weak};
+use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpStream, UdpSocket};
 use tokio::sync::mpsc;
@@ -80,12 +80,50 @@ pub type FrameTap = Arc<dyn Fn(&Frame, &[u8]) + Send + Sync>;
 /// keeps of the setpoints and commands that left skein.
 pub type SentTap = Arc<dyn Fn(u8, &MavMessage) + Send + Sync>;
 
+/// What the endpoint knows of one system id. Shared between the receive path (which
+/// updates it for every datagram) and the send path (setpoints, commands) without a lock
+/// between them: the receive task may be descheduled at any instant (a starved process,
+/// a CPU quota), and a send must never wait for it.
 #[derive(Default)]
 struct Peer {
-    addr: Option<SocketAddr>,
-    handler: Option<FrameHandler>,
-    last_seen: Option<Instant>,
-    discovered: bool,
+    /// Where its datagrams come from (`udpin`), written only when it changes.
+    addr: Mutex<Option<SocketAddr>>,
+    /// A fingerprint of `addr`, so the receive path compares without the lock.
+    addr_key: AtomicU64,
+    handler: Mutex<Option<FrameHandler>>,
+    /// When a valid frame last arrived: nanoseconds since the endpoint opened + 1 (0:
+    /// never).
+    last_seen_ns: AtomicU64,
+    discovered: AtomicBool,
+}
+
+impl Peer {
+    fn addr(&self) -> Option<SocketAddr> {
+        *self.addr.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn handler(&self) -> Option<FrameHandler> {
+        self.handler
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    fn set_handler(&self, handler: Option<FrameHandler>) {
+        *self.handler.lock().unwrap_or_else(PoisonError::into_inner) = handler;
+    }
+
+    /// Records `from` as its address (locks only when it changed).
+    fn heard_from(&self, from: SocketAddr) {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        from.hash(&mut h);
+        let key = h.finish() | 1; // never 0, the key of "no address"
+        if self.addr_key.load(Ordering::Acquire) != key {
+            *self.addr.lock().unwrap_or_else(PoisonError::into_inner) = Some(from);
+            self.addr_key.store(key, Ordering::Release);
+        }
+    }
 }
 
 enum Transport {
@@ -137,8 +175,12 @@ pub struct Endpoint {
     local_addr: Option<SocketAddr>,
     identity: Identity,
     transport: Transport,
-    encoder: Mutex<Encoder>,
-    peers: RwLock<HashMap<u8, Peer>>,
+    /// Our sequence number (MAVLink `seq`), shared by every sender on the endpoint.
+    seq: AtomicU8,
+    /// When the endpoint opened (the peers' `last_seen_ns` count from here).
+    opened: Instant,
+    /// Peers by sysid; the map changes only when a new sysid is heard or routed.
+    peers: RwLock<HashMap<u8, Arc<Peer>>>,
     discovery: RwLock<Option<DiscoveryHandler>>,
     signing: RwLock<SigningTable>,
     tap: RwLock<Option<FrameTap>>,
@@ -243,7 +285,8 @@ impl Endpoint {
             local_addr,
             identity,
             transport,
-            encoder: Mutex::new(Encoder::new(identity.sysid, identity.compid)),
+            seq: AtomicU8::new(0),
+            opened: Instant::now(),
             peers: RwLock::new(HashMap::new()),
             discovery: RwLock::new(None),
             signing: RwLock::new(SigningTable::default()),
@@ -301,9 +344,27 @@ impl Endpoint {
             .read()
             .expect("peers lock")
             .iter()
-            .filter(|(_, p)| p.last_seen.is_some())
+            .filter(|(_, p)| p.last_seen_ns.load(Ordering::Relaxed) != 0)
             .map(|(s, _)| *s)
             .collect()
+    }
+
+    /// The peer of `sysid`, made on first use.
+    fn peer(&self, sysid: u8) -> Arc<Peer> {
+        if let Some(p) = self.peers.read().expect("peers lock").get(&sysid) {
+            return p.clone();
+        }
+        self.peers
+            .write()
+            .expect("peers lock")
+            .entry(sysid)
+            .or_default()
+            .clone()
+    }
+
+    /// The peer of `sysid`, if it is known.
+    fn known_peer(&self, sysid: u8) -> Option<Arc<Peer>> {
+        self.peers.read().expect("peers lock").get(&sysid).cloned()
     }
 
     /// Sends a frame that another system encoded (a ground station's command) to vehicle
@@ -333,28 +394,24 @@ impl Endpoint {
     /// Routes every frame from `sysid` (any component) to `handler`, replacing a previous
     /// route (a restarted link actor re-registers here).
     pub fn route(&self, sysid: u8, handler: FrameHandler) {
-        let mut peers = self.peers.write().expect("peers lock");
-        let p = peers.entry(sysid).or_default();
-        p.handler = Some(handler);
-        p.discovered = true;
+        let p = self.peer(sysid);
+        p.set_handler(Some(handler));
+        p.discovered.store(true, Ordering::Release);
     }
 
     /// Removes the route of `sysid` (its frames are then dropped, and its next heartbeat is
     /// reported as a discovery again).
     pub fn unroute(&self, sysid: u8) {
-        if let Some(p) = self.peers.write().expect("peers lock").get_mut(&sysid) {
-            p.handler = None;
-            p.discovered = false;
+        if let Some(p) = self.known_peer(sysid) {
+            p.set_handler(None);
+            p.discovered.store(false, Ordering::Release);
         }
     }
 
     /// When a valid frame from `sysid` last arrived.
     pub fn last_seen(&self, sysid: u8) -> Option<Instant> {
-        self.peers
-            .read()
-            .expect("peers lock")
-            .get(&sysid)
-            .and_then(|p| p.last_seen)
+        let ns = self.known_peer(sysid)?.last_seen_ns.load(Ordering::Acquire);
+        (ns != 0).then(|| self.opened + Duration::from_nanos(ns - 1))
     }
 
     /// The address frames to `sysid` go to, if known.
@@ -363,12 +420,7 @@ impl Endpoint {
             Transport::Udp {
                 remote: Some(r), ..
             } => Some(*r),
-            _ => self
-                .peers
-                .read()
-                .expect("peers lock")
-                .get(&sysid)
-                .and_then(|p| p.addr),
+            _ => self.known_peer(sysid).and_then(|p| p.addr()),
         }
     }
 
@@ -398,11 +450,14 @@ impl Endpoint {
         }
         let dest = self.dest(sysid)?;
         let signing = self.signing_of(sysid);
-        let frame = self
-            .encoder
-            .lock()
-            .expect("encoder lock")
-            .encode_with(msg, signing.as_deref());
+        let seq = self.seq.fetch_add(1, Ordering::Relaxed);
+        let frame = skein_mavlink::encode_frame(
+            self.identity.sysid,
+            self.identity.compid,
+            seq,
+            msg,
+            signing.as_deref(),
+        );
         self.write(dest, frame.as_bytes())
     }
 
@@ -428,8 +483,12 @@ impl Endpoint {
 
     fn write(&self, dest: Option<SocketAddr>, bytes: &[u8]) -> Result<(), SendError> {
         let result = match (&self.transport, dest) {
-            (Transport::Udp { socket, .. }, Some(dest)) => socket
-                .try_send_to(bytes, dest)
+            // Straight to the kernel: the socket is non-blocking, so a full buffer is an
+            // error at once, as it would be through the runtime; this way a send made
+            // from any thread (the setpoint streams' own) never waits for the runtime to
+            // have seen the socket writable, and costs one system call.
+            (Transport::Udp { socket, .. }, Some(dest)) => socket2::SockRef::from(&**socket)
+                .send_to(bytes, &dest.into())
                 .map(|_| ())
                 .map_err(|e| SendError::Io(e.to_string())),
             (Transport::Stream { tx }, _) => tx
@@ -454,7 +513,7 @@ impl Endpoint {
                     .read()
                     .expect("peers lock")
                     .iter()
-                    .filter(|(_, p)| p.addr.is_some())
+                    .filter(|(_, p)| p.addr().is_some())
                     .map(|(s, _)| *s)
                     .collect();
                 sysids
@@ -487,28 +546,26 @@ impl Endpoint {
         if let Some(tap) = tap {
             tap(&frame, raw);
         }
-        let now = Instant::now();
-        let (handler, discover) = {
-            let mut peers = self.peers.write().expect("peers lock");
-            let p = peers.entry(sysid).or_default();
-            if from.is_some() {
-                p.addr = from;
+        let p = self.peer(sysid);
+        if let Some(from) = from {
+            p.heard_from(from);
+        }
+        let since_open = self.opened.elapsed().as_nanos() as u64;
+        p.last_seen_ns.store(since_open + 1, Ordering::Release);
+        let handler = p.handler();
+        let discover = match &frame.msg {
+            MavMessage::HEARTBEAT(hb)
+                if handler.is_none()
+                    && hb.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID
+                    && !p.discovered.swap(true, Ordering::AcqRel) =>
+            {
+                Some(Discovery {
+                    sysid,
+                    compid: frame.compid,
+                    mav_type: hb.mavtype,
+                })
             }
-            p.last_seen = Some(now);
-            let discover = match (&frame.msg, p.handler.is_none() && !p.discovered) {
-                (MavMessage::HEARTBEAT(hb), true)
-                    if hb.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID =>
-                {
-                    p.discovered = true;
-                    Some(Discovery {
-                        sysid,
-                        compid: frame.compid,
-                        mav_type: hb.mavtype,
-                    })
-                }
-                _ => None,
-            };
-            (p.handler.clone(), discover)
+            _ => None,
         };
         if let Some(d) = discover {
             let cb = self.discovery.read().expect("discovery lock").clone();
@@ -516,9 +573,7 @@ impl Endpoint {
                 Some(cb) => cb(d),
                 None => {
                     // Nobody to tell yet: forget it so the next heartbeat is reported.
-                    if let Some(p) = self.peers.write().expect("peers lock").get_mut(&sysid) {
-                        p.discovered = false;
-                    }
+                    p.discovered.store(false, Ordering::Release);
                 }
             }
         }

@@ -64,6 +64,8 @@ pub struct Health {
     /// election, see `GET /api/v1/coordinator`); `null` in `skein up`, which has no
     /// election.
     pub coordinator_role: Option<crate::election::CoordinatorRole>,
+    /// How late the process runs and what optional work it sheds ([`crate::load`]).
+    pub load: crate::load::LoadStatus,
 }
 
 /// The tracks now, and which vehicle observes which track (vehicle id, track id).
@@ -250,6 +252,9 @@ pub enum CoordinatorMsg {
     InjectFault(String, FaultKind, RpcReplyPort<Result<(), FaultError>>),
     /// Watchdog probe (the process watchdog pings the coordinator).
     Ping(RpcReplyPort<()>),
+    /// The process's load monitor (services ask once, then read it directly to shed
+    /// optional work, see [`crate::load`]).
+    GetLoad(RpcReplyPort<std::sync::Arc<crate::load::LoadMonitor>>),
     /// Fault injection into the coordinator itself.
     Fault(FaultKind),
     /// Formation loop tick.

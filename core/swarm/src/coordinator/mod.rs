@@ -55,11 +55,13 @@ use crate::config::SwarmConfig;
 use crate::context::SwarmContext;
 use crate::events::SwarmEvent;
 use crate::formation::{FormationEngine, LeaderMotion};
+use crate::load::LoadMonitor;
 use crate::metrics::Metrics;
 use crate::neighbours::NeighbourBoard;
 use crate::protocol::{Command, FromVehicle, PayloadCommandError, ToVehicle};
 use crate::services::SwarmServices;
 use crate::supervision::{self, Children, Supervision};
+use crate::ticker::TickGate;
 use crate::vehicle::fleet::FleetRegistry;
 use commands::{CommandReply, InFlight};
 use ractor::{Actor, ActorProcessingErr, ActorRef, SupervisionEvent};
@@ -83,6 +85,8 @@ pub struct CoordinatorArgs {
     pub events: broadcast::Sender<SwarmEvent>,
     /// Metrics registry.
     pub metrics: Arc<Metrics>,
+    /// How late the process runs ([`crate::load`]).
+    pub load: Arc<LoadMonitor>,
 }
 
 /// State of [`Coordinator`].
@@ -113,6 +117,9 @@ pub struct CoordinatorState {
     uplink_tap: Option<tokio::sync::mpsc::UnboundedSender<FromVehicle>>,
     /// When hovering remote vehicles were last joined to the formation ([`remote`]).
     last_rejoin: Instant,
+    /// The formation tick and the watchdog tick (see [`crate::ticker`]).
+    formation_gate: TickGate,
+    watch_gate: TickGate,
 }
 
 /// The `Coordinator` actor (see module docs).
@@ -158,10 +165,17 @@ impl CoordinatorState {
             swarm_origin: self.context.frame().map(|f| f.origin),
             fault_injection: self.context.config.fault_injection,
             coordinator_role: None,
+            load: self.load_status(),
         }
     }
 
+    /// The process's load.
+    fn load_status(&self) -> crate::load::LoadStatus {
+        self.supervision.load.status()
+    }
+
     fn render_metrics(&self) -> String {
+        self.metrics.set_load(&self.load_status());
         for (e, _) in &self.endpoints {
             self.metrics
                 .mavlink_malformed
@@ -195,10 +209,16 @@ impl CoordinatorState {
         }
         for (id, v) in &self.vehicles {
             if let Some(local) = &v.local {
+                let counts = local.shared.link.stream().counts();
+                let label = Metrics::label("vehicle", id);
                 self.metrics
                     .setpoints_sent
-                    .get_or_create(&Metrics::label("vehicle", id))
-                    .set(local.shared.link.stream().counts().sent as i64);
+                    .get_or_create(&label)
+                    .set(counts.sent as i64);
+                self.metrics
+                    .setpoint_max_gap_ms
+                    .get_or_create(&label)
+                    .set(counts.max_gap_ms);
             }
         }
         self.metrics
@@ -274,19 +294,27 @@ impl Actor for Coordinator {
             }));
         }
         let period = Duration::from_secs_f64(1.0 / args.config.formation_rate_hz.max(1.0));
-        myself.send_interval(period, || CoordinatorMsg::FormationTick);
         let supervision = Supervision::new(
             args.config.supervision.clone(),
+            args.load.clone(),
             args.metrics.clone(),
             args.events.clone(),
         );
-        myself.send_interval(supervision.config.watchdog_period(), || {
-            CoordinatorMsg::WatchTick
-        });
+        let watchdog_period = supervision.config.watchdog_period();
         let separation_m = args.config.setpoint_separation_m();
         let mut formation = FormationEngine::new(separation_m);
         formation.set_replan_after_s(args.config.hazards.replan_after_s);
+        let control_period = Duration::from_secs_f64(1.0 / args.config.control_rate_hz.max(1.0));
         let context = Arc::new(SwarmContext::new(args.config, args.services));
+        args.load.attach_ticker(&context.ticker);
+        let me = myself.clone();
+        let formation_gate = context.ticker.every(period, move || {
+            me.cast(CoordinatorMsg::FormationTick).is_ok()
+        });
+        let me = myself.clone();
+        let watch_gate = context.ticker.every(watchdog_period, move || {
+            me.cast(CoordinatorMsg::WatchTick).is_ok()
+        });
         let fleet = FleetRegistry::new();
         let tracking = crate::tracking::TrackingService::spawn(
             crate::tracking::TrackerConfig::default(),
@@ -297,7 +325,7 @@ impl Actor for Coordinator {
         Ok(CoordinatorState {
             context,
             fleet,
-            neighbours: NeighbourBoard::new(),
+            neighbours: NeighbourBoard::new(control_period),
             tracking,
             observing: BTreeMap::new(),
             uplink_tap: None,
@@ -315,6 +343,8 @@ impl Actor for Coordinator {
             hazards: hazards::Hazards::default(),
             started: Instant::now(),
             last_formation_tick: Instant::now(),
+            formation_gate,
+            watch_gate,
         })
     }
 
@@ -547,13 +577,18 @@ impl Actor for Coordinator {
             CoordinatorMsg::Ping(reply) => {
                 let _ = reply.send(());
             }
+            CoordinatorMsg::GetLoad(reply) => {
+                let _ = reply.send(state.supervision.load.clone());
+            }
             CoordinatorMsg::FormationTick => {
+                state.formation_gate.done();
                 state.rejoin_remote_hovering();
                 state.follow_track_tick();
                 state.formation_tick();
                 state.observe_tick();
             }
             CoordinatorMsg::WatchTick => {
+                state.watch_gate.done();
                 let me = myself.clone();
                 state.children.watch(move |node, id| {
                     let _ = me.cast(CoordinatorMsg::ChildHung(node, id));

@@ -6,6 +6,7 @@ use super::messages::CoordinatorMsg;
 use super::{Coordinator, CoordinatorArgs};
 use crate::config::SwarmConfig;
 use crate::events::SwarmEvent;
+use crate::load::LoadMonitor;
 use crate::metrics::Metrics;
 use crate::services::SwarmServices;
 use ractor::{Actor, ActorRef};
@@ -23,6 +24,8 @@ pub struct Swarm {
     pub endpoints: Vec<Arc<Endpoint>>,
     /// The metrics registry (`GET /metrics`), for services that add to it.
     pub metrics: Arc<Metrics>,
+    /// How late the process runs, and whether optional work is shed ([`crate::load`]).
+    pub load: Arc<LoadMonitor>,
     handle: ractor::concurrency::JoinHandle<()>,
 }
 
@@ -65,6 +68,7 @@ impl Swarm {
         let (events, _) = broadcast::channel(4096);
         let endpoints = opened.iter().map(|(e, _)| e.clone()).collect();
         let metrics = Arc::new(Metrics::new());
+        let load = LoadMonitor::start();
         let (coordinator, handle) = Actor::spawn(
             None,
             Coordinator,
@@ -74,6 +78,7 @@ impl Swarm {
                 endpoints: opened,
                 events: events.clone(),
                 metrics: metrics.clone(),
+                load: load.clone(),
             },
         )
         .await
@@ -83,6 +88,7 @@ impl Swarm {
             events,
             endpoints,
             metrics,
+            load,
             handle,
         })
     }

@@ -5,6 +5,8 @@
 
 use super::driver::{ABANDONED, DriverCall, Job, driver_thread};
 use super::shared::PayloadShared;
+use crate::load::LoadMonitor;
+use crate::ticker::{TickGate, Ticker};
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use serde_json::Value;
 use skein_mavlink::MavMessage;
@@ -29,8 +31,17 @@ pub struct PayloadArgs {
     /// How long one driver call (tick, command, MAVLink) may take before the actor gives
     /// its driver thread up and fails (the supervisor then re-creates the payload). Keep it
     /// below the watchdog deadline, so the failure names the call rather than a hang.
+    /// While the whole process runs late, a call gets more time (see [`crate::load`]).
     pub call_deadline: Duration,
+    /// How late the process runs.
+    pub load: Arc<LoadMonitor>,
+    /// The process's clocks (the driver's ticks come from them).
+    pub ticker: Ticker,
 }
+
+/// Longest a driver call may take, however late the process runs, in call deadlines: a
+/// driver stuck that long is given up even under overload.
+const MAX_EXTENSIONS: u32 = 10;
 
 /// Messages of [`PayloadActor`].
 pub enum PayloadMsg {
@@ -79,8 +90,13 @@ pub struct PayloadActorState {
     vehicle: String,
     last_tick: Instant,
     tick_rate_hz: f64,
-    ticker: Option<tokio::task::JoinHandle<()>>,
+    ticker: Ticker,
+    /// The tick now registered with the ticker, and its generation (a rate change
+    /// registers a new one; the old one stops at its next tick).
+    tick: Option<TickGate>,
+    tick_generation: Arc<std::sync::atomic::AtomicU64>,
     call_deadline: Duration,
+    load: Arc<LoadMonitor>,
     /// The driver exists (its thread said so); before, MAVLink is dropped and commands are
     /// refused rather than queued behind a creation that may take seconds.
     ready: bool,
@@ -99,7 +115,20 @@ impl PayloadActorState {
                 self.slot
             ));
         }
-        match tokio::time::timeout(self.call_deadline, rx).await {
+        let sent = Instant::now();
+        let mut rx = rx;
+        let mut extensions = 0;
+        let answer = loop {
+            match tokio::time::timeout(self.call_deadline, &mut rx).await {
+                // Late while the whole process is late: the driver is slow, not stuck.
+                Err(_) if extensions < MAX_EXTENSIONS && self.load.lagging_since(sent) => {
+                    extensions += 1;
+                    self.load.call_extended();
+                }
+                answer => break answer,
+            }
+        };
+        match answer {
             Ok(Ok((result, rate))) => {
                 self.tick_rate_hz = rate;
                 match result {
@@ -128,16 +157,19 @@ impl PayloadActorState {
     }
 
     fn schedule_ticks(&mut self, myself: &ActorRef<PayloadMsg>) {
-        if let Some(t) = self.ticker.take() {
-            t.abort();
-        }
+        use std::sync::atomic::Ordering;
+        let generation = self.tick_generation.fetch_add(1, Ordering::Relaxed) + 1;
+        self.tick = None;
         let rate = self.tick_rate_hz;
         if rate > 0.0 && rate.is_finite() {
-            self.ticker = Some(
-                myself.send_interval(Duration::from_secs_f64(1.0 / rate.min(1000.0)), || {
-                    PayloadMsg::Tick
-                }),
-            );
+            let (me, current) = (myself.clone(), self.tick_generation.clone());
+            self.tick = Some(self.ticker.every(
+                Duration::from_secs_f64(1.0 / rate.min(1000.0)),
+                move || {
+                    current.load(Ordering::Relaxed) == generation
+                        && me.cast(PayloadMsg::Tick).is_ok()
+                },
+            ));
         }
     }
 }
@@ -158,6 +190,8 @@ impl Actor for PayloadActor {
         let slot = args.spec.slot.clone();
         let vehicle = args.host.vehicle_id().to_string();
         let call_deadline = args.call_deadline;
+        let load = args.load.clone();
+        let ticker = args.ticker.clone();
         let thread = format!("payload-{vehicle}-{slot}");
         let me = myself.clone();
         // The driver is created on its thread too: creating a process-isolated one starts a
@@ -173,8 +207,11 @@ impl Actor for PayloadActor {
             vehicle,
             last_tick: Instant::now(),
             tick_rate_hz: 0.0,
-            ticker: None,
+            ticker,
+            tick: None,
+            tick_generation: Arc::default(),
             call_deadline,
+            load,
             ready: false,
             notify_ready,
         })
@@ -185,9 +222,11 @@ impl Actor for PayloadActor {
         _myself: ActorRef<Self::Msg>,
         state: &mut Self::State,
     ) -> Result<(), ActorProcessingErr> {
-        if let Some(t) = state.ticker.take() {
-            t.abort();
-        }
+        // The registered tick stops at its next round.
+        state
+            .tick_generation
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        state.tick = None;
         Ok(())
     }
 
@@ -211,6 +250,9 @@ impl Actor for PayloadActor {
                 return Err(format!("payload `{}`: {e}", state.slot).into());
             }
             PayloadMsg::Tick => {
+                if let Some(gate) = &state.tick {
+                    gate.done();
+                }
                 let now = Instant::now();
                 let dt = now.duration_since(state.last_tick).as_secs_f64();
                 // Ticks queued while a slow call ran are coalesced.

@@ -9,8 +9,8 @@
 //!   killed it) from a panic or a stop ([`Children::ended`]);
 //! - records the end in the [`Supervision`] registry and says what comes next by policy
 //!   ([`Children::next`]): restart now, restart after a backoff, or escalate;
-//! - pings every child each watchdog period and kills one that does not answer
-//!   ([`Children::watch`], [`Children::kill_hung`]);
+//! - pings every child each watchdog period and kills one that does not answer while the
+//!   process runs on time ([`Children::watch`], [`Children::kill_hung`]);
 //! - records a restart once the replacement answers its first ping
 //!   ([`Children::started_after_failure`]), which is the restart latency the API shows.
 //!
@@ -23,7 +23,7 @@ use skein_model::supervision::ChildKind;
 use std::collections::{BTreeMap, HashSet};
 use std::future::Future;
 use std::pin::Pin;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// How a supervisor names its children.
@@ -103,6 +103,8 @@ pub struct Children<K: ChildKey> {
     running: BTreeMap<K, ChildHandle>,
     /// Children the watchdog found hung and killed: their end is a hang, not a panic.
     hung: HashSet<ActorId>,
+    /// Children with a ping outstanding.
+    pinging: Arc<Mutex<HashSet<ActorId>>>,
 }
 
 impl<K: ChildKey> Children<K> {
@@ -113,6 +115,7 @@ impl<K: ChildKey> Children<K> {
             supervision,
             running: BTreeMap::new(),
             hung: HashSet::new(),
+            pinging: Arc::default(),
         }
     }
 
@@ -224,16 +227,40 @@ impl<K: ChildKey> Children<K> {
         });
     }
 
-    /// Pings every running child; `on_hang(key, id)` for each that does not answer
-    /// within the watchdog deadline. Runs as tasks: the supervisor never waits.
+    /// Pings every running child whose last ping has been answered; `on_hang(key, id)`
+    /// for each that does not answer within the watchdog deadline while the process
+    /// itself ran on time. A late answer while the whole process ran late (see
+    /// [`crate::load`]) is counted, not punished: the child is pinged again next round.
+    /// Runs as tasks: the supervisor never waits.
     pub fn watch(&self, on_hang: impl Fn(K, ActorId) + Clone + Send + Sync + 'static) {
         let deadline = self.supervision.config.watchdog_deadline();
         for (key, child) in &self.running {
-            let (key, id, ping) = (key.clone(), child.cell.get_id(), child.ping.clone());
-            let on_hang = on_hang.clone();
+            let id = child.cell.get_id();
+            // One ping at a time per child: a late child is not sent a queue of them.
+            if !self
+                .pinging
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .insert(id)
+            {
+                continue;
+            }
+            let (key, ping) = (key.clone(), child.ping.clone());
+            let (on_hang, pinging) = (on_hang.clone(), self.pinging.clone());
+            let load = self.supervision.load.clone();
             tokio::spawn(async move {
-                if ping(deadline).await == Pinged::Timeout {
-                    on_hang(key, id);
+                let sent = Instant::now();
+                let pinged = ping(deadline).await;
+                pinging
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .remove(&id);
+                if pinged == Pinged::Timeout {
+                    if load.lagging_since(sent) {
+                        load.watchdog_late();
+                    } else {
+                        on_hang(key, id);
+                    }
                 }
             });
         }

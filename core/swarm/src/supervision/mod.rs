@@ -19,8 +19,13 @@
 //! (or LAND) through a separate link actor and is marked failed; the API failing for good
 //! fails the coordinator, and the process exits non-zero for systemd or Docker to restart.
 //!
+//! The whole tree restarts at most `restart_burst` children at once and
+//! `max_restarts_per_s` on average ([`RestartBudget`]): a restart over that is delayed.
+//!
 //! Hangs: every supervisor pings its children every `watchdog_period_ms`; a child that
-//! does not answer within `watchdog_deadline_ms` is killed and handled as a failure.
+//! does not answer within `watchdog_deadline_ms` is killed and handled as a failure,
+//! unless the whole process ran late meanwhile ([`crate::load::LoadMonitor`]): then the
+//! late answer is the process's lateness, not the child's hang, and nothing is killed.
 //!
 //! - [`policy`]: the policies and each child's record;
 //! - [`registry`]: the shared registry and the tree the API shows;
@@ -34,7 +39,8 @@ pub mod registry;
 
 pub use children::{ChildHandle, ChildKey, Children, Next};
 pub use policy::{
-    ChildRecord, Decision, Exit, FailureRecord, PolicyConfig, SupervisionConfig, VehicleEscalation,
+    ChildRecord, Decision, Exit, FailureRecord, PolicyConfig, RestartBudget, SupervisionConfig,
+    VehicleEscalation,
 };
 pub use registry::{ROOT, Supervision, TreeNode};
 

@@ -63,8 +63,13 @@ pub struct SupervisionConfig {
     pub vehicle_escalation: VehicleEscalation,
     /// How often supervisors ping their children, ms.
     pub watchdog_period_ms: u64,
-    /// How long a child may take to answer a ping before it is declared hung, ms.
+    /// How long a child may take to answer a ping before it is declared hung, ms (while
+    /// the whole process runs late, a late answer is not a hang: see [`crate::load`]).
     pub watchdog_deadline_ms: u64,
+    /// Restarts per second the whole tree may make, on average ([`RestartBudget`]).
+    pub max_restarts_per_s: f64,
+    /// Restarts the whole tree may make at once before the rate applies.
+    pub restart_burst: u32,
 }
 
 impl Default for SupervisionConfig {
@@ -78,6 +83,8 @@ impl Default for SupervisionConfig {
             vehicle_escalation: VehicleEscalation::Hold,
             watchdog_period_ms: 250,
             watchdog_deadline_ms: 2_000,
+            max_restarts_per_s: 10.0,
+            restart_burst: 20,
         }
     }
 }
@@ -102,6 +109,48 @@ impl SupervisionConfig {
     /// The watchdog period.
     pub fn watchdog_period(&self) -> Duration {
         Duration::from_millis(self.watchdog_period_ms.max(10))
+    }
+}
+
+/// The restart rate limit of the whole supervision tree: at most `burst` restarts at
+/// once, then `rate_per_s` on average (a token bucket, kept as the time the bucket would
+/// be full again). Each child's own budget ([`PolicyConfig`]) bounds how often *it* restarts;
+/// this bounds the tree, so that many children failing together (the process short of
+/// memory or CPU) restart at a pace the process can take instead of in a storm that makes
+/// the next failures more likely. A restart over the limit is delayed, never dropped.
+#[derive(Debug, Clone)]
+pub struct RestartBudget {
+    interval: Duration,
+    burst: u32,
+    /// When the bucket is full again (a past instant when it is full).
+    full_at: Option<Instant>,
+}
+
+impl RestartBudget {
+    /// A budget of `rate_per_s` restarts a second (at least one a minute) with bursts of
+    /// `burst` (at least 1).
+    pub fn new(rate_per_s: f64, burst: u32) -> Self {
+        let rate = if rate_per_s.is_finite() {
+            rate_per_s.max(1.0 / 60.0)
+        } else {
+            1e6
+        };
+        RestartBudget {
+            interval: Duration::from_secs_f64(1.0 / rate),
+            burst: burst.max(1),
+            full_at: None,
+        }
+    }
+
+    /// Reserves a restart wanted at `wanted`; returns when it may happen (`wanted` or
+    /// later).
+    pub fn reserve(&mut self, wanted: Instant) -> Instant {
+        let full_at = self.full_at.map_or(wanted, |f| f.max(wanted));
+        // The bucket holds `burst` restarts: it may be `burst - 1` intervals from full.
+        let slack = self.interval * (self.burst - 1);
+        let at = full_at.checked_sub(slack).map_or(wanted, |t| t.max(wanted));
+        self.full_at = Some(full_at + self.interval);
+        at
     }
 }
 
@@ -276,6 +325,24 @@ mod tests {
             backoff_initial_ms: 100,
             backoff_max_ms: 1_000,
         }
+    }
+
+    #[test]
+    fn the_tree_restarts_a_burst_at_once_then_at_its_rate() {
+        let mut b = RestartBudget::new(10.0, 3);
+        let t0 = Instant::now();
+        let at: Vec<Duration> = (0..6).map(|_| b.reserve(t0) - t0).collect();
+        let ms: Vec<u128> = at.iter().map(|d| d.as_millis()).collect();
+        assert_eq!(ms, vec![0, 0, 0, 100, 200, 300]);
+        // After a quiet second the burst is available again.
+        let later = t0 + Duration::from_secs(2);
+        assert_eq!(b.reserve(later), later);
+        assert_eq!(b.reserve(later), later);
+        // A restart already delayed by its own backoff is not delayed further.
+        let mut b = RestartBudget::new(1.0, 1);
+        assert_eq!(b.reserve(t0), t0);
+        let wanted = t0 + Duration::from_secs(5);
+        assert_eq!(b.reserve(wanted), wanted);
     }
 
     #[test]

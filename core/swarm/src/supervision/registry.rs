@@ -1,13 +1,14 @@
 //! The supervision registry: every supervised path with its record, shown by the API as
 //! a tree, and the watchdog's ping.
 
-use super::policy::{ChildRecord, Decision, Exit, SupervisionConfig};
+use super::policy::{ChildRecord, Decision, Exit, RestartBudget, SupervisionConfig};
 use crate::events::SwarmEvent;
+use crate::load::LoadMonitor;
 use crate::metrics::Metrics;
 use serde::Serialize;
 use skein_model::supervision::{ChildKind, ChildStatus};
 use std::collections::BTreeMap;
-use std::sync::{Arc, RwLock};
+use std::sync::{Arc, Mutex, RwLock};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use tokio::sync::broadcast;
 
@@ -37,7 +38,11 @@ fn wall_ms() -> u64 {
 pub struct Supervision {
     /// The configuration.
     pub config: SupervisionConfig,
+    /// How late the process runs (the watchdog does not count shared lateness as a hang).
+    pub load: Arc<LoadMonitor>,
     records: RwLock<BTreeMap<String, ChildRecord>>,
+    /// The restart rate limit of the whole tree.
+    restarts: Mutex<RestartBudget>,
     metrics: Arc<Metrics>,
     events: broadcast::Sender<SwarmEvent>,
 }
@@ -55,14 +60,21 @@ impl Supervision {
     /// A registry with the root (`coordinator`) running.
     pub fn new(
         config: SupervisionConfig,
+        load: Arc<LoadMonitor>,
         metrics: Arc<Metrics>,
         events: broadcast::Sender<SwarmEvent>,
     ) -> Arc<Self> {
         let mut records = BTreeMap::new();
         records.insert(ROOT.to_string(), ChildRecord::new(ChildKind::Coordinator));
+        let restarts = Mutex::new(RestartBudget::new(
+            config.max_restarts_per_s,
+            config.restart_burst,
+        ));
         Arc::new(Supervision {
             config,
+            load,
             records: RwLock::new(records),
+            restarts,
             metrics,
             events,
         })
@@ -105,7 +117,24 @@ impl Supervision {
             let rec = r
                 .entry(path.to_string())
                 .or_insert_with(|| ChildRecord::new(kind));
-            let d = rec.on_exit(&exit, &policy, Instant::now(), wall_ms());
+            let now = Instant::now();
+            let mut d = rec.on_exit(&exit, &policy, now, wall_ms());
+            if let Decision::Restart(delay) = d {
+                let at = self
+                    .restarts
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .reserve(now + delay);
+                let wait = at.saturating_duration_since(now);
+                if wait > delay {
+                    self.load.restart_deferred();
+                    d = Decision::Restart(wait);
+                    rec.backoff_ms = wait.as_millis() as u64;
+                    if let Some(f) = rec.last_failure.as_mut() {
+                        f.next_backoff_ms = Some(rec.backoff_ms);
+                    }
+                }
+            }
             (d, rec.clone())
         };
         match &exit {
@@ -242,7 +271,12 @@ mod tests {
     #[test]
     fn registry_builds_the_tree() {
         let (tx, _) = broadcast::channel(16);
-        let s = Supervision::new(SupervisionConfig::default(), Arc::new(Metrics::new()), tx);
+        let s = Supervision::new(
+            SupervisionConfig::default(),
+            Arc::new(LoadMonitor::default()),
+            Arc::new(Metrics::new()),
+            tx,
+        );
         s.started("coordinator/api", ChildKind::Api);
         s.started("coordinator/uav-1", ChildKind::Vehicle);
         s.started("coordinator/uav-1/px4link", ChildKind::Px4Link);

@@ -60,6 +60,8 @@ impl VehicleActorState {
                         // Half the watchdog's deadline: a stuck driver call fails the
                         // payload naming the call before the watchdog calls it hung.
                         call_deadline: self.children.supervision().config.watchdog_deadline() / 2,
+                        load: self.children.supervision().load.clone(),
+                        ticker: self.context.ticker.clone(),
                     },
                     myself.get_cell(),
                 )

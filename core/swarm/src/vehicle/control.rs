@@ -7,6 +7,7 @@
 use super::VehicleActorState;
 use super::slot_correction::SlotCorrectionGains;
 use crate::events::SwarmEvent;
+use crate::load::ShedWork;
 use crate::protocol::{SlotTarget, TARGET_EXTRAPOLATION, age_of};
 use skein_link::LocalSetpoint;
 use skein_model::fsm::{Event, VehicleState};
@@ -115,16 +116,17 @@ impl VehicleActorState {
         // A member flying its slot (the leader vehicle included) is on the formation's
         // transition plan.
         let planned = state == VehicleState::InFormation && mem.slot.is_some();
-        self.position.set(measured, None, planned);
+        // Where skein sends it, when it steers it (set below).
+        let mut steered = None;
         match state {
             VehicleState::TakingOff
             | VehicleState::Hovering
             | VehicleState::InFormation
             | VehicleState::GoTo => {
                 if let (Some(target), Some(local), Some(cur)) = (mem.target, local_frame, current) {
+                    let to_local = self.shared.transforms(&frame, &local).to_local;
                     let (tp, tv) = target.now(now);
-                    self.neighbours
-                        .others(&self.shared.id, planned, &mut self.others);
+                    let others = self.neighbours.around(&self.shared.id, planned);
                     let yaw = mem.yaw_rad;
                     let limits = self.shared.model.limits;
                     let config = &self.context.config;
@@ -139,9 +141,8 @@ impl VehicleActorState {
                     });
                     // The floor binds where the vehicle is meant to fly, not on the way up.
                     shaper.enforce_floor(state != VehicleState::TakingOff);
-                    let sp = shaper.step(tp, tv, yaw, dt, &self.others);
-                    self.position
-                        .set(measured, Some((sp.position, sp.velocity)), planned);
+                    let sp = shaper.step(tp, tv, yaw, dt, &others);
+                    steered = Some((sp.position, sp.velocity));
                     if let Some(v) = sp.fence
                         && mem.last_fence != sp.fence
                     {
@@ -167,14 +168,14 @@ impl VehicleActorState {
                             .geofence
                             .clamp(sp.position + c.offset, true);
                         LocalSetpoint::position_velocity_acceleration(
-                            frame.convert_to(&local, p),
+                            to_local.apply(p),
                             sp.velocity,
                             c.acceleration,
                             sp.yaw_rad,
                         )
                     } else {
                         LocalSetpoint::position_velocity(
-                            frame.convert_to(&local, sp.position),
+                            to_local.apply(sp.position),
                             sp.velocity,
                             sp.yaw_rad,
                         )
@@ -209,7 +210,7 @@ impl VehicleActorState {
                     }
                     if stream.current().is_some() {
                         stream.set(Some(LocalSetpoint::position(
-                            frame.convert_to(&local, cur),
+                            self.shared.transforms(&frame, &local).to_local.apply(cur),
                             mem.yaw_rad,
                         )));
                     }
@@ -226,9 +227,17 @@ impl VehicleActorState {
         }
         let slot = mem.slot;
         drop(mem);
+        self.position.set(measured, steered, planned);
         let publish_every = (self.config().control_rate_hz / 10.0).round().max(1.0) as u64;
         self.shared.publish_measured(measured);
-        if self.ticks.is_multiple_of(publish_every) {
+        // The API's snapshot is optional work: a fifth of its rate while short of CPU.
+        if self.ticks.is_multiple_of(publish_every)
+            && self
+                .children
+                .supervision()
+                .load
+                .keep(ShedWork::Snapshots, self.ticks / publish_every)
+        {
             self.shared
                 .publish(Some(frame), slot, self.children.supervision());
         }

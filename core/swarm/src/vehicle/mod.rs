@@ -42,6 +42,7 @@ use crate::neighbours::{NeighbourSlot, Neighbours};
 use crate::payload::PayloadMsg;
 use crate::protocol::{FromVehicle, PayloadCommandError, ToVehicle, Uplink};
 use crate::supervision::Children;
+use crate::ticker::TickGate;
 use fleet::Fleet;
 use ractor::{Actor, ActorProcessingErr, ActorRef, SupervisionEvent};
 use skein_link::Px4LinkMsg;
@@ -64,7 +65,9 @@ pub struct VehicleActorState {
     events: broadcast::Sender<SwarmEvent>,
     uplink: Uplink,
     children: Children<Child>,
-    others: Vec<skein_model::safety::Obstacle>,
+    /// The control tick and the watchdog tick from the process's [`crate::ticker::Ticker`].
+    tick_gate: TickGate,
+    watch_gate: TickGate,
     last_tick: Instant,
     ticks: u64,
     /// Slots being attached, with the request to answer once the driver exists.
@@ -178,9 +181,12 @@ impl Actor for Vehicle {
         args: VehicleArgs,
     ) -> Result<Self::State, ActorProcessingErr> {
         let period = Duration::from_secs_f64(1.0 / args.context.config.control_rate_hz.max(1.0));
-        myself.send_interval(period, || VehicleMsg::Tick);
-        myself.send_interval(args.supervision.config.watchdog_period(), || {
-            VehicleMsg::WatchTick
+        let ticker = &args.context.ticker;
+        let me = myself.clone();
+        let tick_gate = ticker.every(period, move || me.cast(VehicleMsg::Tick).is_ok());
+        let me = myself.clone();
+        let watch_gate = ticker.every(args.supervision.config.watchdog_period(), move || {
+            me.cast(VehicleMsg::WatchTick).is_ok()
         });
         let path = format!("{}/{}", crate::supervision::ROOT, args.shared.id);
         let mut state = VehicleActorState {
@@ -192,7 +198,8 @@ impl Actor for Vehicle {
             events: args.events,
             uplink: args.uplink,
             children: Children::new(path, args.supervision),
-            others: Vec::new(),
+            tick_gate,
+            watch_gate,
             last_tick: Instant::now(),
             ticks: 0,
             attaching: BTreeMap::new(),
@@ -226,7 +233,10 @@ impl Actor for Vehicle {
         match msg {
             VehicleMsg::Protocol(msg) => state.on_protocol(&myself, msg).await?,
             VehicleMsg::Link(ev) => state.on_link_event(ev),
-            VehicleMsg::Tick => state.tick(),
+            VehicleMsg::Tick => {
+                state.tick_gate.done();
+                state.tick();
+            }
             VehicleMsg::ProcedureDone {
                 generation,
                 command_id,
@@ -259,6 +269,7 @@ impl Actor for Vehicle {
                 let _ = reply.send(());
             }
             VehicleMsg::WatchTick => {
+                state.watch_gate.done();
                 let me = myself.clone();
                 state.children.watch(move |child, id| {
                     let _ = me.cast(VehicleMsg::ChildHung(child, id));

@@ -11,7 +11,7 @@ use crate::protocol::{SlotTarget, VehicleReport, wall_us};
 use crate::supervision::{self, ChildKey, Supervision};
 use skein_link::VehicleLink;
 use skein_model::fsm::{self, VehicleState};
-use skein_model::geo::{Ned, NedFrame, wrap_deg_360};
+use skein_model::geo::{FrameTransform, Ned, NedFrame, wrap_deg_360};
 use skein_model::safety::{FenceViolation, SetpointShaper};
 use skein_model::vehicle::{
     Battery, FormationSlot, LinkStatus, Position, VehicleSnapshot, Velocity,
@@ -60,6 +60,17 @@ pub struct VehicleShared {
     memory: Mutex<Memory>,
     snapshot: watch::Sender<VehicleSnapshot>,
     report: watch::Sender<VehicleReport>,
+    /// The maps swarm frame → local frame and back, worked out when either frame changes.
+    transforms: Mutex<Option<Transforms>>,
+}
+
+/// The maps between the swarm frame and a vehicle's local frame.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Transforms {
+    /// Swarm NED → the vehicle's local NED (setpoints).
+    pub(super) to_local: FrameTransform,
+    /// The vehicle's local NED → swarm NED (positions).
+    pub(super) to_swarm: FrameTransform,
 }
 
 impl std::fmt::Debug for VehicleShared {
@@ -127,6 +138,7 @@ impl VehicleShared {
             }),
             snapshot: watch::channel(snapshot).0,
             report: watch::channel(VehicleReport::disconnected()).0,
+            transforms: Mutex::new(None),
         })
     }
 
@@ -226,21 +238,42 @@ impl VehicleShared {
         self.memory().state
     }
 
+    /// The maps between the swarm frame `swarm` and the vehicle's local frame `local`
+    /// (worked out again only when one of them changed).
+    pub(super) fn transforms(&self, swarm: &NedFrame, local: &NedFrame) -> Transforms {
+        let mut cached = self
+            .transforms
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        match *cached {
+            Some(t) if t.to_local.maps(swarm, local) => t,
+            _ => {
+                let t = Transforms {
+                    to_local: swarm.transform_to(local),
+                    to_swarm: local.transform_to(swarm),
+                };
+                *cached = Some(t);
+                t
+            }
+        }
+    }
+
     /// Current swarm-frame position (from the vehicle's local position through its origin
     /// and the swarm frame), if known, moved on by its velocity for the age of the sample
     /// (at most 200 ms: PX4 streams it at 10–30 Hz, and a vehicle at 5 m/s covers 17 cm
     /// between two samples).
     pub fn position(&self, swarm: &NedFrame) -> Option<Ned> {
-        self.link
-            .with_telemetry(|t| match (t.local, t.local_frame()) {
-                (Some(l), Some(local)) => {
-                    let age = t
-                        .local_received
-                        .map_or(0.0, |at| at.elapsed().as_secs_f64().min(0.2));
-                    Some(local.convert_to(swarm, l.position + l.velocity_m_s * age))
-                }
-                _ => t.global.map(|g| swarm.to_ned(&g.geo)),
-            })
+        let (local, frame, received, global) = self
+            .link
+            .with_telemetry(|t| (t.local, t.local_frame(), t.local_received, t.global));
+        match (local, frame) {
+            (Some(l), Some(frame)) => {
+                let age = received.map_or(0.0, |at| at.elapsed().as_secs_f64().min(0.2));
+                let to_swarm = self.transforms(swarm, &frame).to_swarm;
+                Some(to_swarm.apply(l.position + l.velocity_m_s * age))
+            }
+            _ => global.map(|g| swarm.to_ned(&g.geo)),
+        }
     }
 
     /// Heading, radians clockwise from north (`ATTITUDE.yaw`).
