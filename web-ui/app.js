@@ -16,6 +16,7 @@ import { Tabs } from './tabs.js';
 import { VehicleDetail } from './detail.js';
 import { PayloadsView } from './payloads.js';
 import { SupervisionView } from './supervision.js';
+import { showLoad } from './load.js';
 import { PluginsView } from './plugins.js';
 import { ChartsView } from './charts.js';
 import { TracksView } from './tracks.js';
@@ -202,7 +203,11 @@ function onStatus(status, delay) {
 
 const stream = new api.Stream(api.streamUrl(), {
   onStatus,
-  onMessage: (msg) => (msg.type === 'vehicles' ? onVehicles(msg.vehicles) : onEvent(msg)),
+  onMessage: (msg) => {
+    if (msg.type !== 'vehicles') { onEvent(msg); return; }
+    onVehicles(msg.vehicles);
+    showLoad($('load'), msg.load);
+  },
 });
 stream.start();
 

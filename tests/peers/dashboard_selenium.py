@@ -2,7 +2,8 @@
 """Drives the skein dashboard in real headless Chromium (Selenium 4, Debian's chromium and
 chromedriver) against a fresh `skein up --sim 3`:
 
-1. load the page, wait for the connection indicator `connected` and 3 vehicle rows;
+1. load the page, wait for the connection indicator `connected`, the load indicator and 3
+   vehicle rows;
 2. Take off (10 m): all rows `Hovering` at 10 +- 1 m;
 3. Line (5 m): all rows `InFormation`; the plan view's markers are distinct and on a line
    along east (equal north / equal pixel y within tolerance);
@@ -188,6 +189,11 @@ def run(args, driver, summary):
     driver.get(args.url)
     ui.wait("the connection indicator to read `connected`",
             lambda d: d.find_element(By.CSS_SELECTOR, '[data-testid="connection"]').text.strip() == "connected")
+    # The load indicator (every `vehicles` frame carries the process's load).
+    ui.wait("the load indicator to show the process's load",
+            lambda d: d.find_element(By.CSS_SELECTOR, '[data-testid="load"]').get_attribute("data-level")
+            in ("normal", "shedding"))
+    summary["load"] = driver.find_element(By.CSS_SELECTOR, '[data-testid="load"]').text.strip()
     ui.wait(f"{n} vehicle rows", lambda d: len(ui.rows()) == n)
     summary["vehicles"] = sorted(ui.rows())
     summary["timings_s"]["connected"] = lap()
