@@ -7,6 +7,7 @@ use std::sync::Mutex;
 
 pub mod bench;
 pub mod counter_uas;
+pub mod cpu;
 mod events;
 pub mod netns;
 pub mod payloads;
