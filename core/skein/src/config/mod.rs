@@ -33,7 +33,10 @@
 //!
 //! [supervision]                # restart policies (vehicle, px4link, payload, api)
 //! vehicle_escalation = "hold"  # or "land": what a vehicle whose actor keeps failing does
-//! watchdog_deadline_ms = 2000  # a child not answering a ping this long is hung
+//! watchdog_deadline_ms = 2000  # a child not answering a ping this long is hung (unless
+//!                              # the whole process ran late meanwhile: then it is late)
+//! max_restarts_per_s = 10.0    # the whole tree's restart rate, and the burst it may make
+//! restart_burst = 20           # at once; restarts over that are delayed, never dropped
 //! payload = { policy = "on-failure", max_restarts = 5, window_s = 60.0,
 //!             backoff_initial_ms = 100, backoff_max_ms = 5000 }
 //!
