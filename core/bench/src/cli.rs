@@ -84,6 +84,15 @@ pub struct SwarmBenchArgs {
     /// Simulator seed.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// After skein, fly the same swarm with this baseline against a fresh simulator in
+    /// the same run and compare CPU per vehicle-second: `pymavlink` (a plain pymavlink
+    /// loop, `tests/peers/pymavlink_loop.py`, run by `SKEIN_PYTHON`, the repository's
+    /// `.venv`, or `python3`).
+    #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(crate::peer::PEERS))]
+    pub peer: Option<String>,
+    /// The baseline's script, instead of the repository's.
+    #[arg(long)]
+    pub peer_script: Option<std::path::PathBuf>,
 }
 
 /// Runs `skein bench <what>`.

@@ -54,7 +54,14 @@
 //! the CPU the rest of the host used during the window (anything large means the run
 //! competed with other work for the cores: rerun on a quiet host), and `runtime_probe` is a
 //! task ticking at the setpoint period on this process's runtime, whose lateness is the
-//! runtime's own scheduling latency.
+//! runtime's own scheduling latency. `cpu_ms_per_vehicle_second` is `coordinator_cpu_s`
+//! per vehicle and second of the window, `peak_rss_kib_per_vehicle` the peak resident
+//! memory per vehicle.
+//!
+//! With `--peer pymavlink` the same swarm is then flown by a plain pymavlink loop
+//! (`tests/peers/pymavlink_loop.py`) against a fresh simulator, in the same run: its
+//! figures are under `peer`, and `cpu_ratio_to_peer` is skein's CPU per vehicle-second
+//! over the loop's.
 
 #![warn(missing_docs)]
 
@@ -63,6 +70,7 @@ mod dds;
 mod distributed;
 mod exe;
 mod formation;
+mod peer;
 mod plugins;
 mod procfs;
 pub mod rehearsal;

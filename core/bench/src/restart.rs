@@ -74,6 +74,8 @@ pub async fn restart(args: RestartBenchArgs) -> Result<Value, String> {
         spacing_m: 5.0,
         setup_timeout_s: None,
         seed: args.seed,
+        peer: None,
+        peer_script: None,
     };
     let mut config = bench_config(&swarm_args);
     let mut model = skein_swarm::VehicleModel::generic();

@@ -88,6 +88,17 @@ pub async fn swarm(args: SwarmBenchArgs) -> Result<Value, String> {
     swarm.stop().await;
     let mut report = result?;
     report["setup_s"] = json!(round(report["setup_s"].as_f64().unwrap_or(0.0), 1));
+    if args.peer.is_some() {
+        eprintln!("bench: the same swarm with a plain pymavlink loop");
+        let peer = crate::peer::pymavlink(&args, args.peer_script.clone()).await?;
+        let ours = report["cpu_ms_per_vehicle_second"].as_f64();
+        let theirs = peer["cpu_ms_per_vehicle_second"].as_f64();
+        report["cpu_ratio_to_peer"] = match (ours, theirs) {
+            (Some(a), Some(b)) if b > 0.0 => json!(round(a / b, 3)),
+            _ => Value::Null,
+        };
+        report["peer"] = peer;
+    }
     Ok(report)
 }
 
@@ -171,7 +182,12 @@ async fn measure(
             "mean": round(f64_at(iv, &["mean_ms"]), 3),
         },
         "coordinator_cpu_s": cpu(cpu0, cpu1),
+        "cpu_ms_per_vehicle_second": match (cpu0, cpu1) {
+            (Some(a), Some(b)) => json!(round((b - a) * 1e3 / (n as f64 * window_s), 3)),
+            _ => Value::Null,
+        },
         "coordinator_peak_rss_mb": peak_rss_mb().map(|m| round(m, 1)),
+        "peak_rss_kib_per_vehicle": peak_rss_mb().map(|m| round(m * 1024.0 / n as f64, 1)),
         "sim_cpu_s": cpu(sim_cpu0, sim_cpu1),
         "offboard_loss_failsafes": u64_at(&summary, "offboard_loss_failsafes"),
         "all_offboard": in_offboard == n as u64,
