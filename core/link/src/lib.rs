@@ -6,6 +6,9 @@
 //! - [`telemetry`]: the latest state of a vehicle folded from PX4's streams.
 //! - [`command`]: the command protocol's operations and errors.
 //! - [`param_client`]: the parameter protocol (PX4's bytewise integers, duplicate answers).
+//! - [`mission`]: the mission protocol (upload and download of fence and rally plans).
+//! - [`fence`], [`fence_sync`]: skein's geofence as PX4 mission items, and keeping every
+//!   autopilot on it (uploaded, read back, `GF_ACTION` and `GF_MAX_VER_DIST` set).
 //! - [`setup`]: what is configured at connect: telemetry rates, parameters.
 //! - [`setpoint`]: the offboard setpoint stream, a task that outlives actor restarts.
 //! - [`px4link`]: the `Px4Link` actor tying these together per vehicle.
@@ -22,7 +25,10 @@ pub mod address;
 pub mod command;
 pub mod endpoint;
 pub mod fault;
+pub mod fence;
+pub mod fence_sync;
 pub mod gcs;
+pub mod mission;
 pub mod param_client;
 pub mod px4link;
 pub mod setpoint;

@@ -7,23 +7,32 @@
 //! `confirmation + 1` every [`ACK_TIMEOUT`] up to [`MAX_ATTEMPTS`] transmissions,
 //! `IN_PROGRESS` waited out, mode changes confirmed from `HEARTBEAT.custom_mode`.
 //!
+//! It also runs the mission protocol ([`crate::mission`]) and keeps the autopilot on
+//! skein's geofence ([`missions`], [`crate::fence_sync`]).
+//!
 //! Everything that must survive a restart of this actor (the route's socket, telemetry,
-//! the setpoint stream) lives in the shared [`VehicleLink`]; a restarted actor picks it up
-//! and re-registers its route.
+//! the setpoint stream, the fence status) lives in the shared [`VehicleLink`]; a
+//! restarted actor picks it up and re-registers its route.
+
+mod missions;
 
 use crate::command::{LinkCommand, LinkError, result_name};
 use crate::endpoint::Endpoint;
+use crate::fence::FencePlan;
+use crate::fence_sync::{FenceLink, FencePlans};
+use crate::mission::{DownloadReply, MissionClient, MissionItem, UploadReply};
 use crate::param_client::{ParamClient, ParamOp, ParamReply, Transmit};
 use crate::setpoint::SetpointStream;
 use crate::setup::{LinkSetup, interval_us};
 use crate::telemetry::{Change, Telemetry};
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use skein_mavlink::dialect::{
-    HEARTBEAT_DATA, MavAutopilot, MavCmd, MavModeFlag, MavResult, MavState,
+    HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMissionType, MavModeFlag, MavResult, MavState,
 };
 use skein_mavlink::param::{ParamValue, param_name};
 use skein_mavlink::{Frame, MavMessage, MessageData};
 use skein_model::fsm::Observed;
+use skein_model::geofence::FenceStatus;
 use skein_model::px4::Px4Mode;
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -84,6 +93,7 @@ pub struct VehicleLink {
     stream: SetpointStream,
     lost: AtomicBool,
     setup: LinkSetup,
+    fence: FenceLink,
 }
 
 impl std::fmt::Debug for VehicleLink {
@@ -114,7 +124,20 @@ impl VehicleLink {
             stream,
             lost: AtomicBool::new(false),
             setup,
+            fence: FenceLink::default(),
         })
+    }
+
+    /// Keeps the autopilot on the latest plan of `plans` (skein's geofence as mission
+    /// items): uploaded on connect, after a reboot and on every change. Once per link,
+    /// before its actor starts.
+    pub fn follow_fence(&self, plans: FencePlans) {
+        self.fence.follow(plans);
+    }
+
+    /// The vehicle's side of the fence (its status: [`FenceLink::status`]).
+    pub fn fence(&self) -> &FenceLink {
+        &self.fence
     }
 
     /// A copy of the latest telemetry.
@@ -182,6 +205,21 @@ pub enum Px4LinkMsg {
     Ping(RpcReplyPort<()>),
     /// Fault injection (see [`crate::fault::inject`]).
     Fault(skein_model::supervision::FaultKind),
+    /// Replace the vehicle's plan of this mission type (mission protocol upload).
+    MissionUpload(MavMissionType, Vec<MissionItem>, UploadReply),
+    /// Read the vehicle's plan of this mission type (mission protocol download).
+    MissionDownload(MavMissionType, DownloadReply),
+    /// A mission transfer's deadline (mission type, generation).
+    MissionDeadline(MavMissionType, u64),
+    /// Bring the autopilot to the plan followed (see [`VehicleLink::follow_fence`]);
+    /// with `only_if_changed`, not if it holds that version already.
+    SyncFence {
+        /// Skip a vehicle already synced to the current version.
+        only_if_changed: bool,
+    },
+    /// Bring the autopilot to this candidate plan and answer with the outcome (a fence
+    /// not yet committed: `PUT /api/v1/geofence` tries it on every vehicle first).
+    TryFence(Arc<FencePlan>, RpcReplyPort<FenceStatus>),
 }
 
 /// The `Px4Link` actor (see module docs).
@@ -210,6 +248,7 @@ pub struct Px4LinkState {
     generation: u64,
     greeted: bool,
     params: ParamClient,
+    missions: MissionClient,
 }
 
 impl Px4LinkState {
@@ -398,6 +437,11 @@ impl Px4LinkState {
         for (name, value) in setup.params {
             self.param(myself, &name, ParamOp::Set(value), None);
         }
+        // The autopilot may have rebooted without its fence, or been given another one
+        // while we did not hear it: upload it again.
+        let _ = myself.cast(Px4LinkMsg::SyncFence {
+            only_if_changed: false,
+        });
     }
 
     fn param(
@@ -440,6 +484,7 @@ impl Px4LinkState {
         if frame.compid != self.link.compid {
             return; // other components (camera, gimbal) are the payloads' business
         }
+        self.on_mission_message(myself, &frame.msg);
         if let MavMessage::PARAM_VALUE(pv) = &frame.msg
             && let Some(value) = ParamValue::from_wire(pv.param_value, pv.param_type)
         {
@@ -513,6 +558,7 @@ impl Actor for Px4Link {
             }),
         );
         myself.send_interval(HEARTBEAT_PERIOD, || Px4LinkMsg::Tick);
+        missions::watch_plans(&args.link, &myself);
         let greeted = false;
         Ok(Px4LinkState {
             link: args.link,
@@ -523,6 +569,7 @@ impl Actor for Px4Link {
             generation: 0,
             greeted,
             params: ParamClient::default(),
+            missions: MissionClient::default(),
         })
     }
 
@@ -613,6 +660,11 @@ impl Actor for Px4Link {
                 let who = format!("px4link of sysid {}", state.link.sysid);
                 crate::fault::inject(kind, &myself, &who).await?;
             }
+            msg @ (Px4LinkMsg::MissionUpload(..)
+            | Px4LinkMsg::MissionDownload(..)
+            | Px4LinkMsg::MissionDeadline(..)
+            | Px4LinkMsg::SyncFence { .. }
+            | Px4LinkMsg::TryFence(..)) => state.on_mission_msg(&myself, msg),
         }
         Ok(())
     }
