@@ -144,6 +144,12 @@ impl SetpointShaper {
         self.enforce_floor = on;
     }
 
+    /// Clamps into `fence` from now on (moved [`FENCE_TRACKING_BUFFER_M`] inwards, like
+    /// the fence given at construction): an operator's new geofence.
+    pub fn set_fence(&mut self, fence: &Geofence) {
+        self.fence = fence.shrunk(FENCE_TRACKING_BUFFER_M);
+    }
+
     /// Changes the limits (vehicle model change).
     pub fn set_limits(&mut self, limits: MotionLimits, fence: Geofence, min_separation_m: f64) {
         self.limits = limits;

@@ -373,7 +373,7 @@ mod tests {
             radius_m: 5.0,
             max_altitude_m: 4.0,
             min_altitude_m: 2.0,
-            polygon: vec![],
+            ..Geofence::default()
         };
         let inner = inner_fence(&tiny, &extents);
         assert_eq!(inner.radius_m, 0.0);

@@ -128,11 +128,12 @@ impl VehicleActorState {
                     let yaw = mem.yaw_rad;
                     let limits = self.shared.model.limits;
                     let config = &self.context.config;
+                    let fence = self.setpoint_fence(&mut mem);
                     let shaper = mem.shaper.get_or_insert_with(|| {
                         SetpointShaper::new(
                             cur,
                             limits,
-                            config.geofence.clone(),
+                            fence.fence.clone(),
                             config.setpoint_separation_m(),
                         )
                         .with_planned_separation(config.planned_separation_m())
@@ -161,11 +162,7 @@ impl VehicleActorState {
                             cur,
                             dt,
                         );
-                        let (p, _) = self
-                            .context
-                            .config
-                            .geofence
-                            .clamp(sp.position + c.offset, true);
+                        let (p, _) = fence.fence.clamp(sp.position + c.offset, true);
                         LocalSetpoint::position_velocity_acceleration(
                             frame.convert_to(&local, p),
                             sp.velocity,
@@ -229,6 +226,7 @@ impl VehicleActorState {
         let publish_every = (self.config().control_rate_hz / 10.0).round().max(1.0) as u64;
         self.shared.publish_measured(measured);
         if self.ticks.is_multiple_of(publish_every) {
+            self.watch_fence(measured.map(|(p, _)| p), state);
             self.shared
                 .publish(Some(frame), slot, self.children.supervision());
         }
