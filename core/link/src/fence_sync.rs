@@ -101,7 +101,7 @@ async fn upload(
     let items = items.to_vec();
     call(link, |r| Px4LinkMsg::MissionUpload(kind, items, r), &what)
         .await?
-        .map_err(|e| format!("{what}: {e}"))
+        .map_err(|e| e.to_string())
 }
 
 async fn download(
@@ -111,7 +111,7 @@ async fn download(
     let what = format!("{} read-back", crate::mission::type_name(kind));
     call(link, |r| Px4LinkMsg::MissionDownload(kind, r), &what)
         .await?
-        .map_err(|e| format!("{what}: {e}"))
+        .map_err(|e| e.to_string())
 }
 
 async fn set_param(link: &ActorRef<Px4LinkMsg>, name: &str, value: f64) -> Result<(), String> {

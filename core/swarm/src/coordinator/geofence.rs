@@ -11,8 +11,9 @@
 //!    shapers, the formation engine and the request checks read it at their next use),
 //!    a [`SwarmEvent::GeofenceChanged`] goes to the stream and the recording;
 //! 5. if any refused it (`MAV_MISSION_NO_SPACE`, `MAV_MISSION_ERROR`, a read-back that
-//!    differs, a time-out), those that took it are given the fence in force again and the
-//!    change is refused naming each vehicle and its reason: nothing half-applied.
+//!    differs, a time-out), every vehicle tried is given the fence in force again (one
+//!    may hold part of the new one: its fence but not its rally points) and the change is
+//!    refused naming each vehicle and its reason: nothing half-applied.
 //!
 //! Vehicles not connected get the fence in force when they connect (their link follows
 //! the context's plans).
@@ -245,31 +246,26 @@ impl CoordinatorState {
             return;
         };
         let live = self.geofence();
-        let took: Vec<_> = trial
+        let tried: Vec<_> = trial
             .results
-            .iter()
-            .filter(|(_, s)| s.state == FenceSyncState::Synced)
-            .filter_map(|(id, _)| {
+            .keys()
+            .filter_map(|id| {
                 let actor = self.vehicles.get(id)?.local.as_ref()?.port.actor();
                 Some(actor)
             })
             .collect();
         let error = format!(
-            "the geofence was not changed: {} (version {} stays in force{})",
+            "the geofence was not changed: {} (version {} stays in force, given back to every \
+             vehicle tried)",
             refused.join("; "),
             live.version,
-            if took.is_empty() {
-                String::new()
-            } else {
-                format!(", and is given back to the {} vehicles that took the new one", took.len())
-            }
         );
         tracing::warn!("{error}");
-        // Those that took the new fence get the one in force back, before the answer.
+        // Every vehicle tried gets the fence in force back, before the answer.
         let back = self.context.plan_of(&live.fence, live.version);
         tokio::spawn(async move {
             if let Some(plan) = back {
-                join_all(took.into_iter().map(|a| try_on(a, plan.clone()))).await;
+                join_all(tried.into_iter().map(|a| try_on(a, plan.clone()))).await;
             }
             let _ = pending.reply.send(Err(FenceRefusal::Conflict { field: None, error }));
         });
