@@ -174,8 +174,14 @@ mod tests {
         // Vertex 0 is 50 m south and west of the origin.
         let v0 = GeoPoint::from_mavlink(plan.fence[0].x, plan.fence[0].y, 0);
         let back = frame.to_ned(&GeoPoint::new(v0.lat_deg, v0.lon_deg, ORIGIN.alt_amsl_m));
-        assert!((back.north_m + 50.0).abs() < 0.02 && (back.east_m + 50.0).abs() < 0.02, "{back:?}");
-        assert_eq!(plan.fence[4].command, MavCmd::MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION);
+        assert!(
+            (back.north_m + 50.0).abs() < 0.02 && (back.east_m + 50.0).abs() < 0.02,
+            "{back:?}"
+        );
+        assert_eq!(
+            plan.fence[4].command,
+            MavCmd::MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
+        );
         assert_eq!(plan.fence[4].params[0], 5.0);
         assert_eq!(plan.rally.len(), 1);
         assert_eq!(plan.rally[0].z, 503.0);

@@ -148,8 +148,7 @@ pub async fn sync(
     let fence = vehicle.fence();
     let _turn = fence.running.lock().await;
     let before = fence.status();
-    if only_if_changed && before.state == FenceSyncState::Synced && before.version == plan.version
-    {
+    if only_if_changed && before.state == FenceSyncState::Synced && before.version == plan.version {
         return before;
     }
     fence.set(FenceStatus {

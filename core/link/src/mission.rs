@@ -54,7 +54,12 @@ pub struct MissionItem {
 
 impl MissionItem {
     /// The `MISSION_ITEM_INT` for item `seq` of a plan of `mission_type`.
-    pub fn to_message(&self, seq: u16, target: (u8, u8), mission_type: MavMissionType) -> MavMessage {
+    pub fn to_message(
+        &self,
+        seq: u16,
+        target: (u8, u8),
+        mission_type: MavMissionType,
+    ) -> MavMessage {
         MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
             param1: self.params[0],
             param2: self.params[1],

@@ -74,7 +74,10 @@ pub struct SetpointShaper {
 /// slows down over the last metres instead of overshooting.
 const APPROACH_GAIN_PER_S: f64 = 1.0;
 /// Distance setpoints keep inside the geofence for the vehicle's tracking error, metres.
-pub const FENCE_TRACKING_BUFFER_M: f64 = 0.5;
+/// The autopilot holds the same fence and takes `GF_ACTION` on the slightest breach: a
+/// vehicle sent at 8 m/s straight at the fence overshoots the shaper's stop by about
+/// 1.4 m (PX4's position loop, as the simulator replays it), so 2 m keep it inside.
+pub const FENCE_TRACKING_BUFFER_M: f64 = 2.0;
 /// Fraction of the acceleration limit avoidance counts on for braking (the rest is left
 /// for steering around).
 pub const BRAKE_FRACTION: f64 = 0.6;

@@ -237,7 +237,11 @@ pub fn stats_command(sim: &Simulator, line: &str) -> String {
                 Some("no_space") => Some(R::MAV_MISSION_NO_SPACE),
                 Some("denied") => Some(R::MAV_MISSION_DENIED),
                 Some("off") => None,
-                other => return Err(format!("mission_fault: error, no_space, denied or off, got {other:?}")),
+                other => {
+                    return Err(format!(
+                        "mission_fault: error, no_space, denied or off, got {other:?}"
+                    ));
+                }
             };
             if sim.set_mission_fault(id, fault) {
                 Ok(serde_json::json!({ "ok": true }))

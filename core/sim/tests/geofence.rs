@@ -44,7 +44,14 @@ fn item(command: MavCmd, param1: f32, north_m: f64, east_m: f64) -> MISSION_ITEM
 fn square() -> Vec<MISSION_ITEM_INT_DATA> {
     [(-20.0, -20.0), (20.0, -20.0), (20.0, 20.0), (-20.0, 20.0)]
         .iter()
-        .map(|&(n, e)| item(MavCmd::MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, 4.0, n, e))
+        .map(|&(n, e)| {
+            item(
+                MavCmd::MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+                4.0,
+                n,
+                e,
+            )
+        })
         .collect()
 }
 
@@ -88,12 +95,17 @@ async fn upload(
 }
 
 /// Downloads the vehicle's plan of `mission_type`.
-async fn download(c: &mut VirtualClient, mission_type: MavMissionType) -> Vec<MISSION_ITEM_INT_DATA> {
-    c.send(&MavMessage::MISSION_REQUEST_LIST(MISSION_REQUEST_LIST_DATA {
-        target_system: 1,
-        target_component: 1,
-        mission_type,
-    }))
+async fn download(
+    c: &mut VirtualClient,
+    mission_type: MavMissionType,
+) -> Vec<MISSION_ITEM_INT_DATA> {
+    c.send(&MavMessage::MISSION_REQUEST_LIST(
+        MISSION_REQUEST_LIST_DATA {
+            target_system: 1,
+            target_component: 1,
+            mission_type,
+        },
+    ))
     .await;
     let count = c
         .wait_for(SECS(2), |f| match &f.msg {
@@ -127,11 +139,17 @@ async fn download(c: &mut VirtualClient, mission_type: MavMissionType) -> Vec<MI
 async fn fence_and_rally_plans_upload_read_back_and_are_refused_as_px4_refuses_them() {
     let mut c = start_virtual(|_| {});
     c.wait_home().await;
-    assert_eq!(upload(&mut c, FENCE, &square()).await, MavMissionResult::MAV_MISSION_ACCEPTED);
+    assert_eq!(
+        upload(&mut c, FENCE, &square()).await,
+        MavMissionResult::MAV_MISSION_ACCEPTED
+    );
     let held = download(&mut c, FENCE).await;
     assert_eq!(held.len(), 4);
     for (h, s) in held.iter().zip(square()) {
-        assert_eq!((h.command, h.x, h.y, h.param1), (s.command, s.x, s.y, s.param1));
+        assert_eq!(
+            (h.command, h.x, h.y, h.param1),
+            (s.command, s.x, s.y, s.param1)
+        );
     }
     let rally = [MISSION_ITEM_INT_DATA {
         command: MavCmd::MAV_CMD_NAV_RALLY_POINT,
@@ -139,7 +157,10 @@ async fn fence_and_rally_plans_upload_read_back_and_are_refused_as_px4_refuses_t
         mission_type: RALLY,
         ..item(MavCmd::MAV_CMD_NAV_RALLY_POINT, 0.0, 5.0, 5.0)
     }];
-    assert_eq!(upload(&mut c, RALLY, &rally).await, MavMissionResult::MAV_MISSION_ACCEPTED);
+    assert_eq!(
+        upload(&mut c, RALLY, &rally).await,
+        MavMissionResult::MAV_MISSION_ACCEPTED
+    );
     assert_eq!(download(&mut c, RALLY).await.len(), 1);
 
     // More than PX4 stores: refused, the plan held unchanged.
@@ -154,20 +175,40 @@ async fn fence_and_rally_plans_upload_read_back_and_are_refused_as_px4_refuses_t
             )
         })
         .collect();
-    assert_eq!(upload(&mut c, FENCE, &many).await, MavMissionResult::MAV_MISSION_NO_SPACE);
+    assert_eq!(
+        upload(&mut c, FENCE, &many).await,
+        MavMissionResult::MAV_MISSION_NO_SPACE
+    );
     // A vertex count that does not add up, an item of another kind.
     let mut short = square();
     short[3].param1 = 3.0;
-    assert_eq!(upload(&mut c, FENCE, &short).await, MavMissionResult::MAV_MISSION_INVALID_PARAM1);
+    assert_eq!(
+        upload(&mut c, FENCE, &short).await,
+        MavMissionResult::MAV_MISSION_INVALID_PARAM1
+    );
     let waypoint = [item(MavCmd::MAV_CMD_NAV_WAYPOINT, 0.0, 0.0, 0.0)];
-    assert_eq!(upload(&mut c, FENCE, &waypoint).await, MavMissionResult::MAV_MISSION_UNSUPPORTED);
+    assert_eq!(
+        upload(&mut c, FENCE, &waypoint).await,
+        MavMissionResult::MAV_MISSION_UNSUPPORTED
+    );
     // The test fault: a vehicle that cannot store it.
-    c.vehicle.set_mission_fault(Some(MavMissionResult::MAV_MISSION_ERROR));
-    assert_eq!(upload(&mut c, FENCE, &square()[..3]).await, MavMissionResult::MAV_MISSION_ERROR);
+    c.vehicle
+        .set_mission_fault(Some(MavMissionResult::MAV_MISSION_ERROR));
+    assert_eq!(
+        upload(&mut c, FENCE, &square()[..3]).await,
+        MavMissionResult::MAV_MISSION_ERROR
+    );
     c.vehicle.set_mission_fault(None);
-    assert_eq!(download(&mut c, FENCE).await.len(), 4, "every refusal left the plan as it was");
+    assert_eq!(
+        download(&mut c, FENCE).await.len(),
+        4,
+        "every refusal left the plan as it was"
+    );
     // A count of 0 clears it.
-    assert_eq!(upload(&mut c, FENCE, &[]).await, MavMissionResult::MAV_MISSION_ACCEPTED);
+    assert_eq!(
+        upload(&mut c, FENCE, &[]).await,
+        MavMissionResult::MAV_MISSION_ACCEPTED
+    );
     assert!(download(&mut c, FENCE).await.is_empty());
 }
 
@@ -178,7 +219,10 @@ async fn fly_across(action: i32) -> (Px4Mode, f64, u64) {
     let mut c = start_virtual(|_| {});
     c.wait_home().await;
     c.param_set_i32("GF_ACTION", action).await;
-    assert_eq!(upload(&mut c, FENCE, &square()).await, MavMissionResult::MAV_MISSION_ACCEPTED);
+    assert_eq!(
+        upload(&mut c, FENCE, &square()).await,
+        MavMissionResult::MAV_MISSION_ACCEPTED
+    );
     c.vehicle.take_off_offboard(5.0, 6.0);
     assert!(c.vehicle.armed());
     c.stream(position_setpoint(1, 40.0, 0.0, -5.0), 20.0);

@@ -91,9 +91,10 @@ impl MbTiles {
             max_zoom: zoom("maxzoom", hi).max(hi as u8),
             bounds: meta.get("bounds").and_then(|b| parse_bounds(b)),
             attribution: meta.get("attribution").cloned().filter(|a| !a.is_empty()),
-            name: meta.get("name").cloned().or_else(|| {
-                path.file_stem().map(|s| s.to_string_lossy().into_owned())
-            }),
+            name: meta
+                .get("name")
+                .cloned()
+                .or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned())),
         };
         Ok(MbTiles {
             db: Mutex::new(db),

@@ -27,12 +27,18 @@ fn mbtiles(path: &FsPath, format: &str, tiles: &[(u8, u32, u32, &[u8])]) {
         ("bounds", "8.5,47.3,8.6,47.4"),
         ("attribution", "test tiles"),
     ] {
-        db.execute("INSERT INTO metadata VALUES (?1, ?2)", (k, v)).unwrap();
+        db.execute("INSERT INTO metadata VALUES (?1, ?2)", (k, v))
+            .unwrap();
     }
     for (z, x, y, data) in tiles {
         db.execute(
             "INSERT INTO tiles VALUES (?1, ?2, ?3, ?4)",
-            (i64::from(*z), i64::from(*x), i64::from(mbtiles::tms_row(*z, *y)), data.to_vec()),
+            (
+                i64::from(*z),
+                i64::from(*x),
+                i64::from(mbtiles::tms_row(*z, *y)),
+                data.to_vec(),
+            ),
         )
         .unwrap();
     }
@@ -97,9 +103,17 @@ fn a_folder_of_tiles_xyz_or_tms() {
     assert_eq!((set.info().min_zoom, set.info().max_zoom), (5, 5));
     assert_eq!(set.tile(5, 10, 7).unwrap().as_deref(), Some(PNG));
     assert_eq!(set.tile(5, 10, 8).unwrap(), None);
-    std::fs::write(dir.join("metadata.json"), r#"{"scheme": "tms", "attribution": "a"}"#).unwrap();
+    std::fs::write(
+        dir.join("metadata.json"),
+        r#"{"scheme": "tms", "attribution": "a"}"#,
+    )
+    .unwrap();
     let set = TileSet::open(&dir).unwrap();
-    assert_eq!(set.tile(5, 10, 31 - 7).unwrap().as_deref(), Some(PNG), "TMS row 7");
+    assert_eq!(
+        set.tile(5, 10, 31 - 7).unwrap().as_deref(),
+        Some(PNG),
+        "TMS row 7"
+    );
     assert!(TileSet::open(&dir.join("5/10")).is_err(), "no zoom folders");
     let _ = std::fs::remove_dir_all(&dir);
 }

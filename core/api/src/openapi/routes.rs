@@ -10,8 +10,8 @@
 
 use crate::roles::{Access, Role};
 use crate::{
-    ApiState, auth, election, fault_injection, formation_control, geofence, map, openapi,
-    payloads, plugins, px4_params, recording, stream, swarm_status, tracks, vehicles, video,
+    ApiState, auth, election, fault_injection, formation_control, geofence, map, openapi, payloads,
+    plugins, px4_params, recording, stream, swarm_status, tracks, vehicles, video,
 };
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;

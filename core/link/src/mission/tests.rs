@@ -72,7 +72,10 @@ fn an_upload_answers_each_request_and_ends_on_the_vehicles_ack() {
     });
     assert_eq!(c.on_message(&old, US, T).len(), 1);
     assert!(rx.try_recv().is_err(), "not done before the ack");
-    assert!(c.on_message(&vehicle_ack(MavMissionResult::MAV_MISSION_ACCEPTED), US, T).is_empty());
+    assert!(
+        c.on_message(&vehicle_ack(MavMissionResult::MAV_MISSION_ACCEPTED), US, T)
+            .is_empty()
+    );
     assert_eq!(rx.try_recv().unwrap(), Ok(()));
     assert!(!c.busy(FENCE));
 }
@@ -81,7 +84,11 @@ fn an_upload_answers_each_request_and_ends_on_the_vehicles_ack() {
 fn an_error_ack_fails_the_upload_naming_the_result() {
     let mut c = MissionClient::default();
     let (tx, mut rx) = oneshot::channel();
-    c.start(FENCE, MissionOp::Upload(vec![vertex(0)], Some(tx.into())), T);
+    c.start(
+        FENCE,
+        MissionOp::Upload(vec![vertex(0)], Some(tx.into())),
+        T,
+    );
     c.on_message(&vehicle_ack(MavMissionResult::MAV_MISSION_NO_SPACE), US, T);
     assert_eq!(
         rx.try_recv().unwrap(),
@@ -151,15 +158,25 @@ fn a_download_requests_every_item_and_acknowledges_the_last() {
 fn silence_resends_the_last_message_then_times_out() {
     let mut c = MissionClient::default();
     let (tx, mut rx) = oneshot::channel();
-    let out = c.start(FENCE, MissionOp::Upload(vec![vertex(0)], Some(tx.into())), T);
+    let out = c.start(
+        FENCE,
+        MissionOp::Upload(vec![vertex(0)], Some(tx.into())),
+        T,
+    );
     let (_, mut generation) = out[0].deadline.unwrap();
     let out = c.on_message(&request_int(0), US, T);
     generation = out[0].deadline.map_or(generation, |d| d.1);
     for _ in 1..MISSION_ATTEMPTS {
         let out = c.on_deadline(FENCE, generation, T);
-        assert!(matches!(only(&out), MavMessage::MISSION_ITEM_INT(_)), "the item again");
+        assert!(
+            matches!(only(&out), MavMessage::MISSION_ITEM_INT(_)),
+            "the item again"
+        );
     }
-    assert!(c.on_deadline(FENCE, generation - 1, T).is_empty(), "a stale deadline");
+    assert!(
+        c.on_deadline(FENCE, generation - 1, T).is_empty(),
+        "a stale deadline"
+    );
     assert!(c.on_deadline(FENCE, generation, T).is_empty());
     assert_eq!(
         rx.try_recv().unwrap(),
@@ -174,7 +191,10 @@ fn silence_resends_the_last_message_then_times_out() {
 fn operations_on_one_type_wait_their_turn() {
     let mut c = MissionClient::default();
     c.start(FENCE, MissionOp::Upload(vec![], None), T);
-    assert!(c.start(FENCE, MissionOp::Download(None), T).is_empty(), "queued");
+    assert!(
+        c.start(FENCE, MissionOp::Download(None), T).is_empty(),
+        "queued"
+    );
     // The (empty) upload's ack starts the download.
     let out = c.on_message(&vehicle_ack(MavMissionResult::MAV_MISSION_ACCEPTED), US, T);
     assert!(matches!(only(&out), MavMessage::MISSION_REQUEST_LIST(_)));

@@ -104,9 +104,7 @@ pub struct RallyPoint {
 
 /// What PX4 does on a geofence breach: the values of its `GF_ACTION` parameter that a
 /// multicopter swarm may use (4, flight termination, is deliberately not offered).
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, utoipa::ToSchema,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum BreachAction {
     /// `GF_ACTION` 0: nothing.

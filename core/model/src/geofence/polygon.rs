@@ -143,7 +143,13 @@ mod tests {
         let bow_tie = [[0.0, 0.0], [10.0, 10.0], [10.0, 0.0], [0.0, 10.0]];
         assert_eq!(self_intersection(&bow_tie), Some((0, 2)));
         // A vertex touching a non-neighbouring edge.
-        let touching = [[0.0, 0.0], [10.0, 0.0], [5.0, 5.0], [10.0, 10.0], [5.0, 0.0]];
+        let touching = [
+            [0.0, 0.0],
+            [10.0, 0.0],
+            [5.0, 5.0],
+            [10.0, 10.0],
+            [5.0, 0.0],
+        ];
         assert!(self_intersection(&touching).is_some());
         // An edge folding back over its neighbour (a spike of zero width).
         let spike = [[0.0, 0.0], [10.0, 0.0], [5.0, 0.0], [0.0, 10.0]];

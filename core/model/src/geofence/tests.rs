@@ -76,18 +76,29 @@ fn exclusion_areas_push_setpoints_out_and_stay_inside_the_inclusion() {
                 east_m: 0.0,
                 radius_m: 5.0,
             },
-            FenceArea::Polygon(vec![[-30.0, -30.0], [-20.0, -30.0], [-20.0, -20.0], [-30.0, -20.0]]),
+            FenceArea::Polygon(vec![
+                [-30.0, -30.0],
+                [-20.0, -30.0],
+                [-20.0, -20.0],
+                [-30.0, -20.0],
+            ]),
         ],
         ..Geofence::default()
     };
     assert!(fence.validate().is_ok(), "{:?}", fence.validate());
     let (p, v) = fence.clamp(Ned::new(21.0, 0.0, -10.0), true);
     assert_eq!(v, Some(FenceViolation::Exclusion));
-    assert!((p.north_m - 25.0).abs() < 1e-5, "pushed radially out: {p:?}");
+    assert!(
+        (p.north_m - 25.0).abs() < 1e-5,
+        "pushed radially out: {p:?}"
+    );
     assert!(fence.contains(p));
     let (p, v) = fence.clamp(Ned::new(-24.0, -25.0, -10.0), true);
     assert_eq!(v, Some(FenceViolation::Exclusion));
-    assert!((p.north_m + 20.0).abs() < 1e-5 && (p.east_m + 25.0).abs() < 1e-5, "{p:?}");
+    assert!(
+        (p.north_m + 20.0).abs() < 1e-5 && (p.east_m + 25.0).abs() < 1e-5,
+        "{p:?}"
+    );
     assert!(!fence.contains(Ned::new(-25.0, -25.0, -10.0)));
     // With the setpoint margin the exclusion grows by it.
     let inner = fence.shrunk(0.5);

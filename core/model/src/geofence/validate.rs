@@ -45,10 +45,7 @@ pub(super) fn validate(g: &Geofence) -> Result<(), Fault> {
     {
         return Err(fault(
             "min_altitude_m",
-            format!(
-                "must be in [0, max_altitude_m), got {}",
-                g.min_altitude_m
-            ),
+            format!("must be in [0, max_altitude_m), got {}", g.min_altitude_m),
         ));
     }
     if !g.polygon.is_empty() {
@@ -158,9 +155,7 @@ fn simple_polygon(field: &str, v: &[Point]) -> Result<(), Fault> {
     if let Some((a, b)) = polygon::self_intersection(v) {
         return Err(fault(
             field,
-            format!(
-                "edges {a} and {b} cross: the polygon must be simple (not self-intersecting)"
-            ),
+            format!("edges {a} and {b} cross: the polygon must be simple (not self-intersecting)"),
         ));
     }
     let area = polygon::signed_area(v).abs();

@@ -13,8 +13,15 @@ use super::*;
 /// One area of the fence in the vehicle's local frame (north, east metres).
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) enum Area {
-    Polygon { inclusion: bool, vertices: Vec<[f64; 2]> },
-    Circle { inclusion: bool, centre: [f64; 2], radius_m: f64 },
+    Polygon {
+        inclusion: bool,
+        vertices: Vec<[f64; 2]>,
+    },
+    Circle {
+        inclusion: bool,
+        centre: [f64; 2],
+        radius_m: f64,
+    },
 }
 
 /// PNPOLY, as PX4's `insidePolygon`.

@@ -180,10 +180,14 @@ impl Vehicle {
             {
                 self.on_mission_request_list((frame.sysid, frame.compid), m.mission_type, out);
             }
-            MavMessage::MISSION_COUNT(c) if self.targets_me(c.target_system, c.target_component) => {
+            MavMessage::MISSION_COUNT(c)
+                if self.targets_me(c.target_system, c.target_component) =>
+            {
                 self.on_mission_count(now, (frame.sysid, frame.compid), c, out);
             }
-            MavMessage::MISSION_ITEM_INT(i) if self.targets_me(i.target_system, i.target_component) => {
+            MavMessage::MISSION_ITEM_INT(i)
+                if self.targets_me(i.target_system, i.target_component) =>
+            {
                 self.on_mission_item(now, (frame.sysid, frame.compid), i, out);
             }
             MavMessage::MISSION_REQUEST_INT(r)
@@ -191,7 +195,9 @@ impl Vehicle {
             {
                 self.on_mission_request((frame.sysid, frame.compid), r.mission_type, r.seq, out);
             }
-            MavMessage::MISSION_REQUEST(r) if self.targets_me(r.target_system, r.target_component) => {
+            MavMessage::MISSION_REQUEST(r)
+                if self.targets_me(r.target_system, r.target_component) =>
+            {
                 self.on_mission_request((frame.sysid, frame.compid), r.mission_type, r.seq, out);
             }
             MavMessage::MISSION_CLEAR_ALL(c)

@@ -334,7 +334,12 @@ impl Vehicle {
         if now.saturating_duration_since(u.last_progress) >= GIVE_UP {
             let (to, t) = (u.from, u.mission_type);
             self.missions.upload = None;
-            self.mission_ack(to, t, MavMissionResult::MAV_MISSION_OPERATION_CANCELLED, out);
+            self.mission_ack(
+                to,
+                t,
+                MavMissionResult::MAV_MISSION_OPERATION_CANCELLED,
+                out,
+            );
         } else if now.saturating_duration_since(u.last_request) >= RETRY {
             self.mission_request(now, out);
         }

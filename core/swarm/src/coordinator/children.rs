@@ -212,7 +212,9 @@ impl CoordinatorState {
         }
         let rest = rest.trim_start_matches('/');
         let (name, sub) = rest.split_once('/').unwrap_or((rest, ""));
-        if kind == FaultKind::BypassGeofence && (!sub.is_empty() || !self.vehicles.contains_key(name)) {
+        if kind == FaultKind::BypassGeofence
+            && (!sub.is_empty() || !self.vehicles.contains_key(name))
+        {
             let _ = reply.send(Err(FaultError::UnknownTarget(format!(
                 "bypass_geofence is a vehicle's fault: target {}/<vehicle id>, not `{path}`",
                 supervision::ROOT

@@ -267,7 +267,9 @@ impl CoordinatorState {
             if let Some(plan) = back {
                 join_all(tried.into_iter().map(|a| try_on(a, plan.clone()))).await;
             }
-            let _ = pending.reply.send(Err(FenceRefusal::Conflict { field: None, error }));
+            let _ = pending
+                .reply
+                .send(Err(FenceRefusal::Conflict { field: None, error }));
         });
     }
 
@@ -293,7 +295,9 @@ impl CoordinatorState {
 }
 
 /// Runs the futures concurrently and collects their outputs in order.
-async fn join_all<F: std::future::Future + Send + 'static>(futures: impl IntoIterator<Item = F>) -> Vec<F::Output>
+async fn join_all<F: std::future::Future + Send + 'static>(
+    futures: impl IntoIterator<Item = F>,
+) -> Vec<F::Output>
 where
     F::Output: Send + 'static,
 {

@@ -410,17 +410,17 @@ impl Actor for Coordinator {
                 {
                     fill_altitude(&mut motion, down);
                 }
-                let r =
-                    validation::validate_motion(
-                        &state.context.config,
-                        &state.context.geofence().fence,
-                        &motion,
-                    ).and_then(|()| {
-                        state.formation.set_motion(motion).map_err(|e| FieldError {
-                            field: "formation".into(),
-                            error: e,
-                        })
-                    });
+                let r = validation::validate_motion(
+                    &state.context.config,
+                    &state.context.geofence().fence,
+                    &motion,
+                )
+                .and_then(|()| {
+                    state.formation.set_motion(motion).map_err(|e| FieldError {
+                        field: "formation".into(),
+                        error: e,
+                    })
+                });
                 let _ = reply.send(r.map(|()| state.formation_status()));
             }
             CoordinatorMsg::ClearHazard(id, reply) => {

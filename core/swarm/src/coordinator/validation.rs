@@ -335,7 +335,9 @@ mod tests {
             "speed_m_s"
         );
         assert_eq!(
-            validate_motion(&config, &config.geofence, &goto(5.0, 1e6)).unwrap_err().field,
+            validate_motion(&config, &config.geofence, &goto(5.0, 1e6))
+                .unwrap_err()
+                .field,
             "north_m"
         );
         let orbit = |radius_m| LeaderMotion::Orbit {
@@ -346,7 +348,9 @@ mod tests {
         };
         assert!(validate_motion(&config, &config.geofence, &orbit(20.0)).is_ok());
         assert_eq!(
-            validate_motion(&config, &config.geofence, &orbit(1.0)).unwrap_err().field,
+            validate_motion(&config, &config.geofence, &orbit(1.0))
+                .unwrap_err()
+                .field,
             "radius_m"
         );
         let empty = LeaderMotion::Waypoints {
@@ -356,7 +360,9 @@ mod tests {
             repeat: false,
         };
         assert_eq!(
-            validate_motion(&config, &config.geofence, &empty).unwrap_err().field,
+            validate_motion(&config, &config.geofence, &empty)
+                .unwrap_err()
+                .field,
             "waypoints"
         );
     }

@@ -13,7 +13,7 @@ use skein_model::geofence::{FenceSyncState, Geofence};
 use std::sync::{Arc, LazyLock};
 
 /// How far outside the fence a vehicle must be before skein calls it a breach, metres:
-/// setpoints stay half a metre inside, PX4's tracking error is a fraction of that.
+/// setpoints stay 2 m inside, and a vehicle overshoots them by less than that.
 pub const BREACH_TOLERANCE_M: f64 = 1.0;
 
 /// What a bypassed vehicle's setpoints are clamped into (see [`Geofence::unbounded`]).

@@ -284,7 +284,9 @@ impl Actor for Vehicle {
                     state.bypass_geofence();
                     Ok(())
                 } else {
-                    Err(format!("bypass_geofence is the vehicle's fault, not {sub}'s"))
+                    Err(format!(
+                        "bypass_geofence is the vehicle's fault, not {sub}'s"
+                    ))
                 };
                 let _ = reply.send(r);
             }
