@@ -8,6 +8,7 @@ use std::sync::Mutex;
 pub mod bench;
 pub mod counter_uas;
 mod events;
+pub mod map_tiles;
 pub mod netns;
 pub mod payloads;
 mod plugin_build;

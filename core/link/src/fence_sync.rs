@@ -8,7 +8,9 @@
 //! restored link and whenever the plan the vehicle follows changes
 //! ([`VehicleLink::follow_fence`]), and on demand for a candidate fence
 //! ([`Px4LinkMsg::TryFence`], what `PUT /api/v1/geofence` does before it commits). The
-//! syncs of one vehicle never overlap.
+//! syncs of one vehicle never overlap. A vehicle whose sync failed or differs is tried
+//! again every [`RETRY_AFTER`] (a refusal may have been passing: a full storage, a link
+//! that dropped the transfer).
 
 use crate::fence::{FencePlan, difference};
 use crate::mission::MissionItem;
@@ -30,12 +32,16 @@ pub type FencePlans = watch::Receiver<Option<Arc<FencePlan>>>;
 const CALL_TIMEOUT: Duration = Duration::from_secs(60);
 /// Longest wait for a home position (what `GF_MAX_VER_DIST` is measured from).
 const HOME_TIMEOUT: Duration = Duration::from_secs(15);
+/// A vehicle whose sync failed or differs is tried again this long after.
+pub const RETRY_AFTER: Duration = Duration::from_secs(10);
 
 /// A vehicle's side of the fence: the plans it follows, its status, one sync at a time.
 pub struct FenceLink {
     plans: OnceLock<FencePlans>,
     status: RwLock<FenceStatus>,
     running: tokio::sync::Mutex<()>,
+    /// When the last sync ended.
+    ended: RwLock<Option<std::time::Instant>>,
 }
 
 impl Default for FenceLink {
@@ -44,6 +50,7 @@ impl Default for FenceLink {
             plans: OnceLock::new(),
             status: RwLock::new(FenceStatus::pending(0, "no fence plan yet")),
             running: tokio::sync::Mutex::new(()),
+            ended: RwLock::new(None),
         }
     }
 }
@@ -70,6 +77,19 @@ impl FenceLink {
             .read()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .clone()
+    }
+
+    /// True when the last sync failed or differs and ended [`RETRY_AFTER`] ago.
+    pub fn retry_due(&self) -> bool {
+        let failed = matches!(
+            self.status().state,
+            FenceSyncState::Failed | FenceSyncState::Differs
+        );
+        let ended = *self
+            .ended
+            .read()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        failed && ended.is_some_and(|t| t.elapsed() >= RETRY_AFTER)
     }
 
     fn set(&self, status: FenceStatus) {
@@ -138,7 +158,8 @@ async fn home_altitude(vehicle: &VehicleLink) -> Option<f64> {
 
 /// Brings the autopilot behind `link` to `plan` (see the module docs); the outcome is
 /// stored as the vehicle's status and returned. With `only_if_changed`, a vehicle already
-/// synced to this version is left alone.
+/// synced to this version (or that failed it less than [`RETRY_AFTER`] ago) is left
+/// alone.
 pub async fn sync(
     link: ActorRef<Px4LinkMsg>,
     vehicle: Arc<VehicleLink>,
@@ -148,9 +169,21 @@ pub async fn sync(
     let fence = vehicle.fence();
     let _turn = fence.running.lock().await;
     let before = fence.status();
-    if only_if_changed && before.state == FenceSyncState::Synced && before.version == plan.version {
+    let recent = fence
+        .ended
+        .read()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .is_some_and(|t| t.elapsed() < RETRY_AFTER);
+    if only_if_changed
+        && before.version == plan.version
+        && (before.state == FenceSyncState::Synced || recent)
+    {
         return before;
     }
+    *fence
+        .ended
+        .write()
+        .unwrap_or_else(std::sync::PoisonError::into_inner) = None;
     fence.set(FenceStatus {
         breached: before.breached,
         ..FenceStatus::pending(plan.version, "uploading")
@@ -183,6 +216,10 @@ pub async fn sync(
         },
     };
     fence.set(status.clone());
+    *fence
+        .ended
+        .write()
+        .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(std::time::Instant::now());
     status
 }
 

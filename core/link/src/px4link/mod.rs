@@ -530,8 +530,13 @@ impl Px4LinkState {
         }
     }
 
-    fn on_tick(&mut self) {
+    fn on_tick(&mut self, myself: &ActorRef<Px4LinkMsg>) {
         self.send_heartbeat();
+        if self.greeted && self.link.fence().retry_due() {
+            let _ = myself.cast(Px4LinkMsg::SyncFence {
+                only_if_changed: true,
+            });
+        }
         let silent = self.link.silence().is_none_or(|s| s > LINK_TIMEOUT);
         let heard_before = self.link.with_telemetry(|t| t.heartbeat.is_some());
         if silent && heard_before && !self.link.lost.swap(true, Ordering::Relaxed) {
@@ -601,7 +606,7 @@ impl Actor for Px4Link {
                 }
             }
             Px4LinkMsg::CommandNoReply(cmd) => state.start(&myself, cmd, None),
-            Px4LinkMsg::Tick => state.on_tick(),
+            Px4LinkMsg::Tick => state.on_tick(&myself),
             Px4LinkMsg::AckDeadline(id, generation) => {
                 state.on_ack_deadline(&myself, id, generation)
             }
