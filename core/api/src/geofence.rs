@@ -47,11 +47,11 @@ pub(crate) async fn get_geofence(State(s): State<ApiState>) -> Result<Json<Geofe
     responses((status = 200, body = FenceChange), (status = 400), (status = 409),
         (status = 503)),
     extensions(("x-skein-swarm-checks" = json!({
-        "radius_m": "positive",
-        "max_altitude_m": "positive",
+        "radius_m": "in (0, 100000] m",
+        "max_altitude_m": "in (0, 10000] m",
         "min_altitude_m": "in [0, max_altitude_m)",
         "polygon": "none, or at least 3 vertices of a simple, non-degenerate polygon inside radius_m",
-        "exclusions": "simple, non-degenerate polygons; circles of positive radius",
+        "exclusions": "simple, non-degenerate polygons; circles of positive radius; within twice radius_m of the origin",
         "rally_points": "inside the geofence"
     }))))]
 pub(crate) async fn put_geofence(

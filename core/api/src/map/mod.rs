@@ -206,18 +206,19 @@ pub fn content_type(tile: &[u8]) -> &'static str {
     }
 }
 
-/// `{z}`, `{x}` and `{y}` of a tile path (XYZ numbering).
+/// `{z}`, `{x}` and `{y}` of a tile path (XYZ numbering). Parsed by the handler, so that
+/// a path that is no number is a 400 naming it.
 #[derive(Debug, Clone, Deserialize, utoipa::IntoParams)]
 #[into_params(parameter_in = Path)]
 pub struct TilePath {
     /// Zoom level, 0 to 24.
-    #[param(example = "18")]
+    #[param(value_type = u32, minimum = 0, maximum = 24, example = 18)]
     pub z: String,
     /// Column, 0 to 2^z - 1, from the west.
-    #[param(example = "137293")]
+    #[param(value_type = u32, minimum = 0, example = 137293)]
     pub x: String,
     /// Row, 0 to 2^z - 1, from the north (XYZ; MBTiles files count from the south).
-    #[param(example = "91822")]
+    #[param(value_type = u32, minimum = 0, example = 91822)]
     pub y: String,
 }
 

@@ -267,7 +267,7 @@ impl Geofence {
                 violation.get_or_insert(FenceViolation::Radius);
                 moved = true;
             }
-            if let Some(q) = self.into_polygon([out.north_m, out.east_m]) {
+            if let Some(q) = self.pulled_into_polygon([out.north_m, out.east_m]) {
                 [out.north_m, out.east_m] = q;
                 violation.get_or_insert(FenceViolation::Polygon);
                 moved = true;
@@ -300,7 +300,7 @@ impl Geofence {
     /// The point `area_margin_m` inside the polygon nearest to `p`, if `p` is outside it
     /// or closer than the margin to its edge; `None` when `p` is well inside (or there is
     /// no polygon).
-    fn into_polygon(&self, p: Point) -> Option<Point> {
+    fn pulled_into_polygon(&self, p: Point) -> Option<Point> {
         let v = &self.polygon;
         if v.len() < 3 {
             return None;

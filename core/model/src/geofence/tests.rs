@@ -122,6 +122,24 @@ fn exclusion_areas_push_setpoints_out_and_stay_inside_the_inclusion() {
 fn validation_names_the_broken_rule() {
     let field = |g: Geofence| g.validate().unwrap_err();
     let base = Geofence::default();
+    assert_eq!(
+        field(Geofence {
+            radius_m: 2e5,
+            ..base.clone()
+        })
+        .0,
+        "radius_m",
+        "beyond what a tangent plane is true over"
+    );
+    let (f, _) = field(Geofence {
+        exclusions: vec![FenceArea::Circle {
+            north_m: 5e3,
+            east_m: 0.0,
+            radius_m: 5.0,
+        }],
+        ..base.clone()
+    });
+    assert_eq!(f, "exclusions[0].circle");
     let (f, why) = field(Geofence {
         polygon: vec![[0.0, 0.0], [10.0, 10.0], [10.0, 0.0], [0.0, 10.0]],
         ..base.clone()

@@ -9,6 +9,11 @@
 use super::polygon::{self, Point};
 use super::{FenceArea, Geofence};
 
+/// Largest radius, metres: the swarm frame is a tangent plane, true to centimetres over
+/// tens of kilometres, not beyond.
+const MAX_RADIUS_M: f64 = 100_000.0;
+/// Highest ceiling, metres above the swarm origin.
+const MAX_CEILING_M: f64 = 10_000.0;
 /// Most vertices of one polygon, and most exclusion areas and rally points: far above
 /// what an autopilot stores (PX4 keeps 64 fence items), only a bound on the request.
 const MAX_VERTICES: usize = 500;
@@ -27,16 +32,22 @@ fn fault(field: impl Into<String>, why: impl Into<String>) -> Fault {
 
 /// See the module docs; the field at fault and why.
 pub(super) fn validate(g: &Geofence) -> Result<(), Fault> {
-    if !(g.radius_m.is_finite() && g.radius_m > 0.0) {
+    if !(g.radius_m.is_finite() && g.radius_m > 0.0 && g.radius_m <= MAX_RADIUS_M) {
         return Err(fault(
             "radius_m",
-            format!("must be positive, got {}", g.radius_m),
+            format!("must be in (0, {MAX_RADIUS_M}] m, got {}", g.radius_m),
         ));
     }
-    if !(g.max_altitude_m.is_finite() && g.max_altitude_m > 0.0) {
+    if !(g.max_altitude_m.is_finite()
+        && g.max_altitude_m > 0.0
+        && g.max_altitude_m <= MAX_CEILING_M)
+    {
         return Err(fault(
             "max_altitude_m",
-            format!("must be positive, got {}", g.max_altitude_m),
+            format!(
+                "must be in (0, {MAX_CEILING_M}] m, got {}",
+                g.max_altitude_m
+            ),
         ));
     }
     if !(g.min_altitude_m.is_finite()
@@ -72,7 +83,16 @@ pub(super) fn validate(g: &Geofence) -> Result<(), Fault> {
     }
     for (i, area) in g.exclusions.iter().enumerate() {
         match area {
-            FenceArea::Polygon(v) => simple_polygon(&format!("exclusions[{i}].polygon"), v)?,
+            FenceArea::Polygon(v) => {
+                let field = format!("exclusions[{i}].polygon");
+                simple_polygon(&field, v)?;
+                if v.iter().any(|p| p[0].hypot(p[1]) > 2.0 * g.radius_m) {
+                    return Err(fault(
+                        field,
+                        "a vertex lies beyond twice radius_m from the swarm origin",
+                    ));
+                }
+            }
             FenceArea::Circle {
                 north_m,
                 east_m,
@@ -82,10 +102,16 @@ pub(super) fn validate(g: &Geofence) -> Result<(), Fault> {
                 if !(north_m.is_finite() && east_m.is_finite()) {
                     return Err(fault(field, "the centre must be finite numbers"));
                 }
-                if !(radius_m.is_finite() && *radius_m > 0.0) {
+                if !(radius_m.is_finite() && *radius_m > 0.0 && *radius_m <= 2.0 * g.radius_m) {
                     return Err(fault(
                         field,
-                        format!("radius_m must be positive, got {radius_m}"),
+                        format!("radius_m must be in (0, 2 × radius_m], got {radius_m}"),
+                    ));
+                }
+                if north_m.hypot(*east_m) > 2.0 * g.radius_m {
+                    return Err(fault(
+                        field,
+                        "the centre lies beyond twice radius_m from the swarm origin",
                     ));
                 }
             }
