@@ -1,30 +1,30 @@
 //! The `Px4Link` actor: the adapter between one PX4 autopilot and skein.
 //!
-//! It receives the vehicle's frames from its [`Endpoint`] route, folds them into
-//! [`Telemetry`], reports what the state machine needs as [`LinkEvent`]s, sends a 1 Hz
+//! It receives the vehicle's frames from its [`Endpoint`](crate::endpoint::Endpoint)
+//! route, folds them into [`Telemetry`](crate::telemetry::Telemetry), reports what the state machine needs as [`LinkEvent`]s, sends a 1 Hz
 //! heartbeat, watches liveness (lost after [`LINK_TIMEOUT`] of silence), and runs the
 //! command protocol: one command per id in flight, ACK matched by command id, resent with
 //! `confirmation + 1` every [`ACK_TIMEOUT`] up to [`MAX_ATTEMPTS`] transmissions,
 //! `IN_PROGRESS` waited out, mode changes confirmed from `HEARTBEAT.custom_mode`.
 //!
 //! It also runs the mission protocol ([`crate::mission`]) and keeps the autopilot on
-//! skein's geofence ([`missions`], [`crate::fence_sync`]).
+//! skein's geofence (`missions`, [`crate::fence_sync`]).
 //!
 //! Everything that must survive a restart of this actor (the route's socket, telemetry,
 //! the setpoint stream, the fence status) lives in the shared [`VehicleLink`]; a
 //! restarted actor picks it up and re-registers its route.
 
 mod missions;
+mod vehicle_link;
+
+pub use vehicle_link::VehicleLink;
 
 use crate::command::{LinkCommand, LinkError, result_name};
-use crate::endpoint::Endpoint;
 use crate::fence::FencePlan;
-use crate::fence_sync::{FenceLink, FencePlans};
 use crate::mission::{DownloadReply, MissionClient, MissionItem, UploadReply};
 use crate::param_client::{ParamClient, ParamOp, ParamReply, Transmit};
-use crate::setpoint::SetpointStream;
-use crate::setup::{LinkSetup, interval_us};
-use crate::telemetry::{Change, Telemetry};
+use crate::setup::interval_us;
+use crate::telemetry::Change;
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use skein_mavlink::dialect::{
     HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMissionType, MavModeFlag, MavResult, MavState,
@@ -35,8 +35,8 @@ use skein_model::fsm::Observed;
 use skein_model::geofence::FenceStatus;
 use skein_model::px4::Px4Mode;
 use std::collections::{HashMap, VecDeque};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, RwLock};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 /// Silence after which a vehicle is Lost.
@@ -79,92 +79,6 @@ pub type EventSink = Arc<dyn Fn(LinkEvent) + Send + Sync>;
 /// forwards gimbal and camera traffic to its payloads). Called on the link actor: must be
 /// cheap and filter for itself.
 pub type FrameSink = Arc<dyn Fn(&Frame) + Send + Sync>;
-
-/// The per-vehicle state that outlives the link actor: the endpoint route, the latest
-/// telemetry and the setpoint stream. Identity of a vehicle is (endpoint, sysid).
-pub struct VehicleLink {
-    /// The endpoint the vehicle is reached through.
-    pub endpoint: Arc<Endpoint>,
-    /// The vehicle's system id.
-    pub sysid: u8,
-    /// The autopilot's component id (1 for PX4).
-    pub compid: u8,
-    telemetry: RwLock<Telemetry>,
-    stream: SetpointStream,
-    lost: AtomicBool,
-    setup: LinkSetup,
-    fence: FenceLink,
-}
-
-impl std::fmt::Debug for VehicleLink {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("VehicleLink")
-            .field("endpoint", &self.endpoint.address())
-            .field("sysid", &self.sysid)
-            .finish_non_exhaustive()
-    }
-}
-
-impl VehicleLink {
-    /// Creates the shared state and starts the (idle) setpoint stream at `stream_rate_hz`;
-    /// `setup` is applied at every (re)connection.
-    pub fn new(
-        endpoint: Arc<Endpoint>,
-        sysid: u8,
-        compid: u8,
-        stream_rate_hz: f64,
-        setup: LinkSetup,
-    ) -> Arc<Self> {
-        let stream = SetpointStream::start(endpoint.clone(), sysid, compid, stream_rate_hz);
-        Arc::new(VehicleLink {
-            endpoint,
-            sysid,
-            compid,
-            telemetry: RwLock::new(Telemetry::default()),
-            stream,
-            lost: AtomicBool::new(false),
-            setup,
-            fence: FenceLink::default(),
-        })
-    }
-
-    /// Keeps the autopilot on the latest plan of `plans` (skein's geofence as mission
-    /// items): uploaded on connect, after a reboot and on every change. Once per link,
-    /// before its actor starts.
-    pub fn follow_fence(&self, plans: FencePlans) {
-        self.fence.follow(plans);
-    }
-
-    /// The vehicle's side of the fence (its status: [`FenceLink::status`]).
-    pub fn fence(&self) -> &FenceLink {
-        &self.fence
-    }
-
-    /// A copy of the latest telemetry.
-    pub fn telemetry(&self) -> Telemetry {
-        self.telemetry.read().expect("telemetry lock").clone()
-    }
-
-    /// Reads the telemetry in place (no clone) under the lock.
-    pub fn with_telemetry<R>(&self, f: impl FnOnce(&Telemetry) -> R) -> R {
-        f(&self.telemetry.read().expect("telemetry lock"))
-    }
-
-    /// The offboard setpoint stream.
-    pub fn stream(&self) -> &SetpointStream {
-        &self.stream
-    }
-
-    /// True while the link is lost.
-    pub fn is_lost(&self) -> bool {
-        self.lost.load(Ordering::Relaxed)
-    }
-
-    /// Time since the last valid message from the vehicle.
-    pub fn silence(&self) -> Option<Duration> {
-        self.endpoint.last_seen(self.sysid).map(|t| t.elapsed())
-    }
-}
 
 /// Arguments of [`Px4Link`].
 pub struct Px4LinkArgs {
@@ -412,7 +326,7 @@ impl Px4LinkState {
     }
 
     /// First contact (and after a reboot or a restored link): ask for what we need now
-    /// rather than waiting for PX4's slow streams, and apply the [`LinkSetup`].
+    /// rather than waiting for PX4's slow streams, and apply the [`LinkSetup`](crate::setup::LinkSetup).
     fn greet(&mut self, myself: &ActorRef<Px4LinkMsg>) {
         self.greeted = true;
         self.send_heartbeat();

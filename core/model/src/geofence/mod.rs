@@ -9,7 +9,7 @@
 //! PX4 may return to, and the action PX4 takes on a breach (`GF_ACTION`).
 //!
 //! - [`polygon`]: plane geometry of the areas;
-//! - [`validate`]: what an operator's fence must satisfy (simple polygons, …);
+//! - `validate`: what an operator's fence must satisfy (simple polygons, …);
 //! - [`sync`]: how far a vehicle's autopilot holds the fence.
 
 pub mod polygon;
@@ -354,7 +354,7 @@ impl Geofence {
     }
 
     /// Checks the fence's own consistency: the field at fault (`"polygon"`,
-    /// `"exclusions[1].polygon"`, `"rally_points[0]"` …) and why. See [`validate`].
+    /// `"exclusions[1].polygon"`, `"rally_points[0]"` …) and why (see the `validate` module).
     ///
     /// # Errors
     /// The first rule broken.

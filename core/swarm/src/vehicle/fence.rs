@@ -24,7 +24,7 @@ static UNBOUNDED: LazyLock<Arc<LiveFence>> = LazyLock::new(|| {
     })
 });
 
-/// A vehicle's geofence memory (kept across actor restarts with the rest of [`Memory`]).
+/// A vehicle's geofence memory (kept across actor restarts with the rest of its FSM memory).
 #[derive(Debug, Clone, Default)]
 pub struct FenceMemory {
     /// (version, bypassed) of the fence the shaper clamps into.
