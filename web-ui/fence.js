@@ -73,7 +73,9 @@ export class FencePanel {
     $('fence-editor').hidden = !editing;
     $('fence-edit').disabled = editing || !f;
     $('fence-hint').textContent = editing ? HINTS[this.editor.mode] : '';
-    this.plan.canvas.classList.toggle('picking', editing && this.editor.mode !== 'move');
+    // The crosshair while clicks go to the editor (a go-to pick owns it otherwise).
+    if (editing) this.plan.canvas.classList.toggle('picking', this.editor.mode !== 'move');
+    else if (!this.plan.picking) this.plan.canvas.classList.remove('picking');
   }
 
   /** The draft with the panel's inputs, as the PUT body. */
