@@ -136,6 +136,8 @@ const enc = encodeURIComponent;
 export const getHealth = () => request('GET', '/health');
 export const getLinks = () => request('GET', '/links');
 export const getGeofence = () => request('GET', '/geofence');
+export const putGeofence = (fence) => request('PUT', '/geofence', fence);
+export const getMap = () => request('GET', '/map');
 export const getParams = (id) => request('GET', `/vehicles/${enc(id)}/params`);
 export const getParam = (id, name) => request('GET', `/vehicles/${enc(id)}/params/${enc(name)}`);
 export const putParam = (id, name, value) =>

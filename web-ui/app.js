@@ -1,6 +1,7 @@
-// skein ground station: wires the stream to the plan view, the vehicle table, the event
-// log, the header summary and the side panel's views (swarm controls, vehicle detail,
-// payloads, supervision, plugins, charts), and the controls to the HTTP API.
+// skein ground station: wires the stream to the plan view (and the map under it), the
+// vehicle table, the event log, the header summary and the side panel's views (swarm
+// controls, the geofence, vehicle detail, payloads, supervision, plugins, charts), and
+// the controls to the HTTP API.
 
 import * as api from './api.js';
 import { initAuth } from './auth.js';
@@ -21,6 +22,8 @@ import { PluginsView } from './plugins.js';
 import { ChartsView } from './charts.js';
 import { TracksView } from './tracks.js';
 import { installShortcuts } from './keys.js';
+import { MapLayer } from './plan-map.js';
+import { FencePanel } from './fence.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -50,6 +53,15 @@ const select = (id) => {
   $('plan-follow').disabled = !id;
 };
 const plan = new PlanView($('plan'), $('plan-markers'), $('plan-empty'), { onSelect: select });
+plan.setMapLayer(new MapLayer($('plan-map'), $('map-attribution'), () => plan.kick()));
+const fencePanel = new FencePanel({ plan, toasts, log });
+// The swarm origin (where the map and the cursor's latitude / longitude hang from): asked
+// on (re)connection and, until the first vehicle anchors it, while vehicles report.
+let originAsked = 0;
+function askOrigin() {
+  originAsked = performance.now();
+  api.getHealth().then((res) => { if (res.ok && res.data.swarm_origin) plan.setOrigin(res.data.swarm_origin); });
+}
 const deps = { controls, toasts, log, history, plan, tabs };
 const detail = new VehicleDetail($('view-vehicle'), {
   ...deps,
@@ -119,6 +131,7 @@ function onVehicles(vehicles) {
   controls.setVehicles(vehicles);
   summarise(vehicles);
   if (selected && !vehicles.some((v) => v.id === selected)) select(null);
+  if (!plan.origin && vehicles.some((v) => v.position) && performance.now() - originAsked > 2000) askOrigin();
 }
 
 function onEvent(ev) {
@@ -148,6 +161,15 @@ function onEvent(ev) {
       break;
     case 'formation_changed':
       setFormation(ev.formation);
+      break;
+    case 'geofence_changed':
+      fencePanel.setFence(ev.fence, ev.version);
+      break;
+    case 'geofence_breach':
+      if (ev.breached) toasts.show('error', `${ev.id} left the geofence`, 'its autopilot takes the breach action (GF_ACTION)');
+      break;
+    case 'fence_sync':
+      if (ev.state === 'failed' || ev.state === 'differs') toasts.show('error', `${ev.id}: autopilot fence ${ev.state}`, ev.reason || '');
       break;
     case 'command_result':
       if (!ev.ok) toasts.show('error', `${ev.id}: ${ev.command} failed`, ev.error || '');
@@ -192,9 +214,11 @@ function onStatus(status, delay) {
     // The formation is not repeated on the stream: fetch it on every (re)connection.
     api.getFormation().then((res) => { if (res.ok) setFormation(res.data); });
     api.getGeofence().then((res) => {
-      if (res.ok) plan.setGeofence(res.data);
+      if (res.ok) fencePanel.setFence(res.data);
       else if (res.status !== 404) toasts.show('error', 'Geofence', res.data.error);
     });
+    api.getMap().then((res) => { if (res.ok) plan.mapLayer.setInfo(res.data); });
+    askOrigin();
   } else if (status === 'reconnecting' && conn.dataset.logged !== 'down') {
     log.note('stream', 'warn', 'stream', 'stream closed; reconnecting');
   }

@@ -37,6 +37,18 @@ export function describe(ev) {
       return { level: 'info', label: 'formation', text: describeFormation(ev.formation) };
     case 'geofence_clamp':
       return { level: 'warn', label: 'geofence', text: `${ev.id}: setpoint clamped (${ev.violation})` };
+    case 'geofence_changed':
+      return { level: 'ok', label: 'geofence', text: `geofence version ${ev.version} in force on every vehicle` };
+    case 'geofence_breach':
+      return ev.breached
+        ? { level: 'error', label: 'geofence', text: `${ev.id} is outside the geofence at N ${ev.position[0].toFixed(1)} E ${ev.position[1].toFixed(1)}, ${ev.position[2].toFixed(1)} m up` }
+        : { level: 'ok', label: 'geofence', text: `${ev.id} is back inside the geofence` };
+    case 'fence_sync':
+      return {
+        level: ev.state === 'synced' ? 'ok' : ev.state === 'pending' ? 'info' : 'error',
+        label: 'fence',
+        text: `${ev.id}: autopilot fence ${ev.state} (version ${ev.version})${ev.reason ? `: ${ev.reason}` : ''}`,
+      };
     case 'actor_restarted':
       return { level: 'warn', label: 'restart', text: `${ev.path} restarted (${ev.restarts}×, in ${(ev.latency_us / 1000).toFixed(1)} ms): ${ev.reason}` };
     case 'actor_failed':

@@ -1,8 +1,10 @@
-// What the plan view draws over the swarm: the geofence, operator marks (go-to targets,
-// gimbal points), the scale bar, the north arrow and the cursor's coordinates. Each takes
-// the PlanView (its ctx, size, view and toPx).
+// What the plan view draws over the swarm: operator marks (go-to targets, gimbal points),
+// hazards, the scale bar, the north arrow and the cursor's coordinates (swarm frame, and
+// latitude / longitude once the swarm origin is known). Each takes the PlanView (its ctx,
+// size, view and toPx). The geofence is plan-fence.js's.
 
 import { fmt } from './model.js';
+import { nedToLatLon } from './geo.js';
 
 /** Marks: go-to targets and gimbal points, as labelled crosses. */
 export function drawMarks(p) {
@@ -51,36 +53,6 @@ export function drawHazards(p) {
   ctx.textAlign = 'start';
 }
 
-export function drawGeofence(p) {
-  const g = p.geofence;
-  if (!g) return;
-  const { ctx } = p;
-  ctx.save();
-  ctx.strokeStyle = 'rgba(255,85,102,0.7)';
-  ctx.fillStyle = 'rgba(255,85,102,0.85)';
-  ctx.lineWidth = 1.5;
-  ctx.setLineDash([8, 6]);
-  ctx.font = '10px system-ui, -apple-system, "Segoe UI", sans-serif';
-  if (Number.isFinite(g.radius_m) && g.radius_m > 0) {
-    const [ox, oy] = p.toPx(0, 0);
-    const r = g.radius_m * p.view.s;
-    ctx.beginPath(); ctx.arc(ox, oy, r, 0, Math.PI * 2); ctx.stroke();
-    ctx.textAlign = 'center';
-    ctx.fillText(`geofence ${g.radius_m} m · ceiling ${g.max_altitude_m} m`, ox, oy - r - 4);
-  }
-  if (Array.isArray(g.polygon) && g.polygon.length >= 3) {
-    ctx.beginPath();
-    g.polygon.forEach(([n, e], i) => {
-      const [x, y] = p.toPx(n, e);
-      if (i) ctx.lineTo(x, y); else ctx.moveTo(x, y);
-    });
-    ctx.closePath();
-    ctx.stroke();
-  }
-  ctx.restore();
-  ctx.textAlign = 'start';
-}
-
 /** Scale bar: one grid cell, bottom left. */
 export function drawScale(p, step) {
   const { ctx } = p;
@@ -122,7 +94,10 @@ export function drawCursor(p) {
   const v = p.view;
   const e = v.ce + (p.cursor.x - w / 2) / v.s;
   const n = v.cn - (p.cursor.y - h / 2) / v.s;
-  const txt = `N ${fmt(n, 1)}  E ${fmt(e, 1)} m`;
+  const geo = p.origin ? nedToLatLon(p.origin, n, e) : null;
+  // Test hook: the cursor's latitude / longitude on the plan's mirror list.
+  p.mirror.dataset.cursorGeo = geo ? `${geo.lat_deg.toFixed(7)},${geo.lon_deg.toFixed(7)}` : '';
+  const txt = `N ${fmt(n, 1)}  E ${fmt(e, 1)} m${geo ? `  ·  ${geo.lat_deg.toFixed(6)}°, ${geo.lon_deg.toFixed(6)}°` : ''}`;
   ctx.font = '11px ui-monospace, "SF Mono", Menlo, Consolas, monospace';
   ctx.fillStyle = '#8d97a8';
   ctx.textAlign = 'right';

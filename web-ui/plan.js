@@ -5,13 +5,17 @@
 // vehicle markers ease towards each new 10 Hz fix, so motion looks continuous. Drawing runs
 // on requestAnimationFrame only while something changes.
 //
+// Under the drawing lies the map (plan-map.js), on a canvas of its own; the geofence and
+// its editor are plan-fence.js's.
+//
 // Test/ARIA hook: the <ul> mirror gets one <li data-vehicle-id> per drawn vehicle with
 // data-x / data-y (marker centre in CSS px inside the canvas), data-north / data-east
 // (swarm frame, m), data-heading and data-state, refreshed at up to 10 Hz and whenever
 // the picture settles.
 
 import { stateClass, CLASS_COLOUR, compareIds, fmt } from './model.js';
-import { drawGeofence, drawHazards, drawMarks, drawScale, drawNorth, drawCursor } from './plan-overlays.js';
+import { drawHazards, drawMarks, drawScale, drawNorth, drawCursor } from './plan-overlays.js';
+import { drawFence } from './plan-fence.js';
 import { drawTargets } from './plan-targets.js';
 
 const MIN_SPAN_M = 16;        // never zoom in further than this many metres across
@@ -55,6 +59,11 @@ export class PlanView {
     this.geofence = null;    // GET /api/v1/geofence
     this.targets = [];       // counter-UAS tracks (GET /api/v1/tracks)
     this.targetPx = new Map(); // track id → [x, y] where it was last drawn (CSS px)
+    // Map, geofence editor, swarm origin (plan-map.js, plan-fence.js).
+    this.mapLayer = null;
+    this.editor = null;
+    this.origin = null;      // {lat_deg, lon_deg} of the swarm frame's origin
+    this.dragged = false;    // the last mouse press moved a fence vertex
     this.banner = document.createElement('div');
     this.banner.className = 'plan-banner';
     this.banner.dataset.testid = 'plan-banner';
@@ -68,10 +77,20 @@ export class PlanView {
 
     new ResizeObserver(() => this.resize()).observe(canvas.parentElement);
     this.resize();
-    canvas.addEventListener('click', (ev) => (this.picking ? this.pickedPoint(ev) : this.pick(ev)));
+    canvas.addEventListener('click', (ev) => {
+      if (this.picking) this.pickedPoint(ev);
+      else if (this.dragged) this.dragged = false;
+      else if (!(this.editor && this.view && this.editor.click(this.eventPoint(ev)))) this.pick(ev);
+    });
+    // The fence editor's vertex drags.
+    canvas.addEventListener('mousedown', (ev) => {
+      this.dragged = !!(this.editor && this.view && this.editor.down(this.eventPoint(ev)));
+    });
+    canvas.addEventListener('mouseup', () => { if (this.editor) this.editor.up(); });
     canvas.addEventListener('mousemove', (ev) => {
       const r = canvas.getBoundingClientRect();
       this.cursor = { x: ev.clientX - r.left, y: ev.clientY - r.top };
+      if (this.editor && this.view) this.editor.move(this.eventPoint(ev));
       this.kick();
     });
     canvas.addEventListener('mouseleave', () => { this.cursor = null; this.kick(); });
@@ -138,6 +157,34 @@ export class PlanView {
   setGeofence(fence) {
     this.geofence = fence || null;
     this.kick();
+  }
+
+  /** The map drawn under the plan (a MapLayer of plan-map.js). */
+  setMapLayer(layer) {
+    this.mapLayer = layer;
+    if (this.origin) layer.setOrigin(this.origin);
+    this.kick();
+  }
+
+  /** The fence editor (a FenceEditor of plan-fence.js): it gets clicks and drags first. */
+  setEditor(editor) {
+    this.editor = editor;
+  }
+
+  /** The swarm origin ({lat_deg, lon_deg}): the cursor's latitude / longitude, the map. */
+  setOrigin(origin) {
+    this.origin = origin || null;
+    if (this.mapLayer) this.mapLayer.setOrigin(this.origin);
+    this.kick();
+  }
+
+  /** The point of a mouse event: CSS px in the canvas and the swarm frame. */
+  eventPoint(ev) {
+    const r = this.canvas.getBoundingClientRect();
+    const x = ev.clientX - r.left, y = ev.clientY - r.top;
+    const { w, h } = this.size;
+    const v = this.view;
+    return { x, y, north_m: v.cn - (y - h / 2) / v.s, east_m: v.ce + (x - w / 2) / v.s };
   }
 
   /** Back to the view that fits the whole swarm. */
@@ -245,6 +292,7 @@ export class PlanView {
       if (t.has && p) add(p.north_m, p.east_m);
     }
     for (const s of slots) add(s.n, s.e);
+    if (this.editor) for (const q of this.editor.points()) add(q.n, q.e);
     for (const t of this.targets) {
       const p = t.position;
       if (t.status !== 'lost' && p && Number.isFinite(p.north_m) && Number.isFinite(p.east_m)) add(p.north_m, p.east_m);
@@ -326,6 +374,7 @@ export class PlanView {
     const { w, h, dpr } = this.size;
     ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
     ctx.clearRect(0, 0, w, h);
+    if (this.mapLayer) this.mapLayer.draw(this);
     const drawn = [...this.tracks.values()].filter((t) => t.has && t.v.position);
     this.emptyEl.hidden = drawn.length > 0;
     if (!this.view || !drawn.length) return;
@@ -354,7 +403,7 @@ export class PlanView {
     ctx.moveTo(0, Math.round(oy) + 0.5); ctx.lineTo(w, Math.round(oy) + 0.5);
     ctx.stroke();
 
-    drawGeofence(this);
+    drawFence(this);
     drawHazards(this);
     drawTargets(this);
 
@@ -483,6 +532,10 @@ export class PlanView {
       md.ce = this.view.ce.toFixed(2);
       md.scale = this.view.s.toFixed(4);
       md.geofenceRadius = this.geofence ? String(this.geofence.radius_m) : '';
+      const d = this.editor && this.editor.draft;
+      md.fenceEditing = d ? 'true' : 'false';
+      md.fenceVertices = JSON.stringify((d || this.geofence || {}).polygon || []);
+      if (this.mapLayer) this.mapLayer.mirror(md);
     }
     const ids = [...this.tracks.keys()].sort(compareIds);
     let prev = null;

@@ -1,7 +1,8 @@
 // Vehicle table: one row per vehicle, keyed by id, created once and then patched in
 // place (only cells whose text changed are touched), so rows never flicker or lose focus.
 // Test hooks: <tr data-vehicle-id="uav-1"> with cells <td data-field="state|mode|armed|
-// altitude|speed|battery|link|slot">.
+// altitude|speed|battery|link|fence|slot"> (fence: `synced v2`, `failed`, `BREACH` …, with
+// data-fence-state and data-breached).
 
 import { stateClass, displayState, isConnecting, compareIds, fmt, fmtAge, groundSpeed } from './model.js';
 
@@ -90,7 +91,7 @@ export class VehicleTable {
     th.dataset.field = 'id';
     th.textContent = id;
     tr.append(th);
-    for (const f of ['state', 'mode', 'armed', 'altitude', 'speed', 'battery', 'link', 'slot']) {
+    for (const f of ['state', 'mode', 'armed', 'altitude', 'speed', 'battery', 'link', 'fence', 'slot']) {
       const td = document.createElement('td');
       td.dataset.field = f;
       if (f === 'altitude' || f === 'speed') td.className = 'num';
@@ -173,6 +174,14 @@ export class VehicleTable {
     const link = v.link || {};
     set('link', cells.link, link.connected ? `up ${fmtAge(link.last_seen_ms)}` : `lost ${fmtAge(link.last_seen_ms)}`);
     cells.link.dataset.connected = link.connected ? 'true' : 'false';
+
+    // The geofence on the autopilot, and skein's breach check.
+    const fence = v.fence;
+    const fenceText = !fence ? '–' : fence.breached ? 'BREACH' : `${fence.state} v${fence.version}`;
+    set('fence', cells.fence, fenceText);
+    cells.fence.dataset.fenceState = fence ? fence.state : '';
+    cells.fence.dataset.breached = fence && fence.breached ? 'true' : 'false';
+    cells.fence.title = fence ? [fence.reason, `${fence.fence_items} fence items, ${fence.rally_items} rally points`].filter(Boolean).join(' · ') : '';
 
     const f = v.formation;
     const slot = f ? (f.leader ? `${f.slot} leader` : `${f.slot} · ${fmt(f.error_m, 1)} m`) : '–';

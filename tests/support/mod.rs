@@ -9,6 +9,7 @@ pub mod bench;
 pub mod counter_uas;
 pub mod cpu;
 mod events;
+pub mod map_tiles;
 pub mod netns;
 pub mod payloads;
 mod plugin_build;

@@ -14,7 +14,8 @@
 //! docs/api.md lists them. The handlers, by concept: [`vehicles`] (vehicles and commands),
 //! [`px4_params`], [`formation_control`] (formation and leader motion), [`payloads`] and
 //! the camera's frames, [`plugins`], [`swarm_status`] (health, supervision, metrics,
-//! links, geofence), [`fault_injection`], [`tracks`], [`recording`], [`election`], the
+//! links), [`geofence`], [`map`] (the tiles under the plan), [`fault_injection`],
+//! [`tracks`], [`recording`], [`election`], the
 //! stream (`GET /api/v1/stream`: WebSocket, `{"type": "vehicles", "vehicles": [...]}` at
 //! [`TELEMETRY_HZ`] plus every [`skein_swarm::SwarmEvent`]). Any other `/api/…` path
 //! answers 404 JSON; every other path is the dashboard (`web-ui/`, embedded at build time).
@@ -25,6 +26,8 @@ pub mod election;
 pub mod error;
 pub mod fault_injection;
 pub mod formation_control;
+pub mod geofence;
+pub mod map;
 pub mod openapi;
 pub mod path_params;
 pub mod payloads;
@@ -69,7 +72,7 @@ pub struct ApiState {
     events: broadcast::Sender<SwarmEvent>,
     telemetry: broadcast::Sender<Arc<str>>,
     plugins: Option<Arc<plugins::PluginsApi>>,
-    geofence: Option<Arc<skein_model::safety::Geofence>>,
+    map: Arc<map::MapTiles>,
     auth: Arc<auth::Auth>,
     tls: Option<Arc<rustls::ServerConfig>>,
     recorder: Option<Arc<skein_record::Recorder>>,
@@ -93,7 +96,7 @@ impl ApiState {
             events,
             telemetry,
             plugins: None,
-            geofence: None,
+            map: Arc::new(map::MapTiles::none()),
             auth: Arc::new(auth::Auth::disabled()),
             tls: None,
             recorder: None,
@@ -130,9 +133,10 @@ impl ApiState {
         self
     }
 
-    /// Serves `GET /api/v1/geofence` (without it that answers 404).
-    pub fn with_geofence(mut self, fence: skein_model::safety::Geofence) -> Self {
-        self.geofence = Some(Arc::new(fence));
+    /// Serves this map under the plan (`GET /api/v1/map`, its tiles); without it the
+    /// map is `none`.
+    pub fn with_map(mut self, map: map::MapTiles) -> Self {
+        self.map = Arc::new(map);
         self
     }
 

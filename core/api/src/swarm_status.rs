@@ -1,6 +1,6 @@
 //! What the swarm says about itself, read-only: `GET /api/v1/health` (public),
 //! `GET /api/v1/supervision` (the actor tree), `GET /metrics` (Prometheus),
-//! `GET /api/v1/links` (MAVLink counters per endpoint) and `GET /api/v1/geofence`.
+//! `GET /api/v1/links` (MAVLink counters per endpoint).
 
 use crate::ApiState;
 use crate::error::ApiError;
@@ -8,7 +8,6 @@ use axum::Json;
 use axum::extract::State;
 use axum::http::header;
 use axum::response::{IntoResponse, Response};
-use skein_model::safety::Geofence;
 use skein_swarm::CoordinatorMsg;
 use skein_swarm::coordinator::messages::{EndpointStats, Health};
 use skein_swarm::supervision::TreeNode;
@@ -52,15 +51,4 @@ pub(crate) async fn metrics(State(s): State<ApiState>) -> Result<Response, ApiEr
     responses((status = 200, body = [EndpointStats]), (status = 503)))]
 pub(crate) async fn links(State(s): State<ApiState>) -> Result<Json<Vec<EndpointStats>>, ApiError> {
     Ok(Json(s.ask(CoordinatorMsg::LinkStats).await?))
-}
-
-/// The geofence every setpoint is clamped into
-#[utoipa::path(get, path = "/api/v1/geofence",
-    responses((status = 200, body = Geofence), (status = 404)))]
-pub(crate) async fn geofence(State(s): State<ApiState>) -> Result<Response, ApiError> {
-    let fence: &Geofence = s
-        .geofence
-        .as_deref()
-        .ok_or_else(|| ApiError::not_found("no geofence configured for this API"))?;
-    Ok(Json(fence).into_response())
 }

@@ -72,7 +72,7 @@ fn hundred_seeded_runs_losing_a_vehicle_mid_transition() {
             radius_m: 150.0,
             max_altitude_m: 40.0,
             min_altitude_m: 5.0,
-            polygon: vec![],
+            ..Geofence::default()
         };
         let mut r = Rehearsal::new(config);
         let leader = if rng.random_bool(0.5) {

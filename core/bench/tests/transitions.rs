@@ -42,7 +42,7 @@ fn random_changes(leader: &str, changes: usize) {
         radius_m: 150.0,
         max_altitude_m: 40.0,
         min_altitude_m: 5.0,
-        polygon: vec![],
+        ..Geofence::default()
     };
     let mut r = Rehearsal::new(config);
     let seed = std::env::var("SKEIN_REHEARSAL_SEED")

@@ -6,6 +6,9 @@
 //! - [`telemetry`]: the latest state of a vehicle folded from PX4's streams.
 //! - [`command`]: the command protocol's operations and errors.
 //! - [`param_client`]: the parameter protocol (PX4's bytewise integers, duplicate answers).
+//! - [`mission`]: the mission protocol (upload and download of fence and rally plans).
+//! - [`fence`], [`fence_sync`]: skein's geofence as PX4 mission items, and keeping every
+//!   autopilot on it (uploaded, read back, `GF_ACTION` and `GF_MAX_VER_DIST` set).
 //! - [`setup`]: what is configured at connect: telemetry rates, parameters.
 //! - [`setpoint`]: the offboard setpoint streams, one clock per rate on a thread of their
 //!   own, outliving actor restarts; [`priority`]: that thread's scheduling priority.
@@ -23,7 +26,10 @@ pub mod address;
 pub mod command;
 pub mod endpoint;
 pub mod fault;
+pub mod fence;
+pub mod fence_sync;
 pub mod gcs;
+pub mod mission;
 pub mod param_client;
 pub mod priority;
 pub mod px4link;

@@ -1,6 +1,6 @@
 //! The link against the simulator over real UDP: shared-endpoint demultiplexing, loss and
-//! recovery, reboots, the command and parameter protocols, telemetry profiles, MAVLink 2
-//! signing.
+//! recovery, reboots, the command, parameter and mission protocols (the fence on the
+//! autopilot), telemetry profiles, MAVLink 2 signing.
 
 mod common;
 
@@ -275,6 +275,69 @@ async fn parameters_read_and_write_with_bytewise_integers() {
     assert!(
         matches!(missing, Err(LinkError::Timeout { .. })),
         "{missing:?}"
+    );
+}
+
+/// skein's fence on the autopilot through a link that loses a tenth of its datagrams
+/// each way: the mission protocol's resends and the vehicle's re-requests carry the
+/// uploads, the read-back agrees, `GF_ACTION` and `GF_MAX_VER_DIST` are set; an autopilot
+/// that refuses is named with its `MAV_MISSION_RESULT`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_fence_reaches_the_autopilot_through_a_lossy_link() {
+    use skein_link::fence::FencePlan;
+    use skein_model::geo::NedFrame;
+    use skein_model::geofence::{BreachAction, FenceArea, FenceSyncState, Geofence, RallyPoint};
+    let (sim, _endpoint, vehicles) = swarm_on_one_port(1, LinkSetup::default()).await;
+    let v = &vehicles[0];
+    v.home_known().await;
+    let home = v.link.with_telemetry(|t| t.home.unwrap().geo);
+    let fence = Geofence {
+        polygon: vec![[-30.0, -30.0], [30.0, -30.0], [30.0, 30.0], [-30.0, 30.0]],
+        exclusions: vec![FenceArea::Circle {
+            north_m: 10.0,
+            east_m: 10.0,
+            radius_m: 4.0,
+        }],
+        rally_points: vec![RallyPoint {
+            north_m: -20.0,
+            east_m: 0.0,
+            altitude_m: 15.0,
+        }],
+        breach_action: BreachAction::Rtl,
+        ..Geofence::default()
+    };
+    let plan = |version| Arc::new(FencePlan::new(&fence, &NedFrame::new(home), version));
+    assert!(sim.set_link_quality(1, 0.1, 0.0));
+    let status = ractor::call_t!(v.actor, Px4LinkMsg::TryFence, 120_000, plan(7)).unwrap();
+    assert_eq!(status.state, FenceSyncState::Synced, "{status:?}");
+    assert_eq!(
+        (status.version, status.fence_items, status.rally_items),
+        (7, 5, 1)
+    );
+    sim.set_link_quality(1, 0.0, 0.0);
+    let held = &sim.stats()[0];
+    assert_eq!((held.fence_items, held.rally_items), (5, 1));
+    let get = |name: &'static str| {
+        let actor = v.actor.clone();
+        async move {
+            ractor::call_t!(actor, Px4LinkMsg::ParamGet, 15_000, name.to_string()).expect("answer")
+        }
+    };
+    assert_eq!(get("GF_ACTION").await, Ok(ParamValue::Int32(3)));
+    // The ceiling (120 m above the swarm origin, here the home) above the home.
+    assert_eq!(get("GF_MAX_VER_DIST").await, Ok(ParamValue::Real32(120.0)));
+    assert!(sim.set_mission_fault(1, Some(d::MavMissionResult::MAV_MISSION_NO_SPACE)));
+    let status = ractor::call_t!(v.actor, Px4LinkMsg::TryFence, 60_000, plan(8)).unwrap();
+    assert_eq!(status.state, FenceSyncState::Failed, "{status:?}");
+    let why = status.reason.clone().unwrap_or_default();
+    assert!(
+        why.contains("fence upload") && why.contains("MAV_MISSION_NO_SPACE"),
+        "{why}"
+    );
+    assert_eq!(
+        v.link.fence().status(),
+        status,
+        "the vehicle's status says so"
     );
 }
 

@@ -77,7 +77,10 @@ pub struct SetpointShaper {
 /// slows down over the last metres instead of overshooting.
 const APPROACH_GAIN_PER_S: f64 = 1.0;
 /// Distance setpoints keep inside the geofence for the vehicle's tracking error, metres.
-pub const FENCE_TRACKING_BUFFER_M: f64 = 0.5;
+/// The autopilot holds the same fence and takes `GF_ACTION` on the slightest breach: a
+/// vehicle sent at 8 m/s straight at the fence overshoots the shaper's stop by about
+/// 1.4 m (PX4's position loop, as the simulator replays it), so 2 m keep it inside.
+pub const FENCE_TRACKING_BUFFER_M: f64 = 2.0;
 /// Fraction of the acceleration limit avoidance counts on for braking (the rest is left
 /// for steering around).
 pub const BRAKE_FRACTION: f64 = 0.6;
@@ -119,6 +122,12 @@ impl SetpointShaper {
     /// Whether the fence's floor applies (airborne phases; not takeoff or landing).
     pub fn enforce_floor(&mut self, on: bool) {
         self.enforce_floor = on;
+    }
+
+    /// Clamps into `fence` from now on (moved [`FENCE_TRACKING_BUFFER_M`] inwards, like
+    /// the fence given at construction): an operator's new geofence.
+    pub fn set_fence(&mut self, fence: &Geofence) {
+        self.fence = fence.shrunk(FENCE_TRACKING_BUFFER_M);
     }
 
     /// Changes the limits (vehicle model change).

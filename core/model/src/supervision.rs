@@ -18,15 +18,20 @@ pub enum FaultKind {
     Stop,
     /// The actor's handler returns an error.
     Error,
+    /// A vehicle's setpoints skip the geofence from now on (a Vehicle actor's fault only,
+    /// `coordinator/<id>`): what rehearses the autopilot's own fence stopping a vehicle
+    /// that skein's setpoint guard would have held.
+    BypassGeofence,
 }
 
 impl FaultKind {
     /// Every kind with its API name.
-    pub const ALL: [FaultKind; 4] = [
+    pub const ALL: [FaultKind; 5] = [
         FaultKind::Panic,
         FaultKind::Hang,
         FaultKind::Stop,
         FaultKind::Error,
+        FaultKind::BypassGeofence,
     ];
 
     /// The API name (`"panic"`).
@@ -36,6 +41,7 @@ impl FaultKind {
             FaultKind::Hang => "hang",
             FaultKind::Stop => "stop",
             FaultKind::Error => "error",
+            FaultKind::BypassGeofence => "bypass_geofence",
         }
     }
 

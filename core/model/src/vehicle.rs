@@ -80,6 +80,11 @@ pub struct VehicleSnapshot {
     pub formation: Option<FormationSlot>,
     /// Payload instances (filled by the plugin host).
     pub payloads: Vec<serde_json::Value>,
+    /// The geofence on this vehicle: its autopilot's copy (`synced`, `differs`, `failed`
+    /// with the reason, `pending`) and skein's own breach check; `null` where no fence is
+    /// kept (a vehicle of another process before it reports one).
+    #[serde(default)]
+    pub fence: Option<crate::geofence::FenceStatus>,
 }
 
 impl VehicleSnapshot {
@@ -112,6 +117,7 @@ impl VehicleSnapshot {
             },
             formation: None,
             payloads: vec![],
+            fence: None,
         }
     }
 }
@@ -148,6 +154,7 @@ mod tests {
             },
             formation: None,
             payloads: vec![],
+            fence: None,
         };
         let v = serde_json::to_value(&snap).unwrap();
         assert_eq!(v["state"], "InFormation");

@@ -8,6 +8,9 @@
 //! - `reboot <sysid>`, `kill <sysid>` → `{"ok":true}`
 //! - `link <sysid|all> <loss 0..1> <latency_ms>` → `{"ok":true}` (simulated link quality,
 //!   see [`Simulator::set_link_quality`]; `link 3 0 0` restores a perfect link)
+//! - `mission_fault <sysid> <error|no_space|denied|off>` → `{"ok":true}`: every fence and
+//!   rally upload to that vehicle ends in `MAV_MISSION_ERROR` / `_NO_SPACE` / `_DENIED`
+//!   (see [`Simulator::set_mission_fault`]); `off` clears it
 //! - `summary` → [`crate::SimSummary`]: totals over every vehicle and the histogram of
 //!   setpoint intervals of all vehicles (what `skein bench` reads)
 //! - `vehicles` → `{"vehicles":[SimVehicleInfo…]}`
@@ -227,6 +230,25 @@ pub fn stats_command(sim: &Simulator, line: &str) -> String {
         "summary" => serde_json::to_value(sim.summary()).map_err(|e| e.to_string()),
         "intruders" => Ok(serde_json::json!({ "intruders": sim.intruders() })),
         "link" => link_command(sim, &mut words),
+        "mission_fault" => sysid(words.next()).and_then(|id| {
+            use skein_mavlink::dialect::MavMissionResult as R;
+            let fault = match words.next() {
+                Some("error") => Some(R::MAV_MISSION_ERROR),
+                Some("no_space") => Some(R::MAV_MISSION_NO_SPACE),
+                Some("denied") => Some(R::MAV_MISSION_DENIED),
+                Some("off") => None,
+                other => {
+                    return Err(format!(
+                        "mission_fault: error, no_space, denied or off, got {other:?}"
+                    ));
+                }
+            };
+            if sim.set_mission_fault(id, fault) {
+                Ok(serde_json::json!({ "ok": true }))
+            } else {
+                Err(format!("no vehicle with sysid {id}"))
+            }
+        }),
         "" => Err("empty command".into()),
         other => Err(format!("unknown command {other:?}")),
     };

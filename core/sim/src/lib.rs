@@ -303,6 +303,9 @@ impl Simulator {
                     setpoint_intervals: v.setpoint_intervals.summary(),
                     offboard_loss_failsafes: v.counters.offboard_loss_failsafes,
                     gcs_loss_failsafes: v.counters.gcs_loss_failsafes,
+                    geofence_breaches: v.counters.geofence_breaches,
+                    fence_items: v.missions.fence.len(),
+                    rally_items: v.missions.rally.len(),
                     commands_received: v.counters.commands_received,
                     frames_received: v.counters.frames_received,
                     malformed_frames: decode.errors(),
@@ -368,6 +371,7 @@ impl Simulator {
             s.commands_received += v.counters.commands_received;
             s.offboard_loss_failsafes += v.counters.offboard_loss_failsafes;
             s.gcs_loss_failsafes += v.counters.gcs_loss_failsafes;
+            s.geofence_breaches += v.counters.geofence_breaches;
             s.malformed_frames += decode_delta(decode_now, slot.decode_baseline).errors();
             s.datagrams_received += slot.net.datagrams_received;
             s.datagrams_sent += slot.net.datagrams_sent;
@@ -404,6 +408,24 @@ impl Simulator {
                 slot.impair.set(loss_fraction, latency_ms);
                 // The receive task recomputes its wake-up time.
                 slot.impair.wake.notify_one();
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Makes every fence and rally upload to vehicle `sysid` end in `fault` (a
+    /// `MAV_MISSION_RESULT` error such as `MAV_MISSION_ERROR` or `MAV_MISSION_NO_SPACE`),
+    /// as an autopilot that cannot store it; `None` clears the fault. Returns false when
+    /// no vehicle has that sysid.
+    pub fn set_mission_fault(
+        &self,
+        sysid: u8,
+        fault: Option<skein_mavlink::dialect::MavMissionResult>,
+    ) -> bool {
+        match self.cell(sysid) {
+            Some(cell) => {
+                cell.lock().vehicle.missions.fault = fault;
                 true
             }
             None => false,

@@ -119,6 +119,12 @@ pub struct SimVehicleStats {
     pub offboard_loss_failsafes: u64,
     /// GCS-link-loss failsafes taken (NAV_DLL_ACT).
     pub gcs_loss_failsafes: u64,
+    /// Geofence breaches that took `GF_ACTION`.
+    pub geofence_breaches: u64,
+    /// Fence mission items stored (`MAV_MISSION_TYPE_FENCE`).
+    pub fence_items: usize,
+    /// Rally points stored (`MAV_MISSION_TYPE_RALLY`).
+    pub rally_items: usize,
     /// COMMAND_LONG / COMMAND_INT addressed to the vehicle.
     pub commands_received: u64,
     /// Valid MAVLink frames received.
@@ -197,6 +203,8 @@ pub struct SimSummary {
     pub offboard_loss_failsafes: u64,
     /// GCS-link-loss failsafes taken.
     pub gcs_loss_failsafes: u64,
+    /// Geofence breaches that took `GF_ACTION`.
+    pub geofence_breaches: u64,
     /// Malformed input dropped.
     pub malformed_frames: u64,
     /// Datagrams received.

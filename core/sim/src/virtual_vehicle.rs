@@ -9,7 +9,7 @@ use crate::client;
 use crate::config::{SimConfig, TelemetryProfile};
 use crate::report::{SimTruth, truth_of};
 use crate::vehicle::{Environment, Outbox, Vehicle};
-use skein_mavlink::dialect::MavCmd;
+use skein_mavlink::dialect::{MavCmd, MavMissionResult};
 use skein_mavlink::{Decoder, Encoder, Frame, MavMessage};
 use skein_model::geo::Ned;
 use std::time::{Duration, Instant};
@@ -33,6 +33,8 @@ pub struct VirtualStats {
     pub gcs_connected: bool,
     /// A MAV_TYPE_ONBOARD_CONTROLLER heartbeat arrived within the timeout.
     pub onboard_controller_connected: bool,
+    /// Geofence breaches that took `GF_ACTION`.
+    pub geofence_breaches: u64,
 }
 
 /// A simulated vehicle (sysid 1) driven by a virtual clock.
@@ -183,7 +185,14 @@ impl VirtualVehicle {
             commands_received: v.counters.commands_received,
             gcs_connected: v.gcs_connected(self.now),
             onboard_controller_connected: v.onboard_controller_connected(self.now),
+            geofence_breaches: v.counters.geofence_breaches,
         }
+    }
+
+    /// Makes every fence and rally upload end in `fault` (see
+    /// [`crate::Simulator::set_mission_fault`]); `None` clears it.
+    pub fn set_mission_fault(&mut self, fault: Option<MavMissionResult>) {
+        self.vehicle.missions.fault = fault;
     }
 
     /// Ground truth: local NED position, m.

@@ -1,7 +1,8 @@
 //! Swarm-wide configuration: the vehicle models (the paper's UAV classes as profiles of
 //! limits and payload slots) and the settings every vehicle and the coordinator fly by.
 //! Plain data, set at start (`[swarm]`, `[models]`, `[supervision]`, `[hazards]` in the
-//! config), never changed while the swarm flies.
+//! config), never changed while the swarm flies (the geofence in force lives in the
+//! [`crate::SwarmContext`]).
 
 use crate::supervision::SupervisionConfig;
 use serde::{Deserialize, Serialize};
@@ -61,7 +62,8 @@ pub struct SwarmConfig {
     pub formation_rate_hz: f64,
     /// Anchor of the swarm frame; `None` = the home of the first vehicle heard.
     pub swarm_origin: Option<GeoPoint>,
-    /// Geofence every setpoint is clamped into.
+    /// The geofence at start (the one in force is the context's,
+    /// [`crate::SwarmContext::geofence`]: an operator may replace it).
     pub geofence: Geofence,
     /// Minimum distance between any two vehicles, metres: what skein guarantees.
     pub min_separation_m: f64,

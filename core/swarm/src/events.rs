@@ -93,8 +93,38 @@ pub enum SwarmEvent {
     GeofenceClamp {
         /// Vehicle id.
         id: String,
-        /// `"radius"`, `"polygon"`, `"ceiling"` or `"floor"`.
+        /// `"radius"`, `"polygon"`, `"exclusion"`, `"ceiling"` or `"floor"`.
         violation: String,
+    },
+    /// An operator put a new geofence in force (`PUT /api/v1/geofence`): every connected
+    /// autopilot already holds it.
+    GeofenceChanged {
+        /// Its version (the configured fence is 1).
+        version: u64,
+        /// The fence, as `GET /api/v1/geofence` shows it.
+        fence: skein_model::geofence::Geofence,
+    },
+    /// A vehicle in the air left the geofence (`breached` true; its autopilot's own fence
+    /// takes `GF_ACTION`), or is back inside (false).
+    GeofenceBreach {
+        /// Vehicle id.
+        id: String,
+        /// Outside now.
+        breached: bool,
+        /// Where, swarm frame `[north_m, east_m, altitude_m]`.
+        position: [f64; 3],
+    },
+    /// Where a vehicle's autopilot copy of the fence stands changed (uploaded and read
+    /// back, refused, different).
+    FenceSync {
+        /// Vehicle id.
+        id: String,
+        /// `"pending"`, `"synced"`, `"differs"` or `"failed"`.
+        state: String,
+        /// The fence version concerned.
+        version: u64,
+        /// Why (differs, failed).
+        reason: Option<String>,
     },
     /// A supervised actor ended (panic, error, hang, stop).
     ActorFailed {
@@ -213,6 +243,8 @@ impl SwarmEvent {
             | SwarmEvent::LinkRestored { id }
             | SwarmEvent::Rebooted { id }
             | SwarmEvent::GeofenceClamp { id, .. }
+            | SwarmEvent::GeofenceBreach { id, .. }
+            | SwarmEvent::FenceSync { id, .. }
             | SwarmEvent::PayloadEvent { id, .. } => Some(id),
             _ => None,
         }

@@ -10,8 +10,8 @@
 
 use crate::roles::{Access, Role};
 use crate::{
-    ApiState, auth, election, fault_injection, formation_control, openapi, payloads, plugins,
-    px4_params, recording, stream, swarm_status, tracks, vehicles, video,
+    ApiState, auth, election, fault_injection, formation_control, geofence, map, openapi, payloads,
+    plugins, px4_params, recording, stream, swarm_status, tracks, vehicles, video,
 };
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
@@ -50,7 +50,9 @@ fn viewer() -> OpenApiRouter<ApiState> {
         .routes(routes!(swarm_status::supervision_tree))
         .routes(routes!(swarm_status::metrics))
         .routes(routes!(swarm_status::links))
-        .routes(routes!(swarm_status::geofence))
+        .routes(routes!(geofence::get_geofence))
+        .routes(routes!(map::map_info))
+        .routes(routes!(map::map_tile))
         .routes(routes!(election::status))
         .routes(routes!(tracks::list_tracks))
         .routes(routes!(tracks::sim_truth))
@@ -58,7 +60,8 @@ fn viewer() -> OpenApiRouter<ApiState> {
         .routes(routes!(stream::stream))
 }
 
-/// Flying: commands, the formation and its leader, payloads, tracks, recordings.
+/// Flying: commands, the formation and its leader, payloads, tracks, recordings, the
+/// geofence.
 fn operator() -> OpenApiRouter<ApiState> {
     OpenApiRouter::default()
         .routes(routes!(vehicles::vehicle_command))
@@ -76,6 +79,7 @@ fn operator() -> OpenApiRouter<ApiState> {
         .routes(routes!(tracks::stop_observing))
         .routes(routes!(recording::start))
         .routes(routes!(recording::stop))
+        .routes(routes!(geofence::put_geofence))
 }
 
 /// Everything else: PX4 parameter writes, plugin libraries, fault injection.

@@ -1,6 +1,7 @@
 //! MAVLink message handling (PX4 `mavlink_receiver`): heartbeats per MAV_TYPE, the command
 //! protocol (COMMAND_LONG / COMMAND_INT, two ACKs for DO_SET_MODE, retransmission dedup),
-//! parameters (PARAM_* with PX4's bytewise integer encoding) and offboard setpoints
+//! parameters (PARAM_* with PX4's bytewise integer encoding), the mission protocol's
+//! messages (handled in `mission`) and offboard setpoints
 //! (SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT with PX4's `type_mask` semantics).
 
 #![allow(deprecated)]
@@ -172,17 +173,37 @@ impl Vehicle {
                     self.statustext(now, MavSeverity::MAV_SEVERITY_CRITICAL, reason, out);
                 }
             }
+            // The mission protocol (see `mission`): fence and rally plans; flight plans
+            // are an empty list.
             MavMessage::MISSION_REQUEST_LIST(m)
                 if self.targets_me(m.target_system, m.target_component) =>
             {
-                // No mission: an empty list, so ground stations finish their download.
-                out.push(&MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-                    count: 0,
-                    target_system: frame.sysid,
-                    target_component: frame.compid,
-                    mission_type: m.mission_type,
-                    opaque_id: 0,
-                }));
+                self.on_mission_request_list((frame.sysid, frame.compid), m.mission_type, out);
+            }
+            MavMessage::MISSION_COUNT(c)
+                if self.targets_me(c.target_system, c.target_component) =>
+            {
+                self.on_mission_count(now, (frame.sysid, frame.compid), c, out);
+            }
+            MavMessage::MISSION_ITEM_INT(i)
+                if self.targets_me(i.target_system, i.target_component) =>
+            {
+                self.on_mission_item(now, (frame.sysid, frame.compid), i, out);
+            }
+            MavMessage::MISSION_REQUEST_INT(r)
+                if self.targets_me(r.target_system, r.target_component) =>
+            {
+                self.on_mission_request((frame.sysid, frame.compid), r.mission_type, r.seq, out);
+            }
+            MavMessage::MISSION_REQUEST(r)
+                if self.targets_me(r.target_system, r.target_component) =>
+            {
+                self.on_mission_request((frame.sysid, frame.compid), r.mission_type, r.seq, out);
+            }
+            MavMessage::MISSION_CLEAR_ALL(c)
+                if self.targets_me(c.target_system, c.target_component) =>
+            {
+                self.on_mission_clear((frame.sysid, frame.compid), c.mission_type, out);
             }
             _ => {}
         }

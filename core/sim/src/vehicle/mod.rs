@@ -30,8 +30,10 @@ pub use telemetry::PX4_FLIGHT_SW_VERSION;
 mod battery;
 mod commander;
 mod dynamics;
+mod geofence;
 mod land_detector;
 mod mavlink_receiver;
+mod mission;
 mod navigator;
 mod position_control;
 #[cfg(test)]
@@ -39,6 +41,7 @@ mod tests;
 
 pub(crate) use battery::Battery;
 use mavlink_receiver::{Command, LastCommand};
+pub(crate) use mission::MissionStore;
 pub(crate) use navigator::RtlPhase;
 use position_control::PositionControl;
 
@@ -149,6 +152,8 @@ pub(crate) struct Counters {
     pub setpoint_max_gap_offboard: Duration,
     pub offboard_loss_failsafes: u64,
     pub gcs_loss_failsafes: u64,
+    /// Geofence breaches that took `GF_ACTION`.
+    pub geofence_breaches: u64,
     pub commands_received: u64,
     pub statustexts_sent: u64,
     pub statustexts_suppressed: u64,
@@ -291,6 +296,12 @@ pub(crate) struct Vehicle {
     last_command: Option<LastCommand>,
     pub reboot_requested: bool,
 
+    // Plans and the geofence (PX4's dataman: kept across reboots).
+    pub missions: MissionStore,
+    fence_areas: Vec<geofence::Area>,
+    /// Outside the fence since the last check (the breach action was taken).
+    pub fence_breached: bool,
+
     // Telemetry.
     pub streams: Streams,
     pub ping_seq: u32,
@@ -399,6 +410,9 @@ impl Vehicle {
             gcs_lost: false,
             last_command: None,
             reboot_requested: false,
+            missions: MissionStore::default(),
+            fence_areas: Vec::new(),
+            fence_breached: false,
             streams,
             ping_seq: 0,
             battery: Battery {
@@ -415,14 +429,18 @@ impl Vehicle {
         v
     }
 
-    /// PX4 reboot: everything but the counters starts over (state, boot time, streams).
+    /// PX4 reboot: everything but the counters and the stored plans (fence, rally: PX4's
+    /// dataman) starts over (state, boot time, streams).
     pub fn reboot(&mut self, now: Instant) {
         let counters = self.counters;
         let intervals = std::mem::take(&mut self.setpoint_intervals);
+        let missions = std::mem::take(&mut self.missions);
         let fresh = Vehicle::new(self.sysid, self.origin.origin, self.env.clone(), now);
         *self = fresh;
         self.counters = counters;
         self.setpoint_intervals = intervals;
+        self.missions = missions;
+        self.load_fence();
     }
 
     /// Milliseconds since boot (`time_boot_ms`).
@@ -498,6 +516,8 @@ impl Vehicle {
         }
         self.check_links(now, out);
         self.check_offboard_loss(now, out);
+        self.check_geofence(now, out);
+        self.mission_timers(now, out);
         self.update_navigation(now, out);
         self.goal = self.compute_goal();
         self.physics(dt_s);

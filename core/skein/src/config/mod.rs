@@ -10,6 +10,9 @@
 //! geofence = { radius_m = 500.0, max_altitude_m = 120.0, min_altitude_m = 5.0 }
 //! # optional polygon in the swarm frame ([north_m, east_m] vertices):
 //! # geofence = { ..., polygon = [[-100.0, -100.0], [300.0, -100.0], [300.0, 100.0], [-100.0, 100.0]] }
+//! # and: exclusions = [{ circle = { north_m = 50.0, east_m = 0.0, radius_m = 10.0 } }],
+//! # rally_points = [{ north_m = -50.0, east_m = 0.0, altitude_m = 20.0 }],
+//! # breach_action = "hold"   # PX4's GF_ACTION: none, warn, hold, rtl, land
 //!
 //! [link]                       # our MAVLink identity, and what we ask of vehicles
 //! mav_type = "gcs"             # or "onboard_controller" on a companion computer
@@ -49,6 +52,11 @@
 //! [models.observation]         # vehicle models: limits and payload slots
 //! payloads = [{ slot = "gimbal", kind = "gimbal" }, { slot = "camera", kind = "camera" }]
 //! limits = { max_speed_m_s = 8.0, max_climb_m_s = 3.0, max_descent_m_s = 1.5, max_accel_m_s2 = 3.0 }
+//!
+//! [map]                        # the map under the plan view (see README, "A map")
+//! tiles = "field.mbtiles"      # an MBTiles file or a z/x/y folder; --map-tiles overrides
+//! # online_url = "https://tile.example.org/{z}/{x}/{y}.png"  # opt in, the browser fetches
+//! # online_attribution = "© …"  # what the online tiles must credit
 //!
 //! [gcs]                        # forward every vehicle's MAVLink to QGroundControl and
 //! forward = "udpout:127.0.0.1:14550"  # its commands back (setpoints refused); or udpin:
@@ -267,6 +275,9 @@ pub struct ConfigFile {
     /// `[agent]`.
     #[serde(default)]
     pub agent: AgentSection,
+    /// `[map]`.
+    #[serde(default)]
+    pub map: skein_api::map::MapConfig,
     /// `[supervision]`.
     pub supervision: Option<skein_swarm::supervision::SupervisionConfig>,
     /// `[hazards]`.
@@ -300,6 +311,7 @@ impl ConfigFile {
                 &mut cfg.http.tls_cert,
                 &mut cfg.http.tls_key,
                 &mut cfg.recording.dir,
+                &mut cfg.map.tiles,
             ]
             .into_iter()
             .chain(keys)

@@ -184,3 +184,33 @@ connection = "udpin:0.0.0.0:14541"
     assert!(e.contains("forwrd"), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn map_and_geofence_sections() {
+    let c = ConfigFile::parse(
+        r#"
+[swarm]
+geofence = { radius_m = 300.0, max_altitude_m = 60.0, polygon = [[-50.0, -50.0], [80.0, -50.0], [80.0, 50.0], [-50.0, 50.0]], exclusions = [{ circle = { north_m = 20.0, east_m = 0.0, radius_m = 5.0 } }], rally_points = [{ north_m = -40.0, east_m = 0.0, altitude_m = 15.0 }], breach_action = "rtl" }
+
+[map]
+tiles = "field.mbtiles"
+online_url = "https://tiles.example/{z}/{x}/{y}.png"
+online_attribution = "example"
+"#,
+    )
+    .unwrap();
+    let g = c.swarm_config().unwrap().geofence;
+    assert_eq!(g.polygon.len(), 4);
+    assert_eq!(g.breach_action, skein_model::geofence::BreachAction::Rtl);
+    assert_eq!(c.map.tiles.as_deref(), Some(Path::new("field.mbtiles")));
+    let e = ConfigFile::parse("[map]\ntile = \"x\"\n").unwrap_err();
+    assert!(e.contains("tile"), "{e}");
+    let e = ConfigFile::parse(
+        "[swarm]\ngeofence = { radius_m = 100.0, max_altitude_m = 60.0, polygon = [[0.0, 0.0], [5.0, 5.0], [5.0, 0.0], [0.0, 5.0]] }\n",
+    )
+    .unwrap_err();
+    assert!(
+        e.contains("swarm.geofence.polygon") && e.contains("self-intersecting"),
+        "{e}"
+    );
+}

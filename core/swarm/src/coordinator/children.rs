@@ -212,6 +212,15 @@ impl CoordinatorState {
         }
         let rest = rest.trim_start_matches('/');
         let (name, sub) = rest.split_once('/').unwrap_or((rest, ""));
+        if kind == FaultKind::BypassGeofence
+            && (!sub.is_empty() || !self.vehicles.contains_key(name))
+        {
+            let _ = reply.send(Err(FaultError::UnknownTarget(format!(
+                "bypass_geofence is a vehicle's fault: target {}/<vehicle id>, not `{path}`",
+                supervision::ROOT
+            ))));
+            return;
+        }
         if let Some(spec) = self.services.get(name) {
             let node = Node::Service(name.to_string(), spec.kind);
             let r = match (self.children.actor::<ServiceMsg>(&node), sub) {

@@ -80,6 +80,7 @@ impl CoordinatorState {
             self.context.config.stream_rate_hz,
             self.context.config.link_setup.clone(),
         );
+        link.follow_fence(self.context.fence_plans());
         let shared = VehicleShared::new(id.clone(), model, link, simulated);
         self.fleet.add(shared.clone());
         self.vehicles

@@ -99,7 +99,7 @@ impl CoordinatorState {
         self.formation.set_hazards(hazards);
         let slots = self
             .formation
-            .tick(&members, dt, &self.context.config.geofence);
+            .tick(&members, dt, &self.context.geofence().fence);
         for replan in self.formation.take_replans() {
             tracing::warn!("formation planned again: {}", replan.reason);
             self.emit(SwarmEvent::FormationReplanned {

@@ -190,6 +190,16 @@ pub enum CoordinatorMsg {
     LinkStats(RpcReplyPort<Vec<EndpointStats>>),
     /// The ground-station forwarder, for its counters (see `Swarm::forward_to_gcs`).
     SetGcs(Arc<skein_link::GcsForwarder>),
+    /// The geofence in force and its version (`GET /api/v1/geofence`).
+    GetGeofence(RpcReplyPort<Arc<crate::context::LiveFence>>),
+    /// Put a new geofence in force (`PUT /api/v1/geofence`): checked, tried on every
+    /// connected autopilot, committed or refused as a whole (see [`super::geofence`]).
+    SetGeofence(
+        skein_model::geofence::Geofence,
+        RpcReplyPort<Result<super::geofence::FenceChange, super::geofence::FenceRefusal>>,
+    ),
+    /// The vehicles' uploads of a geofence change came back (from its task).
+    FenceTried(super::geofence::FenceTrial),
     /// A local vehicle's `Px4Link` actor (parameters); `Err` says why there is none.
     GetLink(
         String,

@@ -21,6 +21,7 @@
 //! - [`formation_loop`]: the formation tick;
 //! - [`hazards`]: lost vehicles the formation plans around;
 //! - [`validation`]: formation and leader-motion requests, checked;
+//! - [`geofence`]: changing the geofence, tried on every autopilot, then committed;
 //! - [`children`]: supervision of vehicles and services, fault routing;
 //! - [`escalation`]: what happens to a vehicle whose actor keeps failing;
 //! - [`remote`]: vehicles of other processes, and an agent's carrier;
@@ -31,6 +32,7 @@ pub mod commands;
 pub mod discovery;
 pub mod escalation;
 pub mod formation_loop;
+pub mod geofence;
 pub mod hazards;
 pub mod messages;
 pub mod observe;
@@ -120,6 +122,8 @@ pub struct CoordinatorState {
     /// The formation tick and the watchdog tick (see [`crate::ticker`]).
     formation_gate: TickGate,
     watch_gate: TickGate,
+    /// A geofence change waiting for its vehicles' uploads ([`geofence`]).
+    fence_change: Option<geofence::PendingFence>,
 }
 
 /// The `Coordinator` actor (see module docs).
@@ -330,6 +334,7 @@ impl Actor for Coordinator {
             observing: BTreeMap::new(),
             uplink_tap: None,
             last_rejoin: Instant::now(),
+            fence_change: None,
             endpoints: args.endpoints,
             gcs: None,
             vehicles: BTreeMap::new(),
@@ -401,7 +406,12 @@ impl Actor for Coordinator {
                     .collect();
                 let tracks = state.tracking.shared().tracks();
                 let checked = track_leader::validate_track_leader(&spec, &tracks).and_then(|()| {
-                    validation::validate_formation(&state.context.config, &spec, &vehicles)
+                    validation::validate_formation(
+                        &state.context.config,
+                        &state.context.geofence().fence,
+                        &spec,
+                        &vehicles,
+                    )
                 });
                 match checked {
                     Err(e) => {
@@ -430,13 +440,17 @@ impl Actor for Coordinator {
                 {
                     fill_altitude(&mut motion, down);
                 }
-                let r =
-                    validation::validate_motion(&state.context.config, &motion).and_then(|()| {
-                        state.formation.set_motion(motion).map_err(|e| FieldError {
-                            field: "formation".into(),
-                            error: e,
-                        })
-                    });
+                let r = validation::validate_motion(
+                    &state.context.config,
+                    &state.context.geofence().fence,
+                    &motion,
+                )
+                .and_then(|()| {
+                    state.formation.set_motion(motion).map_err(|e| FieldError {
+                        field: "formation".into(),
+                        error: e,
+                    })
+                });
                 let _ = reply.send(r.map(|()| state.formation_status()));
             }
             CoordinatorMsg::ClearHazard(id, reply) => {
@@ -487,6 +501,11 @@ impl Actor for Coordinator {
             }
             CoordinatorMsg::SetGcs(g) => state.gcs = Some(g),
             CoordinatorMsg::GetLink(id, reply) => state.get_link(id, reply),
+            CoordinatorMsg::GetGeofence(reply) => {
+                let _ = reply.send(state.geofence());
+            }
+            CoordinatorMsg::SetGeofence(fence, reply) => state.set_geofence(&myself, fence, reply),
+            CoordinatorMsg::FenceTried(trial) => state.fence_tried(trial),
             CoordinatorMsg::GetPayload(id, slot, reply) => {
                 let r = match state.vehicles.get(&id) {
                     None => Err(format!("no vehicle `{id}`")),

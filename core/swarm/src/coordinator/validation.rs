@@ -6,12 +6,18 @@ use crate::config::SwarmConfig;
 use crate::formation::{FormationSpec, LeaderMotion, VIRTUAL};
 use skein_model::fsm::VehicleState;
 use skein_model::geo::Ned;
+use skein_model::geofence::Geofence;
 
-/// Checks a leader motion against the vehicle models' speed limit and the geofence.
+/// Checks a leader motion against the vehicle models' speed limit and the geofence in
+/// force (`fence`).
 ///
 /// # Errors
 /// The first offending field (`speed_m_s`, `north_m`, `waypoints`, `radius_m`).
-pub fn validate_motion(config: &SwarmConfig, motion: &LeaderMotion) -> Result<(), FieldError> {
+pub fn validate_motion(
+    config: &SwarmConfig,
+    fence: &Geofence,
+    motion: &LeaderMotion,
+) -> Result<(), FieldError> {
     let err = |field: &str, error: String| {
         Err(FieldError {
             field: field.into(),
@@ -36,7 +42,6 @@ pub fn validate_motion(config: &SwarmConfig, motion: &LeaderMotion) -> Result<()
             format!("speed_m_s {speed} outside (0, {max}] m/s (the slowest vehicle model's limit)"),
         );
     }
-    let fence = &config.geofence;
     let inside = |p: &Ned| fence.contains(*p);
     match motion {
         LeaderMotion::GoTo { target, .. } if !inside(target) => err(
@@ -70,7 +75,12 @@ pub fn validate_motion(config: &SwarmConfig, motion: &LeaderMotion) -> Result<()
                     ),
                 );
             }
-            if !inside(centre) || centre.horizontal_norm() + radius_m > fence.radius_m {
+            // The circle itself, every 10°, against the polygon and the exclusion areas.
+            let leaves = (0..36).any(|k| {
+                let a = f64::from(k).to_radians() * 10.0;
+                !inside(&(*centre + Ned::new(radius_m * a.cos(), radius_m * a.sin(), 0.0)))
+            });
+            if !inside(centre) || centre.horizontal_norm() + radius_m > fence.radius_m || leaves {
                 return err("radius_m", "the orbit leaves the geofence".into());
             }
             Ok(())
@@ -87,6 +97,7 @@ pub fn validate_motion(config: &SwarmConfig, motion: &LeaderMotion) -> Result<()
 /// `altitude_m`, `shape`).
 pub fn validate_formation(
     config: &SwarmConfig,
+    fence: &Geofence,
     spec: &FormationSpec,
     vehicles: &[(&str, VehicleState, bool)],
 ) -> Result<(), FieldError> {
@@ -160,14 +171,11 @@ pub fn validate_formation(
         return err("heading_deg", "heading_deg must be a number".into());
     }
     if let Some(a) = spec.altitude_m
-        && !(a.is_finite() && a > 0.0 && a <= config.geofence.max_altitude_m)
+        && !(a.is_finite() && a > 0.0 && a <= fence.max_altitude_m)
     {
         return err(
             "altitude_m",
-            format!(
-                "altitude_m {a} outside (0, {}] m",
-                config.geofence.max_altitude_m
-            ),
+            format!("altitude_m {a} outside (0, {}] m", fence.max_altitude_m),
         );
     }
     // The vehicles that would fly it: the airborne healthy ones (those still climbing
@@ -235,7 +243,7 @@ mod tests {
     fn check(spec: &FormationSpec, v: &[(String, VehicleState, bool)]) -> Result<(), FieldError> {
         let v: Vec<(&str, VehicleState, bool)> =
             v.iter().map(|(i, s, f)| (i.as_str(), *s, *f)).collect();
-        validate_formation(&SwarmConfig::default(), spec, &v)
+        validate_formation(&SwarmConfig::default(), &Geofence::default(), spec, &v)
     }
 
     fn field(r: Result<(), FieldError>) -> String {
@@ -319,15 +327,17 @@ mod tests {
             target: Ned::new(north_m, 0.0, -10.0),
             speed_m_s,
         };
-        assert!(validate_motion(&config, &goto(5.0, 20.0)).is_ok());
+        assert!(validate_motion(&config, &config.geofence, &goto(5.0, 20.0)).is_ok());
         assert_eq!(
-            validate_motion(&config, &goto(0.0, 20.0))
+            validate_motion(&config, &config.geofence, &goto(0.0, 20.0))
                 .unwrap_err()
                 .field,
             "speed_m_s"
         );
         assert_eq!(
-            validate_motion(&config, &goto(5.0, 1e6)).unwrap_err().field,
+            validate_motion(&config, &config.geofence, &goto(5.0, 1e6))
+                .unwrap_err()
+                .field,
             "north_m"
         );
         let orbit = |radius_m| LeaderMotion::Orbit {
@@ -336,9 +346,11 @@ mod tests {
             speed_m_s: 3.0,
             clockwise: true,
         };
-        assert!(validate_motion(&config, &orbit(20.0)).is_ok());
+        assert!(validate_motion(&config, &config.geofence, &orbit(20.0)).is_ok());
         assert_eq!(
-            validate_motion(&config, &orbit(1.0)).unwrap_err().field,
+            validate_motion(&config, &config.geofence, &orbit(1.0))
+                .unwrap_err()
+                .field,
             "radius_m"
         );
         let empty = LeaderMotion::Waypoints {
@@ -348,7 +360,9 @@ mod tests {
             repeat: false,
         };
         assert_eq!(
-            validate_motion(&config, &empty).unwrap_err().field,
+            validate_motion(&config, &config.geofence, &empty)
+                .unwrap_err()
+                .field,
             "waypoints"
         );
     }

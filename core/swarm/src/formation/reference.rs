@@ -173,7 +173,8 @@ pub(super) fn pace(behind_m: f64) -> f64 {
 /// The fence the reference point must stay in so that every place in `extents`
 /// (offsets from the reference, swarm-frame NED, metres) stays [`FENCE_BUFFER_M`] inside
 /// `fence`: radius less the horizontal reach, ceiling lowered by the upward reach, floor
-/// raised by the downward reach (never past each other).
+/// raised by the downward reach (never past each other), the polygon's edges and the
+/// exclusion areas kept the horizontal reach away.
 pub(super) fn inner_fence(fence: &Geofence, extents: &[Ned]) -> Geofence {
     let reach_h = extents
         .iter()
@@ -187,7 +188,8 @@ pub(super) fn inner_fence(fence: &Geofence, extents: &[Ned]) -> Geofence {
             .max(fence.min_altitude_m),
         min_altitude_m: (fence.min_altitude_m + reach_down + FENCE_BUFFER_M)
             .min(fence.max_altitude_m),
-        polygon: fence.polygon.clone(),
+        area_margin_m: fence.area_margin_m + reach_h + FENCE_BUFFER_M,
+        ..fence.clone()
     }
 }
 
@@ -371,7 +373,7 @@ mod tests {
             radius_m: 5.0,
             max_altitude_m: 4.0,
             min_altitude_m: 2.0,
-            polygon: vec![],
+            ..Geofence::default()
         };
         let inner = inner_fence(&tiny, &extents);
         assert_eq!(inner.radius_m, 0.0);

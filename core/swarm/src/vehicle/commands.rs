@@ -83,10 +83,11 @@ impl VehicleActorState {
     /// the vehicle was not being shaped.
     pub(super) fn set_target(&self, mem: &mut Memory, target: Target, current: Ned) {
         if mem.shaper.is_none() {
+            let fence = self.setpoint_fence(mem);
             mem.shaper = Some(SetpointShaper::new(
                 current,
                 self.shared.model.limits,
-                self.config().geofence.clone(),
+                fence.fence.clone(),
                 self.config().setpoint_separation_m(),
             ));
         }
@@ -118,11 +119,11 @@ impl VehicleActorState {
         if let Command::Takeoff(skein_model::command::Takeoff {
             altitude_m: Some(a),
         }) = cmd
-            && !(a.is_finite() && a > 0.0 && a <= self.config().geofence.max_altitude_m)
+            && !(a.is_finite() && a > 0.0 && a <= self.context.geofence().fence.max_altitude_m)
         {
             return Err(format!(
                 "takeoff refused: altitude_m {a} outside (0, {}] m",
-                self.config().geofence.max_altitude_m
+                self.context.geofence().fence.max_altitude_m
             ));
         }
         self.apply(&mut mem, Event::Command(cmd.kind()))

@@ -130,11 +130,12 @@ impl VehicleActorState {
                     let yaw = mem.yaw_rad;
                     let limits = self.shared.model.limits;
                     let config = &self.context.config;
+                    let fence = self.setpoint_fence(&mut mem);
                     let shaper = mem.shaper.get_or_insert_with(|| {
                         SetpointShaper::new(
                             cur,
                             limits,
-                            config.geofence.clone(),
+                            fence.fence.clone(),
                             config.setpoint_separation_m(),
                         )
                         .with_planned_separation(config.planned_separation_m())
@@ -162,11 +163,7 @@ impl VehicleActorState {
                             cur,
                             dt,
                         );
-                        let (p, _) = self
-                            .context
-                            .config
-                            .geofence
-                            .clamp(sp.position + c.offset, true);
+                        let (p, _) = fence.fence.clamp(sp.position + c.offset, true);
                         LocalSetpoint::position_velocity_acceleration(
                             to_local.apply(p),
                             sp.velocity,
@@ -230,16 +227,18 @@ impl VehicleActorState {
         self.position.set(measured, steered, planned);
         let publish_every = (self.config().control_rate_hz / 10.0).round().max(1.0) as u64;
         self.shared.publish_measured(measured);
-        // The API's snapshot is optional work: a fifth of its rate while short of CPU.
-        if self.ticks.is_multiple_of(publish_every)
-            && self
+        if self.ticks.is_multiple_of(publish_every) {
+            self.watch_fence(measured.map(|(p, _)| p), state);
+            // The API's snapshot is optional work: a fifth of its rate while short of CPU.
+            if self
                 .children
                 .supervision()
                 .load
                 .keep(ShedWork::Snapshots, self.ticks / publish_every)
-        {
-            self.shared
-                .publish(Some(frame), slot, self.children.supervision());
+            {
+                self.shared
+                    .publish(Some(frame), slot, self.children.supervision());
+            }
         }
     }
 }

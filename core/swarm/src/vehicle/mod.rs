@@ -13,6 +13,7 @@
 //! - [`commands`]: operator commands and link events into the FSM;
 //! - [`procedures`]: multi-step operations (arm, enter OFFBOARD, land) as tasks;
 //! - [`control`]: the control loop feeding the setpoint stream;
+//! - [`fence`]: the geofence the setpoints are clamped into, skein's breach check;
 //! - [`slot_correction`]: the outer loop that cancels PX4's lag behind a formation slot;
 //! - [`fleet`]: the coordinator's registry of this process's vehicles, and its readers;
 //! - [`payload_host`]: what a payload driver reaches of its vehicle and the swarm;
@@ -23,6 +24,7 @@
 mod children;
 pub mod commands;
 pub mod control;
+pub mod fence;
 pub mod fleet;
 pub mod messages;
 pub mod payload_host;
@@ -46,7 +48,7 @@ use crate::ticker::TickGate;
 use fleet::Fleet;
 use ractor::{Actor, ActorProcessingErr, ActorRef, SupervisionEvent};
 use skein_link::Px4LinkMsg;
-use skein_model::supervision::ChildStatus;
+use skein_model::supervision::{ChildStatus, FaultKind};
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -287,6 +289,17 @@ impl Actor for Vehicle {
                 if state.children.get(&child).is_none() && !gone {
                     state.restart_child(&myself, child, noticed, reason).await?;
                 }
+            }
+            VehicleMsg::InjectFault(sub, FaultKind::BypassGeofence, reply) => {
+                let r = if sub.is_empty() {
+                    state.bypass_geofence();
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "bypass_geofence is the vehicle's fault, not {sub}'s"
+                    ))
+                };
+                let _ = reply.send(r);
             }
             VehicleMsg::InjectFault(sub, kind, reply) => {
                 if sub.is_empty() {

@@ -12,6 +12,7 @@ use crate::supervision::{self, ChildKey, Supervision};
 use skein_link::VehicleLink;
 use skein_model::fsm::{self, VehicleState};
 use skein_model::geo::{FrameTransform, Ned, NedFrame, wrap_deg_360};
+use skein_model::geofence::FenceStatus;
 use skein_model::safety::{FenceViolation, SetpointShaper};
 use skein_model::vehicle::{
     Battery, FormationSlot, LinkStatus, Position, VehicleSnapshot, Velocity,
@@ -40,6 +41,8 @@ pub(super) struct Memory {
     /// What the control loop learnt of the vehicle's tracking lag (kept across actor
     /// restarts, like the rest of the memory).
     pub(super) slot_correction: SlotCorrection,
+    /// The geofence as this vehicle flies by it (see `vehicle::fence`).
+    pub(super) fence: super::fence::FenceMemory,
 }
 
 /// The part of a vehicle that outlives its actor: identity, link, FSM memory and the
@@ -116,6 +119,7 @@ impl VehicleShared {
             },
             formation: None,
             payloads: vec![],
+            fence: None,
         };
         Arc::new(VehicleShared {
             id,
@@ -135,6 +139,7 @@ impl VehicleShared {
                 goto_target: None,
                 last_fence: None,
                 slot_correction: SlotCorrection::default(),
+                fence: Default::default(),
             }),
             snapshot: watch::channel(snapshot).0,
             report: watch::channel(VehicleReport::disconnected()).0,
@@ -292,6 +297,7 @@ impl VehicleShared {
         supervision: &Supervision,
     ) {
         let state = self.state();
+        let fence = self.fence_status();
         let current = frame.and_then(|f| self.position(&f));
         let link = &self.link;
         let silence = link.silence();
@@ -355,9 +361,18 @@ impl VehicleShared {
                 },
                 formation: slot,
                 payloads,
+                fence: Some(fence),
             }
         });
         self.snapshot.send_replace(snap);
+    }
+
+    /// The geofence on this vehicle: its autopilot's copy (from the link) and skein's own
+    /// breach check.
+    pub fn fence_status(&self) -> FenceStatus {
+        let mut status = self.link.fence().status();
+        status.breached = self.memory().fence.breached;
+        status
     }
 
     /// True when the vehicle has at least one payload slot.

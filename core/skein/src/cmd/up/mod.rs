@@ -82,6 +82,10 @@ pub struct UpArgs {
     /// setpoints from it are dropped.
     #[arg(long, value_name = "CONNECTION")]
     gcs_forward: Option<skein_link::ConnectionAddress>,
+    /// Raster map tiles under the plan view: an MBTiles file or a `z/x/y` folder
+    /// (overrides `[map] tiles`; served at `/api/v1/map/tiles/{z}/{x}/{y}`).
+    #[arg(long, value_name = "PATH")]
+    map_tiles: Option<PathBuf>,
     /// With --sim: MAVLink 2 signing key file (`skein key create`): the simulated vehicles
     /// require signed frames and skein's links sign.
     #[arg(long, value_name = "FILE")]
@@ -143,6 +147,13 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
         (None, None) => None,
         _ => return Err("[http]: tls_cert and tls_key go together".into()),
     };
+    // The map first: a tile set that cannot be read stops skein before anything flies.
+    let mut map_config = file.map.clone();
+    if let Some(p) = &args.map_tiles {
+        map_config.tiles = Some(p.clone());
+    }
+    let map = skein_api::map::MapTiles::from_config(&map_config)
+        .map_err(|e| format!("--map-tiles / [map]: {e}"))?;
     if args.insecure_no_auth && !auth.enabled() && !http.ip().is_loopback() {
         eprintln!("skein: WARNING: --insecure-no-auth: the API on {http} has no authentication");
     }
@@ -180,7 +191,6 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
     };
     let mut config = file.swarm_config()?;
     config.fault_injection = args.enable_fault_injection;
-    let geofence = config.geofence.clone();
     let swarm_setpoint_separation = config.setpoint_separation_m();
     if let Some(m) = &args.sim_model
         && !config.models.contains_key(m)
@@ -382,7 +392,7 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
     };
     let state = skein_api::ApiState::new(swarm.coordinator.clone(), swarm.events.clone())
         .with_plugins(plugins, refused)
-        .with_geofence(geofence)
+        .with_map(map)
         .with_auth(auth)
         .with_recorder(recorder.clone());
     let state = match dds.as_ref().and_then(|(d, _)| d.election()) {

@@ -1,33 +1,42 @@
 //! The `Px4Link` actor: the adapter between one PX4 autopilot and skein.
 //!
-//! It receives the vehicle's frames from its [`Endpoint`] route, folds them into
-//! [`Telemetry`], reports what the state machine needs as [`LinkEvent`]s, sends a 1 Hz
+//! It receives the vehicle's frames from its [`Endpoint`](crate::endpoint::Endpoint)
+//! route, folds them into [`Telemetry`](crate::telemetry::Telemetry), reports what the state machine needs as [`LinkEvent`]s, sends a 1 Hz
 //! heartbeat, watches liveness (lost after [`LINK_TIMEOUT`] of silence), and runs the
 //! command protocol: one command per id in flight, ACK matched by command id, resent with
 //! `confirmation + 1` every [`ACK_TIMEOUT`] up to [`MAX_ATTEMPTS`] transmissions,
 //! `IN_PROGRESS` waited out, mode changes confirmed from `HEARTBEAT.custom_mode`.
 //!
+//! It also runs the mission protocol ([`crate::mission`]) and keeps the autopilot on
+//! skein's geofence (`missions`, [`crate::fence_sync`]).
+//!
 //! Everything that must survive a restart of this actor (the route's socket, telemetry,
-//! the setpoint stream) lives in the shared [`VehicleLink`]; a restarted actor picks it up
-//! and re-registers its route.
+//! the setpoint stream, the fence status) lives in the shared [`VehicleLink`]; a
+//! restarted actor picks it up and re-registers its route.
+
+mod missions;
+mod vehicle_link;
+
+pub use vehicle_link::VehicleLink;
 
 use crate::command::{LinkCommand, LinkError, result_name};
-use crate::endpoint::Endpoint;
+use crate::fence::FencePlan;
+use crate::mission::{DownloadReply, MissionClient, MissionItem, UploadReply};
 use crate::param_client::{ParamClient, ParamOp, ParamReply, Transmit};
-use crate::setpoint::SetpointStream;
-use crate::setup::{LinkSetup, interval_us};
-use crate::telemetry::{Change, Telemetry};
+use crate::setup::interval_us;
+use crate::telemetry::Change;
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use skein_mavlink::dialect::{
-    HEARTBEAT_DATA, MavAutopilot, MavCmd, MavModeFlag, MavResult, MavState,
+    HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMissionType, MavModeFlag, MavResult, MavState,
 };
 use skein_mavlink::param::{ParamValue, param_name};
 use skein_mavlink::{Frame, MavMessage, MessageData};
 use skein_model::fsm::Observed;
+use skein_model::geofence::FenceStatus;
 use skein_model::px4::Px4Mode;
 use std::collections::{HashMap, VecDeque};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, RwLock};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 /// Silence after which a vehicle is Lost.
@@ -71,78 +80,6 @@ pub type EventSink = Arc<dyn Fn(LinkEvent) + Send + Sync>;
 /// cheap and filter for itself.
 pub type FrameSink = Arc<dyn Fn(&Frame) + Send + Sync>;
 
-/// The per-vehicle state that outlives the link actor: the endpoint route, the latest
-/// telemetry and the setpoint stream. Identity of a vehicle is (endpoint, sysid).
-pub struct VehicleLink {
-    /// The endpoint the vehicle is reached through.
-    pub endpoint: Arc<Endpoint>,
-    /// The vehicle's system id.
-    pub sysid: u8,
-    /// The autopilot's component id (1 for PX4).
-    pub compid: u8,
-    telemetry: RwLock<Telemetry>,
-    stream: SetpointStream,
-    lost: AtomicBool,
-    setup: LinkSetup,
-}
-
-impl std::fmt::Debug for VehicleLink {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("VehicleLink")
-            .field("endpoint", &self.endpoint.address())
-            .field("sysid", &self.sysid)
-            .finish_non_exhaustive()
-    }
-}
-
-impl VehicleLink {
-    /// Creates the shared state and starts the (idle) setpoint stream at `stream_rate_hz`;
-    /// `setup` is applied at every (re)connection.
-    pub fn new(
-        endpoint: Arc<Endpoint>,
-        sysid: u8,
-        compid: u8,
-        stream_rate_hz: f64,
-        setup: LinkSetup,
-    ) -> Arc<Self> {
-        let stream = SetpointStream::start(endpoint.clone(), sysid, compid, stream_rate_hz);
-        Arc::new(VehicleLink {
-            endpoint,
-            sysid,
-            compid,
-            telemetry: RwLock::new(Telemetry::default()),
-            stream,
-            lost: AtomicBool::new(false),
-            setup,
-        })
-    }
-
-    /// A copy of the latest telemetry.
-    pub fn telemetry(&self) -> Telemetry {
-        self.telemetry.read().expect("telemetry lock").clone()
-    }
-
-    /// Reads the telemetry in place (no clone) under the lock.
-    pub fn with_telemetry<R>(&self, f: impl FnOnce(&Telemetry) -> R) -> R {
-        f(&self.telemetry.read().expect("telemetry lock"))
-    }
-
-    /// The offboard setpoint stream.
-    pub fn stream(&self) -> &SetpointStream {
-        &self.stream
-    }
-
-    /// True while the link is lost.
-    pub fn is_lost(&self) -> bool {
-        self.lost.load(Ordering::Relaxed)
-    }
-
-    /// Time since the last valid message from the vehicle.
-    pub fn silence(&self) -> Option<Duration> {
-        self.endpoint.last_seen(self.sysid).map(|t| t.elapsed())
-    }
-}
-
 /// Arguments of [`Px4Link`].
 pub struct Px4LinkArgs {
     /// The shared per-vehicle state.
@@ -182,6 +119,21 @@ pub enum Px4LinkMsg {
     Ping(RpcReplyPort<()>),
     /// Fault injection (see [`crate::fault::inject`]).
     Fault(skein_model::supervision::FaultKind),
+    /// Replace the vehicle's plan of this mission type (mission protocol upload).
+    MissionUpload(MavMissionType, Vec<MissionItem>, UploadReply),
+    /// Read the vehicle's plan of this mission type (mission protocol download).
+    MissionDownload(MavMissionType, DownloadReply),
+    /// A mission transfer's deadline (mission type, generation).
+    MissionDeadline(MavMissionType, u64),
+    /// Bring the autopilot to the plan followed (see [`VehicleLink::follow_fence`]);
+    /// with `only_if_changed`, not if it holds that version already.
+    SyncFence {
+        /// Skip a vehicle already synced to the current version.
+        only_if_changed: bool,
+    },
+    /// Bring the autopilot to this candidate plan and answer with the outcome (a fence
+    /// not yet committed: `PUT /api/v1/geofence` tries it on every vehicle first).
+    TryFence(Arc<FencePlan>, RpcReplyPort<FenceStatus>),
 }
 
 /// The `Px4Link` actor (see module docs).
@@ -210,6 +162,7 @@ pub struct Px4LinkState {
     generation: u64,
     greeted: bool,
     params: ParamClient,
+    missions: MissionClient,
 }
 
 impl Px4LinkState {
@@ -373,7 +326,7 @@ impl Px4LinkState {
     }
 
     /// First contact (and after a reboot or a restored link): ask for what we need now
-    /// rather than waiting for PX4's slow streams, and apply the [`LinkSetup`].
+    /// rather than waiting for PX4's slow streams, and apply the [`LinkSetup`](crate::setup::LinkSetup).
     fn greet(&mut self, myself: &ActorRef<Px4LinkMsg>) {
         self.greeted = true;
         self.send_heartbeat();
@@ -398,6 +351,11 @@ impl Px4LinkState {
         for (name, value) in setup.params {
             self.param(myself, &name, ParamOp::Set(value), None);
         }
+        // The autopilot may have rebooted without its fence, or been given another one
+        // while we did not hear it: upload it again.
+        let _ = myself.cast(Px4LinkMsg::SyncFence {
+            only_if_changed: false,
+        });
     }
 
     fn param(
@@ -440,6 +398,7 @@ impl Px4LinkState {
         if frame.compid != self.link.compid {
             return; // other components (camera, gimbal) are the payloads' business
         }
+        self.on_mission_message(myself, &frame.msg);
         if let MavMessage::PARAM_VALUE(pv) = &frame.msg
             && let Some(value) = ParamValue::from_wire(pv.param_value, pv.param_type)
         {
@@ -485,8 +444,13 @@ impl Px4LinkState {
         }
     }
 
-    fn on_tick(&mut self) {
+    fn on_tick(&mut self, myself: &ActorRef<Px4LinkMsg>) {
         self.send_heartbeat();
+        if self.greeted && self.link.fence().retry_due() {
+            let _ = myself.cast(Px4LinkMsg::SyncFence {
+                only_if_changed: true,
+            });
+        }
         let silent = self.link.silence().is_none_or(|s| s > LINK_TIMEOUT);
         let heard_before = self.link.with_telemetry(|t| t.heartbeat.is_some());
         if silent && heard_before && !self.link.lost.swap(true, Ordering::Relaxed) {
@@ -513,6 +477,7 @@ impl Actor for Px4Link {
             }),
         );
         myself.send_interval(HEARTBEAT_PERIOD, || Px4LinkMsg::Tick);
+        missions::watch_plans(&args.link, &myself);
         let greeted = false;
         Ok(Px4LinkState {
             link: args.link,
@@ -523,6 +488,7 @@ impl Actor for Px4Link {
             generation: 0,
             greeted,
             params: ParamClient::default(),
+            missions: MissionClient::default(),
         })
     }
 
@@ -554,7 +520,7 @@ impl Actor for Px4Link {
                 }
             }
             Px4LinkMsg::CommandNoReply(cmd) => state.start(&myself, cmd, None),
-            Px4LinkMsg::Tick => state.on_tick(),
+            Px4LinkMsg::Tick => state.on_tick(&myself),
             Px4LinkMsg::AckDeadline(id, generation) => {
                 state.on_ack_deadline(&myself, id, generation)
             }
@@ -613,6 +579,11 @@ impl Actor for Px4Link {
                 let who = format!("px4link of sysid {}", state.link.sysid);
                 crate::fault::inject(kind, &myself, &who).await?;
             }
+            msg @ (Px4LinkMsg::MissionUpload(..)
+            | Px4LinkMsg::MissionDownload(..)
+            | Px4LinkMsg::MissionDeadline(..)
+            | Px4LinkMsg::SyncFence { .. }
+            | Px4LinkMsg::TryFence(..)) => state.on_mission_msg(&myself, msg),
         }
         Ok(())
     }

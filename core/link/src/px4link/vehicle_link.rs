@@ -1,0 +1,98 @@
+//! [`VehicleLink`]: the part of a vehicle's link that outlives its `Px4Link` actor: the
+//! endpoint route, the latest telemetry, the setpoint stream, liveness, the connect-time
+//! setup and the vehicle's side of the fence.
+
+use crate::endpoint::Endpoint;
+use crate::fence_sync::{FenceLink, FencePlans};
+use crate::setpoint::SetpointStream;
+use crate::setup::LinkSetup;
+use crate::telemetry::Telemetry;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, RwLock};
+use std::time::Duration;
+
+/// The per-vehicle state that outlives the link actor: the endpoint route, the latest
+/// telemetry and the setpoint stream. Identity of a vehicle is (endpoint, sysid).
+pub struct VehicleLink {
+    /// The endpoint the vehicle is reached through.
+    pub endpoint: Arc<Endpoint>,
+    /// The vehicle's system id.
+    pub sysid: u8,
+    /// The autopilot's component id (1 for PX4).
+    pub compid: u8,
+    pub(super) telemetry: RwLock<Telemetry>,
+    stream: SetpointStream,
+    pub(super) lost: AtomicBool,
+    pub(super) setup: LinkSetup,
+    fence: FenceLink,
+}
+
+impl std::fmt::Debug for VehicleLink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("VehicleLink")
+            .field("endpoint", &self.endpoint.address())
+            .field("sysid", &self.sysid)
+            .finish_non_exhaustive()
+    }
+}
+
+impl VehicleLink {
+    /// Creates the shared state and starts the (idle) setpoint stream at `stream_rate_hz`;
+    /// `setup` is applied at every (re)connection.
+    pub fn new(
+        endpoint: Arc<Endpoint>,
+        sysid: u8,
+        compid: u8,
+        stream_rate_hz: f64,
+        setup: LinkSetup,
+    ) -> Arc<Self> {
+        let stream = SetpointStream::start(endpoint.clone(), sysid, compid, stream_rate_hz);
+        Arc::new(VehicleLink {
+            endpoint,
+            sysid,
+            compid,
+            telemetry: RwLock::new(Telemetry::default()),
+            stream,
+            lost: AtomicBool::new(false),
+            setup,
+            fence: FenceLink::default(),
+        })
+    }
+
+    /// Keeps the autopilot on the latest plan of `plans` (skein's geofence as mission
+    /// items): uploaded on connect, after a reboot and on every change. Once per link,
+    /// before its actor starts.
+    pub fn follow_fence(&self, plans: FencePlans) {
+        self.fence.follow(plans);
+    }
+
+    /// The vehicle's side of the fence (its status: [`FenceLink::status`]).
+    pub fn fence(&self) -> &FenceLink {
+        &self.fence
+    }
+
+    /// A copy of the latest telemetry.
+    pub fn telemetry(&self) -> Telemetry {
+        self.telemetry.read().expect("telemetry lock").clone()
+    }
+
+    /// Reads the telemetry in place (no clone) under the lock.
+    pub fn with_telemetry<R>(&self, f: impl FnOnce(&Telemetry) -> R) -> R {
+        f(&self.telemetry.read().expect("telemetry lock"))
+    }
+
+    /// The offboard setpoint stream.
+    pub fn stream(&self) -> &SetpointStream {
+        &self.stream
+    }
+
+    /// True while the link is lost.
+    pub fn is_lost(&self) -> bool {
+        self.lost.load(Ordering::Relaxed)
+    }
+
+    /// Time since the last valid message from the vehicle.
+    pub fn silence(&self) -> Option<Duration> {
+        self.endpoint.last_seen(self.sysid).map(|t| t.elapsed())
+    }
+}
