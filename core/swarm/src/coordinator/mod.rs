@@ -36,6 +36,7 @@ pub mod messages;
 pub mod observe;
 pub mod proxy;
 pub mod remote;
+pub mod stations;
 pub mod swarm;
 pub mod track_leader;
 pub mod validation;
@@ -44,8 +45,8 @@ pub use children::Node;
 pub use commands::{CommandOutcome, Refused};
 pub use discovery::{EndpointSpec, VehicleSpec};
 pub use messages::{
-    CoordinatorMsg, EndpointStats, FaultError, FieldError, Health, ServiceMsg, ServiceSpawner,
-    ServiceSpec,
+    AirPictureAnswer, CoordinatorMsg, EndpointStats, FaultError, FieldError, Health, ServiceMsg,
+    ServiceSpawner, ServiceSpec,
 };
 pub use proxy::VehicleProxy;
 pub use remote::{DistributedMsg, RemoteVehicle};
@@ -107,8 +108,10 @@ pub struct CoordinatorState {
     last_formation_tick: Instant,
     /// The counter-UAS tracker (its task stops with the coordinator).
     tracking: crate::tracking::TrackingService,
-    /// Observing vehicle → (track id, gimbal slot), see [`observe`].
+    /// Observing vehicle → (track or swarm id, gimbal slot), see [`observe`].
     observing: BTreeMap<String, (String, String)>,
+    /// Target id → its observers' stations, see [`stations`].
+    stations: BTreeMap<String, stations::StationTask>,
     /// An agent's carrier: gets a copy of every local vehicle's message ([`remote`]).
     uplink_tap: Option<tokio::sync::mpsc::UnboundedSender<FromVehicle>>,
     /// When hovering remote vehicles were last joined to the formation ([`remote`]).
@@ -300,6 +303,7 @@ impl Actor for Coordinator {
             neighbours: NeighbourBoard::new(),
             tracking,
             observing: BTreeMap::new(),
+            stations: BTreeMap::new(),
             uplink_tap: None,
             last_rejoin: Instant::now(),
             endpoints: args.endpoints,
@@ -369,10 +373,12 @@ impl Actor for Coordinator {
                     .iter()
                     .map(|(id, v)| (id.as_str(), v.state(), v.failed))
                     .collect();
-                let tracks = state.tracking.shared().tracks();
-                let checked = track_leader::validate_track_leader(&spec, &tracks).and_then(|()| {
-                    validation::validate_formation(&state.context.config, &spec, &vehicles)
-                });
+                let shared = state.tracking.shared();
+                let (tracks, swarms) = (shared.tracks(), shared.swarms());
+                let checked = track_leader::validate_track_leader(&spec, &tracks, &swarms)
+                    .and_then(|()| {
+                        validation::validate_formation(&state.context.config, &spec, &vehicles)
+                    });
                 match checked {
                     Err(e) => {
                         let _ = reply.send(Err(e));
@@ -511,8 +517,17 @@ impl Actor for Coordinator {
             CoordinatorMsg::GetTracks(reply) => {
                 let _ = reply.send((state.tracking.shared().tracks(), state.observations()));
             }
-            CoordinatorMsg::ObserveTrack(track, vehicles, reply) => {
-                let _ = reply.send(state.observe_track(&track, vehicles));
+            CoordinatorMsg::GetAirPicture(reply) => {
+                let shared = state.tracking.shared();
+                let _ = reply.send(AirPictureAnswer {
+                    tracks: shared.tracks(),
+                    swarms: shared.swarms(),
+                    observing: state.observations(),
+                    stations: state.station_views(),
+                });
+            }
+            CoordinatorMsg::Observe(spec, reply) => {
+                let _ = reply.send(state.observe(spec));
             }
             CoordinatorMsg::StopObserving(track, reply) => {
                 let _ = reply.send(state.stop_observing(&track));

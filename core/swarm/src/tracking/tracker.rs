@@ -141,6 +141,9 @@ impl Tracker {
             observers: t.observers.clone(),
             age_s: us_to_s(now_us, t.created_us).max(0.0),
             unseen_s: us_to_s(now_us, t.last_update_us).max(0.0),
+            velocity_sigma_m_s: f.p.fixed_view::<3, 3>(3, 3).trace().max(0.0).sqrt(),
+            forecast: Vec::new(),
+            swarm: None,
         }
     }
 
