@@ -15,7 +15,18 @@
 //!   from home;
 //! - **zigzag**: a straight pass with a ±15 m triangular weave every 40 m along the track;
 //! - **formation**: every intruder flies the straight pass of the first one in a V behind
-//!   it, 6 m apart.
+//!   it, 6 m apart;
+//! - **formation_zigzag**: the same V on a zig-zag pass (the whole V weaves);
+//! - **crossing**: two Vs (the first half of the intruders, and the rest) whose passes
+//!   cross at right angles at the first pass's closest point of approach, the second
+//!   leader 15 m behind the first;
+//! - **split**: a V whose members on its right arm (intruders 2, 4, …) break away
+//!   [`SPLIT_TURN_DEG`] to the right [`SPLIT_BEFORE_CPA_M`] before the closest point of
+//!   approach, and fly on straight.
+//!
+//! Intruders flying together carry a `group` in their truth (`group-1`, `group-2`: the
+//! second V of a crossing, a split's breakaway once it turned), for scoring swarm
+//! recognition; lone intruders have none.
 //!
 //! `mixed` (the default) gives intruder i the pattern straight, loiter, zigzag by turns.
 
@@ -37,7 +48,18 @@ pub enum IntruderPattern {
     Zigzag,
     /// A V of intruders on one straight pass.
     Formation,
+    /// A V of intruders on one zig-zag pass.
+    FormationZigzag,
+    /// Two Vs whose passes cross.
+    Crossing,
+    /// A V that splits in two.
+    Split,
 }
+
+/// A split's breakaway turns this far to the right, degrees.
+pub const SPLIT_TURN_DEG: f64 = 40.0;
+/// … this far along the pass before its closest point of approach, metres.
+pub const SPLIT_BEFORE_CPA_M: f64 = 30.0;
 
 impl IntruderPattern {
     /// The pattern named `s` (`straight`, `loiter`, `zigzag`, `formation`); `mixed` is
@@ -51,9 +73,13 @@ impl IntruderPattern {
             "loiter" => Ok(Some(IntruderPattern::Loiter)),
             "zigzag" | "zig-zag" => Ok(Some(IntruderPattern::Zigzag)),
             "formation" => Ok(Some(IntruderPattern::Formation)),
+            "formation_zigzag" | "formation-zigzag" => Ok(Some(IntruderPattern::FormationZigzag)),
+            "crossing" => Ok(Some(IntruderPattern::Crossing)),
+            "split" => Ok(Some(IntruderPattern::Split)),
             "mixed" => Ok(None),
             other => Err(format!(
-                "unknown intruder pattern {other:?} (straight, loiter, zigzag, formation, mixed)"
+                "unknown intruder pattern {other:?} (straight, loiter, zigzag, formation, \
+                 formation_zigzag, crossing, split, mixed)"
             )),
         }
     }
@@ -114,6 +140,8 @@ pub struct IntruderTruth {
     pub velocity_ned_m_s: Ned,
     /// Span, m.
     pub span_m: f64,
+    /// The group it flies with (`group-1`, …), for scoring; `None` alone.
+    pub group: Option<String>,
 }
 
 /// One intruder's path, in the home frame.
@@ -136,6 +164,13 @@ enum Path {
         radius_m: f64,
         phase_rad: f64,
         clockwise: bool,
+    },
+    /// `base` until `at_s`, then straight on along its direction then turned `turn_rad`
+    /// (clockwise seen from above).
+    Breakaway {
+        base: Box<Path>,
+        at_s: f64,
+        turn_rad: f64,
     },
 }
 
@@ -200,6 +235,19 @@ impl Path {
                 let a = phase_rad + w * t_s;
                 centre + Ned::new(radius_m * a.cos(), radius_m * a.sin(), 0.0)
             }
+            Path::Breakaway {
+                ref base,
+                at_s,
+                turn_rad,
+            } => {
+                if t_s <= at_s {
+                    return base.position(t_s, speed_m_s);
+                }
+                let p0 = base.position(at_s, speed_m_s);
+                let d = base.position(at_s, speed_m_s) - base.position(at_s - 0.01, speed_m_s);
+                let h = d.east_m.atan2(d.north_m) + turn_rad;
+                p0 + heading(h.to_degrees()) * (speed_m_s * (t_s - at_s))
+            }
         }
     }
 }
@@ -210,7 +258,38 @@ pub struct Intruders {
     frame: NedFrame,
     start: Instant,
     config: IntruderConfig,
-    paths: Vec<(IntruderPattern, Path)>,
+    paths: Vec<(IntruderPattern, Path, Group)>,
+}
+
+/// The group of an intruder: `group-<n>` from `from_s` on, `before` until then.
+#[derive(Debug, Clone, PartialEq)]
+struct Group {
+    before: Option<u32>,
+    from_s: f64,
+    after: Option<u32>,
+}
+
+impl Group {
+    fn alone() -> Self {
+        Self::always(None)
+    }
+
+    fn always(g: Option<u32>) -> Self {
+        Group {
+            before: g,
+            from_s: 0.0,
+            after: g,
+        }
+    }
+
+    fn at(&self, t_s: f64) -> Option<String> {
+        let g = if t_s < self.from_s {
+            self.before
+        } else {
+            self.after
+        };
+        g.map(|n| format!("group-{n}"))
+    }
 }
 
 fn pass(rng: &mut SmallRng, cfg: &IntruderConfig, down_m: f64, first: bool) -> Path {
@@ -267,60 +346,70 @@ impl Intruders {
                 1 => IntruderPattern::Loiter,
                 _ => IntruderPattern::Zigzag,
             });
-            let path = match pattern {
-                IntruderPattern::Straight if i == 0 => leader.clone(),
-                IntruderPattern::Straight => pass(&mut rng, &config, down_m, false),
-                IntruderPattern::Zigzag => match pass(&mut rng, &config, down_m, i == 0) {
+            let v_slot = |lead: &Path, slot: usize| match lead {
+                Path::Pass {
+                    start,
+                    dir,
+                    length_m,
+                    weave_m,
+                    wavelength_m,
+                    ..
+                } => {
+                    // Slots of a V: 0 leads, then pairs behind on either side.
+                    let rank = slot.div_ceil(2) as f64;
+                    let side = if slot % 2 == 1 { 1.0 } else { -1.0 };
                     Path::Pass {
-                        start,
-                        dir,
-                        length_m,
-                        ..
-                    } => Path::Pass {
-                        start,
-                        dir,
-                        length_m,
-                        weave_m: 15.0,
-                        wavelength_m: 40.0,
-                        offset_back_m: 0.0,
-                        offset_left_m: 0.0,
-                    },
-                    circle => circle,
-                },
-                IntruderPattern::Loiter => {
-                    let bearing: f64 = rng.random_range(0.0..360.0);
-                    let distance = config.range_m * rng.random_range(0.3..0.8);
-                    Path::Circle {
-                        centre: heading(bearing) * distance + Ned::new(0.0, 0.0, down_m),
-                        radius_m: rng.random_range(15.0..40.0),
-                        phase_rad: rng.random_range(0.0..std::f64::consts::TAU),
-                        clockwise: rng.random_bool(0.5),
+                        start: *start,
+                        dir: *dir,
+                        length_m: *length_m,
+                        weave_m: *weave_m,
+                        wavelength_m: *wavelength_m,
+                        offset_back_m: 6.0 * rank,
+                        offset_left_m: side * 6.0 * rank,
                     }
                 }
-                IntruderPattern::Formation => match &leader {
-                    Path::Pass {
-                        start,
-                        dir,
-                        length_m,
-                        ..
-                    } => {
-                        // Slots of a V: 0 leads, then pairs behind on either side.
-                        let rank = i.div_ceil(2) as f64;
-                        let side = if i % 2 == 1 { 1.0 } else { -1.0 };
-                        Path::Pass {
-                            start: *start,
-                            dir: *dir,
-                            length_m: *length_m,
-                            weave_m: 0.0,
-                            wavelength_m: 0.0,
-                            offset_back_m: 6.0 * rank,
-                            offset_left_m: side * 6.0 * rank,
-                        }
-                    }
-                    circle => circle.clone(),
-                },
+                other => other.clone(),
             };
-            paths.push((pattern, path));
+            let (path, group) = match pattern {
+                IntruderPattern::Formation => (v_slot(&leader, i), Group::always(Some(1))),
+                IntruderPattern::FormationZigzag => {
+                    (v_slot(&weaving(&leader), i), Group::always(Some(1)))
+                }
+                IntruderPattern::Crossing => {
+                    let first = config.count.div_ceil(2);
+                    if i < first {
+                        (v_slot(&leader, i), Group::always(Some(1)))
+                    } else {
+                        (
+                            v_slot(&crossing(&leader, config.range_m), i - first),
+                            Group::always(Some(2)),
+                        )
+                    }
+                }
+                IntruderPattern::Split => {
+                    let at_s = (config.range_m - SPLIT_BEFORE_CPA_M).max(0.0) / config.speed_m_s;
+                    if i % 2 == 1 {
+                        let path = Path::Breakaway {
+                            base: Box::new(v_slot(&leader, i)),
+                            at_s,
+                            turn_rad: SPLIT_TURN_DEG.to_radians(),
+                        };
+                        let g = Group {
+                            before: Some(1),
+                            from_s: at_s,
+                            after: Some(2),
+                        };
+                        (path, g)
+                    } else {
+                        (v_slot(&leader, i), Group::always(Some(1)))
+                    }
+                }
+                single => (
+                    single_path(single, i, &leader, &mut rng, &config, down_m),
+                    Group::alone(),
+                ),
+            };
+            paths.push((pattern, path, group));
         }
         Ok(Intruders {
             frame: NedFrame::new(home),
@@ -329,7 +418,99 @@ impl Intruders {
             paths,
         })
     }
+}
 
+/// `pass` weaving ±15 m every 40 m (the zig-zag).
+fn weaving(pass: &Path) -> Path {
+    match pass {
+        Path::Pass {
+            start,
+            dir,
+            length_m,
+            ..
+        } => Path::Pass {
+            start: *start,
+            dir: *dir,
+            length_m: *length_m,
+            weave_m: 15.0,
+            wavelength_m: 40.0,
+            offset_back_m: 0.0,
+            offset_left_m: 0.0,
+        },
+        other => other.clone(),
+    }
+}
+
+/// The pass crossing `pass` at right angles (turned to its right) at its closest point of
+/// approach, its leader 15 m behind `pass`'s there.
+fn crossing(pass: &Path, range_m: f64) -> Path {
+    match pass {
+        Path::Pass {
+            start,
+            dir,
+            length_m,
+            ..
+        } => {
+            let cpa = *start + *dir * range_m;
+            let d = Ned::new(-dir.east_m, dir.north_m, 0.0);
+            Path::Pass {
+                start: cpa - d * (range_m + 15.0),
+                dir: d,
+                length_m: *length_m,
+                weave_m: 0.0,
+                wavelength_m: 0.0,
+                offset_back_m: 0.0,
+                offset_left_m: 0.0,
+            }
+        }
+        other => other.clone(),
+    }
+}
+
+/// The path of a lone intruder `i` of pattern `pattern` (straight, loiter, zigzag).
+fn single_path(
+    pattern: IntruderPattern,
+    i: usize,
+    leader: &Path,
+    rng: &mut SmallRng,
+    config: &IntruderConfig,
+    down_m: f64,
+) -> Path {
+    match pattern {
+        IntruderPattern::Straight if i == 0 => leader.clone(),
+        IntruderPattern::Straight => pass(rng, config, down_m, false),
+        IntruderPattern::Zigzag => match pass(rng, config, down_m, i == 0) {
+            Path::Pass {
+                start,
+                dir,
+                length_m,
+                ..
+            } => Path::Pass {
+                start,
+                dir,
+                length_m,
+                weave_m: 15.0,
+                wavelength_m: 40.0,
+                offset_back_m: 0.0,
+                offset_left_m: 0.0,
+            },
+            circle => circle,
+        },
+        IntruderPattern::Loiter => {
+            let bearing: f64 = rng.random_range(0.0..360.0);
+            let distance = config.range_m * rng.random_range(0.3..0.8);
+            Path::Circle {
+                centre: heading(bearing) * distance + Ned::new(0.0, 0.0, down_m),
+                radius_m: rng.random_range(15.0..40.0),
+                phase_rad: rng.random_range(0.0..std::f64::consts::TAU),
+                clockwise: rng.random_bool(0.5),
+            }
+        }
+        _ => leader.clone(),
+    }
+}
+
+impl Intruders {
     /// Number of intruders.
     pub fn len(&self) -> usize {
         self.paths.len()
@@ -353,7 +534,7 @@ impl Intruders {
         self.paths
             .iter()
             .enumerate()
-            .map(|(i, (pattern, path))| {
+            .map(|(i, (pattern, path, group))| {
                 let p = path.position(t_s, v);
                 let vel = (path.position(t_s + DT, v) - p) * (1.0 / DT);
                 IntruderTruth {
@@ -363,6 +544,7 @@ impl Intruders {
                     home_ned_m: p,
                     velocity_ned_m_s: vel,
                     span_m: self.config.span_m,
+                    group: group.at(t_s),
                 }
             })
             .collect()
@@ -399,8 +581,9 @@ pub struct IntruderArgs {
     /// simulated cameras.
     #[arg(long, value_name = "M", default_value_t = 0)]
     pub intruders: usize,
-    /// Their pattern: straight, loiter, zigzag, formation, or mixed (straight, loiter and
-    /// zigzag by turns).
+    /// Their pattern: straight, loiter, zigzag, formation (a V), formation_zigzag (a
+    /// weaving V), crossing (two Vs crossing), split (a V splitting in two), or mixed
+    /// (straight, loiter and zigzag by turns).
     #[arg(long, value_name = "PATTERN", default_value = "mixed", value_parser = PatternChoice::parse)]
     pub intruder_pattern: PatternChoice,
     /// Their speed, m/s.
@@ -523,6 +706,71 @@ mod tests {
         let d2 = t[2].home_ned_m - t[0].home_ned_m;
         assert!((d1.north_m + 6.0).abs() < 1e-9 && (d1.east_m.abs() - 6.0).abs() < 1e-9);
         assert!((d2.north_m + 6.0).abs() < 1e-9 && (d2.east_m + d1.east_m).abs() < 1e-9);
+    }
+
+    #[test]
+    fn crossing_swarms_and_a_split_fly_in_their_groups() {
+        let cfg = |pattern| IntruderConfig {
+            count: 5,
+            pattern: Some(pattern),
+            heading_deg: Some(0.0),
+            cpa_m: Some(40.0),
+            range_m: 100.0,
+            ..IntruderConfig::default()
+        };
+        // Crossing: three fly north, two east, their leaders over the same point 3 s apart.
+        let x = intruders(cfg(IntruderPattern::Crossing));
+        let t = x.truth_at(20.0);
+        let groups: Vec<_> = t.iter().map(|i| i.group.clone().unwrap()).collect();
+        assert_eq!(
+            groups,
+            ["group-1", "group-1", "group-1", "group-2", "group-2"]
+        );
+        assert!((t[0].velocity_ned_m_s.north_m - 5.0).abs() < 1e-6);
+        assert!(
+            (t[3].velocity_ned_m_s.east_m - 5.0).abs() < 1e-6,
+            "{:?}",
+            t[3]
+        );
+        let later = x.truth_at(23.0);
+        assert!((later[3].home_ned_m - t[0].home_ned_m).horizontal_norm() < 1e-6);
+        // Split: 30 m before the closest point the right arm turns 40° right and is group 2.
+        let s = intruders(cfg(IntruderPattern::Split));
+        let at = (100.0 - SPLIT_BEFORE_CPA_M) / 5.0;
+        let before = s.truth_at(at - 1.0);
+        assert!(before.iter().all(|i| i.group.as_deref() == Some("group-1")));
+        let after = s.truth_at(at + 5.0);
+        for (i, tr) in after.iter().enumerate() {
+            let v = tr.velocity_ned_m_s;
+            let course = v.east_m.atan2(v.north_m).to_degrees();
+            if i % 2 == 1 {
+                assert_eq!(tr.group.as_deref(), Some("group-2"));
+                assert!((course - SPLIT_TURN_DEG).abs() < 0.5, "{course}");
+            } else {
+                assert_eq!(tr.group.as_deref(), Some("group-1"));
+                assert!(course.abs() < 0.5, "{course}");
+            }
+            assert!((v.norm() - 5.0).abs() < 0.05);
+        }
+        // The zig-zag V weaves together: its slots keep their offsets.
+        let z = intruders(cfg(IntruderPattern::FormationZigzag));
+        let (a, b) = (z.truth_at(7.0), z.truth_at(13.0));
+        let d = |t: &[IntruderTruth]| t[1].home_ned_m - t[0].home_ned_m;
+        assert!((d(&a) - d(&b)).norm() < 1e-9);
+        assert!(
+            (a[0].velocity_ned_m_s.east_m - b[0].velocity_ned_m_s.east_m).abs() > 1.0,
+            "it weaves"
+        );
+        assert_eq!(
+            IntruderPattern::parse("formation-zigzag"),
+            Ok(Some(IntruderPattern::FormationZigzag))
+        );
+        // Lone intruders belong to no group.
+        let lone = intruders(IntruderConfig {
+            count: 3,
+            ..IntruderConfig::default()
+        });
+        assert!(lone.truth_at(1.0).iter().all(|i| i.group.is_none()));
     }
 
     #[test]
