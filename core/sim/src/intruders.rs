@@ -18,8 +18,8 @@
 //!   it, 6 m apart;
 //! - **formation_zigzag**: the same V on a zig-zag pass (the whole V weaves);
 //! - **crossing**: two Vs (the first half of the intruders, and the rest) whose passes
-//!   cross at right angles at the first pass's closest point of approach, the second
-//!   leader 15 m behind the first;
+//!   cross at right angles [`CROSSING_BEFORE_CPA_M`] before the first pass's closest point
+//!   of approach, the second leader 15 m behind the first;
 //! - **split**: a V whose members on its right arm (intruders 2, 4, …) break away
 //!   [`SPLIT_TURN_DEG`] to the right [`SPLIT_BEFORE_CPA_M`] before the closest point of
 //!   approach, and fly on straight.
@@ -56,6 +56,9 @@ pub enum IntruderPattern {
     Split,
 }
 
+/// Two crossing swarms cross this far along the first pass before its closest point of
+/// approach (so that the second does not fly over home), metres.
+pub const CROSSING_BEFORE_CPA_M: f64 = 40.0;
 /// A split's breakaway turns this far to the right, degrees.
 pub const SPLIT_TURN_DEG: f64 = 40.0;
 /// … this far along the pass before its closest point of approach, metres.
@@ -441,8 +444,9 @@ fn weaving(pass: &Path) -> Path {
     }
 }
 
-/// The pass crossing `pass` at right angles (turned to its right) at its closest point of
-/// approach, its leader 15 m behind `pass`'s there.
+/// The pass crossing `pass` at right angles (turned to its right)
+/// [`CROSSING_BEFORE_CPA_M`] before its closest point of approach, its leader 15 m behind
+/// `pass`'s there.
 fn crossing(pass: &Path, range_m: f64) -> Path {
     match pass {
         Path::Pass {
@@ -451,10 +455,11 @@ fn crossing(pass: &Path, range_m: f64) -> Path {
             length_m,
             ..
         } => {
-            let cpa = *start + *dir * range_m;
+            let along = (range_m - CROSSING_BEFORE_CPA_M).max(0.0);
+            let cross = *start + *dir * along;
             let d = Ned::new(-dir.east_m, dir.north_m, 0.0);
             Path::Pass {
-                start: cpa - d * (range_m + 15.0),
+                start: cross - d * (along + 15.0),
                 dir: d,
                 length_m: *length_m,
                 weave_m: 0.0,
@@ -732,8 +737,9 @@ mod tests {
             "{:?}",
             t[3]
         );
-        let later = x.truth_at(23.0);
-        assert!((later[3].home_ned_m - t[0].home_ned_m).horizontal_norm() < 1e-6);
+        let meet = (100.0 - CROSSING_BEFORE_CPA_M) / 5.0;
+        let (a, b) = (x.truth_at(meet), x.truth_at(meet + 3.0));
+        assert!((b[3].home_ned_m - a[0].home_ned_m).horizontal_norm() < 1e-6);
         // Split: 30 m before the closest point the right arm turns 40° right and is group 2.
         let s = intruders(cfg(IntruderPattern::Split));
         let at = (100.0 - SPLIT_BEFORE_CPA_M) / 5.0;

@@ -82,14 +82,15 @@ pub(super) struct Scorer {
 impl Scorer {
     /// One sample at `t_s` seconds into the measurement: `truth` as `GET /api/v1/sim/truth`
     /// answers, `viewers` the number of cameras drawing each intruder (by id), `tracks` as
-    /// `GET /api/v1/tracks` lists them.
+    /// `GET /api/v1/tracks` lists them. Returns which confirmed track each intruder was
+    /// matched to, with the distance (intruder id → (track id, m)).
     pub(super) fn sample(
         &mut self,
         t: f64,
         truth: &Value,
         viewers: &BTreeMap<String, usize>,
         tracks: &[Value],
-    ) {
+    ) -> BTreeMap<String, (String, f64)> {
         let members: Vec<[f64; 3]> = truth["vehicles"]
             .as_array()
             .into_iter()
@@ -170,6 +171,7 @@ impl Scorer {
                 *unseen = false;
             }
         }
+        assigned
     }
 
     /// The `tracks` object of the report.

@@ -11,15 +11,18 @@
 //! `skein bench tracking --replay FILE` runs a fresh [`Tracker`] over the trace's detector
 //! frames instead of flying: it steps at [`TRACKER_HZ`] on the frames' clock, each frame
 //! delivered [`DELIVERY_US`] after its capture, with the members' positions of the latest
-//! sample, and scores its tracks at every sample's time against the recorded truth, from
-//! [`WARM_UP_S`] after the first frame on. The same trace always gives the same figures,
+//! sample, forecasts its tracks and groups them into swarms ([`AirPicture`]) at each step
+//! as the live tracker does, and scores its tracks and swarms at every sample's time
+//! against the recorded truth, from [`WARM_UP_S`] after the first frame on. (Lines also
+//! carry the live `swarms`, for reference.) The same trace always gives the same figures,
 //! so a change of the tracker can be measured on the flights that showed a problem, in
 //! seconds and without the simulator's run-to-run variation.
 
 use super::score::Scorer;
+use super::swarm_score::SwarmScorer;
 use serde_json::{Value, json};
 use skein_swarm::tracking::detection::{self, parse_detections};
-use skein_swarm::tracking::{TRACKER_HZ, Tracker, TrackerConfig};
+use skein_swarm::tracking::{AirPicture, GroupingConfig, TRACKER_HZ, Tracker, TrackerConfig};
 use std::collections::{BTreeMap, HashMap};
 use std::io::{BufRead, Write};
 
@@ -40,6 +43,7 @@ pub(super) fn trace_line(
     truth: &Value,
     viewers: &BTreeMap<String, usize>,
     tracks: &[Value],
+    swarms: &[Value],
 ) -> Value {
     let members: Vec<Value> = vehicles
         .iter()
@@ -55,7 +59,7 @@ pub(super) fn trace_line(
         })
         .collect();
     json!({"t_s": t_s, "now_us": now_us, "truth": truth, "viewers": viewers,
-        "tracks": tracks, "members": members, "detectors": detectors})
+        "tracks": tracks, "swarms": swarms, "members": members, "detectors": detectors})
 }
 
 struct Sample {
@@ -122,7 +126,7 @@ fn read(path: &std::path::Path) -> Result<(Vec<Sample>, Vec<TracedFrame>), Strin
 }
 
 /// Replays the trace at `path` (see the module docs); returns the report's `tracks` object
-/// with the replay's counters. With `out`, writes the replay's own trace there (the lines
+/// with the replay's counters, and its `swarms` object. With `out`, writes the replay's own trace there (the lines
 /// of the input with the replayed tracks, without `members` and `detectors`).
 ///
 /// # Errors
@@ -131,14 +135,18 @@ pub fn replay(
     path: &std::path::Path,
     config: TrackerConfig,
     mut out: Option<&mut dyn std::io::Write>,
-) -> Result<Value, String> {
+) -> Result<(Value, Value), String> {
     let (samples, frames) = read(path)?;
     let (Some(first), Some(last)) = (frames.first(), samples.last()) else {
         return Err(format!("{}: no detector frames", path.display()));
     };
     let period_us = (1e6 / TRACKER_HZ) as u64;
     let mut tracker = Tracker::new(config);
+    let mut picture = AirPicture::new(GroupingConfig::default());
     let mut scorer = Scorer::default();
+    let mut swarm_scorer = SwarmScorer::default();
+    // The picture as of the latest step, scored at each sample.
+    let (mut tracks_now, mut swarms_now): (Vec<Value>, Vec<Value>) = (Vec::new(), Vec::new());
     let mut step_us = first.0 + period_us;
     let warm_up_us = first.0 + (WARM_UP_S * 1e6) as u64;
     let (mut next_frame, mut malformed) = (0, 0u64);
@@ -148,17 +156,20 @@ pub fn replay(
         while sample_i < samples.len() && samples[sample_i].now_us <= step_us {
             let s = &samples[sample_i];
             members = &s.members;
+            // Tracks as of the sample's time; their forecasts and swarms as of the last
+            // step (at most one step older).
             let tracks: Vec<Value> = tracker
                 .tracks(s.now_us)
                 .into_iter()
                 .map(|t| serde_json::to_value(t).unwrap_or(Value::Null))
                 .collect();
             if s.now_us >= warm_up_us {
-                scorer.sample(s.t_s, &s.truth, &s.viewers, &tracks);
+                let assigned = scorer.sample(s.t_s, &s.truth, &s.viewers, &tracks);
+                swarm_scorer.sample(s.t_s, &s.truth, &assigned, &tracks_now, &swarms_now, false);
             }
             if let Some(w) = out.as_mut() {
                 let line = json!({"t_s": s.t_s, "now_us": s.now_us, "truth": s.truth,
-                    "viewers": s.viewers, "tracks": tracks});
+                    "viewers": s.viewers, "tracks": tracks, "swarms": swarms_now});
                 writeln!(w, "{line}").map_err(|e| format!("trace: {e}"))?;
             }
             sample_i += 1;
@@ -173,6 +184,16 @@ pub fn replay(
             next_frame += 1;
         }
         tracker.step(step_us, bearings, members);
+        let mut tracks = tracker.tracks(step_us);
+        let (swarms, _) = picture.update(step_us, &mut tracks);
+        tracks_now = tracks
+            .into_iter()
+            .map(|t| serde_json::to_value(t).unwrap_or(Value::Null))
+            .collect();
+        swarms_now = swarms
+            .into_iter()
+            .map(|s| serde_json::to_value(s).unwrap_or(Value::Null))
+            .collect();
         step_us += period_us;
     }
     let mut report = scorer.report();
@@ -183,5 +204,5 @@ pub fn replay(
         "malformed_frames": malformed,
         "tracker": serde_json::to_value(tracker.counters()).unwrap_or(Value::Null),
     });
-    Ok(report)
+    Ok((report, swarm_scorer.report()))
 }
