@@ -13,6 +13,7 @@
 import { stateClass, CLASS_COLOUR, compareIds, fmt } from './model.js';
 import { drawGeofence, drawHazards, drawMarks, drawScale, drawNorth, drawCursor } from './plan-overlays.js';
 import { drawTargets } from './plan-targets.js';
+import { drawSwarms } from './plan-swarms.js';
 
 const MIN_SPAN_M = 16;        // never zoom in further than this many metres across
 const PAD_PX = 48;            // room for labels around the fitted area
@@ -55,6 +56,8 @@ export class PlanView {
     this.geofence = null;    // GET /api/v1/geofence
     this.targets = [];       // counter-UAS tracks (GET /api/v1/tracks)
     this.targetPx = new Map(); // track id → [x, y] where it was last drawn (CSS px)
+    this.swarms = [];        // hostile swarms (GET /api/v1/swarms)
+    this.swarmPx = new Map(); // swarm id → {x, y, hull, cone, stations} as last drawn
     this.banner = document.createElement('div');
     this.banner.className = 'plan-banner';
     this.banner.dataset.testid = 'plan-banner';
@@ -111,9 +114,11 @@ export class PlanView {
     this.kick();
   }
 
-  /** The counter-UAS tracks as GET /api/v1/tracks lists them (swarm frame). */
-  setTargets(tracks) {
+  /** The counter-UAS tracks and hostile swarms as GET /api/v1/tracks and
+   * GET /api/v1/swarms list them (swarm frame). */
+  setTargets(tracks, swarms) {
     this.targets = Array.isArray(tracks) ? tracks : [];
+    this.swarms = Array.isArray(swarms) ? swarms : [];
     this.kick();
   }
 
@@ -356,6 +361,7 @@ export class PlanView {
 
     drawGeofence(this);
     drawHazards(this);
+    drawSwarms(this);
     drawTargets(this);
 
     // Trails.

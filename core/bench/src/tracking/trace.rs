@@ -3,8 +3,8 @@
 //! With `--trace FILE` the bench writes one JSON line per sample: `t_s` (seconds into the
 //! measurement), `now_us` (wall clock when the vehicles were read), `truth` (as
 //! `GET /api/v1/sim/truth` answered), `viewers` (cameras drawing each intruder), `tracks`
-//! (as `GET /api/v1/tracks` listed them), `members` (each vehicle's id and swarm-frame NED
-//! position) and `detectors` (per observation UAV, its detector's payload state reduced
+//! (as `GET /api/v1/tracks` listed them), `members` (each vehicle's id, swarm-frame NED
+//! position and velocity) and `detectors` (per observation UAV, its detector's payload state reduced
 //! to `recent`, the frames of the last half second: at 5 Hz sampling every frame is in
 //! some line).
 //!
@@ -22,7 +22,9 @@ use super::score::Scorer;
 use super::swarm_score::SwarmScorer;
 use serde_json::{Value, json};
 use skein_swarm::tracking::detection::{self, parse_detections};
-use skein_swarm::tracking::{AirPicture, GroupingConfig, TRACKER_HZ, Tracker, TrackerConfig};
+use skein_swarm::tracking::{
+    AirPicture, GroupingConfig, MemberPose, TRACKER_HZ, Tracker, TrackerConfig,
+};
 use std::collections::{BTreeMap, HashMap};
 use std::io::{BufRead, Write};
 
@@ -48,7 +50,7 @@ pub(super) fn trace_line(
     let members: Vec<Value> = vehicles
         .iter()
         .filter(|v| v["position"].is_object())
-        .map(|v| json!({"id": v["id"], "position": v["position"]}))
+        .map(|v| json!({"id": v["id"], "position": v["position"], "velocity": v["velocity"]}))
         .collect();
     let detectors: BTreeMap<String, Value> = vehicles
         .iter()
@@ -67,7 +69,7 @@ struct Sample {
     now_us: u64,
     truth: Value,
     viewers: BTreeMap<String, usize>,
-    members: Vec<(String, nalgebra::Vector3<f64>)>,
+    members: Vec<MemberPose>,
 }
 
 /// A detector frame of a trace: capture time µs, observer vehicle id, the frame.
@@ -109,7 +111,18 @@ fn read(path: &std::path::Path) -> Result<(Vec<Sample>, Vec<TracedFrame>), Strin
             .flatten()
             .filter_map(|m| {
                 let p = super::score::ned(&m["position"])?;
-                Some((m["id"].as_str()?.to_string(), nalgebra::Vector3::from(p)))
+                // Traces of older benches have no velocity: at rest.
+                let v = &m["velocity"];
+                let v = [
+                    v["north_m_s"].as_f64().unwrap_or(0.0),
+                    v["east_m_s"].as_f64().unwrap_or(0.0),
+                    v["down_m_s"].as_f64().unwrap_or(0.0),
+                ];
+                Some(MemberPose {
+                    id: m["id"].as_str()?.to_string(),
+                    position: nalgebra::Vector3::from(p),
+                    velocity: nalgebra::Vector3::from(v),
+                })
             })
             .collect();
         let viewers = serde_json::from_value(v["viewers"].clone()).unwrap_or_default();
@@ -150,7 +163,7 @@ pub fn replay(
     let mut step_us = first.0 + period_us;
     let warm_up_us = first.0 + (WARM_UP_S * 1e6) as u64;
     let (mut next_frame, mut malformed) = (0, 0u64);
-    let mut members: &[(String, nalgebra::Vector3<f64>)] = &[];
+    let mut members: &[MemberPose] = &[];
     let mut sample_i = 0;
     while step_us <= last.now_us + period_us {
         while sample_i < samples.len() && samples[sample_i].now_us <= step_us {

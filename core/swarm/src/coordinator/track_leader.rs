@@ -308,4 +308,63 @@ mod tests {
             "{on_top:?}"
         );
     }
+
+    #[test]
+    fn a_swarm_leads_by_its_centroid_forecast_and_holds_when_gone() {
+        use crate::tracks::{ForecastPoint, MotionModel, SwarmExtent, SwarmShape};
+        let at = |n: f64, e: f64| NedJson {
+            north_m: n,
+            east_m: e,
+            down_m: -15.0,
+        };
+        let swarm = SwarmView {
+            id: "swarm-2".into(),
+            members: vec!["track-1".into(), "track-2".into()],
+            centroid: at(40.0, 0.0),
+            velocity: VelocityJson {
+                north_m_s: 0.0,
+                east_m_s: 4.0,
+                down_m_s: 0.0,
+            },
+            speed_m_s: 4.0,
+            course_deg: 90.0,
+            shape: SwarmShape::Line,
+            shape_heading_deg: 0.0,
+            extent: SwarmExtent {
+                length_m: 6.0,
+                width_m: 0.0,
+                radius_m: 3.0,
+            },
+            forecast: [5.0, 10.0]
+                .iter()
+                .map(|h| ForecastPoint {
+                    horizon_s: *h,
+                    position: at(40.0, 4.0 * h),
+                    sigma_m: 1.0,
+                    model: MotionModel::ConstantVelocity,
+                })
+                .collect(),
+            age_s: 3.0,
+        };
+        let reference = Ned::new(0.0, 20.0, -10.0);
+        match follow_swarm_motion(reference, Some(&swarm), 20.0) {
+            LeaderMotion::GoTo { target, speed_m_s } => {
+                // The 5 s forecast is (40, 20): 40 m north of the formation, 20 m short.
+                assert!(
+                    (target - Ned::new(20.0, 20.0, -10.0)).norm() < 1e-9,
+                    "{target:?}"
+                );
+                assert!((speed_m_s - 6.0).abs() < 1e-9);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(
+            follow_swarm_motion(reference, None, 20.0),
+            LeaderMotion::Hold
+        );
+        let sw = [swarm];
+        assert!(validate_track_leader(&spec("swarm-2", Some(30.0)), &[], &sw).is_ok());
+        let e = validate_track_leader(&spec("swarm-2", None), &[], &sw).unwrap_err();
+        assert_eq!(e.field, "standoff_m");
+    }
 }

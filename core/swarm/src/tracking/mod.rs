@@ -50,7 +50,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 pub use swarms::GroupingConfig;
 use tokio::sync::broadcast;
 use tokio::task::JoinHandle;
-pub use tracker::{Tracker, TrackerConfig};
+pub use tracker::{MemberPose, Tracker, TrackerConfig};
 
 /// Rate of the tracker's steps, Hz.
 pub const TRACKER_HZ: f64 = 10.0;
@@ -196,12 +196,17 @@ async fn run(
                 }
             }
         }
-        let members: Vec<(String, Vector3<f64>)> = fleet
+        let members: Vec<MemberPose> = fleet
             .snapshots()
             .into_iter()
             .filter_map(|s| {
                 let p = s.position?;
-                Some((s.id, Vector3::new(p.north_m, p.east_m, p.down_m)))
+                let v = s.velocity;
+                Some(MemberPose {
+                    id: s.id,
+                    position: Vector3::new(p.north_m, p.east_m, p.down_m),
+                    velocity: Vector3::new(v.north_m_s, v.east_m_s, v.down_m_s),
+                })
             })
             .collect();
         let now = now_us();
