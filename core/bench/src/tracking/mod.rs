@@ -56,7 +56,7 @@ use std::time::{Duration, Instant};
 use swarm_score::SwarmScorer;
 
 /// Arguments of `skein bench tracking`.
-#[derive(clap::Args, Debug)]
+#[derive(clap::Args, Debug, Clone)]
 pub struct TrackingBenchArgs {
     /// Seconds of flight measured.
     #[arg(long, default_value_t = 120.0)]
@@ -71,7 +71,8 @@ pub struct TrackingBenchArgs {
     #[arg(long, value_name = "DIR")]
     pub plugin_dir: Option<std::path::PathBuf>,
     /// Also write every sample (the truth's intruders, the tracks) as JSON lines to this
-    /// file, to see where a metric comes from.
+    /// file, to see where a metric comes from (a scenario's runs: `FILE.fixed`,
+    /// `FILE.geometry`).
     #[arg(long, value_name = "FILE")]
     pub trace: Option<std::path::PathBuf>,
     /// Fly nothing: replay a `--trace` file's detector frames through a fresh tracker and

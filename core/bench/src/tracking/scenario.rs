@@ -178,7 +178,13 @@ pub(super) fn run(args: &TrackingBenchArgs, name: &str, modes: &[Mode]) -> Resul
     let mut out = json!({"scenario": name, "seed": args.seed, "seconds": args.seconds});
     for mode in modes {
         eprintln!("bench tracking: scenario {name}, observers {}", mode.name());
-        out[mode.name()] = super::fly(args, Some((name, *mode)))?;
+        let mut run = args.clone();
+        run.trace = args.trace.as_ref().map(|p| {
+            let mut p = p.clone().into_os_string();
+            p.push(format!(".{}", mode.name()));
+            p.into()
+        });
+        out[mode.name()] = super::fly(&run, Some((name, *mode)))?;
     }
     let rmse = |m: &str| out[m]["tracks"]["rmse_m"].as_f64();
     if let (Some(f), Some(g)) = (rmse("fixed"), rmse("geometry")) {

@@ -3,9 +3,12 @@
 //! simulator's truth, whose intruders flying together carry a `group`:
 //!
 //! - `groups`: per truth group, `all_confirmed_at_s` (the first sample with every member
-//!   matched to a confirmed track), `recognised_at_s` (the first sample from then on where
-//!   one swarm holds all of them and nothing else: precision and recall 1),
-//!   `recognition_s` (the difference: the goal is 3 s), `first_confirmed_at_s`;
+//!   matched to a confirmed track that follows it: within [`LOCKED_M`] and
+//!   [`LOCKED_M_S`] of its truth; a ghost passing near a member, at another velocity, is
+//!   no confirmation of it), `recognised_at_s` (the first sample from then on where one
+//!   swarm holds all of them and nothing else: precision and recall 1),
+//!   `recognition_s` (the difference: the goal is 3 s), `first_confirmed_at_s` (the
+//!   first member's confirmed track) and `from_first_detection_s`;
 //! - membership `precision` and `recall`, per group and overall, over every sample from a
 //!   group's recognition on: the swarm sharing the most tracks with the group counts its
 //!   tracks of the group (true), its other confirmed tracks (false members) and the group's
@@ -22,6 +25,11 @@
 use super::score::ned;
 use serde_json::{Value, json};
 use std::collections::{BTreeMap, BTreeSet};
+
+/// A track follows an intruder when it is this close to it, metres…
+pub const LOCKED_M: f64 = 3.0;
+/// … and its velocity this close to the intruder's, m/s.
+pub const LOCKED_M_S: f64 = 2.0;
 
 /// A forecast waiting for its time: due s, horizon s, kind, the intruders whose (mean)
 /// position it predicts, the prediction (north, east).
@@ -98,6 +106,23 @@ impl SwarmScorer {
             .filter(|t| t["status"] == "confirmed")
             .filter_map(|t| t["id"].as_str())
             .collect();
+        let velocity_of: BTreeMap<&str, [f64; 2]> = tracks
+            .iter()
+            .filter_map(|t| Some((t["id"].as_str()?, ned_velocity(&t["velocity"])?)))
+            .collect();
+        // Intruders whose matched track follows them (see the module docs).
+        let locked = |iid: &str| -> bool {
+            let (Some((tr, d)), Some(truth)) = (assigned.get(iid), by_id.get(iid)) else {
+                return false;
+            };
+            let (Some(v), Some(w)) = (
+                velocity_of.get(tr.as_str()),
+                ned_velocity(&truth["velocity"]),
+            ) else {
+                return false;
+            };
+            *d <= LOCKED_M && (v[0] - w[0]).hypot(v[1] - w[1]) <= LOCKED_M_S
+        };
         let members: Vec<(String, BTreeSet<&str>)> = swarms
             .iter()
             .filter_map(|s| {
@@ -142,7 +167,8 @@ impl SwarmScorer {
             if !tracked.is_empty() {
                 score.first_confirmed.get_or_insert(t);
             }
-            if tracked.len() == ids.len() {
+            let all_locked = ids.iter().all(|i| locked(i));
+            if all_locked {
                 score.all_confirmed.get_or_insert(t);
             }
             let best = members
@@ -161,7 +187,7 @@ impl SwarmScorer {
             let fn_ = tracked.len() as u64 - tp;
             if score.recognised.is_none()
                 && score.all_confirmed.is_some()
-                && tracked.len() == ids.len()
+                && all_locked
                 && fn_ == 0
                 && fp == 0
             {
@@ -284,6 +310,10 @@ impl SwarmScorer {
                     "all_confirmed_at_s": s.all_confirmed,
                     "recognised_at_s": s.recognised,
                     "recognition_s": recognition,
+                    "from_first_detection_s": match (s.first_confirmed, s.recognised) {
+                        (Some(a), Some(r)) => Some(r - a),
+                        _ => None,
+                    },
                     "precision": ratio(s.tp, s.tp + s.fp),
                     "recall": ratio(s.tp, s.tp + s.fn_),
                 }),
@@ -338,7 +368,10 @@ mod tests {
         .map(|(i, t)| (i.to_string(), (t.to_string(), 1.0)))
         .collect();
         let tracks: Vec<Value> = (1..=4)
-            .map(|i| json!({"id": format!("track-{i}"), "status": "confirmed", "forecast": []}))
+            .map(|i| {
+                json!({"id": format!("track-{i}"), "status": "confirmed", "forecast": [],
+                    "velocity": {"north_m_s": 0.0, "east_m_s": 5.2, "down_m_s": 0.0}})
+            })
             .collect();
         for k in 0..=20 {
             let t = k as f64 * 0.5;

@@ -71,11 +71,12 @@ pub struct ObserveSpec {
 }
 
 /// A target where the coordinator sees it now: its centre (a track's position, a swarm's
-/// centroid), its points as forecast [`super::stations::PLAN_AHEAD_S`] ahead (a swarm's
-/// members), and whether it is still fixed (a lost track is only predicted).
+/// centroid), its points now and as forecast [`super::stations::PLAN_AHEAD_S`] ahead (a
+/// swarm's members), and whether it is still fixed (a lost track is only predicted).
 #[derive(Debug, Clone, PartialEq)]
 pub(super) struct TargetNow {
     pub(super) centre: Ned,
+    pub(super) now: Vec<Ned>,
     pub(super) ahead: Vec<Ned>,
     pub(super) live: bool,
 }
@@ -98,20 +99,21 @@ pub(super) fn locate(id: &str, tracks: &[TrackView], swarms: &[SwarmView]) -> Op
     let h = super::stations::PLAN_AHEAD_S;
     if id.starts_with(SWARM_PREFIX) {
         let s = swarms.iter().find(|s| s.id == id)?;
-        let ahead: Vec<Ned> = tracks
+        let members: Vec<&TrackView> = tracks
             .iter()
             .filter(|t| s.members.contains(&t.id))
-            .map(|t| ahead_of(t, h))
             .collect();
         return Some(TargetNow {
             centre: ned(&s.centroid),
-            ahead,
+            now: members.iter().map(|t| ned(&t.position)).collect(),
+            ahead: members.iter().map(|t| ahead_of(t, h)).collect(),
             live: true,
         });
     }
     let t = tracks.iter().find(|t| t.id == id)?;
     Some(TargetNow {
         centre: ned(&t.position),
+        now: vec![ned(&t.position)],
         ahead: vec![ahead_of(t, h)],
         live: t.status != TrackStatus::Lost,
     })

@@ -3,7 +3,8 @@
 //! the geometry is [`crate::tracking::stations`]).
 //!
 //! On the request the coordinator plans stations for the target's points forecast
-//! [`PLAN_AHEAD_S`] ahead (a swarm's members, or the track) and sends each observer a
+//! [`PLAN_AHEAD_S`] ahead (a swarm's members, or the track; the stand-off is kept from
+//! where they are now too, so no station lies on their way) and sends each observer a
 //! go-to (command id 0: it leaves a formation it flies in, and does not rejoin one while it
 //! observes). Every [`REPLAN_EVERY_S`] it plans again: the observers keep their stations
 //! while those still meet the limits and predict a variance within [`REPLAN_GAIN`] of the
@@ -155,6 +156,7 @@ impl CoordinatorState {
         let plan = stations::plan(
             &observers,
             &now.ahead,
+            &now.now,
             &self.others(vehicles),
             &self.station_limits(standoff),
         )
@@ -263,9 +265,14 @@ impl CoordinatorState {
             {
                 let current =
                     stations::evaluate(&task.plan.stations, &now.ahead, limits.bearing_sigma_rad);
-                let valid =
-                    stations::still_valid(&task.plan.stations, &now.ahead, &others, &limits);
-                match stations::plan(&observers, &now.ahead, &others, &limits) {
+                let valid = stations::still_valid(
+                    &task.plan.stations,
+                    &now.ahead,
+                    &now.now,
+                    &others,
+                    &limits,
+                );
+                match stations::plan(&observers, &now.ahead, &now.now, &others, &limits) {
                     Ok(best)
                         if !valid
                             || current.predicted_sigma_m.powi(2)

@@ -13,7 +13,8 @@
 //! forecasts), times `1 + travel / TRAVEL_SCALE_M` (of two equally good layouts, the one
 //! nearer the observers), subject to:
 //! - the stand-off: every station at least `standoff_m` horizontally from every target
-//!   point;
+//!   point, and from every point of `clear` (where the target is now: the station must
+//!   not lie on its way there);
 //! - the camera: every target point within `max_range_m`, and the target's points within
 //!   [`FOV_USE`] of the camera's horizontal field of view seen from the station (the gimbal
 //!   points at the target's centre, so all of it stays in the picture);
@@ -118,9 +119,15 @@ pub fn predicted_variance(
     Some(total / points.len() as f64)
 }
 
-/// Whether `p` may be a station for `points` (stand-off, range, field of view, fence),
-/// without the separation from the others.
-fn admissible(limits: &StationLimits, fence: &Geofence, p: Ned, points: &[Vector3<f64>]) -> bool {
+/// Whether `p` may be a station for `points` (stand-off from them and from `clear`, range,
+/// field of view, fence), without the separation from the others.
+fn admissible(
+    limits: &StationLimits,
+    fence: &Geofence,
+    p: Ned,
+    points: &[Vector3<f64>],
+    clear: &[Vector3<f64>],
+) -> bool {
     if !fence.contains(p) {
         return false;
     }
@@ -137,6 +144,12 @@ fn admissible(limits: &StationLimits, fence: &Geofence, p: Ned, points: &[Vector
         }
     }
     let s = v3(p);
+    if clear
+        .iter()
+        .any(|q| (q - s).xy().norm() < limits.standoff_m)
+    {
+        return false;
+    }
     let mut bearings = Vec::with_capacity(points.len());
     for q in points {
         let d = q - s;
@@ -159,13 +172,15 @@ fn admissible(limits: &StationLimits, fence: &Geofence, p: Ned, points: &[Vector
 }
 
 /// The stations for `observers` to see the target at `points` (its predicted members'
-/// positions; see the module docs), away from `obstacles` (the other vehicles).
+/// positions; see the module docs), the stand-off also from `clear` (where it is now),
+/// away from `obstacles` (the other vehicles).
 ///
 /// # Errors
 /// Fewer than two observers, no target point, or no layout meets the limits (the reason).
 pub fn plan(
     observers: &[Observer],
     points: &[Ned],
+    clear: &[Ned],
     obstacles: &[Ned],
     limits: &StationLimits,
 ) -> Result<StationPlan, String> {
@@ -176,6 +191,7 @@ pub fn plan(
         return Err("no target position to observe".into());
     }
     let pts: Vec<Vector3<f64>> = points.iter().map(|p| v3(*p)).collect();
+    let clear: Vec<Vector3<f64>> = clear.iter().map(|p| v3(*p)).collect();
     let n = pts.len() as f64;
     let centre = pts.iter().fold(Vector3::zeros(), |a, p| a + p) / n;
     let reach = pts
@@ -202,7 +218,7 @@ pub fn plan(
                         centre.y + r * a.sin(),
                         o.position.down_m,
                     );
-                    if admissible(limits, &fence, p, &pts)
+                    if admissible(limits, &fence, p, &pts, &clear)
                         && obstacles
                             .iter()
                             .all(|q| (*q - p).norm() >= limits.min_separation_m)
@@ -313,18 +329,20 @@ pub fn evaluate(stations: &[(String, Ned)], points: &[Ned], sigma_rad: f64) -> S
     }
 }
 
-/// Whether `stations` still meet the limits for the target at `points`, away from
-/// `obstacles`.
+/// Whether `stations` still meet the limits for the target at `points` (and clear of
+/// `clear`), away from `obstacles`.
 pub fn still_valid(
     stations: &[(String, Ned)],
     points: &[Ned],
+    clear: &[Ned],
     obstacles: &[Ned],
     limits: &StationLimits,
 ) -> bool {
     let fence = limits.fence.shrunk(limits.fence_margin_m);
     let pts: Vec<Vector3<f64>> = points.iter().map(|p| v3(*p)).collect();
+    let clear: Vec<Vector3<f64>> = clear.iter().map(|p| v3(*p)).collect();
     stations.iter().enumerate().all(|(i, (_, p))| {
-        admissible(limits, &fence, *p, &pts)
+        admissible(limits, &fence, *p, &pts, &clear)
             && obstacles
                 .iter()
                 .chain(
@@ -370,7 +388,7 @@ mod tests {
 
     fn check(plan: &StationPlan, points: &[Ned], obstacles: &[Ned], l: &StationLimits) {
         assert!(
-            still_valid(&plan.stations, points, obstacles, l),
+            still_valid(&plan.stations, points, &[], obstacles, l),
             "{plan:?}"
         );
         for (_, s) in &plan.stations {
@@ -396,7 +414,7 @@ mod tests {
     fn two_observers_spread_round_a_single_target_at_a_wide_angle() {
         let l = limits(Geofence::default());
         let target = [Ned::new(10.0, 60.0, -14.0)];
-        let plan = plan(&observers(), &target, &[], &l).expect("stations");
+        let plan = plan(&observers(), &target, &[], &[], &l).expect("stations");
         check(&plan, &target, &[], &l);
         assert!(plan.triangulation_angle_deg > 70.0, "{plan:?}");
         // Where they hover now, 6 m apart at 60 m, they fix it far worse.
@@ -442,7 +460,7 @@ mod tests {
         });
         // uav-1 and uav-3 hover nearby, flying in the formation.
         let others = [Ned::new(0.0, -3.0, -10.0), Ned::new(6.0, 6.0, -10.0)];
-        let plan = plan(&obs, &swarm, &others, &l).expect("stations");
+        let plan = plan(&obs, &swarm, &[], &others, &l).expect("stations");
         assert_eq!(plan.stations.len(), 3);
         check(&plan, &swarm, &others, &l);
         assert!(plan.triangulation_angle_deg > 60.0, "{plan:?}");
@@ -458,14 +476,21 @@ mod tests {
         };
         let l = limits(fence);
         let target = [Ned::new(60.0, 0.0, -14.0)];
-        let p = plan(&observers(), &target, &[], &l).expect("stations inside");
+        let p = plan(&observers(), &target, &[], &[], &l).expect("stations inside");
         check(&p, &target, &[], &l);
         // A fence too small to come within the cameras' range: refused with the reason.
         let tiny = limits(Geofence {
             radius_m: 20.0,
             ..Geofence::default()
         });
-        let e = plan(&observers(), &[Ned::new(110.0, 0.0, -14.0)], &[], &tiny).unwrap_err();
+        let e = plan(
+            &observers(),
+            &[Ned::new(110.0, 0.0, -14.0)],
+            &[],
+            &[],
+            &tiny,
+        )
+        .unwrap_err();
         assert!(e.contains("stand-off"), "{e}");
         // A polygon cuts the east half away.
         let poly = limits(Geofence {
@@ -477,22 +502,29 @@ mod tests {
             ],
             ..Geofence::default()
         });
-        let p = plan(&observers(), &target, &[], &poly).expect("stations west");
+        let p = plan(&observers(), &target, &[], &[], &poly).expect("stations west");
         check(&p, &target, &[], &poly);
         assert!(p.stations.iter().all(|(_, s)| s.east_m <= 15.0), "{p:?}");
         // One observer is no triangulation.
-        assert!(plan(&observers()[..1], &target, &[], &l).is_err());
+        assert!(plan(&observers()[..1], &target, &[], &[], &l).is_err());
     }
 
     #[test]
     fn stations_lapse_when_the_target_comes_inside_the_standoff() {
         let l = limits(Geofence::default());
         let target = [Ned::new(10.0, 60.0, -14.0)];
-        let p = plan(&observers(), &target, &[], &l).expect("stations");
+        let p = plan(&observers(), &target, &[], &[], &l).expect("stations");
         let (_, s) = &p.stations[0];
         let on_top = [Ned::new(s.north_m + 5.0, s.east_m, -14.0)];
-        assert!(!still_valid(&p.stations, &on_top, &[], &l));
+        assert!(!still_valid(&p.stations, &on_top, &[], &[], &l));
         let far = [Ned::new(s.north_m + 300.0, s.east_m, -14.0)];
-        assert!(!still_valid(&p.stations, &far, &[], &l));
+        assert!(!still_valid(&p.stations, &far, &[], &[], &l));
+        // Where the target is now counts too: no station on its way.
+        assert!(!still_valid(&p.stations, &target, &on_top, &[], &l));
+        let now = [Ned::new(10.0, 30.0, -14.0)];
+        let p2 = plan(&observers(), &target, &now, &[], &l).expect("stations");
+        for (_, st) in &p2.stations {
+            assert!((*st - now[0]).horizontal_norm() >= 25.0, "{p2:?}");
+        }
     }
 }

@@ -202,7 +202,7 @@ fn the_id_stays_while_members_are_replaced_and_the_swarm_is_lost_when_it_thins_o
     };
     let events = run(&mut pic, 5.0, 7.0, &all_new);
     assert!(detected(&events).is_empty(), "{events:?}");
-    // Three of four deleted: one left is no swarm.
+    // Its tracks all deleted (another flies alone): lost at once.
     let events = run(&mut pic, 7.0, 8.0, &|t, k| {
         vec![formation(4, [0.0, 0.0], 0.0, 4.0, t, k)[0].clone()]
     });
@@ -211,6 +211,51 @@ fn the_id_stays_while_members_are_replaced_and_the_swarm_is_lost_when_it_thins_o
         .filter(|(_, e)| matches!(e, HostileSwarmEvent::Lost(s) if s.id == "swarm-1"))
         .collect();
     assert_eq!(lost.len(), 1, "{events:?}");
+}
+
+#[test]
+fn a_pair_that_loses_a_track_keeps_its_id_when_another_joins_and_young_tracks_wait() {
+    let mut pic = AirPicture::new(GroupingConfig::default());
+    // A young track (velocity unknown) and a settled one flying together: no swarm yet.
+    let young = |t: f64, k: u64| {
+        let mut v = formation(2, [0.0, 0.0], 90.0, 5.0, t, k);
+        v[1].velocity_sigma_m_s = 6.0;
+        v
+    };
+    assert!(detected(&run(&mut pic, 0.0, 2.0, &young)).is_empty());
+    let events = run(&mut pic, 2.0, 4.0, &|t, k| {
+        formation(2, [0.0, 0.0], 90.0, 5.0, t, k)
+    });
+    assert_eq!(detected(&events).len(), 1, "{events:?}");
+    // track-2 is deleted; 2 s later track-3 flies beside track-1: still swarm-1.
+    let alone = |t: f64, k: u64| vec![formation(2, [0.0, 0.0], 90.0, 5.0, t, k)[0].clone()];
+    let events = run(&mut pic, 4.0, 6.0, &alone);
+    assert!(
+        events
+            .iter()
+            .all(|(_, e)| !matches!(e, HostileSwarmEvent::Lost(_))),
+        "{events:?}"
+    );
+    let renamed = |t: f64, k: u64| {
+        let mut v = formation(2, [0.0, 0.0], 90.0, 5.0, t, k);
+        v[1].id = "track-3".into();
+        v
+    };
+    let events = run(&mut pic, 6.0, 8.0, &renamed);
+    assert!(detected(&events).is_empty(), "{events:?}");
+    let mut tracks = renamed(8.0, 80);
+    let (swarms, _) = pic.update(1_000_000_000 + 8_000_000, &mut tracks);
+    assert_eq!(swarms.len(), 1);
+    assert_eq!(swarms[0].id, "swarm-1");
+    assert_eq!(swarms[0].members, ["track-1", "track-3"]);
+    // Alone for 3 s: lost.
+    let events = run(&mut pic, 8.0, 12.0, &alone);
+    assert!(
+        events
+            .iter()
+            .any(|(_, e)| matches!(e, HostileSwarmEvent::Lost(s) if s.id == "swarm-1")),
+        "{events:?}"
+    );
 }
 
 #[test]

@@ -2,8 +2,10 @@
 //! ids that last while members come and go.
 //!
 //! Each [`SwarmRecognizer::step`] (every tracker step, 10 Hz):
-//! 1. **Grouping**: the confirmed tracks (and the lost tracks that were members already:
-//!    they coast on their prediction until the tracker deletes them) are clustered by
+//! 1. **Grouping**: the confirmed tracks whose velocity is known (σ within
+//!    [`GroupingConfig::max_velocity_sigma_m_s`]: a young track's is a guess, and two
+//!    guesses agreeing make no swarm), and the lost tracks that were members already (they
+//!    coast on their prediction until the tracker deletes them), are clustered by
 //!    DBSCAN (the `dbscan` crate) over position and velocity scaled by
 //!    [`GroupingConfig::eps_position_m`] and [`GroupingConfig::eps_velocity_m_s`]: two
 //!    tracks are neighbours when `(Δp / eps_p)² + (Δv / eps_v)² < 1`, and a cluster is
@@ -24,7 +26,9 @@
 //!    [`GroupingConfig::leave_after_s`] after that; a deleted track leaves at once. A shape
 //!    change counts once the new shape has held for [`GroupingConfig::shape_hold_s`].
 //! 4. **Events**: `Detected` when recognised, `Changed` when members joined or left or the
-//!    shape changed, `Lost` when fewer than [`GroupingConfig::min_members`] remain.
+//!    shape changed, `Lost` when fewer than [`GroupingConfig::min_members`] have remained
+//!    for [`GroupingConfig::lost_after_s`] (until then it is listed with the members it
+//!    has, and a cluster sharing one of them takes its id again).
 //!
 //! The swarm's centroid and velocity are its members' means, its shape comes from
 //! [`super::shape`], its forecast is the mean of its members' ([`super::forecast`]).
@@ -55,6 +59,10 @@ pub struct GroupingConfig {
     pub leave_after_s: f64,
     /// A new shape counts once it held this long, s.
     pub shape_hold_s: f64,
+    /// Tracks whose velocity σ exceeds this do not start or join a swarm, m/s.
+    pub max_velocity_sigma_m_s: f64,
+    /// A swarm with fewer than `min_members` is lost after this long, s.
+    pub lost_after_s: f64,
 }
 
 impl Default for GroupingConfig {
@@ -67,6 +75,8 @@ impl Default for GroupingConfig {
             keep_factor: 1.5,
             leave_after_s: 1.0,
             shape_hold_s: 1.0,
+            max_velocity_sigma_m_s: 2.5,
+            lost_after_s: 3.0,
         }
     }
 }
@@ -85,6 +95,8 @@ struct Group {
     last_t_s: f64,
     /// A shape seen lately that is not the view's yet, and since when.
     pending_shape: Option<(SwarmShape, f64)>,
+    /// Since when it has had fewer than `min_members`, s.
+    thin_since: Option<f64>,
 }
 
 /// The recognizer (see the module docs). Times are wall-clock microseconds.
@@ -217,10 +229,15 @@ impl SwarmRecognizer {
             .flat_map(|(g, grp)| grp.members.keys().map(move |id| (id.clone(), g)))
             .collect();
         let eligible: Vec<usize> = (0..tracks.len())
-            .filter(|&i| match tracks[i].status {
-                TrackStatus::Confirmed => true,
-                TrackStatus::Lost => member_of.contains_key(&tracks[i].id),
-                TrackStatus::Tentative => false,
+            .filter(|&i| {
+                let member = member_of.contains_key(&tracks[i].id);
+                match tracks[i].status {
+                    TrackStatus::Confirmed => {
+                        member || tracks[i].velocity_sigma_m_s <= c.max_velocity_sigma_m_s
+                    }
+                    TrackStatus::Lost => member,
+                    TrackStatus::Tentative => false,
+                }
             })
             .collect();
         let input: Vec<Vec<f64>> = eligible.iter().map(|&i| features(&c, &tracks[i])).collect();
@@ -257,6 +274,8 @@ impl SwarmRecognizer {
                 .keys()
                 .filter_map(|id| index.get(id).copied())
                 .collect();
+            // A swarm down to one track keeps it while it waits for a partner.
+            let thin = group.id.is_some() && current.len() < c.min_members.max(2);
             group.members.retain(|id, last_in| {
                 let Some(&i) = index.get(id) else {
                     return false; // deleted
@@ -274,7 +293,7 @@ impl SwarmRecognizer {
                 if near {
                     *last_in = t;
                 }
-                t - *last_in <= c.leave_after_s
+                thin || t - *last_in <= c.leave_after_s
             });
         }
         // Clusters no group took: candidates.
@@ -291,6 +310,7 @@ impl SwarmRecognizer {
                 view: None,
                 last_t_s: t,
                 pending_shape: None,
+                thin_since: None,
             });
         }
         let events = self.update_views(t, tracks, &index);
@@ -394,11 +414,19 @@ impl SwarmRecognizer {
                 .keys()
                 .filter_map(|id| index.get(id).map(|&i| &tracks[i]))
                 .collect();
-            if members.len() < c.min_members.max(2) {
-                if let (Some(_), Some(v)) = (&g.id, g.view.take()) {
-                    events.push(HostileSwarmEvent::Lost(v));
+            let min = c.min_members.max(2);
+            if members.len() < min {
+                // A candidate is gone at once; a swarm after `lost_after_s`, or when none
+                // of its tracks is left.
+                let since = *g.thin_since.get_or_insert(t);
+                if g.id.is_none() || members.is_empty() || t - since + 1e-9 >= c.lost_after_s {
+                    if let (Some(_), Some(v)) = (&g.id, g.view.take()) {
+                        events.push(HostileSwarmEvent::Lost(v));
+                    }
+                    continue;
                 }
-                continue;
+            } else {
+                g.thin_since = None;
             }
             if g.id.is_none() && t - g.first_seen_s + 1e-9 >= c.detect_after_s {
                 g.id = Some(format!("{}{}", crate::tracks::SWARM_PREFIX, self.next_id));
