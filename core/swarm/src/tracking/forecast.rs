@@ -214,13 +214,32 @@ impl TrackForecaster {
     pub fn forecast(&self, t_s: f64, track: &TrackView) -> Vec<ForecastPoint> {
         let p = &track.position;
         let v = &track.velocity;
-        let state = self.state_now(
+        let c = &track.covariance_ne_m2;
+        self.forecast_from(
             t_s,
             Vector3::new(p.north_m, p.east_m, p.down_m),
             Vector3::new(v.north_m_s, v.east_m_s, v.down_m_s),
-        );
-        let c = &track.covariance_ne_m2;
-        let position_var = (c[0][0] + c[1][1]).max(0.0);
+            (c[0][0] + c[1][1]).max(0.0),
+            track.velocity_sigma_m_s,
+        )
+    }
+
+    /// True when some horizon's residuals have been scored (the models have been judged).
+    pub fn judged(&self) -> bool {
+        self.choose(HORIZONS_S[0]).1.is_some()
+    }
+
+    /// The forecast of a target at `position` moving at `velocity` at `t_s`, with a
+    /// horizontal position variance (m²) and a velocity σ (m/s).
+    pub fn forecast_from(
+        &self,
+        t_s: f64,
+        position: Vector3<f64>,
+        velocity: Vector3<f64>,
+        position_var: f64,
+        velocity_sigma_m_s: f64,
+    ) -> Vec<ForecastPoint> {
+        let state = self.state_now(t_s, position, velocity);
         HORIZONS_S
             .iter()
             .map(|&h| {
@@ -229,7 +248,7 @@ impl TrackForecaster {
                 let residual_var = judged.map_or(0.0, |hi| {
                     self.scores[hi][mi].mean_sq_m2 * (h / SCORED_S[hi]).powi(2)
                 });
-                let grown = (track.velocity_sigma_m_s * h).powi(2);
+                let grown = (velocity_sigma_m_s * h).powi(2);
                 let q = extrapolate(model, &state, h);
                 ForecastPoint {
                     horizon_s: h,

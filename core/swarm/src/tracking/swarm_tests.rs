@@ -452,3 +452,68 @@ fn forecasts_choose_the_model_that_fits_straight_turning_and_weaving_paths() {
         median(&e)
     );
 }
+
+#[test]
+fn a_weaving_swarm_is_forecast_by_its_mean_course_though_its_tracks_are_short_lived() {
+    // A V of three on the simulator's zig-zag (±15 m every 40 m at 5 m/s, flying north);
+    // every 8 s each member's track is replaced by a new one (ids change), so no track
+    // lives long enough to learn the weave: the swarm's own history does.
+    let slope: f64 = 4.0 * 15.0 / 40.0;
+    let along = 5.0 / (1.0 + slope * slope).sqrt();
+    let tri = |x: f64| {
+        let f = (x + 0.25).rem_euclid(1.0);
+        if f < 0.5 {
+            4.0 * f - 1.0
+        } else {
+            3.0 - 4.0 * f
+        }
+    };
+    let lead = |t: f64| -> ([f64; 2], [f64; 2]) {
+        let e = |t: f64| 15.0 * tri(along * t / 40.0);
+        ([along * t, e(t)], [along, (e(t + 1e-3) - e(t)) / 1e-3])
+    };
+    let scene = |t: f64, k: u64| -> Vec<TrackView> {
+        let (p, v) = lead(t);
+        let epoch = (t / 8.0) as usize;
+        (0..3)
+            .map(|i| {
+                let o = vee_slot(i, 0.0);
+                let (dp, dv) = jitter(k, i);
+                track(
+                    &format!("track-{}", 1 + i + 10 * epoch),
+                    [p[0] + o[0] + dp[0], p[1] + o[1] + dp[1]],
+                    [v[0] + dv[0], v[1] + dv[1]],
+                )
+            })
+            .collect()
+    };
+    let mut pic = AirPicture::new(GroupingConfig::default());
+    let mut errors = Vec::new();
+    let mut ids = std::collections::BTreeSet::new();
+    for k in 0..900u64 {
+        let t = k as f64 / 10.0;
+        let mut tracks = scene(t, k);
+        let (swarms, _) = pic.update(1_000_000_000 + (t * 1e6) as u64, &mut tracks);
+        for s in &swarms {
+            ids.insert(s.id.clone());
+        }
+        if t >= 30.0 && k % 5 == 0 && swarms.len() == 1 {
+            let f = swarms[0]
+                .forecast
+                .iter()
+                .find(|f| f.horizon_s == 10.0)
+                .unwrap();
+            let (q, _) = lead(t + 10.0);
+            // The true centroid: the leader's point moved by the mean slot offset.
+            let c = [
+                q[0] + (0..3).map(|i| vee_slot(i, 0.0)[0]).sum::<f64>() / 3.0,
+                q[1],
+            ];
+            errors.push((f.position.north_m - c[0]).hypot(f.position.east_m - c[1]));
+        }
+    }
+    assert_eq!(ids.len(), 1, "one swarm throughout: {ids:?}");
+    errors.sort_by(f64::total_cmp);
+    assert!(errors.len() > 100);
+    assert!(median(&errors) < 20.0, "median {} m", median(&errors));
+}

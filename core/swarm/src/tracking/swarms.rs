@@ -31,7 +31,10 @@
 //!    has, and a cluster sharing one of them takes its id again).
 //!
 //! The swarm's centroid and velocity are its members' means, its shape comes from
-//! [`super::shape`], its forecast is the mean of its members' ([`super::forecast`]).
+//! [`super::shape`]. Its forecast ([`super::forecast`]) is its centroid's own, from the
+//! swarm's history (which outlives its members' tracks: a weaving swarm's mean course is
+//! learnt over longer than any one track lives), once that has been judged; until then
+//! the mean of its members'.
 
 use super::forecast::mean_forecast;
 use super::shape;
@@ -97,6 +100,8 @@ struct Group {
     pending_shape: Option<(SwarmShape, f64)>,
     /// Since when it has had fewer than `min_members`, s.
     thin_since: Option<f64>,
+    /// The centroid's own forecaster.
+    forecaster: super::forecast::TrackForecaster,
 }
 
 /// The recognizer (see the module docs). Times are wall-clock microseconds.
@@ -311,6 +316,7 @@ impl SwarmRecognizer {
                 last_t_s: t,
                 pending_shape: None,
                 thin_since: None,
+                forecaster: Default::default(),
             });
         }
         let events = self.update_views(t, tracks, &index);
@@ -436,6 +442,21 @@ impl SwarmRecognizer {
             }
             let id = g.id.clone().unwrap_or_default();
             let mut view = view_of(&id, &members, t - g.detected_s);
+            // The centroid's own forecast, once its models have been judged.
+            let (cp, cv) = (&view.centroid, &view.velocity);
+            let position = nalgebra::Vector3::new(cp.north_m, cp.east_m, cp.down_m);
+            let velocity = nalgebra::Vector3::new(cv.north_m_s, cv.east_m_s, cv.down_m_s);
+            g.forecaster.observe(t, position, velocity);
+            if g.forecaster.judged() {
+                let n = members.len() as f64;
+                let var = members
+                    .iter()
+                    .map(|m| m.covariance_ne_m2[0][0] + m.covariance_ne_m2[1][1])
+                    .sum::<f64>()
+                    / n;
+                let vs = members.iter().map(|m| m.velocity_sigma_m_s).sum::<f64>() / n;
+                view.forecast = g.forecaster.forecast_from(t, position, velocity, var, vs);
+            }
             match &g.view {
                 None => {
                     if g.id.is_some() {
