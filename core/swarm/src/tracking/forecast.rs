@@ -14,9 +14,11 @@
 //! recent innovation: every [`SNAPSHOT_EVERY_S`] the forecaster keeps the track's state,
 //! and scores each model's forecast made [`SCORED_S`] seconds ago from the state then
 //! against the track's estimate now (an exponentially weighted mean of the squared
-//! horizontal residual, time constant [`RESIDUAL_TAU_S`]). A horizon takes the model with
-//! the smallest score at the longest scored horizon not beyond it; constant velocity until
-//! a model has been scored, and unless another beats it by 20 %.
+//! horizontal residual, time constant [`RESIDUAL_TAU_S`]). A horizon takes its default
+//! model (constant velocity below [`LONG_HORIZON_S`], mean velocity from there on: until
+//! judged, the mean course is the safer long guess, and on a straight path the two agree)
+//! unless another has beaten it by 20 % at the longest scored horizon not beyond it, once
+//! that horizon is as long as the forecast's (or [`LONG_HORIZON_S`]).
 //!
 //! The uncertainty (one σ, horizontal, metres) is the filter's position variance plus its
 //! velocity variance grown over the horizon, plus the chosen model's recent mean squared
@@ -42,8 +44,11 @@ pub const TURN_WINDOW_S: f64 = 2.0;
 pub const MAX_TURN_RATE_RAD_S: f64 = 0.6;
 /// Time constant of the residual scores, seconds.
 pub const RESIDUAL_TAU_S: f64 = 8.0;
-/// Another model replaces CV only when its score is below this fraction of CV's.
+/// Another model replaces the default only when its score is below this fraction of the
+/// default's.
 const SWITCH_RATIO: f64 = 0.8;
+/// From this horizon on the default model is mean velocity, seconds.
+pub const LONG_HORIZON_S: f64 = 10.0;
 /// Scores needed before a horizon's scores are used.
 const MIN_SCORES: u32 = 3;
 
@@ -187,25 +192,33 @@ impl TrackForecaster {
         }
     }
 
-    /// The model for horizon `h_s` and the index of the scored horizon it was judged at.
+    /// The model for horizon `h_s` and the index of the scored horizon whose residuals size
+    /// its σ (see the module docs: the default model, constant velocity below
+    /// [`LONG_HORIZON_S`] and mean velocity from there on, unless another has beaten it
+    /// by 20 % at a scored horizon as long as `h_s`, or [`LONG_HORIZON_S`]).
     pub fn choose(&self, h_s: f64) -> (MotionModel, Option<usize>) {
         let judged = (0..SCORED_S.len())
             .rev()
             .filter(|&i| self.scores[i][0].count >= MIN_SCORES)
             .find(|&i| SCORED_S[i] <= h_s + 1e-9)
             .or_else(|| (0..SCORED_S.len()).find(|&i| self.scores[i][0].count >= MIN_SCORES));
+        let default = if h_s >= LONG_HORIZON_S - 1e-9 { 2 } else { 0 };
         let Some(hi) = judged else {
-            return (MotionModel::ConstantVelocity, None);
+            return (MODELS[default], None);
         };
+        if SCORED_S[hi] < h_s.min(LONG_HORIZON_S) - 1e-9 {
+            return (MODELS[default], Some(hi));
+        }
         let s = &self.scores[hi];
-        let (best, _) = (1..MODELS.len())
+        let (best, _) = (0..MODELS.len())
+            .filter(|m| *m != default)
             .map(|m| (m, s[m].mean_sq_m2))
             .min_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap_or((0, f64::INFINITY));
-        let m = if s[best].mean_sq_m2 < SWITCH_RATIO * s[0].mean_sq_m2 {
+            .unwrap_or((default, f64::INFINITY));
+        let m = if s[best].mean_sq_m2 < SWITCH_RATIO * s[default].mean_sq_m2 {
             best
         } else {
-            0
+            default
         };
         (MODELS[m], Some(hi))
     }
