@@ -11,12 +11,19 @@
 //! `track_confirmed` event on the stream and the tracker's counters in `/metrics`. Last, a
 //! wedge takes the track as its leader with a 30 m stand-off and follows the intruder at
 //! that distance, without a separation or geofence violation.
+//!
+//! Hostile swarms: `skein up --sim 4 --intruders 5 --intruder-pattern formation`, a V of
+//! five on the same pass, is one `swarm_detected` of five tracks; observing it flies the
+//! two observation UAVs to stations that keep the stand-off, the slot distance and the
+//! geofence, where they arrive without a separation or fence violation.
 
 mod support;
 
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
-use support::counter_uas::{OBSERVERS, build_plugins, up_with_intruder_pass};
+use support::counter_uas::{
+    OBSERVERS, build_plugins, up_with_formation_pass, up_with_intruder_pass,
+};
 use support::{EventLog, Skein, one_at_a_time};
 
 /// True when the camera of `vehicle` drew an intruder in its last frame (the simulated
@@ -338,4 +345,240 @@ fn a_passing_intruder_becomes_a_confirmed_track_that_follows_the_truth() {
         .and_then(|v| v.parse::<f64>().ok())
         .unwrap_or(0.0);
     println!("tracking: bearings on swarm members excluded: {excluded}");
+}
+
+fn horizontal(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+/// A V of five intruders passes 60 m east of the swarm: the tracker recognises one hostile
+/// swarm of five (one `swarm_detected` on the stream, `GET /api/v1/swarms` with its shape
+/// and forecast). Observing it is refused naming the field for an unknown swarm or a bad
+/// stand-off; then the two observation UAVs get stations at least the slot distance apart,
+/// inside the geofence and beyond the stand-off, fly there and stay out of the formation,
+/// with no pair of vehicles closer than 3 m and none outside the fence. A formation may
+/// take the swarm as its leader.
+#[test]
+fn a_formation_of_five_is_one_hostile_swarm_observed_from_stations() {
+    let _serial = one_at_a_time();
+    let dir = build_plugins("swarm-plugins");
+    let skein = up_with_formation_pass(&dir, 4.0, 5);
+    let stream = EventLog::connect(&skein.base);
+    skein.take_off(4, 10.0);
+    skein.point_gimbals(&OBSERVERS, 90.0, 3.0);
+    let swarm = support::eventually(
+        "one hostile swarm of five",
+        Duration::from_secs(150),
+        || {
+            let (_, swarms) = skein.get("/api/v1/swarms");
+            let list = swarms["swarms"].as_array().cloned().unwrap_or_default();
+            match list
+                .iter()
+                .find(|s| s["members"].as_array().is_some_and(|m| m.len() == 5))
+            {
+                Some(s) => Ok(s.clone()),
+                None => Err(format!("swarms {swarms}")),
+            }
+        },
+    );
+    let id = swarm["id"].as_str().unwrap().to_string();
+    println!(
+        "swarms: {id} of {} as a {} heading {:.0} deg, {:.1} m/s, forecast {}",
+        swarm["members"],
+        swarm["shape"],
+        swarm["shape_heading_deg"],
+        swarm["speed_m_s"],
+        swarm["forecast"]
+    );
+    assert!(
+        ["line", "wedge", "cluster"].contains(&swarm["shape"].as_str().unwrap_or("")),
+        "{swarm}"
+    );
+    assert_eq!(
+        swarm["forecast"].as_array().map(Vec::len),
+        Some(3),
+        "{swarm}"
+    );
+    // One swarm listed, announced by one swarm_detected (a pair of young tracks grouped
+    // early and then lost would be a second one: printed, not failed).
+    let (_, listed) = skein.get("/api/v1/swarms");
+    assert_eq!(
+        listed["swarms"].as_array().map(Vec::len),
+        Some(1),
+        "{listed}"
+    );
+    let detected = stream.of_type("swarm_detected");
+    let of_it = detected
+        .iter()
+        .filter(|e| e["swarm"]["id"] == id.as_str())
+        .count();
+    assert_eq!(of_it, 1, "one swarm_detected of {id}: {detected:?}");
+    println!("swarms: {} swarm_detected events in all", detected.len());
+    let (_, tracks) = skein.get("/api/v1/tracks");
+    let in_swarm = tracks["tracks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|t| t["swarm"] == id.as_str())
+        .count();
+    assert_eq!(in_swarm, 5, "{tracks}");
+
+    // Refusals name the field.
+    let (status, body) = skein.post("/api/v1/swarms/swarm-999/observe", json!({}));
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (404, Some("id")),
+        "{body}"
+    );
+    let (status, body) = skein.post(
+        &format!("/api/v1/swarms/{id}/observe"),
+        json!({"standoff_m": 2.0}),
+    );
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (400, Some("standoff_m")),
+        "{body}"
+    );
+    let (status, body) = skein.post(&format!("/api/v1/swarms/{id}/observe"), json!({}));
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["vehicles"], json!(OBSERVERS), "{body}");
+
+    // The stations keep the stand-off, the slot distance and the fence.
+    let (_, fence) = skein.get("/api/v1/geofence");
+    let fence_radius = fence["radius_m"].as_f64().unwrap_or(f64::INFINITY);
+    let (_, swarms) = skein.get("/api/v1/swarms");
+    let listed = swarms["swarms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["id"] == id.as_str())
+        .cloned()
+        .expect("the swarm is still listed");
+    assert_eq!(listed["observed_by"], json!(OBSERVERS), "{listed}");
+    let st = &listed["stations"];
+    let stations: Vec<(String, [f64; 3])> = st["stations"]
+        .as_array()
+        .expect("stations")
+        .iter()
+        .map(|s| {
+            (
+                s["vehicle"].as_str().unwrap().to_string(),
+                ned(&s["position"]),
+            )
+        })
+        .collect();
+    assert_eq!(stations.len(), 2, "{st}");
+    assert!(dist(stations[0].1, stations[1].1) >= 4.9, "{st}");
+    let centroid = ned(&listed["centroid"]);
+    for (_, p) in &stations {
+        assert!(
+            p[0].hypot(p[1]) <= fence_radius - 5.0,
+            "{p:?} outside the fence"
+        );
+        assert!(
+            horizontal(*p, centroid) >= 20.0,
+            "{p:?} within the stand-off of {centroid:?}"
+        );
+    }
+    println!(
+        "swarms: stations {stations:?}, predicted sigma {:.2} m at {:.0} deg",
+        st["predicted_sigma_m"].as_f64().unwrap_or(f64::NAN),
+        st["triangulation_angle_deg"].as_f64().unwrap_or(f64::NAN)
+    );
+
+    // The observers fly there (re-planned as the swarm moves), never too close to another
+    // vehicle, never outside the fence, and not back into the formation meanwhile.
+    let stats = skein.sim_stats_addr();
+    let (mut min_sep, mut farthest) = (f64::INFINITY, 0.0f64);
+    // Each observer's progress to its station: the smallest fraction left of the distance
+    // it had when that station was planned (stations move as the swarm does), and when it
+    // first got within 3 m of one or covered 70 % of the way to one.
+    let mut progress: std::collections::BTreeMap<String, ([f64; 3], f64, f64, Option<f64>)> =
+        std::collections::BTreeMap::new();
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(40) {
+        let (_, truth) = skein.get("/api/v1/sim/truth");
+        let (_, swarms) = skein.get("/api/v1/swarms");
+        let now = swarms["swarms"]
+            .as_array()
+            .and_then(|l| l.iter().find(|s| s["id"] == id.as_str()).cloned());
+        let Some(now) = now else {
+            break; // the swarm flew out of view: its observation ended
+        };
+        let vehicles = truth["vehicles"].as_array().unwrap();
+        for v in vehicles {
+            let p = ned(v);
+            farthest = farthest.max(p[0].hypot(p[1]));
+        }
+        for s in now["stations"]["stations"].as_array().into_iter().flatten() {
+            let vid = s["vehicle"].as_str().unwrap().to_string();
+            let Some(v) = vehicles.iter().find(|v| v["id"] == vid.as_str()) else {
+                continue;
+            };
+            let station = ned(&s["position"]);
+            let d = dist(ned(v), station);
+            let e = progress
+                .entry(vid)
+                .or_insert((station, d.max(1e-9), 1.0, None));
+            if dist(e.0, station) > 1.0 {
+                // Planned again: progress toward the new one.
+                (e.0, e.1) = (station, d.max(1e-9));
+            }
+            e.2 = e.2.min(d / e.1);
+            if (d < 3.0 || d / e.1 < 0.3) && e.3.is_none() {
+                e.3 = Some(start.elapsed().as_secs_f64());
+            }
+        }
+        for v in skein.vehicles() {
+            if OBSERVERS.contains(&v["id"].as_str().unwrap_or("")) {
+                assert_ne!(
+                    v["state"], "InFormation",
+                    "an observer joined the formation: {v}"
+                );
+            }
+        }
+        min_sep = min_sep.min(support::truth_min_separation(&stats));
+        if progress.len() == OBSERVERS.len() && progress.values().all(|c| c.3.is_some()) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(250));
+    }
+    println!(
+        "swarms: observers' progress to their stations (station, distance when planned m, \
+         least fraction left, s to arrival): {progress:?}; closest pair {min_sep:.2} m, \
+         farthest vehicle {farthest:.0} m from the origin"
+    );
+    assert_eq!(progress.len(), OBSERVERS.len(), "{progress:?}");
+    assert!(
+        progress.values().all(|c| c.3.is_some()),
+        "the observers never reached their stations: {progress:?}"
+    );
+    assert!(min_sep >= 3.0, "closest pair {min_sep:.2} m");
+    assert!(
+        farthest < fence_radius,
+        "{farthest} m outside the {fence_radius} m fence"
+    );
+
+    // A formation may follow the swarm; an unknown one is refused naming the field.
+    let wedge = |leader: &str| json!({"shape": "wedge", "spacing_m": 6.0, "leader": leader, "altitude_m": 10.0, "standoff_m": 30.0});
+    let (status, body) = skein.put("/api/v1/formation", wedge("swarm-999"));
+    assert_eq!(
+        (status, body["field"].as_str()),
+        (400, Some("leader")),
+        "{body}"
+    );
+    let (_, swarms) = skein.get("/api/v1/swarms");
+    if swarms["swarms"]
+        .as_array()
+        .is_some_and(|l| l.iter().any(|s| s["id"] == id.as_str()))
+    {
+        let (status, body) = skein.put("/api/v1/formation", wedge(&id));
+        assert_eq!(status, 200, "{body}");
+        assert_eq!(body["leader"], json!(id), "{body}");
+        let (status, body) = skein.delete("/api/v1/formation");
+        assert!(status < 300, "{body}");
+    }
+    let (status, body) = skein.delete(&format!("/api/v1/swarms/{id}/observe"));
+    assert_eq!(status, 200, "{body}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -265,15 +265,16 @@ fn the_ground_station_drives_payloads_supervision_and_plugins_in_chromium() {
     );
 }
 
-/// The counter-UAS views in Chromium: an intruder passes east of four vehicles whose
-/// observation UAVs (uav-2, uav-4) look east; the dashboard lists and draws the confirmed
-/// track, observes it on a click, and shows the detector's boxes over uav-2's video.
+/// The counter-UAS views in Chromium: a V of three intruders passes east of four vehicles
+/// whose observation UAVs (uav-2, uav-4) look east; the dashboard lists and draws a
+/// confirmed track and the hostile swarm they form (its hull and forecast cone), observes
+/// a track on a click, and shows the detector's boxes over uav-2's video.
 #[test]
 fn the_dashboard_shows_tracks_and_observes_one_in_chromium() {
     let _serial = support::one_at_a_time();
     let dir = support::counter_uas::build_plugins("tracks-dashboard");
     // About 20 s of every 45 s pass in the cameras' view at 4 m/s.
-    let skein = support::counter_uas::up_with_intruder_pass(&dir, 4.0);
+    let skein = support::counter_uas::up_with_formation_pass(&dir, 4.0, 3);
     skein.take_off(4, 10.0);
     skein.point_gimbals(&support::counter_uas::OBSERVERS, 90.0, 3.0);
     // The intruder's pass (back and forth, about 20 s of every 45 s in view): the browser

@@ -77,6 +77,14 @@ export function describe(ev) {
         : { level: 'ok', label: 'formation', text: 'no longer blocked by hazards' };
     case 'payload_event':
       return { level: 'info', label: 'payload', text: `${ev.id}/${ev.slot} ${ev.kind}: ${JSON.stringify(ev.data)}` };
+    case 'swarm_detected':
+      return { level: 'warn', label: 'swarm', text: `hostile ${ev.swarm.id}: ${ev.swarm.shape} of ${ev.swarm.members.length} (${ev.swarm.members.join(', ')}) at ${ev.swarm.speed_m_s.toFixed(1)} m/s → ${ev.swarm.course_deg.toFixed(0)}°` };
+    case 'swarm_changed': {
+      const who = [...ev.joined.map((t) => `+${t}`), ...ev.left.map((t) => `−${t}`)].join(' ');
+      return { level: 'info', label: 'swarm', text: `${ev.swarm.id}: ${ev.swarm.shape} of ${ev.swarm.members.length}${who ? ` (${who})` : ''}` };
+    }
+    case 'swarm_lost':
+      return { level: 'info', label: 'swarm', text: `${ev.swarm.id} lost` };
     case 'events_dropped':
       return { level: 'warn', label: 'stream', text: `${ev.count} events dropped (dashboard too slow)` };
     default: {

@@ -17,6 +17,7 @@ import { stateClass, CLASS_COLOUR, compareIds, fmt } from './model.js';
 import { drawHazards, drawMarks, drawScale, drawNorth, drawCursor } from './plan-overlays.js';
 import { drawFence } from './plan-fence.js';
 import { drawTargets } from './plan-targets.js';
+import { drawSwarms } from './plan-swarms.js';
 
 const MIN_SPAN_M = 16;        // never zoom in further than this many metres across
 const PAD_PX = 48;            // room for labels around the fitted area
@@ -64,6 +65,8 @@ export class PlanView {
     this.editor = null;
     this.origin = null;      // {lat_deg, lon_deg} of the swarm frame's origin
     this.dragged = false;    // the last mouse press moved a fence vertex
+    this.swarms = [];        // hostile swarms (GET /api/v1/swarms)
+    this.swarmPx = new Map(); // swarm id → {x, y, hull, cone, stations} as last drawn
     this.banner = document.createElement('div');
     this.banner.className = 'plan-banner';
     this.banner.dataset.testid = 'plan-banner';
@@ -130,9 +133,11 @@ export class PlanView {
     this.kick();
   }
 
-  /** The counter-UAS tracks as GET /api/v1/tracks lists them (swarm frame). */
-  setTargets(tracks) {
+  /** The counter-UAS tracks and hostile swarms as GET /api/v1/tracks and
+   * GET /api/v1/swarms list them (swarm frame). */
+  setTargets(tracks, swarms) {
     this.targets = Array.isArray(tracks) ? tracks : [];
+    this.swarms = Array.isArray(swarms) ? swarms : [];
     this.kick();
   }
 
@@ -405,6 +410,7 @@ export class PlanView {
 
     drawFence(this);
     drawHazards(this);
+    drawSwarms(this);
     drawTargets(this);
 
     // Trails.

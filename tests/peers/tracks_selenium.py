@@ -1,13 +1,17 @@
 #!/usr/bin/env python3
 """Drives the dashboard's counter-UAS views in real headless Chromium against a running
-`skein up --sim 4 --intruders 1` whose observation UAVs look at the intruder's pass:
+`skein up --sim 4 --intruders 3 --intruder-pattern formation` whose observation UAVs look
+at the intruders' pass:
 
 1. the Tracks tab lists a confirmed track, drawn on the plan (data-x / data-y inside
    the canvas);
-2. its Observe button makes the observation UAVs follow it (data-observed-by);
-3. the Payloads tab of uav-2 shows its camera with the detector's boxes over the video
+2. it lists the hostile swarm the tracks form, drawn on the plan: its centroid inside the
+   canvas, its hull (data-hull: the hull's corners, 3 for three members) and its forecast
+   cone (data-cone);
+3. a track's Observe button makes the observation UAVs follow it (data-observed-by);
+4. the Payloads tab of uav-2 shows its camera with the detector's boxes over the video
    (data-detections >= 1);
-4. no severe error in the browser console.
+5. no severe error in the browser console.
 
 Prints one JSON summary line; exits 0 only on success.
 
@@ -22,6 +26,14 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
 from dashboard_selenium import Dashboard, Failure, add_browser_args, drive
+
+SWARMS_JS = """
+return [...document.querySelectorAll('[data-testid="swarm-list"] li[data-swarm-id]')].map(li => ({
+  id: li.dataset.swarmId, members: li.dataset.members, shape: li.dataset.shape,
+  hull: +(li.dataset.hull || 0), cone: li.dataset.cone === '1',
+  x: li.dataset.x === '' ? null : +li.dataset.x, y: li.dataset.y === '' ? null : +li.dataset.y,
+}));
+"""
 
 TRACKS_JS = """
 return [...document.querySelectorAll('[data-testid="track-list"] li[data-track-id]')].map(li => ({
@@ -59,6 +71,20 @@ def run(args, driver, summary):
     track = ui.wait("a confirmed track listed and drawn on the plan", confirmed_on_plan)
     summary["track"] = track
     summary["confirmed_after_s"] = round(time.monotonic() - t0, 1)
+
+    def swarm_on_plan(_):
+        ui.last = driver.execute_script(SWARMS_JS)
+        for s in ui.last:
+            if (s["hull"] >= 3 and s["cone"] and s["x"] is not None
+                    and 0 <= s["x"] <= size[0] and 0 <= s["y"] <= size[1]):
+                return s
+        return None
+
+    summary["swarm"] = ui.wait("a hostile swarm with its hull and forecast cone on the plan", swarm_on_plan)
+    summary["swarm_after_s"] = round(time.monotonic() - t0, 1)
+    if args.screenshot:
+        driver.save_screenshot(args.screenshot)
+        summary["screenshot"] = args.screenshot
     driver.find_element(
         By.CSS_SELECTOR, f'li[data-track-id="{track["id"]}"] button[data-act="observe"]').click()
 
@@ -67,9 +93,6 @@ def run(args, driver, summary):
         return next((t for t in ui.last if t["id"] == track["id"] and t["by"]), None)
 
     summary["observed"] = ui.wait("the track observed after the click", observed)
-    if args.screenshot:
-        driver.save_screenshot(args.screenshot)
-        summary["screenshot"] = args.screenshot
     ui.click("tab-payloads")
     Select(driver.find_element(By.CSS_SELECTOR, '[data-testid="payload-vehicle"]')).select_by_value("uav-2")
 
@@ -92,6 +115,8 @@ def main():
         summary["console"] = [e["message"] for e in driver.get_log("browser")][-10:]
         summary["tracks_api"] = driver.execute_script(
             "return fetch('/api/v1/tracks').then(r => r.text())")
+        summary["swarms_api"] = driver.execute_script(
+            "return fetch('/api/v1/swarms').then(r => r.text())")
         summary["tracks_view"] = driver.execute_script(
             "const v = document.getElementById('view-tracks'); return v ? v.outerHTML.slice(0, 1500) : null")
         if args.screenshot:

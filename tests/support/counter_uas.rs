@@ -57,6 +57,34 @@ pub fn up_with_intruder_pass_and(plugin_dir: &Path, speed_m_s: f64, extra: &[&st
     Skein::up_sim(4, &args)
 }
 
+/// `skein up --sim 4` with the plugins of `plugin_dir` and `n` intruders flying a V on the
+/// pass of [`up_with_intruder_pass`] (south along a line 60 m east of home, 14 m up, at
+/// `speed_m_s`), the leader ahead and pairs 6 m behind it and 6 m to either side.
+pub fn up_with_formation_pass(plugin_dir: &Path, speed_m_s: f64, n: usize) -> Skein {
+    let (speed, count) = (speed_m_s.to_string(), n.to_string());
+    Skein::up_sim(
+        4,
+        &[
+            "--plugin-dir",
+            plugin_dir.to_str().unwrap(),
+            "--intruders",
+            &count,
+            "--intruder-pattern",
+            "formation",
+            "--intruder-heading-deg",
+            "180",
+            "--intruder-cpa-m",
+            "60",
+            "--intruder-range-m",
+            "90",
+            "--intruder-altitude-m",
+            "14",
+            "--intruder-speed-m-s",
+            &speed,
+        ],
+    )
+}
+
 impl Skein {
     /// Points the gimbals of `ids` at `yaw_deg` (earth frame), `pitch_deg` up, and waits
     /// until their cameras report that azimuth.

@@ -203,9 +203,11 @@ impl From<FaultError> for ApiError {
 impl From<ObserveRefusal> for ApiError {
     fn from(refusal: ObserveRefusal) -> Self {
         let status = match refusal {
-            ObserveRefusal::UnknownTrack(_) => StatusCode::NOT_FOUND,
-            ObserveRefusal::TrackLost(_) => StatusCode::CONFLICT,
-            ObserveRefusal::BadVehicle(_) => StatusCode::BAD_REQUEST,
+            ObserveRefusal::UnknownTarget(_) => StatusCode::NOT_FOUND,
+            ObserveRefusal::TrackLost(_) | ObserveRefusal::NoStations(_) => StatusCode::CONFLICT,
+            ObserveRefusal::BadVehicle(_) | ObserveRefusal::BadStandoff(_) => {
+                StatusCode::BAD_REQUEST
+            }
         };
         ApiError {
             status,

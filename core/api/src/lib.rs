@@ -42,6 +42,7 @@ pub mod server;
 mod static_files;
 mod stream;
 pub mod swarm_status;
+pub mod swarms;
 pub mod tls;
 pub mod tracks;
 pub mod vehicles;

@@ -63,6 +63,15 @@ pub struct PayloadSlot {
     pub slot: String,
 }
 
+/// `{id}` of `/api/v1/swarms/{id}…`.
+#[derive(Debug, Clone, Deserialize, IntoParams)]
+#[into_params(parameter_in = Path)]
+pub struct SwarmId {
+    /// Hostile swarm id (`swarm-2`), as `GET /api/v1/swarms` lists them.
+    #[param(min_length = 1, example = "swarm-1")]
+    pub id: String,
+}
+
 /// `{id}` of `/api/v1/tracks/{id}…`.
 #[derive(Debug, Clone, Deserialize, IntoParams)]
 #[into_params(parameter_in = Path)]

@@ -5,11 +5,16 @@
 //!   "velocity": {"north_m_s", "east_m_s", "down_m_s"}, "covariance_ne_m2": [[nn, ne], [ne,
 //!   ee]], "position_sigma_m", "hits", "triangulated_hits", "observers", "age_s",
 //!   "unseen_s"}` (swarm frame; see `skein_swarm::tracking`).
-//!   Each track also lists `observed_by`: the vehicles whose gimbals follow it.
-//! - `POST /api/v1/tracks/{id}/observe` `{"vehicles"?: ["uav-2", …]}` (operator): point the
-//!   gimbals of those vehicles (default: every vehicle with a gimbal) at the track and keep
-//!   them on it; `{"track", "vehicles"}`. 404 `id` for an unknown track, 409 `id` for a
-//!   lost one, 400 `vehicles` for an unknown vehicle or one without a gimbal.
+//!   Each track also lists `velocity_sigma_m_s`, its `forecast` (5, 10, 20 s: `{"horizon_s",
+//!   "position", "sigma_m", "model"}`), its `swarm` (`swarm-N` or null), `observed_by`:
+//!   the vehicles whose gimbals follow it, and `stations` when they observe it from
+//!   stations.
+//! - `POST /api/v1/tracks/{id}/observe` `{"vehicles"?: ["uav-2", …], "stations"?: false,
+//!   "standoff_m"?: 25}` (operator): point the gimbals of those vehicles (default: every
+//!   vehicle with a gimbal) at the track and keep them on it, and with `stations` fly them
+//!   to the stations that fix it best; `{"track", "vehicles"}`. 404 `id` for an unknown
+//!   track, 409 `id` for a lost one, 400 `vehicles` for an unknown vehicle or one without a
+//!   gimbal, 400 `standoff_m` out of range, 409 `stations` when no stations meet the limits.
 //! - `DELETE /api/v1/tracks/{id}/observe` (operator): stop; the gimbals hold their angles;
 //!   `{"track", "released"}`.
 //! - `GET /api/v1/sim/truth`: the embedded simulator's ground truth, for evaluation only:
@@ -26,6 +31,8 @@ use axum::body::Bytes;
 use axum::extract::{Path, State};
 use serde::Serialize;
 use skein_swarm::CoordinatorMsg;
+use skein_swarm::coordinator::observe::ObserveSpec;
+use skein_swarm::coordinator::stations::StationsView;
 use skein_swarm::tracks::TrackView;
 use utoipa::ToSchema;
 
@@ -44,6 +51,8 @@ pub struct TrackEntry {
     pub track: TrackView,
     /// Vehicles observing it (`POST /api/v1/tracks/{id}/observe`).
     pub observed_by: Vec<String>,
+    /// Their stations, when they observe it from stations.
+    pub stations: Option<StationsView>,
 }
 
 /// `POST /api/v1/tracks/{id}/observe`.
@@ -70,24 +79,36 @@ pub struct Released {
 pub(crate) async fn list_tracks(
     State(s): State<ApiState>,
 ) -> Result<Json<TracksListing>, ApiError> {
-    let (tracks, observing) = s.ask(CoordinatorMsg::GetTracks).await?;
-    let tracks = tracks
+    let picture = s.ask(CoordinatorMsg::GetAirPicture).await?;
+    let tracks = picture
+        .tracks
         .into_iter()
         .map(|track| TrackEntry {
-            observed_by: observing
+            observed_by: observed_by(&picture.observing, &track.id),
+            stations: picture
+                .stations
                 .iter()
-                .filter(|(_, t)| *t == track.id)
-                .map(|(v, _)| v.clone())
-                .collect(),
+                .find(|st| st.target == track.id)
+                .cloned(),
             track,
         })
         .collect();
     Ok(Json(TracksListing { tracks }))
 }
 
+/// The vehicles of `observing` (vehicle, target) observing `target`.
+pub(crate) fn observed_by(observing: &[(String, String)], target: &str) -> Vec<String> {
+    observing
+        .iter()
+        .filter(|(_, t)| t == target)
+        .map(|(v, _)| v.clone())
+        .collect()
+}
+
 /// Point gimbals at the track and keep them on it
 ///
-/// The gimbals of the given vehicles (default: every observation UAV).
+/// The gimbals of the given vehicles (default: every observation UAV); with `stations`,
+/// they also fly to the stations that fix the track best.
 #[utoipa::path(post, path = "/api/v1/tracks/{id}/observe", params(TrackId),
     request_body = Option<ObserveRequest>,
     responses((status = 200, body = Observing), (status = 400), (status = 404),
@@ -100,18 +121,21 @@ pub(crate) async fn observe(
     Path(TrackId { id }): Path<TrackId>,
     body: Bytes,
 ) -> Result<Json<Observing>, ApiError> {
-    let vehicles = crate::requests::parse_or_empty::<ObserveRequest>(&body)?.vehicles;
-    let track = id.clone();
-    let vehicles = s
-        .ask(move |r| CoordinatorMsg::ObserveTrack(track, vehicles, r))
-        .await??;
+    let req = crate::requests::parse_or_empty::<ObserveRequest>(&body)?;
+    let spec = ObserveSpec {
+        target: id.clone(),
+        vehicles: req.vehicles,
+        stations: req.stations.unwrap_or(false),
+        standoff_m: req.standoff_m,
+    };
+    let vehicles = s.ask(move |r| CoordinatorMsg::Observe(spec, r)).await??;
     Ok(Json(Observing {
         track: id,
         vehicles,
     }))
 }
 
-/// Stop observing the track; the gimbals hold their angles
+/// Stop observing the track; the gimbals hold their angles, observers on stations hold
 #[utoipa::path(delete, path = "/api/v1/tracks/{id}/observe", params(TrackId),
     responses((status = 200, body = Released), (status = 503)))]
 pub(crate) async fn stop_observing(

@@ -53,7 +53,8 @@ impl skein_swarm::SimulatorControl for LateSimControl {
 
     /// `{"vehicles": [{"id", "sysid", "position", "north_m", "east_m", "down_m", "velocity",
     /// "armed", "mode"}], "intruders": [{"id", "pattern", "position", "north_m", "east_m",
-    /// "down_m", "velocity", "span_m"}]}`; swarm-frame fields are `null` until the swarm
+    /// "down_m", "velocity", "span_m", "group"}]}` (`group`: `group-N` for intruders flying
+    /// together, else null); swarm-frame fields are `null` until the swarm
     /// frame is anchored.
     fn truth(&self, frame: Option<&NedFrame>) -> Value {
         let Some(sim) = self.0.get() else {
@@ -90,6 +91,7 @@ impl skein_swarm::SimulatorControl for LateSimControl {
                     "id": t.id, "pattern": t.pattern, "position": geo(&t.position),
                     "north_m": n, "east_m": e, "down_m": d,
                     "velocity": velocity(&t.velocity_ned_m_s), "span_m": t.span_m,
+                    "group": t.group,
                 })
             })
             .collect();

@@ -185,6 +185,25 @@ pub enum SwarmEvent {
         /// The track.
         track: crate::tracks::TrackView,
     },
+    /// Confirmed tracks flying together were recognised as a hostile swarm.
+    SwarmDetected {
+        /// The swarm (as `GET /api/v1/swarms` lists it).
+        swarm: crate::tracks::SwarmView,
+    },
+    /// A hostile swarm's members or shape changed.
+    SwarmChanged {
+        /// The swarm now.
+        swarm: crate::tracks::SwarmView,
+        /// Tracks that joined it.
+        joined: Vec<String>,
+        /// Tracks that left it.
+        left: Vec<String>,
+    },
+    /// Fewer than two of a hostile swarm's tracks fly together any more.
+    SwarmLost {
+        /// The swarm as last seen.
+        swarm: crate::tracks::SwarmView,
+    },
     /// An event raised by a payload.
     PayloadEvent {
         /// Vehicle id.

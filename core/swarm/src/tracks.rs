@@ -1,9 +1,14 @@
 //! Counter-UAS tracks as the rest of skein sees them: a track as the API, the stream and
 //! the DDS `/skein/tracks` topic show it ([`TrackView`], swarm frame), what happens to
-//! tracks ([`TrackEvent`]) and the tracker's counters. A leaf: the tracker
-//! ([`crate::tracking`]) makes these, the event bus and the metrics read them.
+//! tracks ([`TrackEvent`]) and the tracker's counters; the hostile swarms the tracks are
+//! grouped into ([`SwarmView`], [`HostileSwarmEvent`]) and the forecasts of
+//! both ([`ForecastPoint`]). A leaf: the tracker ([`crate::tracking`]) makes these, the
+//! event bus and the metrics read them.
 
 use serde::{Deserialize, Serialize};
+
+/// Hostile swarm ids are `swarm-<n>` (track ids `track-<n>`).
+pub const SWARM_PREFIX: &str = "swarm-";
 
 /// Where a track is in its life.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
@@ -42,6 +47,112 @@ pub struct TrackView {
     pub age_s: f64,
     /// Seconds since its last update.
     pub unseen_s: f64,
+    /// Root of the velocity covariance's trace, m/s.
+    #[serde(default)]
+    pub velocity_sigma_m_s: f64,
+    /// Where it will be in 5, 10 and 20 s (see [`crate::tracking::forecast`]); empty
+    /// until the tracker has forecast it.
+    #[serde(default)]
+    pub forecast: Vec<ForecastPoint>,
+    /// The hostile swarm it belongs to (`swarm-N`), if any.
+    #[serde(default)]
+    pub swarm: Option<String>,
+}
+
+/// The motion model a forecast extrapolates with (chosen per track, per horizon, by the
+/// recent forecast residuals of each: see [`crate::tracking::forecast`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionModel {
+    /// Straight on at the current velocity.
+    ConstantVelocity,
+    /// Turning at the current turn rate, at the current speed.
+    ConstantTurn,
+    /// On at the velocity averaged over the last seconds (a weaving path's mean course).
+    MeanVelocity,
+}
+
+/// A predicted position: where the target will be `horizon_s` from now.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct ForecastPoint {
+    /// How far ahead, seconds.
+    pub horizon_s: f64,
+    /// Predicted position, swarm-frame NED, metres.
+    pub position: NedJson,
+    /// One standard deviation of the horizontal error, metres (the filter's uncertainty
+    /// grown over the horizon, and the model's recent residuals at that horizon).
+    pub sigma_m: f64,
+    /// The model it comes from.
+    pub model: MotionModel,
+}
+
+/// The shape a hostile swarm flies in, from its members' horizontal positions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SwarmShape {
+    /// Members along one line (abreast, in trail or echelon); two members are a line.
+    Line,
+    /// A V or wedge: a member ahead, the others swept back on both sides.
+    Wedge,
+    /// Anything else: a loose group.
+    Cluster,
+}
+
+/// The size of a hostile swarm, horizontal, metres.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct SwarmExtent {
+    /// Along the swarm's heading (`shape_heading_deg`), front to back, metres.
+    pub length_m: f64,
+    /// Across it, metres.
+    pub width_m: f64,
+    /// Largest distance of a member from the centroid, metres.
+    pub radius_m: f64,
+}
+
+/// A hostile swarm: confirmed tracks flying together (see [`crate::tracking::swarms`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct SwarmView {
+    /// `swarm-<n>`, n from 1, never reused.
+    pub id: String,
+    /// Its tracks (`track-N`), sorted.
+    pub members: Vec<String>,
+    /// Mean of the members' positions, swarm-frame NED, metres.
+    pub centroid: NedJson,
+    /// Mean of the members' velocities, NED, m/s.
+    pub velocity: VelocityJson,
+    /// Horizontal speed of the centroid, m/s.
+    pub speed_m_s: f64,
+    /// Course over the ground, degrees clockwise from north (0 when hovering).
+    pub course_deg: f64,
+    /// Its shape.
+    pub shape: SwarmShape,
+    /// Where the shape points, degrees clockwise from north: a wedge's apex direction,
+    /// a line's axis (0..180), a cluster's course.
+    pub shape_heading_deg: f64,
+    /// Its size.
+    pub extent: SwarmExtent,
+    /// Where its centroid will be in 5, 10 and 20 s (the mean of its members' forecasts).
+    pub forecast: Vec<ForecastPoint>,
+    /// Seconds since it was recognised.
+    pub age_s: f64,
+}
+
+/// Something that happened to a hostile swarm (the stream's `swarm_*` events).
+#[derive(Debug, Clone, PartialEq)]
+pub enum HostileSwarmEvent {
+    /// Tracks flying together were recognised as a swarm.
+    Detected(SwarmView),
+    /// Its members or its shape changed: `joined` and `left` name the tracks.
+    Changed {
+        /// The swarm now.
+        swarm: SwarmView,
+        /// Tracks that joined it.
+        joined: Vec<String>,
+        /// Tracks that left it.
+        left: Vec<String>,
+    },
+    /// Fewer than two of its tracks fly together any more.
+    Lost(SwarmView),
 }
 
 /// A swarm-frame NED position as JSON.

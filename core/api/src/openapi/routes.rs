@@ -11,7 +11,7 @@
 use crate::roles::{Access, Role};
 use crate::{
     ApiState, auth, election, fault_injection, formation_control, geofence, map, openapi, payloads,
-    plugins, px4_params, recording, stream, swarm_status, tracks, vehicles, video,
+    plugins, px4_params, recording, stream, swarm_status, swarms, tracks, vehicles, video,
 };
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
@@ -55,6 +55,7 @@ fn viewer() -> OpenApiRouter<ApiState> {
         .routes(routes!(map::map_tile))
         .routes(routes!(election::status))
         .routes(routes!(tracks::list_tracks))
+        .routes(routes!(swarms::list_swarms))
         .routes(routes!(tracks::sim_truth))
         .routes(routes!(recording::status))
         .routes(routes!(stream::stream))
@@ -77,6 +78,8 @@ fn operator() -> OpenApiRouter<ApiState> {
         .routes(routes!(payloads::detach_payload))
         .routes(routes!(tracks::observe))
         .routes(routes!(tracks::stop_observing))
+        .routes(routes!(swarms::observe_swarm))
+        .routes(routes!(swarms::stop_observing_swarm))
         .routes(routes!(recording::start))
         .routes(routes!(recording::stop))
         .routes(routes!(geofence::put_geofence))

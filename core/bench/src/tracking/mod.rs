@@ -35,18 +35,28 @@
 //! The track figures are computed in [`score`]; `--trace FILE` writes every sample, with
 //! the detector frames, and `--replay FILE` runs the tracker again over such a trace
 //! without flying ([`trace`]).
+//!
+//! `--scenario NAME` flies a hostile-swarm scenario instead of the mixed intruders
+//! ([`scenario`]: a V of five, a weaving V, two Vs crossing, a V splitting), with the
+//! observers fixed and then on observation stations, and adds the swarm figures
+//! ([`swarm_score`]: time to recognition, membership precision and recall, forecast
+//! errors at 5/10/20 s) to each run's report; a replay scores swarms and forecasts too.
 
+mod scenario;
 mod score;
+mod swarm_score;
 mod trace;
 
 use crate::up_process::UpProcess;
+use scenario::Mode;
 use score::Scorer;
 use serde_json::{Value, json};
 use std::collections::{BTreeMap, HashMap};
 use std::time::{Duration, Instant};
+use swarm_score::SwarmScorer;
 
 /// Arguments of `skein bench tracking`.
-#[derive(clap::Args, Debug)]
+#[derive(clap::Args, Debug, Clone)]
 pub struct TrackingBenchArgs {
     /// Seconds of flight measured.
     #[arg(long, default_value_t = 120.0)]
@@ -61,7 +71,8 @@ pub struct TrackingBenchArgs {
     #[arg(long, value_name = "DIR")]
     pub plugin_dir: Option<std::path::PathBuf>,
     /// Also write every sample (the truth's intruders, the tracks) as JSON lines to this
-    /// file, to see where a metric comes from.
+    /// file, to see where a metric comes from (a scenario's runs: `FILE.fixed`,
+    /// `FILE.geometry`).
     #[arg(long, value_name = "FILE")]
     pub trace: Option<std::path::PathBuf>,
     /// Fly nothing: replay a `--trace` file's detector frames through a fresh tracker and
@@ -69,10 +80,18 @@ pub struct TrackingBenchArgs {
     /// replay's samples there.
     #[arg(long, value_name = "FILE")]
     pub replay: Option<std::path::PathBuf>,
+    /// A hostile-swarm scenario (formation, formation_zigzag, crossing, split), flown with
+    /// fixed observers and with observation geometry on the same seed.
+    #[arg(long, value_name = "NAME")]
+    pub scenario: Option<String>,
+    /// With `--scenario`: only one of its runs, `fixed` or `geometry`.
+    #[arg(long, value_name = "MODE")]
+    pub observation: Option<String>,
 }
 
-/// `skein up` with the bench's scene (4 observation UAVs, seeded intruders).
-fn start(args: &TrackingBenchArgs) -> Result<UpProcess, String> {
+/// `skein up` with the bench's scene (4 observation UAVs, seeded intruders; a scenario's
+/// when `scene` names one).
+fn start(args: &TrackingBenchArgs, scene: Option<&str>) -> Result<UpProcess, String> {
     let (seed, intruders) = (args.seed.to_string(), args.intruders.to_string());
     let mut a: Vec<&str> = vec![
         "--sim",
@@ -83,13 +102,18 @@ fn start(args: &TrackingBenchArgs) -> Result<UpProcess, String> {
         "0",
         "--sim-seed",
         &seed,
-        "--intruders",
-        &intruders,
-        "--intruder-range-m",
-        "80",
-        "--intruder-altitude-m",
-        "15",
     ];
+    match scene {
+        Some(name) => a.extend(scenario::intruder_args(name)),
+        None => a.extend([
+            "--intruders",
+            &intruders,
+            "--intruder-range-m",
+            "80",
+            "--intruder-altitude-m",
+            "15",
+        ]),
+    }
     let dir = args
         .plugin_dir
         .as_ref()
@@ -178,10 +202,29 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
         let mut file = trace_file(args)?;
         let out = file.as_mut().map(|f| f as &mut dyn std::io::Write);
         let config = skein_swarm::tracking::TrackerConfig::default();
-        let tracks = trace::replay(path, config, out)?;
-        return Ok(json!({"replay": path.display().to_string(), "tracks": tracks}));
+        let (tracks, swarms) = trace::replay(path, config, out)?;
+        return Ok(
+            json!({"replay": path.display().to_string(), "tracks": tracks, "swarms": swarms}),
+        );
     }
-    let up = start(args)?;
+    let Some(name) = &args.scenario else {
+        return fly(args, None);
+    };
+    let modes = match args.observation.as_deref() {
+        None => vec![Mode::Fixed, Mode::Geometry],
+        Some("fixed") => vec![Mode::Fixed],
+        Some("geometry") => vec![Mode::Geometry],
+        Some(other) => {
+            return Err(format!("unknown --observation {other:?} (fixed, geometry)"));
+        }
+    };
+    scenario::run(args, name, &modes)
+}
+
+/// One flight: the mixed intruders (`scene` `None`), or a scenario with its observers in
+/// a mode.
+fn fly(args: &TrackingBenchArgs, scene: Option<(&str, Mode)>) -> Result<Value, String> {
+    let up = start(args, scene.map(|s| s.0))?;
     eprintln!("bench tracking: skein up at {}", up.base);
     up.wait_vehicles(
         4,
@@ -202,18 +245,7 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
         "/api/v1/formation",
         Some(json!({"shape": "line", "spacing_m": 8.0, "leader": "virtual", "altitude_m": 10.0})),
     )?;
-    for (v, yaw) in [
-        ("uav-1", 0.0),
-        ("uav-3", 0.0),
-        ("uav-2", 180.0),
-        ("uav-4", 180.0),
-    ] {
-        up.call(
-            "POST",
-            &format!("/api/v1/vehicles/{v}/payloads/gimbal"),
-            Some(json!({"command": "set_angles", "pitch_deg": 4.0, "yaw_deg": yaw, "yaw_frame": "earth"})),
-        )?;
-    }
+    scenario::point_cameras(&up)?;
     std::thread::sleep(Duration::from_secs(5));
     eprintln!("bench tracking: flying, measuring {} s", args.seconds);
 
@@ -221,6 +253,8 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
     let mut tally = Tally::default();
     let mut last_frame: HashMap<String, u64> = HashMap::new();
     let mut scorer = Scorer::default();
+    let mut swarm_scorer = SwarmScorer::default();
+    let mut observer = scene.map(|(_, mode)| scenario::Observer::new(mode));
     let mut trace = trace_file(args)?;
     while start.elapsed().as_secs_f64() < args.seconds {
         let t = start.elapsed().as_secs_f64();
@@ -260,10 +294,19 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
                 tally.frame(cam, &dets);
             }
         }
-        scorer.sample(t, &truth, &viewers, &tracks);
+        let swarms = up.get("/api/v1/swarms")?["swarms"]
+            .as_array()
+            .cloned()
+            .unwrap_or_default();
+        let assigned = scorer.sample(t, &truth, &viewers, &tracks);
+        let observing = match observer.as_mut() {
+            Some(o) => o.manage(&up, &swarms)?,
+            None => false,
+        };
+        swarm_scorer.sample(t, &truth, &assigned, &tracks, &swarms, observing);
         if let Some(w) = trace.as_mut() {
             use std::io::Write;
-            let line = trace::trace_line(t, now_us, &vs, &truth, &viewers, &tracks);
+            let line = trace::trace_line(t, now_us, &vs, &truth, &viewers, &tracks, &swarms);
             writeln!(w, "{line}").map_err(|e| format!("trace: {e}"))?;
         }
         std::thread::sleep(Duration::from_millis(200));
@@ -288,5 +331,7 @@ pub fn tracking(args: &TrackingBenchArgs) -> Result<Value, String> {
             "recall": ratio(tally.tp, tally.tp + tally.misses),
         },
         "tracks": scorer.report(),
+        "swarms": swarm_scorer.report(),
+        "observation": observer.map(|o| o.report()),
     }))
 }

@@ -19,9 +19,11 @@ fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 
 /// Intruders matched one-to-one to confirmed tracks within 10 m, as CLEAR-MOT does: an
-/// intruder keeps its previous track while that one is still within the gate and not
-/// taken; the others go to the nearest free track, closest pairs first. Returns intruder
-/// id → (track id, distance m).
+/// intruder keeps its previous track while that one is still within the gate, not taken,
+/// and no nearer to another intruder (in a swarm of 6 m ranks the gate holds two
+/// intruders: a track that went over to a neighbour follows the neighbour); the others go
+/// to the nearest free track, closest pairs first. Returns intruder id → (track id,
+/// distance m).
 fn assign(
     intruders: &[(String, [f64; 3])],
     confirmed: &[(String, [f64; 3])],
@@ -34,6 +36,9 @@ fn assign(
         if let Some(Some(prev)) = previous.get(iid)
             && let Some((tid, q)) = confirmed.iter().find(|(t, _)| t == prev)
             && dist(*p, *q) <= GATE_M
+            && intruders
+                .iter()
+                .all(|(other, o)| other == iid || dist(*o, *q) >= dist(*p, *q))
             && taken.insert(tid.as_str())
         {
             out.insert(iid.clone(), (tid.clone(), dist(*p, *q)));
@@ -82,14 +87,15 @@ pub(super) struct Scorer {
 impl Scorer {
     /// One sample at `t_s` seconds into the measurement: `truth` as `GET /api/v1/sim/truth`
     /// answers, `viewers` the number of cameras drawing each intruder (by id), `tracks` as
-    /// `GET /api/v1/tracks` lists them.
+    /// `GET /api/v1/tracks` lists them. Returns which confirmed track each intruder was
+    /// matched to, with the distance (intruder id → (track id, m)).
     pub(super) fn sample(
         &mut self,
         t: f64,
         truth: &Value,
         viewers: &BTreeMap<String, usize>,
         tracks: &[Value],
-    ) {
+    ) -> BTreeMap<String, (String, f64)> {
         let members: Vec<[f64; 3]> = truth["vehicles"]
             .as_array()
             .into_iter()
@@ -170,6 +176,7 @@ impl Scorer {
                 *unseen = false;
             }
         }
+        assigned
     }
 
     /// The `tracks` object of the report.

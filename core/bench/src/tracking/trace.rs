@@ -3,23 +3,28 @@
 //! With `--trace FILE` the bench writes one JSON line per sample: `t_s` (seconds into the
 //! measurement), `now_us` (wall clock when the vehicles were read), `truth` (as
 //! `GET /api/v1/sim/truth` answered), `viewers` (cameras drawing each intruder), `tracks`
-//! (as `GET /api/v1/tracks` listed them), `members` (each vehicle's id and swarm-frame NED
-//! position) and `detectors` (per observation UAV, its detector's payload state reduced
+//! (as `GET /api/v1/tracks` listed them), `members` (each vehicle's id, swarm-frame NED
+//! position and velocity) and `detectors` (per observation UAV, its detector's payload state reduced
 //! to `recent`, the frames of the last half second: at 5 Hz sampling every frame is in
 //! some line).
 //!
 //! `skein bench tracking --replay FILE` runs a fresh [`Tracker`] over the trace's detector
 //! frames instead of flying: it steps at [`TRACKER_HZ`] on the frames' clock, each frame
 //! delivered [`DELIVERY_US`] after its capture, with the members' positions of the latest
-//! sample, and scores its tracks at every sample's time against the recorded truth, from
-//! [`WARM_UP_S`] after the first frame on. The same trace always gives the same figures,
+//! sample, forecasts its tracks and groups them into swarms ([`AirPicture`]) at each step
+//! as the live tracker does, and scores its tracks and swarms at every sample's time
+//! against the recorded truth, from [`WARM_UP_S`] after the first frame on. (Lines also
+//! carry the live `swarms`, for reference.) The same trace always gives the same figures,
 //! so a change of the tracker can be measured on the flights that showed a problem, in
 //! seconds and without the simulator's run-to-run variation.
 
 use super::score::Scorer;
+use super::swarm_score::SwarmScorer;
 use serde_json::{Value, json};
 use skein_swarm::tracking::detection::{self, parse_detections};
-use skein_swarm::tracking::{TRACKER_HZ, Tracker, TrackerConfig};
+use skein_swarm::tracking::{
+    AirPicture, GroupingConfig, MemberPose, TRACKER_HZ, Tracker, TrackerConfig,
+};
 use std::collections::{BTreeMap, HashMap};
 use std::io::{BufRead, Write};
 
@@ -40,11 +45,12 @@ pub(super) fn trace_line(
     truth: &Value,
     viewers: &BTreeMap<String, usize>,
     tracks: &[Value],
+    swarms: &[Value],
 ) -> Value {
     let members: Vec<Value> = vehicles
         .iter()
         .filter(|v| v["position"].is_object())
-        .map(|v| json!({"id": v["id"], "position": v["position"]}))
+        .map(|v| json!({"id": v["id"], "position": v["position"], "velocity": v["velocity"]}))
         .collect();
     let detectors: BTreeMap<String, Value> = vehicles
         .iter()
@@ -55,7 +61,7 @@ pub(super) fn trace_line(
         })
         .collect();
     json!({"t_s": t_s, "now_us": now_us, "truth": truth, "viewers": viewers,
-        "tracks": tracks, "members": members, "detectors": detectors})
+        "tracks": tracks, "swarms": swarms, "members": members, "detectors": detectors})
 }
 
 struct Sample {
@@ -63,7 +69,7 @@ struct Sample {
     now_us: u64,
     truth: Value,
     viewers: BTreeMap<String, usize>,
-    members: Vec<(String, nalgebra::Vector3<f64>)>,
+    members: Vec<MemberPose>,
 }
 
 /// A detector frame of a trace: capture time µs, observer vehicle id, the frame.
@@ -105,7 +111,18 @@ fn read(path: &std::path::Path) -> Result<(Vec<Sample>, Vec<TracedFrame>), Strin
             .flatten()
             .filter_map(|m| {
                 let p = super::score::ned(&m["position"])?;
-                Some((m["id"].as_str()?.to_string(), nalgebra::Vector3::from(p)))
+                // Traces of older benches have no velocity: at rest.
+                let v = &m["velocity"];
+                let v = [
+                    v["north_m_s"].as_f64().unwrap_or(0.0),
+                    v["east_m_s"].as_f64().unwrap_or(0.0),
+                    v["down_m_s"].as_f64().unwrap_or(0.0),
+                ];
+                Some(MemberPose {
+                    id: m["id"].as_str()?.to_string(),
+                    position: nalgebra::Vector3::from(p),
+                    velocity: nalgebra::Vector3::from(v),
+                })
             })
             .collect();
         let viewers = serde_json::from_value(v["viewers"].clone()).unwrap_or_default();
@@ -122,7 +139,7 @@ fn read(path: &std::path::Path) -> Result<(Vec<Sample>, Vec<TracedFrame>), Strin
 }
 
 /// Replays the trace at `path` (see the module docs); returns the report's `tracks` object
-/// with the replay's counters. With `out`, writes the replay's own trace there (the lines
+/// with the replay's counters, and its `swarms` object. With `out`, writes the replay's own trace there (the lines
 /// of the input with the replayed tracks, without `members` and `detectors`).
 ///
 /// # Errors
@@ -131,34 +148,41 @@ pub fn replay(
     path: &std::path::Path,
     config: TrackerConfig,
     mut out: Option<&mut dyn std::io::Write>,
-) -> Result<Value, String> {
+) -> Result<(Value, Value), String> {
     let (samples, frames) = read(path)?;
     let (Some(first), Some(last)) = (frames.first(), samples.last()) else {
         return Err(format!("{}: no detector frames", path.display()));
     };
     let period_us = (1e6 / TRACKER_HZ) as u64;
     let mut tracker = Tracker::new(config);
+    let mut picture = AirPicture::new(GroupingConfig::default());
     let mut scorer = Scorer::default();
+    let mut swarm_scorer = SwarmScorer::default();
+    // The picture as of the latest step, scored at each sample.
+    let (mut tracks_now, mut swarms_now): (Vec<Value>, Vec<Value>) = (Vec::new(), Vec::new());
     let mut step_us = first.0 + period_us;
     let warm_up_us = first.0 + (WARM_UP_S * 1e6) as u64;
     let (mut next_frame, mut malformed) = (0, 0u64);
-    let mut members: &[(String, nalgebra::Vector3<f64>)] = &[];
+    let mut members: &[MemberPose] = &[];
     let mut sample_i = 0;
     while step_us <= last.now_us + period_us {
         while sample_i < samples.len() && samples[sample_i].now_us <= step_us {
             let s = &samples[sample_i];
             members = &s.members;
+            // Tracks as of the sample's time; their forecasts and swarms as of the last
+            // step (at most one step older).
             let tracks: Vec<Value> = tracker
                 .tracks(s.now_us)
                 .into_iter()
                 .map(|t| serde_json::to_value(t).unwrap_or(Value::Null))
                 .collect();
             if s.now_us >= warm_up_us {
-                scorer.sample(s.t_s, &s.truth, &s.viewers, &tracks);
+                let assigned = scorer.sample(s.t_s, &s.truth, &s.viewers, &tracks);
+                swarm_scorer.sample(s.t_s, &s.truth, &assigned, &tracks_now, &swarms_now, false);
             }
             if let Some(w) = out.as_mut() {
                 let line = json!({"t_s": s.t_s, "now_us": s.now_us, "truth": s.truth,
-                    "viewers": s.viewers, "tracks": tracks});
+                    "viewers": s.viewers, "tracks": tracks, "swarms": swarms_now});
                 writeln!(w, "{line}").map_err(|e| format!("trace: {e}"))?;
             }
             sample_i += 1;
@@ -173,6 +197,16 @@ pub fn replay(
             next_frame += 1;
         }
         tracker.step(step_us, bearings, members);
+        let mut tracks = tracker.tracks(step_us);
+        let (swarms, _) = picture.update(step_us, &mut tracks);
+        tracks_now = tracks
+            .into_iter()
+            .map(|t| serde_json::to_value(t).unwrap_or(Value::Null))
+            .collect();
+        swarms_now = swarms
+            .into_iter()
+            .map(|s| serde_json::to_value(s).unwrap_or(Value::Null))
+            .collect();
         step_us += period_us;
     }
     let mut report = scorer.report();
@@ -183,5 +217,5 @@ pub fn replay(
         "malformed_frames": malformed,
         "tracker": serde_json::to_value(tracker.counters()).unwrap_or(Value::Null),
     });
-    Ok(report)
+    Ok((report, swarm_scorer.report()))
 }

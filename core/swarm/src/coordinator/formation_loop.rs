@@ -24,22 +24,23 @@ impl CoordinatorState {
         self.formation.status(&airborne)
     }
 
-    /// Every hovering vehicle joins the active formation.
+    /// Every hovering vehicle joins the active formation (but observers on their
+    /// observation stations).
     pub(super) fn join_hovering(&self) {
         if !self.formation.is_active() {
             return;
         }
         for (id, v) in &self.vehicles {
-            if !v.failed && v.state() == VehicleState::Hovering {
+            if !v.failed && v.state() == VehicleState::Hovering && !self.on_station(id) {
                 self.internal_command(id, Command::JoinFormation);
             }
         }
     }
 
     /// A vehicle's state changed: a vehicle that starts hovering joins an active
-    /// formation.
+    /// formation, unless it observes from a station.
     pub(super) fn on_state_changed(&self, id: &str, to: VehicleState) {
-        if to == VehicleState::Hovering && self.formation.is_active() {
+        if to == VehicleState::Hovering && self.formation.is_active() && !self.on_station(id) {
             self.internal_command(id, Command::JoinFormation);
         }
     }

@@ -71,6 +71,19 @@ pub struct Health {
 /// The tracks now, and which vehicle observes which track (vehicle id, track id).
 pub type TracksAnswer = (Vec<crate::tracks::TrackView>, Vec<(String, String)>);
 
+/// The air picture (`GET /api/v1/tracks`, `GET /api/v1/swarms`).
+#[derive(Debug, Clone, Default)]
+pub struct AirPictureAnswer {
+    /// The tracks, with their forecasts and swarms.
+    pub tracks: Vec<crate::tracks::TrackView>,
+    /// The hostile swarms.
+    pub swarms: Vec<crate::tracks::SwarmView>,
+    /// Which vehicle observes which track or swarm (vehicle id, target id).
+    pub observing: Vec<(String, String)>,
+    /// The observations flown on stations.
+    pub stations: Vec<super::stations::StationsView>,
+}
+
 /// Why a formation request was refused: the field and the reason.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FieldError {
@@ -244,14 +257,16 @@ pub enum CoordinatorMsg {
     /// The counter-UAS tracks now and which vehicle observes which track
     /// (`GET /api/v1/tracks`).
     GetTracks(RpcReplyPort<TracksAnswer>),
-    /// Point the gimbals of the vehicles (default: all with a gimbal) at a track and keep
-    /// them on it; answers the observing vehicles.
-    ObserveTrack(
-        String,
-        Option<Vec<String>>,
+    /// The tracks, the hostile swarms and who observes what.
+    GetAirPicture(RpcReplyPort<AirPictureAnswer>),
+    /// Point the gimbals of the vehicles (default: all with a gimbal) at a track or swarm
+    /// and keep them on it, and with `stations` fly them to the stations that fix it
+    /// best; answers the observing vehicles.
+    Observe(
+        super::observe::ObserveSpec,
         RpcReplyPort<Result<Vec<String>, super::observe::ObserveRefusal>>,
     ),
-    /// Stop observing a track; answers the vehicles released.
+    /// Stop observing a track or swarm; answers the vehicles released.
     StopObserving(String, RpcReplyPort<Vec<String>>),
     /// The in-process simulator's ground truth (`GET /api/v1/sim/truth`); `None` when no
     /// simulator is embedded.

@@ -38,6 +38,7 @@ pub mod messages;
 pub mod observe;
 pub mod proxy;
 pub mod remote;
+pub mod stations;
 pub mod swarm;
 pub mod track_leader;
 pub mod validation;
@@ -46,8 +47,8 @@ pub use children::Node;
 pub use commands::{CommandOutcome, Refused};
 pub use discovery::{EndpointSpec, VehicleSpec};
 pub use messages::{
-    CoordinatorMsg, EndpointStats, FaultError, FieldError, Health, ServiceMsg, ServiceSpawner,
-    ServiceSpec,
+    AirPictureAnswer, CoordinatorMsg, EndpointStats, FaultError, FieldError, Health, ServiceMsg,
+    ServiceSpawner, ServiceSpec,
 };
 pub use proxy::VehicleProxy;
 pub use remote::{DistributedMsg, RemoteVehicle};
@@ -113,8 +114,10 @@ pub struct CoordinatorState {
     last_formation_tick: Instant,
     /// The counter-UAS tracker (its task stops with the coordinator).
     tracking: crate::tracking::TrackingService,
-    /// Observing vehicle → (track id, gimbal slot), see [`observe`].
+    /// Observing vehicle → (track or swarm id, gimbal slot), see [`observe`].
     observing: BTreeMap<String, (String, String)>,
+    /// Target id → its observers' stations, see [`stations`].
+    stations: BTreeMap<String, stations::StationTask>,
     /// An agent's carrier: gets a copy of every local vehicle's message ([`remote`]).
     uplink_tap: Option<tokio::sync::mpsc::UnboundedSender<FromVehicle>>,
     /// When hovering remote vehicles were last joined to the formation ([`remote`]).
@@ -332,6 +335,7 @@ impl Actor for Coordinator {
             neighbours: NeighbourBoard::new(control_period),
             tracking,
             observing: BTreeMap::new(),
+            stations: BTreeMap::new(),
             uplink_tap: None,
             last_rejoin: Instant::now(),
             fence_change: None,
@@ -404,15 +408,17 @@ impl Actor for Coordinator {
                     .iter()
                     .map(|(id, v)| (id.as_str(), v.state(), v.failed))
                     .collect();
-                let tracks = state.tracking.shared().tracks();
-                let checked = track_leader::validate_track_leader(&spec, &tracks).and_then(|()| {
-                    validation::validate_formation(
-                        &state.context.config,
-                        &state.context.geofence().fence,
-                        &spec,
-                        &vehicles,
-                    )
-                });
+                let shared = state.tracking.shared();
+                let (tracks, swarms) = (shared.tracks(), shared.swarms());
+                let checked = track_leader::validate_track_leader(&spec, &tracks, &swarms)
+                    .and_then(|()| {
+                        validation::validate_formation(
+                            &state.context.config,
+                            &state.context.geofence().fence,
+                            &spec,
+                            &vehicles,
+                        )
+                    });
                 match checked {
                     Err(e) => {
                         let _ = reply.send(Err(e));
@@ -560,8 +566,17 @@ impl Actor for Coordinator {
             CoordinatorMsg::GetTracks(reply) => {
                 let _ = reply.send((state.tracking.shared().tracks(), state.observations()));
             }
-            CoordinatorMsg::ObserveTrack(track, vehicles, reply) => {
-                let _ = reply.send(state.observe_track(&track, vehicles));
+            CoordinatorMsg::GetAirPicture(reply) => {
+                let shared = state.tracking.shared();
+                let _ = reply.send(AirPictureAnswer {
+                    tracks: shared.tracks(),
+                    swarms: shared.swarms(),
+                    observing: state.observations(),
+                    stations: state.station_views(),
+                });
+            }
+            CoordinatorMsg::Observe(spec, reply) => {
+                let _ = reply.send(state.observe(spec));
             }
             CoordinatorMsg::StopObserving(track, reply) => {
                 let _ = reply.send(state.stop_observing(&track));

@@ -1,45 +1,122 @@
-//! Observing a track: the gimbals of chosen observation UAVs point at a track and follow
-//! it (`POST /api/v1/tracks/{id}/observe`), so the track stays in their cameras' view.
+//! Observing a track or a hostile swarm: the gimbals of chosen observation UAVs point at
+//! it and follow it (`POST /api/v1/tracks/{id}/observe`, `POST /api/v1/swarms/{id}/observe`),
+//! so it stays in their cameras' view; with `stations`, the observers also fly to the
+//! stations that fix it best ([`super::stations`]).
 //!
 //! Every formation tick (10 Hz) each observing vehicle's gimbal gets a `roi_location`
-//! command at the track's current estimate (swarm frame; the gimbal turns it into angles
-//! from its own vehicle's pose, within its slew rate). A lost track is followed on its
-//! prediction; a deleted one ends the observation (the gimbals hold their angles). The
-//! commands carry request id 0: their answers are not waited for.
+//! command at the target's current estimate (a track's position, a swarm's centroid;
+//! swarm frame; the gimbal turns it into angles from its own vehicle's pose, within its
+//! slew rate). A lost track is followed on its prediction; a deleted track or a lost swarm
+//! ends the observation (the gimbals hold their angles). The commands carry request id 0:
+//! their answers are not waited for.
 
 use super::CoordinatorState;
 use crate::protocol::ToVehicle;
-use crate::tracks::{TrackStatus, TrackView};
+use crate::tracks::{SwarmView, TrackStatus, TrackView};
 use serde_json::json;
+use skein_model::geo::Ned;
+
+pub use crate::tracks::SWARM_PREFIX;
 
 /// Why an observation was refused.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ObserveRefusal {
-    /// No such track (`id`).
-    UnknownTrack(String),
+    /// No such track or swarm (`id`).
+    UnknownTarget(String),
     /// The track is lost: nothing to point at (`id`).
     TrackLost(String),
     /// A vehicle that does not exist or has no gimbal (`vehicles`).
     BadVehicle(String),
+    /// A stand-off outside its range (`standoff_m`).
+    BadStandoff(String),
+    /// No stations meet the limits (`stations`): the reason.
+    NoStations(String),
 }
 
 impl ObserveRefusal {
     /// The request field at fault.
     pub fn field(&self) -> &'static str {
         match self {
-            ObserveRefusal::UnknownTrack(_) | ObserveRefusal::TrackLost(_) => "id",
+            ObserveRefusal::UnknownTarget(_) | ObserveRefusal::TrackLost(_) => "id",
             ObserveRefusal::BadVehicle(_) => "vehicles",
+            ObserveRefusal::BadStandoff(_) => "standoff_m",
+            ObserveRefusal::NoStations(_) => "stations",
         }
     }
 
     /// What is wrong.
     pub fn message(&self) -> &str {
         match self {
-            ObserveRefusal::UnknownTrack(m)
+            ObserveRefusal::UnknownTarget(m)
             | ObserveRefusal::TrackLost(m)
-            | ObserveRefusal::BadVehicle(m) => m,
+            | ObserveRefusal::BadVehicle(m)
+            | ObserveRefusal::BadStandoff(m)
+            | ObserveRefusal::NoStations(m) => m,
         }
     }
+}
+
+/// What to observe, with what, and how (`POST /api/v1/{tracks,swarms}/{id}/observe`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObserveSpec {
+    /// A track (`track-N`) or a hostile swarm (`swarm-N`).
+    pub target: String,
+    /// The observers; `None`: every vehicle with a gimbal.
+    pub vehicles: Option<Vec<String>>,
+    /// Also fly them to the stations that fix the target best.
+    pub stations: bool,
+    /// The stations' least horizontal distance from the target, metres (`None`: the
+    /// default, [`super::stations::DEFAULT_STANDOFF_M`]).
+    pub standoff_m: Option<f64>,
+}
+
+/// A target where the coordinator sees it now: its centre (a track's position, a swarm's
+/// centroid), its points now and as forecast [`super::stations::PLAN_AHEAD_S`] ahead (a
+/// swarm's members), and whether it is still fixed (a lost track is only predicted).
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct TargetNow {
+    pub(super) centre: Ned,
+    pub(super) now: Vec<Ned>,
+    pub(super) ahead: Vec<Ned>,
+    pub(super) live: bool,
+}
+
+fn ned(p: &crate::tracks::NedJson) -> Ned {
+    Ned::new(p.north_m, p.east_m, p.down_m)
+}
+
+/// `track`'s forecast `horizon_s` ahead, or its position.
+fn ahead_of(track: &TrackView, horizon_s: f64) -> Ned {
+    track
+        .forecast
+        .iter()
+        .find(|f| (f.horizon_s - horizon_s).abs() < 1e-9)
+        .map_or(ned(&track.position), |f| ned(&f.position))
+}
+
+/// Where `id` (a track or a swarm) is, from the tracker's `tracks` and `swarms`.
+pub(super) fn locate(id: &str, tracks: &[TrackView], swarms: &[SwarmView]) -> Option<TargetNow> {
+    let h = super::stations::PLAN_AHEAD_S;
+    if id.starts_with(SWARM_PREFIX) {
+        let s = swarms.iter().find(|s| s.id == id)?;
+        let members: Vec<&TrackView> = tracks
+            .iter()
+            .filter(|t| s.members.contains(&t.id))
+            .collect();
+        return Some(TargetNow {
+            centre: ned(&s.centroid),
+            now: members.iter().map(|t| ned(&t.position)).collect(),
+            ahead: members.iter().map(|t| ahead_of(t, h)).collect(),
+            live: true,
+        });
+    }
+    let t = tracks.iter().find(|t| t.id == id)?;
+    Some(TargetNow {
+        centre: ned(&t.position),
+        now: vec![ned(&t.position)],
+        ahead: vec![ahead_of(t, h)],
+        live: t.status != TrackStatus::Lost,
+    })
 }
 
 impl CoordinatorState {
@@ -56,34 +133,40 @@ impl CoordinatorState {
             .and_then(|p| p["slot"].as_str().map(str::to_string))
     }
 
-    fn track(&self, id: &str) -> Option<TrackView> {
-        self.tracking
+    /// Where the target `id` is now (see [`locate`]).
+    pub(super) fn target_now(&self, id: &str) -> Option<TargetNow> {
+        let shared = self.tracking.shared();
+        locate(id, &shared.tracks(), &shared.swarms())
+    }
+
+    /// Starts observing `spec.target` with `spec.vehicles` (default: every vehicle with a
+    /// gimbal), and with `spec.stations` flies them to their stations; returns the
+    /// vehicles now observing it. A vehicle observing another target switches.
+    pub(super) fn observe(&mut self, spec: ObserveSpec) -> Result<Vec<String>, ObserveRefusal> {
+        let target = spec.target.as_str();
+        let kind = if target.starts_with(SWARM_PREFIX) {
+            "swarm"
+        } else {
+            "track"
+        };
+        if let Some(t) = self
+            .tracking
             .shared()
             .tracks()
             .into_iter()
-            .find(|t| t.id == id)
-    }
-
-    /// Starts observing `track` with `vehicles` (default: every vehicle with a gimbal);
-    /// returns the vehicles now observing it. A vehicle observing another track switches.
-    pub(super) fn observe_track(
-        &mut self,
-        track: &str,
-        vehicles: Option<Vec<String>>,
-    ) -> Result<Vec<String>, ObserveRefusal> {
-        match self.track(track) {
-            None => {
-                return Err(ObserveRefusal::UnknownTrack(format!("no track `{track}`")));
-            }
-            Some(t) if t.status == TrackStatus::Lost => {
-                return Err(ObserveRefusal::TrackLost(format!(
-                    "track `{track}` is lost ({:.1} s unseen)",
-                    t.unseen_s
-                )));
-            }
-            Some(_) => {}
+            .find(|t| t.id == target && t.status == TrackStatus::Lost)
+        {
+            return Err(ObserveRefusal::TrackLost(format!(
+                "track `{target}` is lost ({:.1} s unseen)",
+                t.unseen_s
+            )));
         }
-        let chosen: Vec<(String, String)> = match vehicles {
+        if self.target_now(target).is_none() {
+            return Err(ObserveRefusal::UnknownTarget(format!(
+                "no {kind} `{target}` (see GET /api/v1/{kind}s)"
+            )));
+        }
+        let chosen: Vec<(String, String)> = match spec.vehicles.clone() {
             Some(list) => list
                 .into_iter()
                 .map(|v| match self.gimbal_slot(&v) {
@@ -105,17 +188,26 @@ impl CoordinatorState {
                 "no vehicle with a gimbal to observe with".into(),
             ));
         }
-        let names = chosen.iter().map(|(v, _)| v.clone()).collect();
+        let names: Vec<String> = chosen.iter().map(|(v, _)| v.clone()).collect();
+        if spec.stations {
+            self.start_stations(target, &names, spec.standoff_m)?;
+        }
         for (v, slot) in chosen {
-            self.observing.insert(v, (track.to_string(), slot));
+            if let Some((old, _)) = self.observing.insert(v.clone(), (target.to_string(), slot))
+                && old != target
+            {
+                self.leave_stations(&old, &v);
+            }
         }
         self.observe_tick();
         Ok(names)
     }
 
-    /// Stops observing `track`: its gimbals hold their angles. Returns the vehicles that
+    /// Stops observing `track` (a track or a swarm): its gimbals hold their angles, its
+    /// observers flying to stations hold where they are. Returns the vehicles that
     /// observed it.
     pub(super) fn stop_observing(&mut self, track: &str) -> Vec<String> {
+        self.end_stations(track);
         let released: Vec<(String, String)> = self
             .observing
             .iter()
@@ -135,15 +227,17 @@ impl CoordinatorState {
         released.into_iter().map(|(v, _)| v).collect()
     }
 
-    /// Points every observing gimbal at its track's current estimate.
+    /// Points every observing gimbal at its target's current estimate; flies the
+    /// observers on stations.
     pub(super) fn observe_tick(&mut self) {
         if self.observing.is_empty() {
             return;
         }
-        let tracks = self.tracking.shared().tracks();
+        let shared = self.tracking.shared();
+        let (tracks, swarms) = (shared.tracks(), shared.swarms());
         let mut ended = Vec::new();
-        for (v, (track, slot)) in &self.observing {
-            let Some(t) = tracks.iter().find(|t| t.id == *track) else {
+        for (v, (target, slot)) in &self.observing {
+            let Some(t) = locate(target, &tracks, &swarms) else {
                 ended.push(v.clone());
                 continue;
             };
@@ -153,18 +247,20 @@ impl CoordinatorState {
                     slot: slot.clone(),
                     command: json!({
                         "command": "roi_location",
-                        "north_m": t.position.north_m,
-                        "east_m": t.position.east_m,
-                        "down_m": t.position.down_m,
+                        "north_m": t.centre.north_m,
+                        "east_m": t.centre.east_m,
+                        "down_m": t.centre.down_m,
                     }),
                 });
             }
         }
         for v in ended {
-            if let Some((track, _)) = self.observing.remove(&v) {
-                tracing::info!(vehicle = %v, %track, "observation ended: the track was deleted");
+            if let Some((target, _)) = self.observing.remove(&v) {
+                tracing::info!(vehicle = %v, %target, "observation ended: the target is gone");
+                self.end_stations(&target);
             }
         }
+        self.stations_tick(&tracks, &swarms);
     }
 
     /// Which vehicle observes which track.

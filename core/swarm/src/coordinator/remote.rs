@@ -166,7 +166,11 @@ impl CoordinatorState {
         }
         self.last_rejoin = std::time::Instant::now();
         for (id, v) in &self.vehicles {
-            if v.local.is_none() && !v.failed && v.state() == VehicleState::Hovering {
+            if v.local.is_none()
+                && !v.failed
+                && v.state() == VehicleState::Hovering
+                && !self.on_station(id)
+            {
                 self.internal_command(id, crate::protocol::Command::JoinFormation);
             }
         }

@@ -4,12 +4,20 @@
 //! faster than the track flies. The formation engine does the rest as for any virtual
 //! leader (slots, pacing, separation, geofence clamping of the reference point). When the
 //! track is lost or deleted, the leader holds: the formation stays where it is.
+//!
+//! A hostile swarm leads the same way (`"leader": "swarm-2"`), by its centroid as forecast
+//! [`SWARM_LEAD_S`] ahead (the formation lags a target it chases; aiming where the swarm
+//! will be makes up for it); a lost swarm makes the leader hold.
 
 use super::CoordinatorState;
 use super::messages::FieldError;
+use super::observe::SWARM_PREFIX;
 use crate::formation::{FormationSpec, LeaderMotion};
-use crate::tracks::{TrackStatus, TrackView};
+use crate::tracks::{SwarmView, TrackStatus, TrackView};
 use skein_model::geo::Ned;
+
+/// A swarm leader is followed by its centroid forecast this far ahead, seconds.
+pub const SWARM_LEAD_S: f64 = 5.0;
 
 /// Smallest and largest stand-off, metres.
 pub const STANDOFF_RANGE_M: (f64, f64) = (5.0, 500.0);
@@ -19,13 +27,17 @@ const CATCH_UP_M_S: f64 = 2.0;
 /// … at most this (the vehicle models' default limit), m/s.
 const MAX_SPEED_M_S: f64 = 8.0;
 
-/// Checks a formation's track leader and stand-off against the tracker's `tracks`:
-/// `standoff_m` only with a track leader, and then required within [`STANDOFF_RANGE_M`];
-/// the track must exist and be confirmed.
+/// Checks a formation's track or swarm leader and stand-off against the tracker's
+/// `tracks` and `swarms`: `standoff_m` only with such a leader, and then required within
+/// [`STANDOFF_RANGE_M`]; the track must exist and be confirmed, the swarm must exist.
 ///
 /// # Errors
 /// The offending field (`leader`, `standoff_m`) and why.
-pub fn validate_track_leader(spec: &FormationSpec, tracks: &[TrackView]) -> Result<(), FieldError> {
+pub fn validate_track_leader(
+    spec: &FormationSpec,
+    tracks: &[TrackView],
+    swarms: &[SwarmView],
+) -> Result<(), FieldError> {
     let err = |field: &str, error: String| {
         Err(FieldError {
             field: field.into(),
@@ -36,7 +48,7 @@ pub fn validate_track_leader(spec: &FormationSpec, tracks: &[TrackView]) -> Resu
         if spec.standoff_m.is_some() {
             return err(
                 "standoff_m",
-                "standoff_m goes with a track as leader (\"leader\": \"track-7\")".into(),
+                "standoff_m goes with a track or swarm as leader (\"leader\": \"track-7\")".into(),
             );
         }
         return Ok(());
@@ -56,6 +68,15 @@ pub fn validate_track_leader(spec: &FormationSpec, tracks: &[TrackView]) -> Resu
                 format!("a track as leader needs standoff_m ({lo}..{hi} m)"),
             );
         }
+    }
+    if track.starts_with(SWARM_PREFIX) {
+        return match swarms.iter().find(|s| s.id == track) {
+            Some(_) => Ok(()),
+            None => err(
+                "leader",
+                format!("no swarm `{track}` (see GET /api/v1/swarms)"),
+            ),
+        };
     }
     match tracks.iter().find(|t| t.id == track) {
         None => err(
@@ -107,12 +128,44 @@ pub fn follow_motion(reference: Ned, track: Option<&TrackView>, standoff_m: f64)
                 t.velocity.east_m_s,
                 t.velocity.down_m_s,
             );
-            LeaderMotion::GoTo {
-                target: follow_point(reference, ned(t), v, standoff_m),
-                speed_m_s: (v.horizontal_norm() + CATCH_UP_M_S).min(MAX_SPEED_M_S),
-            }
+            follow(reference, ned(t), v, standoff_m)
         }
         _ => LeaderMotion::Hold,
+    }
+}
+
+/// The leader motion that follows `swarm` by its centroid forecast [`SWARM_LEAD_S`] ahead
+/// (its centroid until it has a forecast; hold when it is gone).
+pub fn follow_swarm_motion(
+    reference: Ned,
+    swarm: Option<&SwarmView>,
+    standoff_m: f64,
+) -> LeaderMotion {
+    let Some(s) = swarm else {
+        return LeaderMotion::Hold;
+    };
+    let at = s
+        .forecast
+        .iter()
+        .find(|f| (f.horizon_s - SWARM_LEAD_S).abs() < 1e-9)
+        .map_or(s.centroid, |f| f.position);
+    let v = Ned::new(
+        s.velocity.north_m_s,
+        s.velocity.east_m_s,
+        s.velocity.down_m_s,
+    );
+    follow(
+        reference,
+        Ned::new(at.north_m, at.east_m, at.down_m),
+        v,
+        standoff_m,
+    )
+}
+
+fn follow(reference: Ned, target: Ned, velocity: Ned, standoff_m: f64) -> LeaderMotion {
+    LeaderMotion::GoTo {
+        target: follow_point(reference, target, velocity, standoff_m),
+        speed_m_s: (velocity.horizontal_norm() + CATCH_UP_M_S).min(MAX_SPEED_M_S),
     }
 }
 
@@ -130,12 +183,21 @@ impl CoordinatorState {
         let Some(reference) = self.formation.status(&[]).reference else {
             return;
         };
-        let tracks = self.tracking.shared().tracks();
-        let motion = follow_motion(
-            reference.position,
-            tracks.iter().find(|t| t.id == track),
-            standoff,
-        );
+        let motion = if track.starts_with(SWARM_PREFIX) {
+            let swarms = self.tracking.shared().swarms();
+            follow_swarm_motion(
+                reference.position,
+                swarms.iter().find(|s| s.id == track),
+                standoff,
+            )
+        } else {
+            let tracks = self.tracking.shared().tracks();
+            follow_motion(
+                reference.position,
+                tracks.iter().find(|t| t.id == track),
+                standoff,
+            )
+        };
         if motion == LeaderMotion::Hold && reference.motion != LeaderMotion::Hold {
             tracing::info!(%track, "formation leader track missing or lost: the formation holds");
         }
@@ -169,6 +231,9 @@ mod tests {
             observers: vec![],
             age_s: 3.0,
             unseen_s: 0.1,
+            velocity_sigma_m_s: 0.2,
+            forecast: vec![],
+            swarm: None,
         }
     }
 
@@ -192,15 +257,16 @@ mod tests {
             track("track-2", TrackStatus::Lost, (50.0, 0.0, -15.0)),
             track("track-3", TrackStatus::Tentative, (50.0, 0.0, -15.0)),
         ];
-        let field = |s: FormationSpec| validate_track_leader(&s, &tracks).unwrap_err().field;
-        assert!(validate_track_leader(&spec("track-1", Some(30.0)), &tracks).is_ok());
+        let field = |s: FormationSpec| validate_track_leader(&s, &tracks, &[]).unwrap_err().field;
+        assert!(validate_track_leader(&spec("track-1", Some(30.0)), &tracks, &[]).is_ok());
         assert_eq!(field(spec("track-9", Some(30.0))), "leader");
         assert_eq!(field(spec("track-2", Some(30.0))), "leader");
         assert_eq!(field(spec("track-3", Some(30.0))), "leader");
         assert_eq!(field(spec("track-1", None)), "standoff_m");
         assert_eq!(field(spec("track-1", Some(1.0))), "standoff_m");
         assert_eq!(field(spec("uav-1", Some(30.0))), "standoff_m");
-        assert!(validate_track_leader(&spec("uav-1", None), &tracks).is_ok());
+        assert!(validate_track_leader(&spec("uav-1", None), &tracks, &[]).is_ok());
+        assert_eq!(field(spec("swarm-1", Some(30.0))), "leader");
         assert!(spec("track-1", Some(30.0)).track_leader().is_some());
         assert!(spec("uav-1", None).track_leader().is_none());
     }
@@ -241,5 +307,64 @@ mod tests {
             (on_top - Ned::new(40.0, 10.0, -10.0)).norm() < 1e-9,
             "{on_top:?}"
         );
+    }
+
+    #[test]
+    fn a_swarm_leads_by_its_centroid_forecast_and_holds_when_gone() {
+        use crate::tracks::{ForecastPoint, MotionModel, SwarmExtent, SwarmShape};
+        let at = |n: f64, e: f64| NedJson {
+            north_m: n,
+            east_m: e,
+            down_m: -15.0,
+        };
+        let swarm = SwarmView {
+            id: "swarm-2".into(),
+            members: vec!["track-1".into(), "track-2".into()],
+            centroid: at(40.0, 0.0),
+            velocity: VelocityJson {
+                north_m_s: 0.0,
+                east_m_s: 4.0,
+                down_m_s: 0.0,
+            },
+            speed_m_s: 4.0,
+            course_deg: 90.0,
+            shape: SwarmShape::Line,
+            shape_heading_deg: 0.0,
+            extent: SwarmExtent {
+                length_m: 6.0,
+                width_m: 0.0,
+                radius_m: 3.0,
+            },
+            forecast: [5.0, 10.0]
+                .iter()
+                .map(|h| ForecastPoint {
+                    horizon_s: *h,
+                    position: at(40.0, 4.0 * h),
+                    sigma_m: 1.0,
+                    model: MotionModel::ConstantVelocity,
+                })
+                .collect(),
+            age_s: 3.0,
+        };
+        let reference = Ned::new(0.0, 20.0, -10.0);
+        match follow_swarm_motion(reference, Some(&swarm), 20.0) {
+            LeaderMotion::GoTo { target, speed_m_s } => {
+                // The 5 s forecast is (40, 20): 40 m north of the formation, 20 m short.
+                assert!(
+                    (target - Ned::new(20.0, 20.0, -10.0)).norm() < 1e-9,
+                    "{target:?}"
+                );
+                assert!((speed_m_s - 6.0).abs() < 1e-9);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(
+            follow_swarm_motion(reference, None, 20.0),
+            LeaderMotion::Hold
+        );
+        let sw = [swarm];
+        assert!(validate_track_leader(&spec("swarm-2", Some(30.0)), &[], &sw).is_ok());
+        let e = validate_track_leader(&spec("swarm-2", None), &[], &sw).unwrap_err();
+        assert_eq!(e.field, "standoff_m");
     }
 }

@@ -40,8 +40,9 @@ pub struct FormationSpec {
     pub frame: FormationFrame,
     /// Follower offsets of a [`Shape::Custom`] formation (forward, right, down), metres.
     pub offsets: Vec<Ned>,
-    /// With a track as leader (`"leader": "track-7"`): the horizontal distance the
-    /// formation's reference point keeps from the track, metres. `None` otherwise.
+    /// With a track or a hostile swarm as leader (`"leader": "track-7"`, `"swarm-2"`): the
+    /// horizontal distance the formation's reference point keeps from it, metres. `None`
+    /// otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub standoff_m: Option<f64>,
 }
@@ -70,12 +71,13 @@ impl FormationSpec {
         self.leader.as_deref() == Some(VIRTUAL) || self.track_leader().is_some()
     }
 
-    /// The track the formation follows (`"leader": "track-7"`), if any: its virtual
-    /// leader is then driven to keep `standoff_m` from the track.
+    /// The track or hostile swarm the formation follows (`"leader": "track-7"`,
+    /// `"swarm-2"`), if any: its virtual leader is then driven to keep `standoff_m` from
+    /// it.
     pub fn track_leader(&self) -> Option<&str> {
         self.leader
             .as_deref()
-            .filter(|l| l.starts_with(TRACK_PREFIX))
+            .filter(|l| l.starts_with(TRACK_PREFIX) || l.starts_with(crate::tracks::SWARM_PREFIX))
     }
 }
 

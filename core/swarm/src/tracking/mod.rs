@@ -7,18 +7,32 @@
 //!   continuation through manoeuvres and blind spots, lifecycle, merging, stable ids;
 //! - [`track`]: the tuning (the tracks as the API shows them, track events and counters
 //!   are in the leaf [`crate::tracks`]);
-//! - [`detection`]: the detector plugin's detections (its payload state) as bearings.
+//! - [`detection`]: the detector plugin's detections (its payload state) as bearings;
+//! - [`forecast`]: where each track will be in 5, 10 and 20 s (constant velocity,
+//!   constant turn, mean velocity; chosen by their recent residuals);
+//! - [`swarms`]: confirmed tracks flying together grouped into hostile swarms (DBSCAN over
+//!   position and velocity, stable `swarm-N` ids), their [`shape`]; [`picture`]: both
+//!   over a tracker's tracks;
+//! - [`stations`]: where observation UAVs see a target best (triangulation geometry).
 //!
 //! [`TrackingService`] runs the tracker in a task of its own beside the coordinator: at
 //! [`TRACKER_HZ`] it reads every frame the detectors processed since its last step from
 //! their payload states, steps the tracker with them and the swarm members' poses (so
-//! members are never tracks), raises the `track_*` events on the bus, and keeps the current tracks for `GET /api/v1/tracks` and
-//! the metrics.
+//! members are never tracks), forecasts the tracks and groups them into swarms, raises the
+//! `track_*` and `swarm_*` events on the bus, and keeps the current tracks and swarms for
+//! `GET /api/v1/tracks`, `GET /api/v1/swarms` and the metrics.
 
 pub mod detection;
 pub mod filter;
+pub mod forecast;
 pub mod geometry;
 mod management;
+pub mod picture;
+pub mod shape;
+pub mod stations;
+#[cfg(test)]
+mod swarm_tests;
+pub mod swarms;
 #[cfg(test)]
 mod tests;
 pub mod track;
@@ -26,15 +40,17 @@ pub mod tracker;
 
 use crate::events::SwarmEvent;
 use crate::metrics::Metrics;
-use crate::tracks::{TrackEvent, TrackView, TrackerCounters};
+use crate::tracks::{HostileSwarmEvent, SwarmView, TrackEvent, TrackView, TrackerCounters};
 use crate::vehicle::fleet::Fleet;
 use nalgebra::Vector3;
+pub use picture::AirPicture;
 use std::collections::HashMap;
 use std::sync::{Arc, PoisonError, RwLock};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
+pub use swarms::GroupingConfig;
 use tokio::sync::broadcast;
 use tokio::task::JoinHandle;
-pub use tracker::{Tracker, TrackerConfig};
+pub use tracker::{MemberPose, Tracker, TrackerConfig};
 
 /// Rate of the tracker's steps, Hz.
 pub const TRACKER_HZ: f64 = 10.0;
@@ -50,6 +66,7 @@ pub fn now_us() -> u64 {
 #[derive(Debug, Default)]
 pub struct TrackingShared {
     tracks: RwLock<Vec<TrackView>>,
+    swarms: RwLock<Vec<SwarmView>>,
     counters: RwLock<TrackerCounters>,
     malformed: std::sync::atomic::AtomicU64,
 }
@@ -58,6 +75,14 @@ impl TrackingShared {
     /// The tracks as of the last step.
     pub fn tracks(&self) -> Vec<TrackView> {
         self.tracks
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// The hostile swarms as of the last step.
+    pub fn swarms(&self) -> Vec<SwarmView> {
+        self.swarms
             .read()
             .unwrap_or_else(PoisonError::into_inner)
             .clone()
@@ -112,6 +137,22 @@ impl TrackingService {
     }
 }
 
+fn hostile_swarm_event(e: HostileSwarmEvent) -> SwarmEvent {
+    match e {
+        HostileSwarmEvent::Detected(swarm) => SwarmEvent::SwarmDetected { swarm },
+        HostileSwarmEvent::Changed {
+            swarm,
+            joined,
+            left,
+        } => SwarmEvent::SwarmChanged {
+            swarm,
+            joined,
+            left,
+        },
+        HostileSwarmEvent::Lost(swarm) => SwarmEvent::SwarmLost { swarm },
+    }
+}
+
 fn to_swarm_event(e: TrackEvent) -> SwarmEvent {
     match e {
         TrackEvent::Created(track) => SwarmEvent::TrackCreated { track },
@@ -133,6 +174,7 @@ async fn run(
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     // The newest frame read from each (vehicle, detector slot).
     let mut seen: HashMap<(String, String), u64> = HashMap::new();
+    let mut picture = AirPicture::new(GroupingConfig::default());
     loop {
         tick.tick().await;
         let mut bearings = Vec::new();
@@ -154,24 +196,37 @@ async fn run(
                 }
             }
         }
-        let members: Vec<(String, Vector3<f64>)> = fleet
+        let members: Vec<MemberPose> = fleet
             .snapshots()
             .into_iter()
             .filter_map(|s| {
                 let p = s.position?;
-                Some((s.id, Vector3::new(p.north_m, p.east_m, p.down_m)))
+                let v = s.velocity;
+                Some(MemberPose {
+                    id: s.id,
+                    position: Vector3::new(p.north_m, p.east_m, p.down_m),
+                    velocity: Vector3::new(v.north_m_s, v.east_m_s, v.down_m_s),
+                })
             })
             .collect();
         let now = now_us();
         for e in tracker.step(now, bearings, &members) {
             let _ = events.send(to_swarm_event(e));
         }
-        let tracks = tracker.tracks(now);
+        let mut tracks = tracker.tracks(now);
+        let (swarms, swarm_events) = picture.update(now, &mut tracks);
+        for e in swarm_events {
+            let _ = events.send(hostile_swarm_event(e));
+        }
         metrics.set_tracking(&tracks, &tracker.counters());
         *shared
             .tracks
             .write()
             .unwrap_or_else(PoisonError::into_inner) = tracks;
+        *shared
+            .swarms
+            .write()
+            .unwrap_or_else(PoisonError::into_inner) = swarms;
         *shared
             .counters
             .write()

@@ -1,7 +1,7 @@
 //! Scenario tests of the tracker: bearings generated from known targets and observers.
 
 use super::geometry::Ray;
-use super::tracker::{TrackEvent, TrackStatus, Tracker, TrackerConfig};
+use super::tracker::{MemberPose, TrackEvent, TrackStatus, Tracker, TrackerConfig};
 use nalgebra::{Rotation3, Vector3};
 
 const OBSERVERS: [(&str, [f64; 3]); 2] =
@@ -50,9 +50,13 @@ fn fly(
             .into_iter()
             .map(|p| bearing(name, o, p, t_us, noise))
             .collect();
-        let members: Vec<(String, Vector3<f64>)> = OBSERVERS
+        let members: Vec<MemberPose> = OBSERVERS
             .iter()
-            .map(|(n, p)| (n.to_string(), Vector3::from(*p)))
+            .map(|(n, p)| MemberPose {
+                id: n.to_string(),
+                position: Vector3::from(*p),
+                velocity: Vector3::zeros(),
+            })
             .collect();
         events.extend(tracker.step(t_us, bearings, &members));
     }
@@ -191,11 +195,40 @@ fn swarm_members_never_become_tracks() {
         let (me, other) = if k % 2 == 0 { (0, 1) } else { (1, 0) };
         let o = Vector3::from(OBSERVERS[me].1);
         let p = Vector3::from(OBSERVERS[other].1);
-        let members: Vec<(String, Vector3<f64>)> = OBSERVERS
+        let members: Vec<MemberPose> = OBSERVERS
             .iter()
-            .map(|(n, p)| (n.to_string(), Vector3::from(*p)))
+            .map(|(n, p)| MemberPose {
+                id: n.to_string(),
+                position: Vector3::from(*p),
+                velocity: Vector3::zeros(),
+            })
             .collect();
         let b = bearing(OBSERVERS[me].0, o, p, t_us, 0.0);
+        events.extend(tr.step(t_us, vec![b], &members));
+    }
+    assert!(events.is_empty(), "{events:?}");
+    assert_eq!(tr.counters().bearings_excluded_members, 40);
+}
+
+#[test]
+fn a_moving_member_seen_in_an_older_frame_is_still_a_member() {
+    // uav-4 flies east at 6 m/s, 25 m north of uav-2, whose frames reach the tracker
+    // 0.4 s after their capture: the bearing points where uav-4 was, 2.4 m behind it.
+    let mut tr = Tracker::new(TrackerConfig::default());
+    let o = Vector3::new(0.0, 0.0, -10.0);
+    let v = Vector3::new(0.0, 6.0, 0.0);
+    let mut events = Vec::new();
+    for k in 0..40u64 {
+        let t_us = 1_000_000 + k * 100_000;
+        let t = k as f64 * 0.1;
+        let now = Vector3::new(25.0, -10.0 + 6.0 * t, -10.0);
+        let members = vec![MemberPose {
+            id: "uav-4".into(),
+            position: now,
+            velocity: v,
+        }];
+        let then = now - v * 0.4;
+        let b = bearing("uav-2", o, then, t_us - 400_000, 0.0);
         events.extend(tr.step(t_us, vec![b], &members));
     }
     assert!(events.is_empty(), "{events:?}");

@@ -1,8 +1,10 @@
 //! The multi-target tracker: bearings from every observation UAV in, 3D tracks out.
 //!
 //! Each [`Tracker::step`]:
-//! 1. drops bearings that point at a swarm member (its known pose within
-//!    `member_exclusion_m` of the ray): swarm members are never tracks;
+//! 1. drops bearings that point at a swarm member (its known pose, moved back along its
+//!    velocity to the bearing's capture time, within `member_exclusion_m` of the ray,
+//!    widened by the distance it flies in [`MEMBER_POSE_AGE_S`]): swarm members are never
+//!    tracks, moving ones included;
 //! 2. predicts every track (constant-velocity Kalman filter) to the batch's time and moves
 //!    each ray by the track's velocity for its age, so bearings taken at different instants
 //!    meet at one point;
@@ -81,6 +83,21 @@ pub struct Tracker {
     pub(super) counters: TrackerCounters,
 }
 
+/// A swarm member's pose as the tracker gets it: id, swarm-frame NED position (m) and
+/// velocity (m/s) now.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MemberPose {
+    /// Vehicle id.
+    pub id: String,
+    /// Position, swarm-frame NED, metres.
+    pub position: Vector3<f64>,
+    /// Velocity, NED, m/s.
+    pub velocity: Vector3<f64>,
+}
+
+/// How old a member's pose may be when the tracker reads it (its 10 Hz snapshot), s.
+pub const MEMBER_POSE_AGE_S: f64 = 0.1;
+
 const SCALE: f64 = 1000.0;
 const UNASSIGNED: i64 = 1 << 40;
 
@@ -141,6 +158,9 @@ impl Tracker {
             observers: t.observers.clone(),
             age_s: us_to_s(now_us, t.created_us).max(0.0),
             unseen_s: us_to_s(now_us, t.last_update_us).max(0.0),
+            velocity_sigma_m_s: f.p.fixed_view::<3, 3>(3, 3).trace().max(0.0).sqrt(),
+            forecast: Vec::new(),
+            swarm: None,
         }
     }
 
@@ -149,19 +169,19 @@ impl Tracker {
         self.tracks.iter().map(|t| self.view(t, now_us)).collect()
     }
 
-    /// One step: `bearings` received since the last step, the swarm members' positions
-    /// (id, swarm-frame NED) now. Returns what happened to the tracks.
+    /// One step: `bearings` received since the last step, the swarm members' poses now.
+    /// Returns what happened to the tracks.
     pub fn step(
         &mut self,
         now_us: u64,
         bearings: Vec<Ray>,
-        members: &[(String, Vector3<f64>)],
+        members: &[MemberPose],
     ) -> Vec<TrackEvent> {
         let mut events = Vec::new();
         self.counters.bearings += bearings.len() as u64;
         let (rays, excluded): (Vec<Ray>, Vec<Ray>) = bearings
             .into_iter()
-            .partition(|r| !self.is_member(r, members));
+            .partition(|r| !self.is_member(r, members, now_us));
         self.counters.bearings_excluded_members += excluded.len() as u64;
         let mut rays = rays;
         rays.sort_by_key(|r| r.stamp_us);
@@ -195,14 +215,18 @@ impl Tracker {
         events
     }
 
-    fn is_member(&self, r: &Ray, members: &[(String, Vector3<f64>)]) -> bool {
-        members.iter().any(|(id, m)| {
-            if *id == r.observer {
+    fn is_member(&self, r: &Ray, members: &[MemberPose], now_us: u64) -> bool {
+        members.iter().any(|m| {
+            if m.id == r.observer {
                 return false;
             }
-            let q = m - r.origin;
+            // Where it was when the frame was taken.
+            let then = m.position - m.velocity * us_to_s(now_us, r.stamp_us).max(0.0);
+            let q = then - r.origin;
             let t = q.dot(&r.dir);
-            t > 0.0 && (q - r.dir * t).norm() < self.config.member_exclusion_m + 0.02 * t
+            let gate =
+                self.config.member_exclusion_m + 0.02 * t + m.velocity.norm() * MEMBER_POSE_AGE_S;
+            t > 0.0 && (q - r.dir * t).norm() < gate
         })
     }
 
