@@ -1,5 +1,5 @@
 //! The benchmarks end to end, small: `skein bench swarm` (20 vehicles at 50 Hz for 3 s, the
-//! simulator in its own process), `skein bench formation` (8 vehicles), `skein bench
+//! simulator in its own process, then the same with the plain pymavlink loop), `skein bench formation` (8 vehicles), `skein bench
 //! restart` (40 panics) and `skein bench tracking` (15 s). Each checks the report's shape
 //! and that the swarm really flew; never its timing (that is what the benchmarks themselves are for, on a quiet machine).
 
@@ -9,7 +9,7 @@ use std::time::Duration;
 use support::bench::bench_report;
 
 #[test]
-fn bench_swarm_reports_every_field_with_all_vehicles_offboard() {
+fn bench_swarm_reports_every_field_with_all_vehicles_offboard_and_the_pymavlink_loop_beside() {
     let report = bench_report(
         &[
             "swarm",
@@ -19,9 +19,11 @@ fn bench_swarm_reports_every_field_with_all_vehicles_offboard() {
             "50",
             "--seconds",
             "3",
+            "--peer",
+            "pymavlink",
         ],
         "vehicles",
-        Duration::from_secs(240),
+        Duration::from_secs(300),
     );
     for key in [
         "vehicles",
@@ -36,9 +38,18 @@ fn bench_swarm_reports_every_field_with_all_vehicles_offboard() {
         "sim_cpu_s",
         "offboard_loss_failsafes",
         "all_offboard",
+        "cpu_ms_per_vehicle_second",
+        "peak_rss_kib_per_vehicle",
+        "cpu_ratio_to_peer",
     ] {
         assert!(report.get(key).is_some(), "{key} missing: {report}");
     }
+    // The plain pymavlink loop flew the same swarm against its own simulator.
+    let peer = &report["peer"];
+    assert_eq!(peer["peer"], "pymavlink", "{report}");
+    assert_eq!(peer["all_offboard"], true, "{report}");
+    assert_eq!(peer["offboard_loss_failsafes"], 0, "{report}");
+    assert!(peer["setpoints_received"].as_u64().unwrap_or(0) > 0, "{report}");
     for key in ["p50", "p99", "max"] {
         assert!(
             report["interval_ms"][key].is_number(),
