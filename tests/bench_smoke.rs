@@ -49,7 +49,10 @@ fn bench_swarm_reports_every_field_with_all_vehicles_offboard_and_the_pymavlink_
     assert_eq!(peer["peer"], "pymavlink", "{report}");
     assert_eq!(peer["all_offboard"], true, "{report}");
     assert_eq!(peer["offboard_loss_failsafes"], 0, "{report}");
-    assert!(peer["setpoints_received"].as_u64().unwrap_or(0) > 0, "{report}");
+    assert!(
+        peer["setpoints_received"].as_u64().unwrap_or(0) > 0,
+        "{report}"
+    );
     for key in ["p50", "p99", "max"] {
         assert!(
             report["interval_ms"][key].is_number(),
