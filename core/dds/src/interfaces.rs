@@ -1,0 +1,70 @@
+//! The network interfaces of this host (of its network namespace), to notice that one
+//! was removed or created: RustDDS joins its discovery multicast group, and sets the
+//! interface of its multicast sends, per interface when the participant is created, so
+//! a participant outlives neither. A container whose network is disconnected and
+//! connected again (`docker network disconnect` / `connect`), a USB network adapter
+//! plugged out and in, a VPN interface re-created: each gets a new interface (a new
+//! index, often a new name and address), and the old participant hears no peer on it
+//! again. [`crate::link`] then joins the domain again on a new participant.
+//!
+//! An interface that only goes down and up (a WLAN out of range, a cable pulled) keeps
+//! its index and its multicast memberships: nothing changes here.
+
+use std::collections::BTreeSet;
+
+/// The interfaces as (name, index), from `/sys/class/net` (sysfs shows the network
+/// namespace it was mounted in: a container's own, or `ip netns exec`'s).
+pub type Interfaces = BTreeSet<(String, u32)>;
+
+/// The interfaces now; empty when `/sys/class/net` cannot be read (then no change is
+/// ever seen).
+pub fn current() -> Interfaces {
+    let Ok(dir) = std::fs::read_dir("/sys/class/net") else {
+        return Interfaces::new();
+    };
+    dir.filter_map(Result::ok)
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let index = std::fs::read_to_string(e.path().join("ifindex")).ok()?;
+            Some((name, index.trim().parse().ok()?))
+        })
+        .collect()
+}
+
+/// What changed from `before` to `now`, for the log (`+eth1#57 -eth0#55`); `None` when
+/// nothing did.
+pub fn changes(before: &Interfaces, now: &Interfaces) -> Option<String> {
+    if before == now {
+        return None;
+    }
+    let added = now.difference(before).map(|(n, i)| format!("+{n}#{i}"));
+    let removed = before.difference(now).map(|(n, i)| format!("-{n}#{i}"));
+    Some(added.chain(removed).collect::<Vec<_>>().join(" "))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_loopback_interface_is_listed() {
+        assert!(current().iter().any(|(n, _)| n == "lo"), "{:?}", current());
+    }
+
+    #[test]
+    fn a_re_created_interface_is_a_change() {
+        let before: Interfaces = [("lo".into(), 1), ("eth0".into(), 55)].into();
+        assert_eq!(changes(&before, &before), None);
+        let after: Interfaces = [("lo".into(), 1), ("eth1".into(), 57)].into();
+        assert_eq!(
+            changes(&before, &after).as_deref(),
+            Some("+eth1#57 -eth0#55")
+        );
+        // The same name with a new index: re-created, the old memberships gone.
+        let same_name: Interfaces = [("lo".into(), 1), ("eth0".into(), 58)].into();
+        assert_eq!(
+            changes(&before, &same_name).as_deref(),
+            Some("+eth0#58 -eth0#55")
+        );
+    }
+}
