@@ -1,0 +1,149 @@
+//! Distributed swarms of the end-to-end tests: `skein agent`s with one simulated vehicle
+//! each and `skein coordinator` candidates, on loopback or on the hosts of a private
+//! [`Lan`](super::netns::Lan), and what the tests read of them.
+
+use super::netns::Host;
+use super::{Skein, eventually};
+use serde_json::Value;
+use std::time::Duration;
+
+/// What an agent does without a coordinator (`skein agent --coordinator-*`).
+#[derive(Debug, Clone)]
+pub struct AgentOptions {
+    /// `--coordinator-timeout-s`.
+    pub timeout_s: f64,
+    /// `--coordinator-ride-through-s`.
+    pub ride_through_s: f64,
+    /// `--coordinator-lost-action` (`hold`, `land`, `rtl`).
+    pub lost_action: &'static str,
+    /// `--coordinator-lost-action-s`.
+    pub lost_action_s: f64,
+    /// `--test-clock-skew-ms`: its wall clock this far off.
+    pub clock_skew_ms: Option<i64>,
+}
+
+impl Default for AgentOptions {
+    /// The agent's own defaults, but holding for a minute before any lost action.
+    fn default() -> Self {
+        AgentOptions {
+            timeout_s: 1.5,
+            ride_through_s: 4.0,
+            lost_action: "hold",
+            lost_action_s: 60.0,
+            clock_skew_ms: None,
+        }
+    }
+}
+
+/// Agent `agent-<sysid>` with one simulated vehicle (sysid `sysid`) on DDS domain `d`, on
+/// loopback (`host` `None`) or on a host of a LAN (its DDS and its simulator's stats
+/// socket on the host's address; its own API stays on the host's loopback).
+pub fn agent_on(host: Option<&Host>, sysid: u8, d: &str, o: &AgentOptions) -> Skein {
+    let first = sysid.to_string();
+    let id = format!("agent-{sysid}");
+    let (timeout, action, ride) = (
+        o.timeout_s.to_string(),
+        o.lost_action_s.to_string(),
+        o.ride_through_s.to_string(),
+    );
+    let network = host.map_or("127.0.0.1".to_string(), |h| h.addr.to_string());
+    let stats = format!("{network}:0");
+    let skew = o.clock_skew_ms.map(|ms| ms.to_string());
+    let mut args = vec![
+        "--sim",
+        "1",
+        "--first-sysid",
+        &first,
+        "--sim-base-port",
+        "0",
+        "--sim-stats",
+        &stats,
+        "--id",
+        &id,
+        "--domain-id",
+        d,
+        "--dds-network",
+        &network,
+        "--coordinator-timeout-s",
+        &timeout,
+        "--coordinator-lost-action",
+        o.lost_action,
+        "--coordinator-lost-action-s",
+        &action,
+        "--coordinator-ride-through-s",
+        &ride,
+    ];
+    if let Some(ms) = &skew {
+        args.extend_from_slice(&["--test-clock-skew-ms", ms]);
+    }
+    Skein::launch_in(host.map(|h| h.ns.as_str()), "agent", &args)
+}
+
+/// A coordinator candidate on a host of a LAN, its API on the host's address (no tokens
+/// on this private LAN: `--insecure-no-auth`).
+pub fn candidate_on(h: &Host, id: &str, priority: &str, d: &str) -> Skein {
+    let http = format!("{}:0", h.addr);
+    let network = h.addr.to_string();
+    Skein::launch_in(
+        Some(&h.ns),
+        "coordinator",
+        &[
+            "--http",
+            &http,
+            "--id",
+            id,
+            "--priority",
+            priority,
+            "--domain-id",
+            d,
+            "--dds-network",
+            &network,
+            "--insecure-no-auth",
+        ],
+    )
+}
+
+/// A candidate's role (`"active"`, `"standby"`) from `GET /api/v1/coordinator`.
+pub fn role(c: &Skein) -> Value {
+    let (_, s) = c.get("/api/v1/coordinator");
+    s["role"].clone()
+}
+
+/// Waits until `a` is active and `b` stands by.
+pub fn wait_roles(a: &Skein, b: &Skein, within: Duration) {
+    eventually("one active coordinator, one standby", within, || {
+        let (ra, rb) = (role(a), role(b));
+        assert!(
+            !(ra == "active" && rb == "active"),
+            "two active coordinators"
+        );
+        if ra == "active" && rb == "standby" {
+            Ok(())
+        } else {
+            Err(format!("{ra} {rb}"))
+        }
+    });
+}
+
+/// The vehicle `id` as coordinator `c` shows it.
+pub fn vehicle(c: &Skein, id: &str) -> Value {
+    c.vehicles()
+        .into_iter()
+        .find(|v| v["id"] == id)
+        .unwrap_or(Value::Null)
+}
+
+/// The `p`-quantile (0 to 1) of `v` (NaN when empty).
+pub fn quantile(v: &[f64], p: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s[((s.len() - 1) as f64 * p).round() as usize]
+}
+
+/// The mean of `v` (NaN when empty).
+pub fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
