@@ -23,7 +23,8 @@ use std::time::{Duration, Instant};
 use support::netns::Lan;
 use support::{EventLog, Skein, eventually, run_peer};
 
-/// A DDS domain of this test process's own, apart from `e2e_dds`' 100–219.
+/// A DDS domain of this test process's own, apart from `e2e_dds`' 100–179 and
+/// `e2e_ros2`'s 180–218.
 fn domain() -> String {
     (220 + std::process::id() % 12).to_string()
 }

@@ -135,7 +135,12 @@ fn a_lost_leader_is_planned_around_and_the_others_settle_clear_of_it() {
         assert!(f["blocked"].is_null(), "{f}");
     }
     assert!(min_sep >= 3.0, "two vehicles came within {min_sep} m");
-    // The operator clears it: the formation no longer plans around it.
+    // Out of the formation, not out of its figures: the lost leader is listed as absent,
+    // with its distance to where its slot is now, and rms_error_m counts it.
+    let f = skein.formation();
+    let (_, rms, members_rms) = support::formation::assert_absent_and_counted(&f, "uav-1", "lost");
+    assert!(rms > members_rms, "{f}");
+    // The operator clears it: the formation no longer plans around it, nor lists it.
     let (status, body) = skein.post(
         "/api/v1/vehicles/uav-1/commands",
         json!({"command": "clear_hazard"}),
@@ -147,6 +152,8 @@ fn a_lost_leader_is_planned_around_and_the_others_settle_clear_of_it() {
         "{f} | {}",
         summary(&skein.vehicles())
     );
+    assert_eq!(f["absent"], json!([]), "{f}");
+    assert_eq!(f["rms_error_m"], f["members_rms_error_m"], "{f}");
     let (status, body) = skein.post(
         "/api/v1/vehicles/uav-1/commands",
         json!({"command": "clear_hazard"}),

@@ -108,6 +108,22 @@ fn starved_of_cpu_skein_sheds_work_kills_nothing_and_recovers_every_slot() {
     );
     assert_eq!(status, 200, "{body}");
     skein.settled(n, 0.5, Duration::from_secs(90));
+    // The setpoint thread's scheduling: real-time where the process may have it (root
+    // here, as in CI), which keeps it ahead of the busy loops below.
+    let priority = health(&skein)["load"]["setpoint_priority"].clone();
+    let root = std::fs::read_to_string("/proc/self/status").is_ok_and(|s| {
+        s.lines()
+            .any(|l| l.starts_with("Uid:") && l.split_whitespace().nth(1) == Some("0"))
+    });
+    if root {
+        assert_eq!(
+            priority,
+            json!({"kind": "realtime", "priority": 1}),
+            "{priority}"
+        );
+    } else {
+        assert!(priority["kind"].is_string(), "{priority}");
+    }
     let before = restarts(&skein);
     assert!(
         before.iter().all(|(_, r, f)| *r == 0 && *f == 0),

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
 # Fuzz smoke run: every cargo-fuzz target of fuzz/ for SKEIN_FUZZ_SECONDS (default 60) s,
+# the targets side by side (one per core),
 # starting from its committed corpus (fuzz/corpus/<target>/, copied to a scratch directory
 # so the run leaves the tree clean). A crash fails the run and leaves the input in
 # fuzz/artifacts/<target>/. Installs cargo-fuzz if missing, idempotently.
@@ -20,20 +21,54 @@ targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
   mapfile -t targets < <(cargo fuzz list)
 fi
+# Build every target once, then run them side by side, as many at a time as there are
+# cores (libFuzzer runs one process per target, each on one core).
+build_log=$(mktemp)
 for t in "${targets[@]}"; do
+  cargo fuzz build --sanitizer none "$t" >"$build_log" 2>&1 || {
+    tail -60 "$build_log" >&2
+    echo "tests/fuzz.sh: building $t failed" >&2
+    exit 1
+  }
+done
+rm -f "$build_log"
+jobs_max=$(nproc)
+declare -A pids scratch_of
+failed=""
+finish() { # target: waits for it, reports its stats, keeps its scratch on failure
+  local t=$1 status=0
+  wait "${pids[$t]}" || status=$?
+  local s=${scratch_of[$t]}
+  echo "tests/fuzz.sh: $t:" >&2
+  grep -E 'stat::number_of_executed_units|stat::peak_rss_mb|^Done' "$s.log" >&2 || true
+  if [ "$status" -ne 0 ]; then
+    tail -60 "$s.log" >&2
+    echo "tests/fuzz.sh: $t failed (exit $status); the input is in fuzz/artifacts/$t/" >&2
+    failed="$failed $t"
+  fi
+  rm -rf "$s" "$s.log"
+  unset "pids[$t]"
+}
+running=()
+for t in "${targets[@]}"; do
+  if [ ${#running[@]} -ge "$jobs_max" ]; then
+    finish "${running[0]}"
+    running=("${running[@]:1}")
+  fi
   scratch=$(mktemp -d)
   cp -r "corpus/$t/." "$scratch/"
+  scratch_of[$t]=$scratch
   echo "tests/fuzz.sh: $t for ${seconds} s" >&2
-  status=0
   # Safe Rust: no sanitizer (faster); debug assertions stay on (overflow checks).
   cargo fuzz run --sanitizer none "$t" "$scratch" -- \
-    -max_total_time="$seconds" -print_final_stats=1 >"$scratch.log" 2>&1 || status=$?
-  grep -E 'stat::number_of_executed_units|stat::peak_rss_mb|^Done' "$scratch.log" >&2 || true
-  if [ "$status" -ne 0 ]; then
-    tail -60 "$scratch.log" >&2
-    echo "tests/fuzz.sh: $t failed (exit $status); the input is in fuzz/artifacts/$t/" >&2
-    rm -rf "$scratch" "$scratch.log"
-    exit "$status"
-  fi
-  rm -rf "$scratch" "$scratch.log"
+    -max_total_time="$seconds" -print_final_stats=1 >"$scratch.log" 2>&1 &
+  pids[$t]=$!
+  running+=("$t")
 done
+for t in "${running[@]}"; do
+  finish "$t"
+done
+if [ -n "$failed" ]; then
+  echo "tests/fuzz.sh: failed:$failed" >&2
+  exit 1
+fi

@@ -90,46 +90,44 @@ const setFormation = (f) => {
 };
 controls.onFormation = setFormation;
 
-// Header summary from a vehicles frame.
-function summarise(vehicles) {
-  let connected = 0, airborne = 0, inForm = 0, sq = 0, nErr = 0;
-  const pts = [];
+// Header summary from a vehicles frame: `swarm` is the history's `{rms, minSep}` of that
+// frame, `form` the frame's formation summary (its rms error counts the members that
+// dropped out unasked, which the vehicles' own slot errors cannot show).
+function summarise(vehicles, swarm, form) {
+  let connected = 0, airborne = 0, inForm = 0;
   for (const v of vehicles) {
     if (v.link && v.link.connected) connected++;
-    if (AIRBORNE.has(v.state)) {
-      airborne++;
-      if (v.position) pts.push(v.position);
-    }
+    if (AIRBORNE.has(v.state)) airborne++;
     if (v.state === 'InFormation') inForm++;
-    if (v.formation && Number.isFinite(v.formation.error_m)) { sq += v.formation.error_m ** 2; nErr++; }
-  }
-  let minSep = Infinity;
-  for (let i = 0; i < pts.length; i++) {
-    for (let j = i + 1; j < pts.length; j++) {
-      const a = pts[i], b = pts[j];
-      minSep = Math.min(minSep, Math.hypot(a.north_m - b.north_m, a.east_m - b.east_m, a.down_m - b.down_m));
-    }
   }
   const put = (id, text) => { const el = $(id); if (el.textContent !== text) el.textContent = text; };
   put('sum-total', String(vehicles.length));
   put('sum-connected', String(connected));
   put('sum-airborne', String(airborne));
   put('sum-formation', String(inForm));
-  put('sum-rms', nErr ? `${fmt(Math.sqrt(sq / nErr), 2)} m` : '–');
-  put('sum-sep', Number.isFinite(minSep) ? `${fmt(minSep, 1)} m` : '–');
+  const absent = form && form.active && Array.isArray(form.absent) ? form.absent : [];
+  let rms = Number.isFinite(swarm.rms) ? `${fmt(swarm.rms, 2)} m` : '–';
+  if (absent.length) rms += ` · ${absent.length} absent`;
+  put('sum-rms', rms);
+  const rmsEl = $('sum-rms');
+  const why = absent.map((a) => `${a.id} ${a.absence}${Number.isFinite(a.error_m) ? ` ${fmt(a.error_m, 1)} m off slot ${a.slot}` : ''}`).join('\n');
+  if (rmsEl.title !== why) rmsEl.title = why;
+  const ids = absent.map((a) => a.id).join(',');
+  if (rmsEl.dataset.absent !== ids) rmsEl.dataset.absent = ids;
+  put('sum-sep', Number.isFinite(swarm.minSep) ? `${fmt(swarm.minSep, 1)} m` : '–');
 }
 
-function onVehicles(vehicles) {
+function onVehicles(vehicles, form) {
   if (!Array.isArray(vehicles)) return;
   lastVehicles = vehicles;
-  history.onVehicles(vehicles);
+  const swarm = history.onVehicles(vehicles, form);
   detail.update(vehicles);
   payloads.update(vehicles);
   table.update(vehicles);
   plan.setVehicles(vehicles);
   controls.setVehicleIds(vehicles.map((v) => v.id));
   controls.setVehicles(vehicles);
-  summarise(vehicles);
+  summarise(vehicles, swarm, form);
   if (selected && !vehicles.some((v) => v.id === selected)) select(null);
   if (!plan.origin && vehicles.some((v) => v.position) && performance.now() - originAsked > 2000) askOrigin();
 }
@@ -229,7 +227,7 @@ const stream = new api.Stream(api.streamUrl(), {
   onStatus,
   onMessage: (msg) => {
     if (msg.type !== 'vehicles') { onEvent(msg); return; }
-    onVehicles(msg.vehicles);
+    onVehicles(msg.vehicles, msg.formation);
     showLoad($('load'), msg.load);
   },
 });

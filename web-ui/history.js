@@ -55,8 +55,11 @@ export class History {
     return h;
   }
 
-  /** A `vehicles` frame of the stream. */
-  onVehicles(list, now = Date.now()) {
+  /**
+   * A `vehicles` frame of the stream, with its formation summary `form` (whose
+   * `rms_error_m` counts absent members too: see `GET /api/v1/formation`).
+   */
+  onVehicles(list, form = null, now = Date.now()) {
     const airborne = [];
     let sq = 0, nErr = 0;
     for (const v of list) {
@@ -97,7 +100,9 @@ export class History {
         minSep = Math.min(minSep, Math.hypot(a.north_m - b.north_m, a.east_m - b.east_m, a.down_m - b.down_m));
       }
     }
-    const swarm = { rms: nErr ? Math.sqrt(sq / nErr) : NaN, minSep };
+    let rms = nErr ? Math.sqrt(sq / nErr) : NaN;
+    if (form && form.active) rms = Number.isFinite(form.rms_error_m) ? form.rms_error_m : NaN;
+    const swarm = { rms, minSep };
     if (now - this.lastSwarmSample >= SAMPLE_MS) {
       this.lastSwarmSample = now;
       this.rms.push(now, swarm.rms);

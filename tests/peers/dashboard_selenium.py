@@ -9,6 +9,8 @@ chromedriver) against a fresh `skein up --sim 3`:
    along east (equal north / equal pixel y within tolerance);
 4. every shape is offered; Wedge behind the `virtual` leader, then the leader's Go to 15 m
    north: the formation status names both, and the markers follow the leader;
+   with --sim-stats, uav-3's simulated link is cut: the header's rms error says it is
+   absent (`1 absent`, `data-absent="uav-3"`) until the link is back;
 5. Land (confirmed in the dialog): all rows `Landed`;
 6. no errors in the browser console, and the event log has a `state_changed` entry;
 7. optional screenshot (taken in formation) with --screenshot PATH.
@@ -59,6 +61,7 @@ def parse_args():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--url", required=True, help="dashboard URL, e.g. http://127.0.0.1:8080/")
     p.add_argument("--screenshot", help="save a PNG of the dashboard in formation here")
+    p.add_argument("--sim-stats", help="host:port of the simulator's stats socket: cut a link")
     p.add_argument("--vehicles", type=int, default=3, help="expected number of vehicles")
     p.add_argument("--altitude", type=float, default=10.0, help="takeoff altitude, m")
     p.add_argument("--spacing", type=float, default=5.0, help="line spacing, m")
@@ -253,6 +256,20 @@ def run(args, driver, summary):
     summary["leader_goto_north_m"] = [round(north0, 1), round(ui.wait("the markers to follow the leader north", followed), 1)]
     summary["timings_s"]["followed_leader"] = lap()
 
+    # 4b. A member out of the formation is not out of its figures: uav-3's link cut, the
+    # header's rms error says one member is absent, and which.
+    if args.sim_stats:
+        sim_link(args.sim_stats, 3, 1.0)
+
+        def absent(d):
+            el = d.find_element(By.ID, "sum-rms")
+            ids = el.get_attribute("data-absent") or ""
+            return {"text": el.text, "ids": ids} if ids == "uav-3" and "1 absent" in el.text else None
+
+        summary["absent_shown"] = ui.wait("the header to show uav-3 absent", absent, timeout=max(args.timeout, 30))
+        summary["timings_s"]["absent_shown"] = lap()
+        sim_link(args.sim_stats, 3, 0.0)
+
     # 5. Land (every vehicle: the dashboard asks for confirmation first).
     ui.click("land")
     ui.wait("the confirmation dialog", lambda d: d.find_element(By.CSS_SELECTOR, '[data-testid="confirm-dialog"]').is_displayed())
@@ -271,6 +288,18 @@ def run(args, driver, summary):
     summary["console_errors"] = [e.get("message") for e in errors]
     if errors:
         raise Failure(f"{len(errors)} console error(s): {summary['console_errors']}")
+
+
+def sim_link(addr, sysid, loss):
+    """Sets the simulated link quality of vehicle `sysid` through the simulator's stats
+    socket (`link <sysid> <loss 0..1> <latency_ms>`)."""
+    import socket
+    host, port = addr.rsplit(":", 1)
+    with socket.create_connection((host, int(port)), timeout=10) as s:
+        s.sendall(f"link {sysid} {loss:g} 0\n".encode())
+        answer = s.makefile().readline()
+    if '"ok":true' not in answer.replace(" ", ""):
+        raise Failure(f"link {sysid} {loss}: {answer!r}")
 
 
 def main():

@@ -5,9 +5,9 @@ Usage: dds_peer.py --domain D --vehicle uav-1 --api http://127.0.0.1:PORT
                    [--loopback] [--expect-no-command-reader] [--tracks]
 
 1. Subscribes to rt/skein/<vehicle>/pose as geometry_msgs::msg::dds_::PoseStamped_
-   (best-effort, as skein publishes it) and compares 10 poses with the vehicle's position
-   from skein's HTTP API, converted to ENU (x east, y north, z up): each must match within
-   0.5 m.
+   (best-effort: skein's reliable writer serves it too) and compares 10 poses with the
+   vehicle's position from skein's HTTP API, converted to ENU (x east, y north, z up):
+   each must match within 0.5 m.
 2. Once skein's command reader has matched, publishes three skein_msgs Commands on
    rt/skein/<vehicle>/command and reads each CommandResult: an unknown command (refused,
    naming the field `command`), a land on the ground (refused by the vehicle's state),

@@ -34,14 +34,33 @@ pub fn up_with_intruder_pass(plugin_dir: &Path, speed_m_s: f64) -> Skein {
 
 /// [`up_with_intruder_pass`] with `extra` arguments for `skein up`.
 pub fn up_with_intruder_pass_and(plugin_dir: &Path, speed_m_s: f64, extra: &[&str]) -> Skein {
-    let speed = speed_m_s.to_string();
+    up_with_pass(plugin_dir, "straight", 1, speed_m_s, extra)
+}
+
+/// `skein up --sim 4` with the plugins of `plugin_dir` and `n` intruders flying a V on the
+/// pass of [`up_with_intruder_pass`] (south along a line 60 m east of home, 14 m up, at
+/// `speed_m_s`), the leader ahead and pairs 6 m behind it and 6 m to either side.
+pub fn up_with_formation_pass(plugin_dir: &Path, speed_m_s: f64, n: usize) -> Skein {
+    up_with_pass(plugin_dir, "formation", n, speed_m_s, &[])
+}
+
+/// `skein up --sim 4` with `n` intruders in `pattern` on the pass southward (and back)
+/// 60 m east of home, 14 m up, at `speed_m_s`, plus `extra` arguments.
+fn up_with_pass(
+    plugin_dir: &Path,
+    pattern: &str,
+    n: usize,
+    speed_m_s: f64,
+    extra: &[&str],
+) -> Skein {
+    let (speed, count) = (speed_m_s.to_string(), n.to_string());
     let mut args = vec![
         "--plugin-dir",
         plugin_dir.to_str().unwrap(),
         "--intruders",
-        "1",
+        &count,
         "--intruder-pattern",
-        "straight",
+        pattern,
         "--intruder-heading-deg",
         "180",
         "--intruder-cpa-m",
@@ -55,34 +74,6 @@ pub fn up_with_intruder_pass_and(plugin_dir: &Path, speed_m_s: f64, extra: &[&st
     ];
     args.extend_from_slice(extra);
     Skein::up_sim(4, &args)
-}
-
-/// `skein up --sim 4` with the plugins of `plugin_dir` and `n` intruders flying a V on the
-/// pass of [`up_with_intruder_pass`] (south along a line 60 m east of home, 14 m up, at
-/// `speed_m_s`), the leader ahead and pairs 6 m behind it and 6 m to either side.
-pub fn up_with_formation_pass(plugin_dir: &Path, speed_m_s: f64, n: usize) -> Skein {
-    let (speed, count) = (speed_m_s.to_string(), n.to_string());
-    Skein::up_sim(
-        4,
-        &[
-            "--plugin-dir",
-            plugin_dir.to_str().unwrap(),
-            "--intruders",
-            &count,
-            "--intruder-pattern",
-            "formation",
-            "--intruder-heading-deg",
-            "180",
-            "--intruder-cpa-m",
-            "60",
-            "--intruder-range-m",
-            "90",
-            "--intruder-altitude-m",
-            "14",
-            "--intruder-speed-m-s",
-            &speed,
-        ],
-    )
 }
 
 impl Skein {

@@ -8,7 +8,10 @@ use std::sync::Mutex;
 pub mod bench;
 pub mod counter_uas;
 pub mod cpu;
+pub mod distributed;
+pub mod docker;
 mod events;
+pub mod formation;
 pub mod map_tiles;
 pub mod netns;
 pub mod payloads;
@@ -18,6 +21,7 @@ mod polling;
 mod ports;
 mod process;
 mod python;
+pub mod ros2;
 mod sim_stats;
 mod skein;
 
@@ -33,9 +37,12 @@ pub use process::Process;
 #[allow(unused_imports)]
 pub use python::{python, run_peer, run_python, run_python_in};
 #[allow(unused_imports)]
-pub use sim_stats::{assert_no_failsafe_and_no_gap, sim_stats, truth_min_separation};
+pub use sim_stats::{
+    assert_no_failsafe_and_no_gap, sim_stats, truth_min_separation, truth_min_separation_across,
+    try_sim_stats,
+};
 #[allow(unused_imports)]
-pub use skein::{Skein, summary};
+pub use skein::{Api, Skein, summary};
 
 /// The `skein` binary cargo built for this test run.
 pub fn skein_bin() -> &'static str {

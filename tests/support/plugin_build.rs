@@ -102,6 +102,7 @@ pub fn build_into(packages: &[&str], env: &[(&str, &str)], dest: &Path) -> Vec<P
     for v in VARIANT_VARS {
         cmd.env_remove(v);
     }
+    remove_package_env(&mut cmd);
     for (k, v) in env {
         cmd.env(k, v);
     }
@@ -130,6 +131,31 @@ pub fn build_into(packages: &[&str], env: &[(&str, &str)], dest: &Path) -> Vec<P
             dst
         })
         .collect()
+}
+
+/// Removes from `cmd`'s environment what cargo set for this test process about its own
+/// package (`CARGO_MANIFEST_DIR`, `CARGO_PKG_*`, …): build scripts that track those
+/// variables (ring's) would otherwise see a build other than the one a shell's `cargo test`
+/// makes, and rebuild ring and everything on it (the skein binary under test included)
+/// in every test that builds plugins, and again in the next `cargo test`.
+fn remove_package_env(cmd: &mut Command) {
+    for (name, _) in std::env::vars_os() {
+        let n = name.to_string_lossy();
+        if n.starts_with("CARGO_MANIFEST_")
+            || n.starts_with("CARGO_PKG_")
+            || n.starts_with("CARGO_BIN_")
+            || matches!(
+                n.as_ref(),
+                "CARGO_CRATE_NAME"
+                    | "CARGO_PRIMARY_PACKAGE"
+                    | "CARGO_TARGET_TMPDIR"
+                    | "CARGO_RUSTC_CURRENT_DIR"
+                    | "OUT_DIR"
+            )
+        {
+            cmd.env_remove(&name);
+        }
+    }
 }
 
 /// The workspace root (both including crates live two levels below it).

@@ -29,16 +29,29 @@ impl Process {
     /// Starts `skein <args>` in network namespace `netns` (`ip netns exec`, which execs
     /// skein itself: the child's pid is skein's), or here with `None`.
     pub fn start_in(netns: Option<&str>, args: &[&str]) -> Process {
-        let mut cmd = match netns {
-            Some(ns) => {
-                let mut c = Command::new("ip");
-                c.args(["netns", "exec", ns, skein_bin()]);
-                c
-            }
-            None => Command::new(skein_bin()),
-        };
-        let mut child = cmd
+        match netns {
+            Some(ns) => Process::start_with(&["ip", "netns", "exec", ns], &[], args),
+            None => Process::start_with(&[], &[], args),
+        }
+    }
+
+    /// Starts `<prefix…> skein <args>` with `env` added to the environment. The prefix is a
+    /// command that execs the rest (`ip netns exec NS`, `prlimit …`, `setpriv …`), so
+    /// that the child's pid is skein's.
+    pub fn start_with(prefix: &[&str], env: &[(&str, &str)], args: &[&str]) -> Process {
+        let mut command: Vec<&str> = prefix.to_vec();
+        command.push(skein_bin());
+        command.extend_from_slice(args);
+        Process::start_command(&command, env)
+    }
+
+    /// Starts `command` (a program and its arguments: another build of skein, one under
+    /// an emulator) with `env` added to the environment.
+    pub fn start_command(command: &[&str], env: &[(&str, &str)]) -> Process {
+        let (program, args) = command.split_first().expect("a program");
+        let mut child = Command::new(program)
             .args(args)
+            .envs(env.iter().copied())
             .env("SKEIN_LOG", "info")
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -124,6 +137,20 @@ impl Process {
     /// The process id.
     pub fn pid(&self) -> u32 {
         self.child.id()
+    }
+
+    /// Sends SIGTERM (what systemd and `docker stop` send), without waiting.
+    pub fn terminate(&self) {
+        let status = Command::new("kill")
+            .args(["-TERM", &self.pid().to_string()])
+            .status()
+            .expect("kill");
+        assert!(status.success(), "kill -TERM {}", self.pid());
+    }
+
+    /// Everything on stdout so far.
+    pub fn stdout_text(&self) -> String {
+        self.stdout.lock().unwrap().join("\n")
     }
 }
 

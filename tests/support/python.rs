@@ -66,13 +66,19 @@ pub fn run_python_in(
     args: &[&str],
     timeout: Duration,
 ) -> (Option<i32>, String, String) {
-    let mut child = Command::new(python())
-        .current_dir(cwd)
-        .args(args)
+    let mut cmd = Command::new(python());
+    cmd.current_dir(cwd).args(args);
+    run_to_end(cmd, timeout)
+}
+
+/// Runs `cmd` to its end, its output collected; returns (exit code, stdout, stderr).
+/// Kills it after `timeout`.
+pub fn run_to_end(mut cmd: Command, timeout: Duration) -> (Option<i32>, String, String) {
+    let mut child = cmd
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .expect("run python");
+        .unwrap_or_else(|e| panic!("run {cmd:?}: {e}"));
     let out = child.stdout.take().expect("stdout");
     let err = child.stderr.take().expect("stderr");
     let out_t = std::thread::spawn(move || std::io::read_to_string(out).unwrap_or_default());

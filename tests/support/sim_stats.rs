@@ -18,6 +18,17 @@ pub fn sim_stats(addr: &str, command: &str) -> Value {
     serde_json::from_str(&line).expect("stats JSON")
 }
 
+/// As [`sim_stats`], or `None` when the socket does not answer (its process has ended).
+pub fn try_sim_stats(addr: &str, command: &str) -> Option<Value> {
+    use std::io::Write;
+    let mut s = std::net::TcpStream::connect(addr).ok()?;
+    s.set_read_timeout(Some(Duration::from_secs(10))).ok()?;
+    s.write_all(format!("{command}\n").as_bytes()).ok()?;
+    let mut line = String::new();
+    BufReader::new(s).read_line(&mut line).ok()?;
+    serde_json::from_str(&line).ok()
+}
+
 /// Asserts that no simulated vehicle took the offboard-loss failsafe and that no setpoint
 /// gap in OFFBOARD reached 100 ms since the simulator's last reset (stats socket at
 /// `stats_addr`); returns the worst gap, ms.
@@ -40,21 +51,31 @@ pub fn assert_no_failsafe_and_no_gap(stats_addr: &str) -> f64 {
 /// Ground-truth horizontal+vertical distances between every pair of simulated vehicles,
 /// from their geodetic positions (flat earth over a few hundred metres).
 pub fn truth_min_separation(stats_addr: &str) -> f64 {
-    let s = sim_stats(stats_addr, "stats");
-    let pos: Vec<(f64, f64, f64)> = s["vehicles"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|v| v["killed"] != true && v["truth"]["landed_state"] != "OnGround")
-        .map(|v| {
-            let p = &v["truth"]["position"];
-            (
-                p["lat_deg"].as_f64().unwrap(),
-                p["lon_deg"].as_f64().unwrap(),
-                p["alt_amsl_m"].as_f64().unwrap(),
-            )
-        })
-        .collect();
+    truth_min_separation_across(&[stats_addr])
+}
+
+/// [`truth_min_separation`] over the airborne vehicles of several simulators (one per
+/// agent of a distributed swarm): their stats sockets `stats_addrs`.
+pub fn truth_min_separation_across(stats_addrs: &[&str]) -> f64 {
+    let mut pos: Vec<(f64, f64, f64)> = Vec::new();
+    for addr in stats_addrs {
+        let s = sim_stats(addr, "stats");
+        pos.extend(
+            s["vehicles"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter(|v| v["killed"] != true && v["truth"]["landed_state"] != "OnGround")
+                .map(|v| {
+                    let p = &v["truth"]["position"];
+                    (
+                        p["lat_deg"].as_f64().unwrap(),
+                        p["lon_deg"].as_f64().unwrap(),
+                        p["alt_amsl_m"].as_f64().unwrap(),
+                    )
+                }),
+        );
+    }
     let mut best = f64::INFINITY;
     for (i, a) in pos.iter().enumerate() {
         for b in &pos[i + 1..] {

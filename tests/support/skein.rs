@@ -1,17 +1,46 @@
 //! A running `skein up` driven over its HTTP API only: requests, waits on vehicle
-//! states, the usual flights.
+//! states, the usual flights. The API half ([`Api`]) also drives a skein this test did not
+//! start itself (one in a container).
 
 use super::{Process, eventually};
 use serde_json::{Value, json};
 use std::time::Duration;
 
-/// A running `skein up` with its dashboard URL.
+/// A running `skein up` with its dashboard URL; its API's methods through [`Api`].
 pub struct Skein {
     /// The process.
     pub process: Process,
+    api: Api,
+}
+
+impl std::ops::Deref for Skein {
+    type Target = Api;
+
+    fn deref(&self) -> &Api {
+        &self.api
+    }
+}
+
+/// A skein's HTTP API at `base`.
+pub struct Api {
     /// `http://127.0.0.1:PORT`
     pub base: String,
     agent: ureq::Agent,
+}
+
+impl Api {
+    /// The API at `base` (`http://HOST:PORT`, no trailing slash).
+    pub fn new(base: &str) -> Api {
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .timeout_global(Some(Duration::from_secs(20)))
+            .build()
+            .into();
+        Api {
+            base: base.trim_end_matches('/').to_string(),
+            agent,
+        }
+    }
 }
 
 impl Skein {
@@ -38,23 +67,38 @@ impl Skein {
     pub fn launch_in(netns: Option<&str>, subcommand: &str, args: &[&str]) -> Skein {
         let mut all = vec![subcommand];
         all.extend_from_slice(args);
-        let mut process = Process::start_in(netns, &all);
+        Skein::attach(Process::start_in(netns, &all))
+    }
+
+    /// `<prefix…> skein <subcommand> <args>` with `env` (see [`Process::start_with`]; `args`
+    /// give `--http`), and waits for the dashboard line.
+    pub fn launch_with(
+        prefix: &[&str],
+        env: &[(&str, &str)],
+        subcommand: &str,
+        args: &[&str],
+    ) -> Skein {
+        let mut all = vec![subcommand];
+        all.extend_from_slice(args);
+        Skein::attach(Process::start_with(prefix, env, &all))
+    }
+
+    /// `command` (a skein binary other than this run's, e.g. under an emulator, and its
+    /// arguments with `--http`), and waits for the dashboard line.
+    pub fn launch_command(command: &[&str]) -> Skein {
+        Skein::attach(Process::start_command(command, &[]))
+    }
+
+    /// Waits for the dashboard line of a started `process`.
+    fn attach(mut process: Process) -> Skein {
         let line = process.wait_line("dashboard at", Duration::from_secs(60));
         let url = line
             .split_whitespace()
             .find(|w| w.starts_with("http://"))
-            .expect("url in the dashboard line")
-            .trim_end_matches('/')
-            .to_string();
-        let agent: ureq::Agent = ureq::Agent::config_builder()
-            .http_status_as_error(false)
-            .timeout_global(Some(Duration::from_secs(20)))
-            .build()
-            .into();
+            .expect("url in the dashboard line");
         Skein {
             process,
-            base: url,
-            agent,
+            api: Api::new(url),
         }
     }
 
@@ -63,7 +107,9 @@ impl Skein {
         let n = n.to_string();
         Skein::up(&["--sim", &n, "--sim-base-port", "0"])
     }
+}
 
+impl Api {
     fn read(mut r: ureq::http::Response<ureq::Body>) -> (u16, Value) {
         let status = r.status().as_u16();
         let text = r.body_mut().read_to_string().unwrap_or_default();
@@ -84,6 +130,16 @@ impl Skein {
             }
         }
         panic!("GET {url}: {last:?}")
+    }
+
+    /// `GET path` → (status, JSON), or `None` when nothing answers (a process that is
+    /// starting or has ended).
+    pub fn try_get(&self, path: &str) -> Option<(u16, Value)> {
+        self.agent
+            .get(format!("{}{path}", self.base))
+            .call()
+            .ok()
+            .map(Self::read)
     }
 
     /// `POST path` with a JSON body.
@@ -178,7 +234,7 @@ pub fn summary(vs: &[Value]) -> String {
         .join(", ")
 }
 
-impl Skein {
+impl Api {
     /// `POST path` that returns `None` when the connection is cut (the API server itself
     /// may be what the request restarts).
     pub fn try_post(&self, path: &str, body: Value) -> Option<(u16, Value)> {
@@ -204,7 +260,9 @@ impl Skein {
         assert_eq!(status, 200, "{tree}");
         find(&tree, path)
     }
+}
 
+impl Skein {
     /// Kills the process with SIGKILL (no goodbye: no last lease, no clean shutdown) and
     /// waits for it to exit.
     pub fn kill_hard(&mut self) {
@@ -242,7 +300,9 @@ impl Skein {
         args.extend_from_slice(extra);
         Skein::up(&args)
     }
+}
 
+impl Api {
     /// `GET /api/v1/formation`.
     pub fn formation(&self) -> Value {
         self.get("/api/v1/formation").1

@@ -13,14 +13,36 @@ use axum::extract::{Request, State};
 use axum::http::{Method, StatusCode};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
+use skein_swarm::clocks::ClockOffset;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
+use std::collections::BTreeMap;
 
-/// The coordinator election as this candidate sees it (skein coordinator only)
+/// The election as this candidate sees it, and its peers' clocks.
+#[derive(Debug, Clone, serde::Serialize, utoipa::ToSchema)]
+pub struct CoordinatorStatus {
+    /// The election: this candidate's lease and role, the active one, the peers.
+    #[serde(flatten)]
+    pub election: ElectionStatus,
+    /// The clocks of the agents and coordinators this process exchanged clock samples
+    /// with, by id: their offset from this one's (theirs minus this, ms) and its
+    /// uncertainty. Their stamps are converted with it before they are aged.
+    pub clocks: BTreeMap<String, ClockOffset>,
+}
+
+/// The coordinator election as this candidate sees it, and its peers' clocks (skein
+/// coordinator only)
 #[utoipa::path(get, path = "/api/v1/coordinator",
-    responses((status = 200, body = ElectionStatus), (status = 404)))]
-pub(crate) async fn status(State(s): State<ApiState>) -> Result<Json<ElectionStatus>, ApiError> {
+    responses((status = 200, body = CoordinatorStatus), (status = 404)))]
+pub(crate) async fn status(State(s): State<ApiState>) -> Result<Json<CoordinatorStatus>, ApiError> {
     match &s.election {
-        Some(e) => Ok(Json(e.borrow().clone())),
+        Some(e) => Ok(Json(CoordinatorStatus {
+            election: e.borrow().clone(),
+            clocks: s
+                .clocks
+                .as_ref()
+                .map(|c| c.snapshot(skein_swarm::protocol::wall_us()))
+                .unwrap_or_default(),
+        })),
         None => Err(ApiError::not_found(
             "this skein is not a coordinator candidate (`skein up` runs alone; see \
              `skein coordinator --priority P`)",

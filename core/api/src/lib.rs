@@ -78,6 +78,7 @@ pub struct ApiState {
     tls: Option<Arc<rustls::ServerConfig>>,
     recorder: Option<Arc<skein_record::Recorder>>,
     election: Option<tokio::sync::watch::Receiver<skein_swarm::election::ElectionStatus>>,
+    clocks: Option<Arc<skein_swarm::clocks::PeerClocks>>,
 }
 
 impl ApiState {
@@ -102,6 +103,7 @@ impl ApiState {
             tls: None,
             recorder: None,
             election: None,
+            clocks: None,
         }
     }
 
@@ -125,6 +127,13 @@ impl ApiState {
         status: tokio::sync::watch::Receiver<skein_swarm::election::ElectionStatus>,
     ) -> Self {
         self.election = Some(status);
+        self
+    }
+
+    /// Shows this process's estimates of its peers' clocks in `GET /api/v1/coordinator`
+    /// (`clocks`, see [`skein_swarm::clocks`]).
+    pub fn with_clocks(mut self, clocks: Arc<skein_swarm::clocks::PeerClocks>) -> Self {
+        self.clocks = Some(clocks);
         self
     }
 

@@ -17,7 +17,8 @@ use tokio::sync::broadcast;
 /// Publishes the `vehicles` frame at [`TELEMETRY_HZ`] while anyone listens (a fifth of
 /// that while the process sheds optional work, see `skein_swarm::load`); ends when the
 /// coordinator stops. Each frame carries the process's `load` (the dashboard's load
-/// indicator).
+/// indicator) and the formation's `{"active","rms_error_m","absent"}` (the header's rms
+/// error, absent members included; see `GET /api/v1/formation`).
 pub(crate) async fn publish_telemetry(
     coordinator: ActorRef<CoordinatorMsg>,
     tx: broadcast::Sender<Arc<str>>,
@@ -56,10 +57,22 @@ pub(crate) async fn publish_telemetry(
             }
             continue;
         };
+        let formation = match coordinator
+            .call(CoordinatorMsg::GetFormation, Some(COORDINATOR_TIMEOUT))
+            .await
+        {
+            Ok(ractor::rpc::CallResult::Success(f)) => Some(serde_json::json!({
+                "active": f.active,
+                "rms_error_m": f.rms_error_m,
+                "absent": f.absent,
+            })),
+            _ => None,
+        };
         let frame = serde_json::json!({
             "type": "vehicles",
             "vehicles": list,
             "load": load.as_ref().map(|l| l.status()),
+            "formation": formation,
         });
         let _ = tx.send(Arc::from(frame.to_string()));
     }

@@ -14,9 +14,16 @@
 //!   `/skein/swarm/command_result`, and their events (state changes, command outcomes,
 //!   status texts, link, geofence clamps, payload events) on `/skein/swarm/events`;
 //! - takes the other agents' reports as neighbours, for the separation check;
-//! - **without a coordinator** for [`AgentConfig::coordinator_timeout`] (default 1.5 s),
-//!   commands every vehicle flying a slot or a go-to to hold where it is (offboard: the
-//!   setpoint stream never stops), and after [`AgentConfig::lost_action_after`] more does
+//! - keeps the active coordinator's formation mirror (`/skein/formation`) and **rides
+//!   through** its silences ([`crate::ride`]): a vehicle whose slot targets stop comes
+//!   to fly its slot from the mirror for [`AgentConfig::ride_through`] (default 4 s)
+//!   after its last target, and the other agents' silent members are predicted on
+//!   theirs for the separation check;
+//! - **without a coordinator** for the longer of [`AgentConfig::coordinator_timeout`]
+//!   (default 1.5 s) and the ride-through, counted from when the next lease was due (a
+//!   cut of the link shorter than that never makes it hold), commands every vehicle
+//!   flying a slot or a go-to to hold where it is (offboard: the setpoint stream never
+//!   stops), and after [`AgentConfig::lost_action_after`] more does
 //!   [`AgentConfig::lost_action`] with the airborne ones. A coordinator that appears again
 //!   takes them back (the formation joins hovering vehicles).
 
@@ -28,13 +35,17 @@ use crate::error::DdsError;
 use crate::lease;
 use crate::msgs::{CoordinatorLease, SwarmMessage};
 use crate::reframe::{FrameSource, Reframe, SwarmFrame, into_frame, reframed};
+use crate::ride::Riding;
 use crate::topics;
 use skein_model::fsm::VehicleState;
+use skein_model::safety::Geofence;
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::SwarmEvent;
+use skein_swarm::clocks::PeerClocks;
 use skein_swarm::election::ElectionConfig;
-use skein_swarm::election::observer::Observer;
-use skein_swarm::protocol::{Command, FromVehicle, ToVehicle, VehicleReport};
+use skein_swarm::election::observer::{Observer, Refusal};
+use skein_swarm::formation::FormationMirror;
+use skein_swarm::protocol::{Command, FromVehicle, ToVehicle, VehicleReport, wall_us};
 use std::collections::BTreeSet;
 use std::future::Future;
 use std::str::FromStr;
@@ -74,8 +85,12 @@ impl FromStr for LostAction {
 pub struct AgentConfig {
     /// Its id on the protocol topics (`--id`, default `<hostname>-<pid>`).
     pub agent_id: String,
-    /// No lease claiming the role heard for this long: the agent holds (default 1.5 s).
+    /// No lease claiming the role heard for this long past when the next one was due:
+    /// the agent holds (default 1.5 s), unless it rides through for longer.
     pub coordinator_timeout: Duration,
+    /// How long a vehicle flies its slot on from the formation mirror after its last
+    /// slot target (default 4 s; zero: never, it holds after `coordinator_timeout`).
+    pub ride_through: Duration,
     /// Then, after this much longer, it does [`AgentConfig::lost_action`] (default 30 s).
     pub lost_action_after: Duration,
     /// What it does then (default [`LostAction::Hold`]).
@@ -90,6 +105,7 @@ impl AgentConfig {
         AgentConfig {
             agent_id,
             coordinator_timeout: Duration::from_millis(1500),
+            ride_through: Duration::from_secs(4),
             lost_action_after: Duration::from_secs(30),
             lost_action: LostAction::Hold,
             report_rate_hz: 20.0,
@@ -118,6 +134,10 @@ pub trait AgentContext: FrameSource {
 
     /// This process's events from now on (the role forwards its vehicles' ones).
     fn vehicle_events(&self) -> broadcast::Receiver<SwarmEvent>;
+
+    /// The geofence in force in this process (the ride-through keeps the formation's
+    /// reference inside it, as the coordinator does); `None`: no answer.
+    fn geofence(&self) -> impl Future<Output = Option<Geofence>> + Send;
 }
 
 /// The agent's topics and the state that outlives the `DdsLink` actor.
@@ -138,6 +158,11 @@ pub struct Agent {
     /// `/skein/swarm/command_result` and `/skein/swarm/events`, written.
     results: TopicWriter<SwarmMessage>,
     events: TopicWriter<SwarmMessage>,
+    /// `/skein/formation`, read: the active coordinator's formation, for the ride-through.
+    mirror: Arc<TopicReader<SwarmMessage>>,
+    riding: Mutex<Riding>,
+    /// The other processes' clocks: stamps from them are converted into this one's.
+    clocks: Arc<PeerClocks>,
 }
 
 impl Agent {
@@ -168,9 +193,19 @@ impl Agent {
             commands: read(&topics::swarm_command(), "swarm protocol sample")?,
             results: TopicWriter::open(carrier, &topics::swarm_command_result(), counters)?,
             events: TopicWriter::open(carrier, &topics::swarm_events(), counters)?,
+            mirror: read(&topics::formation(), "formation sample")?,
+            riding: Mutex::new(Riding::new(config.ride_through)),
+            clocks: Arc::default(),
             config,
             counters: counters.clone(),
         })
+    }
+
+    /// Converts stamps from other processes with `clocks` (without, they are taken as
+    /// this process's).
+    pub fn with_clocks(mut self, clocks: Arc<PeerClocks>) -> Self {
+        self.clocks = clocks;
+        self
     }
 
     fn is_local(&self, id: &str) -> bool {
@@ -178,6 +213,20 @@ impl Agent {
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .contains(id)
+    }
+
+    fn riding(&self) -> std::sync::MutexGuard<'_, Riding> {
+        self.riding.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Whether to obey a sample from `env`'s sender now (the leases heard so far taken
+    /// in first): only the active coordinator of the highest epoch.
+    fn verdict(&self, env: &Envelope) -> Result<(), Refusal> {
+        self.drain_leases();
+        self.observer
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .accepts(&env.sender_id, env.epoch, clock::now())
     }
 
     fn drain_leases(&self) {
@@ -203,6 +252,8 @@ pub async fn run<C: AgentContext>(agent: Arc<Agent>, ctx: Arc<C>) {
     }
     let (a, c, f) = (agent.clone(), ctx.clone(), frame.clone());
     tasks.spawn(async move { neighbours(&a, c.as_ref(), f.as_ref()).await });
+    let (a, c, f) = (agent.clone(), ctx.clone(), frame.clone());
+    tasks.spawn(async move { formation(&a, c.as_ref(), f.as_ref()).await });
     let a = agent.clone();
     tasks.spawn(async move {
         let id = &a.config.agent_id;
@@ -245,7 +296,63 @@ pub async fn run<C: AgentContext>(agent: Arc<Agent>, ctx: Arc<C>) {
         *agent.local.lock().unwrap_or_else(PoisonError::into_inner) =
             reports.iter().map(|(id, _)| id.clone()).collect();
         loss.check(&agent, ctx.as_ref(), &reports);
+        ride(&agent, ctx.as_ref());
         publish_reports(&agent, ctx.as_ref(), frame.as_ref(), reports).await;
+    }
+}
+
+/// One tick of the ride-through: slot targets for the local vehicles that ride, and
+/// the silent members of other agents predicted on their slots (see [`crate::ride`]).
+fn ride(agent: &Agent, ctx: &impl AgentContext) {
+    let tick = agent.riding().tick(wall_us());
+    let me = &agent.config.agent_id;
+    for id in &tick.started {
+        let (reference, motion) = agent.riding().describe();
+        tracing::warn!(
+            "agent `{me}`: no slot target for {id} for {} ms: it rides through on its slot \
+             from the formation's mirror ({motion}, reference at {reference})",
+            crate::ride::RIDE_AFTER.as_millis()
+        );
+    }
+    for id in &tick.ended {
+        tracing::warn!("agent `{me}`: {id} no longer rides through");
+    }
+    for (id, target) in tick.targets {
+        ctx.to_vehicle(
+            id,
+            ToVehicle::Slot {
+                target: Some(target),
+            },
+        );
+    }
+    for (id, report) in tick.neighbours {
+        ctx.neighbour(id, report);
+    }
+}
+
+/// Keeps the active coordinator's formation mirror (in this process's frame) for the
+/// ride-through.
+async fn formation(agent: &Agent, ctx: &impl AgentContext, frame: &dyn SwarmFrame) {
+    loop {
+        let env = Envelope::from_msg(agent.mirror.next().await);
+        if agent.verdict(&env).is_err() {
+            continue; // a standby's, or an old epoch's
+        }
+        let Some(mirror) =
+            body_or_drop::<Option<FormationMirror>>(&agent.counters, &env, "formation")
+        else {
+            continue;
+        };
+        let reframe = into_frame(frame, env.origin);
+        let mirror = mirror.map(|m| {
+            let mut m = reframed(m, reframe.as_ref(), |r, x| r.mirror(x));
+            m.stamp_us = agent.clocks.to_local_us(&env.sender_id, m.stamp_us);
+            m
+        });
+        let Some(fence) = ctx.geofence().await else {
+            continue;
+        };
+        agent.riding().on_mirror(mirror, &fence);
     }
 }
 
@@ -262,6 +369,10 @@ async fn publish_reports(
     for (id, report) in reports {
         let Some(snapshot) = snapshots.iter().find(|s| s.id == id).cloned() else {
             continue;
+        };
+        let report = VehicleReport {
+            ride_through_s: Some(agent.config.ride_through.as_secs_f64()),
+            ..report
         };
         let body = ReportBody { report, snapshot };
         if let Ok(m) = Envelope::message(&id, &agent.config.agent_id, 0, frame.frame(), &body) {
@@ -284,13 +395,17 @@ impl Loss {
         ctx: &impl AgentContext,
         reports: &[(String, VehicleReport)],
     ) {
+        // Silence past when the next lease was due: a cut of the link shorter than the
+        // timeout never makes the agent hold.
         let lost = agent
             .observer
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
-            .lost_for(clock::now());
+            .lost_for(clock::now())
+            .saturating_sub(ElectionConfig::default().publish_period);
         let cfg = &agent.config;
-        if lost < cfg.coordinator_timeout {
+        let hold_after = cfg.coordinator_timeout.max(cfg.ride_through);
+        if lost < hold_after {
             if self.held {
                 tracing::warn!("agent `{}`: a coordinator is active again", cfg.agent_id);
             }
@@ -327,7 +442,7 @@ impl Loss {
                 send(id, Command::Hold);
             }
         }
-        if !self.acted && lost >= cfg.coordinator_timeout + cfg.lost_action_after {
+        if !self.acted && lost >= hold_after + cfg.lost_action_after {
             self.acted = true;
             let command = match cfg.lost_action {
                 LostAction::Hold => return,
@@ -368,13 +483,7 @@ async fn obey(
         let Some(msg) = body_or_drop::<ToVehicle>(&agent.counters, &env, "message") else {
             continue;
         };
-        agent.drain_leases();
-        let verdict = agent
-            .observer
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .accepts(&env.sender_id, env.epoch, clock::now());
-        if let Err(why) = verdict {
+        if let Err(why) = agent.verdict(&env) {
             DdsCounters::add(&agent.counters.protocol_refused);
             tracing::debug!(
                 "dds: {} from `{}` (epoch {}) not obeyed: {why}",
@@ -385,8 +494,23 @@ async fn obey(
             continue;
         }
         let reframe = into_frame(frame, env.origin);
-        let msg = reframed(msg, reframe.as_ref(), |r, m| r.to_vehicle(m));
+        let mut msg = reframed(msg, reframe.as_ref(), |r, m| r.to_vehicle(m));
+        if let ToVehicle::Slot {
+            target: Some(target),
+        } = &mut msg
+        {
+            target.stamp_us = agent.clocks.to_local_us(&env.sender_id, target.stamp_us);
+        }
         DdsCounters::add(&agent.counters.protocol_obeyed);
+        match &msg {
+            ToVehicle::Slot {
+                target: Some(target),
+            } => agent.riding().on_target(&env.vehicle_id, *target),
+            ToVehicle::Slot { target: None } | ToVehicle::Command { .. } => {
+                agent.riding().forget(&env.vehicle_id)
+            }
+            _ => {}
+        }
         ctx.to_vehicle(env.vehicle_id, msg);
     }
 }
@@ -405,7 +529,9 @@ async fn neighbours(agent: &Agent, ctx: &impl AgentContext, frame: &dyn SwarmFra
             continue;
         };
         let reframe = Reframe::new(env.origin, own);
-        let report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));
+        let mut report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));
+        report.stamp_us = agent.clocks.to_local_us(&env.sender_id, report.stamp_us);
+        agent.riding().on_neighbour(&env.vehicle_id, report);
         ctx.neighbour(env.vehicle_id, report);
     }
 }

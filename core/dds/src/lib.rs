@@ -3,20 +3,27 @@
 //! CycloneDDS sees it).
 //!
 //! - [`topics`]: names and QoS of every topic (the table there is the contract);
-//! - [`msgs`]: the message types, standard ROS 2 ones and skein's own (`core/dds/msg/*.msg`);
+//! - [`msgs`]: the message types, standard ROS 2 ones and skein's own (the ROS 2
+//!   interface package `ros2/skein_msgs`), with [`msg_samples`], one of each for the
+//!   checks against the `.msg` files;
 //! - [`carrier`]: what carries the samples: DDS ([`carrier::ros2`]) or, in unit tests, an
 //!   in-memory bus ([`carrier::memory`]);
 //! - the roles, each with its own topics and a small context trait: [`vehicles`] (the
-//!   vehicles' topics and commands of `skein up --dds`), [`lease`] (the coordinator
+//!   vehicles' topics and commands of `skein up --dds`), [`tf`] (the vehicles as TF
+//!   frames on `/tf`, the swarm frame's anchor on `/tf_static`), [`lease`] (the coordinator
 //!   election on `/skein/coordinator`, `skein coordinator`), [`remote`] (a coordinator's
 //!   remote vehicles), [`mirror`] (the formation a standby resumes) and [`agent`] (an
-//!   agent's vehicles obeying the active coordinator, `skein agent`);
+//!   agent's vehicles obeying the active coordinator, `skein agent`, riding through its
+//!   silences with [`ride`]);
+//! - [`clocks`]: the clock exchange, so that stamps from another host are aged in this
+//!   process's clock;
 //! - [`envelope`] and [`reframe`]: the swarm protocol's envelope between coordinators
 //!   and agents (`/skein/swarm/*`) and positions between two processes' swarm frames;
 //! - [`swarm_adapter`]: the roles' contexts on `skein_swarm`'s coordinator actor, the
 //!   one module that speaks to it;
 //! - [`link`]: composes the roles ([`DdsRoles`]) and runs them as the supervised
-//!   `DdsLink` service;
+//!   `DdsLink` service, on a new participant after a change of the network
+//!   [`interfaces`];
 //! - [`convert`]: skein's NED swarm frame to the ENU of REP 103, commands back;
 //! - [`probe`]: a listener of the pose topics (`skein bench dds`).
 //!
@@ -29,20 +36,27 @@
 pub mod agent;
 pub mod carrier;
 mod clock;
+pub mod clocks;
 pub mod convert;
 pub mod counters;
 pub mod envelope;
 pub mod error;
+pub mod interfaces;
 pub mod lease;
 pub mod link;
 pub mod mirror;
+#[cfg(test)]
+mod msg_files;
+pub mod msg_samples;
 pub mod msgs;
 pub mod probe;
 pub mod reframe;
 pub mod remote;
+pub mod ride;
 #[cfg(test)]
 mod scenarios;
 pub mod swarm_adapter;
+pub mod tf;
 pub mod topics;
 pub mod vehicles;
 

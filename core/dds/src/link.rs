@@ -2,31 +2,43 @@
 //! composes the roles of this process, and the supervised `DdsLink` service runs them.
 //!
 //! [`DdsRoles::new`] joins the domain ([`Ros2Carrier`]) and opens each role's topics:
-//! every process publishes its vehicles ([`crate::vehicles`]); a candidate runs the
-//! election ([`crate::lease`]), steers the agents' vehicles ([`crate::remote`]) and
-//! mirrors the formation ([`crate::mirror`]); an agent obeys the active coordinator
-//! ([`crate::agent`]). Each role gets its own topics and the [`SwarmAdapter`] as its
-//! context; the roles share nothing else but the counters. What outlives a restart of
+//! every process publishes its vehicles ([`crate::vehicles`]) and their TF frames
+//! ([`crate::tf`]); a candidate runs the election ([`crate::lease`]), steers the agents'
+//! vehicles ([`crate::remote`]) and mirrors the formation ([`crate::mirror`]); an agent
+//! obeys the active coordinator ([`crate::agent`]); candidates and agents exchange clock
+//! samples ([`crate::clocks`]). Each role gets its own topics and the [`SwarmAdapter`] as
+//! its context; the roles share nothing else but the counters and the peers' clocks
+//! (estimated by the clock exchange, used to age the others' stamps). What outlives a restart of
 //! the service (`coordinator/dds`, restart policy `[supervision.dds]`) is the roles'
 //! state: the participant (so peers need not rediscover it), the topics, the election,
 //! the remote vehicles' channels. The service actor spawns the roles' tasks when it
 //! starts and aborts them when it stops.
+//!
+//! A participant does not outlive a network interface ([`crate::interfaces`]): when one
+//! is removed or created, a process that is no candidate (an agent, `skein up --dds`)
+//! joins the domain again on a new participant and opens its roles there (their state
+//! starts again: an agent's vehicles hold until it hears a coordinator again). A
+//! candidate keeps its participant, for its election's sake, and says so in the log.
 
 use crate::agent::{self, Agent, AgentConfig};
 use crate::carrier::ros2::Ros2Carrier;
+use crate::clocks::{self, Clocks};
 use crate::counters::DdsCounters;
 use crate::error::DdsError;
+use crate::interfaces;
 use crate::lease::{Candidate, ElectionLink};
 use crate::mirror::{self, Mirror};
 use crate::remote::{self, Remotes};
 use crate::swarm_adapter::SwarmAdapter;
+use crate::tf::{self, Tf, TfConfig};
 use crate::vehicles::{self, Vehicles};
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
 use skein_model::supervision::ChildKind;
+use skein_swarm::clocks::PeerClocks;
 use skein_swarm::election::ElectionStatus;
 use skein_swarm::metrics::Metrics;
 use skein_swarm::{CoordinatorMsg, ServiceMsg, ServiceSpec, SwarmEvent};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 use tokio::sync::{broadcast, watch};
 use tokio::task::JoinSet;
@@ -54,13 +66,18 @@ pub struct DdsConfig {
     /// With `skein agent`: this process's vehicles obey the active coordinator of the
     /// domain ([`crate::agent`]).
     pub agent: Option<AgentConfig>,
+    /// The parent of the swarm frame on `/tf_static` (`--dds-tf-parent`): `None` for
+    /// `earth` ([`crate::tf`]).
+    pub tf_parent_frame: Option<String>,
 }
 
-/// A candidate's roles: the election, the remote vehicles, the formation mirror.
+/// A candidate's roles: the election, the remote vehicles, the formation mirror, the
+/// clock exchange.
 struct CandidateRoles {
     election: Arc<ElectionLink>,
     remotes: Arc<Remotes>,
     mirror: Arc<Mirror>,
+    clocks: Arc<Clocks>,
 }
 
 /// The roles of this process, with their topics on one DDS participant (see the module
@@ -69,9 +86,87 @@ pub struct DdsRoles {
     publish_period: Duration,
     counters: Arc<DdsCounters>,
     swarm: Arc<SwarmAdapter>,
-    vehicles: Arc<Vehicles<Ros2Carrier>>,
     candidate: Option<CandidateRoles>,
+    /// The roles every process has, on the current participant.
+    local: Mutex<Arc<LocalRoles>>,
+    /// What a new participant needs (not for a candidate, whose roles stay on the first).
+    rejoin: Option<DdsConfig>,
+    /// The peers' clocks as the clock exchange estimates them (outlives participants).
+    peer_clocks: Arc<PeerClocks>,
+}
+
+/// The roles on a participant that may be replaced: this process's vehicles and their
+/// TF frames, and an agent's obedience to the active coordinator and clock exchange.
+struct LocalRoles {
+    vehicles: Arc<Vehicles<Ros2Carrier>>,
+    tf: Arc<Tf>,
     agent: Option<Arc<Agent>>,
+    clocks: Option<Arc<Clocks>>,
+}
+
+impl LocalRoles {
+    /// Opens the vehicles', their TF frames' and the agent's topics on `carrier`; the
+    /// agent's stamps are aged with `peer_clocks`.
+    fn open(
+        carrier: Arc<Ros2Carrier>,
+        config: &DdsConfig,
+        counters: &Arc<DdsCounters>,
+        remotes: Option<Arc<Remotes>>,
+        peer_clocks: &Arc<PeerClocks>,
+    ) -> Result<LocalRoles, DdsError> {
+        let (agent, clocks) = match &config.agent {
+            Some(a) => (
+                Some(Arc::new(
+                    Agent::open(carrier.as_ref(), a.clone(), counters)?
+                        .with_clocks(peer_clocks.clone()),
+                )),
+                Some(Arc::new(Clocks::open(
+                    carrier.as_ref(),
+                    a.agent_id.clone(),
+                    peer_clocks.clone(),
+                    counters,
+                )?)),
+            ),
+            None => (None, None),
+        };
+        // A remote vehicle is published by its agent.
+        let remotes_tf = remotes.clone();
+        let elsewhere = move |id: &str| remotes.as_ref().is_some_and(|r| r.contains(id));
+        let tf = Tf::open(
+            carrier.as_ref(),
+            counters,
+            TfConfig {
+                publish_rate_hz: config.publish_rate_hz,
+                parent_frame: config.tf_parent_frame.clone(),
+            },
+            Box::new(move |id: &str| remotes_tf.as_ref().is_some_and(|r| r.contains(id))),
+        )?;
+        let vehicles = Vehicles::open(
+            carrier,
+            counters,
+            config.publish_rate_hz,
+            config.accept_commands,
+            Box::new(elsewhere),
+        )?;
+        Ok(LocalRoles {
+            vehicles: Arc::new(vehicles),
+            tf: Arc::new(tf),
+            agent,
+            clocks,
+        })
+    }
+
+    /// Spawns their tasks into `tasks`.
+    fn spawn(&self, tasks: &mut JoinSet<()>, swarm: &Arc<SwarmAdapter>) {
+        tasks.spawn(vehicles::run(self.vehicles.clone(), swarm.clone()));
+        tasks.spawn(tf::run(self.tf.clone(), swarm.clone()));
+        if let Some(a) = &self.agent {
+            tasks.spawn(agent::run(a.clone(), swarm.clone()));
+        }
+        if let Some(c) = &self.clocks {
+            tasks.spawn(clocks::run(c.clone()));
+        }
+    }
 }
 
 impl DdsRoles {
@@ -92,41 +187,47 @@ impl DdsRoles {
             &config.node_name,
         )?);
         let counters = Arc::new(DdsCounters::default());
-        let candidate = match config.candidate {
+        let peer_clocks = Arc::new(PeerClocks::default());
+        let candidate = match &config.candidate {
             Some(c) => Some(CandidateRoles {
-                election: Arc::new(ElectionLink::open(carrier.as_ref(), c, &counters)?),
-                remotes: Arc::new(Remotes::open(carrier.as_ref(), &counters)?),
-                mirror: Arc::new(Mirror::open(carrier.as_ref(), &counters)?),
+                election: Arc::new(ElectionLink::open(carrier.as_ref(), c.clone(), &counters)?),
+                remotes: Arc::new(
+                    Remotes::open(carrier.as_ref(), &counters)?.with_clocks(peer_clocks.clone()),
+                ),
+                mirror: Arc::new(
+                    Mirror::open(carrier.as_ref(), &counters)?.with_clocks(peer_clocks.clone()),
+                ),
+                clocks: Arc::new(Clocks::open(
+                    carrier.as_ref(),
+                    c.coordinator_id.clone(),
+                    peer_clocks.clone(),
+                    &counters,
+                )?),
             }),
             None => None,
         };
-        let agent = match config.agent {
-            Some(a) => Some(Arc::new(Agent::open(carrier.as_ref(), a, &counters)?)),
-            None => None,
-        };
-        // A remote vehicle is published by its agent.
         let remotes = candidate.as_ref().map(|c| c.remotes.clone());
-        let elsewhere = move |id: &str| remotes.as_ref().is_some_and(|r| r.contains(id));
-        let vehicles = Vehicles::open(
-            carrier,
-            &counters,
-            config.publish_rate_hz,
-            config.accept_commands,
-            Box::new(elsewhere),
-        )?;
+        let local = LocalRoles::open(carrier, &config, &counters, remotes, &peer_clocks)?;
         Ok(Arc::new(DdsRoles {
             publish_period: Duration::from_secs_f64(1.0 / config.publish_rate_hz.clamp(0.1, 100.0)),
             counters,
             swarm: Arc::new(SwarmAdapter::new(coordinator, metrics, events)),
-            vehicles: Arc::new(vehicles),
+            rejoin: candidate.is_none().then_some(config),
             candidate,
-            agent,
+            local: Mutex::new(Arc::new(local)),
+            peer_clocks,
         }))
     }
 
     /// The coordinator election's status, when this process is a candidate.
     pub fn election(&self) -> Option<watch::Receiver<ElectionStatus>> {
         self.candidate.as_ref().map(|c| c.election.subscribe())
+    }
+
+    /// This process's estimates of its peers' clocks (empty in `skein up --dds`, which
+    /// exchanges none).
+    pub fn peer_clocks(&self) -> Arc<PeerClocks> {
+        self.peer_clocks.clone()
     }
 
     /// The service the coordinator starts and supervises as `coordinator/dds`.
@@ -146,9 +247,9 @@ impl DdsRoles {
     }
 
     /// Spawns every role's tasks into `tasks`.
-    fn spawn(&self, tasks: &mut JoinSet<()>) {
+    fn spawn(self: &Arc<Self>, tasks: &mut JoinSet<()>) {
         let swarm = &self.swarm;
-        tasks.spawn(vehicles::run(self.vehicles.clone(), swarm.clone()));
+        tasks.spawn(self.clone().run_local());
         if let Some(c) = &self.candidate {
             tasks.spawn(c.election.clone().run(swarm.clone()));
             let status = c.election.subscribe();
@@ -158,9 +259,7 @@ impl DdsRoles {
                 swarm.clone(),
             ));
             tasks.spawn(mirror::run(c.mirror.clone(), status, swarm.clone()));
-        }
-        if let Some(a) = &self.agent {
-            tasks.spawn(agent::run(a.clone(), swarm.clone()));
+            tasks.spawn(clocks::run(c.clocks.clone()));
         }
         let (swarm, counters) = (swarm.clone(), self.counters.clone());
         let period = self.publish_period;
@@ -173,7 +272,77 @@ impl DdsRoles {
             }
         });
     }
+
+    /// Runs the local roles on the current participant, and on a new one after a change
+    /// of the network interfaces (see the module docs).
+    async fn run_local(self: Arc<Self>) {
+        let mut seen = interfaces::current();
+        loop {
+            let local = self
+                .local
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .clone();
+            let mut tasks = JoinSet::new();
+            local.spawn(&mut tasks, &self.swarm);
+            let now = loop {
+                tokio::time::sleep(INTERFACE_POLL).await;
+                let now = interfaces::current();
+                if let Some(what) = interfaces::changes(&seen, &now) {
+                    if self.rejoin.is_some() {
+                        tracing::warn!(
+                            "dds: network interfaces changed ({what}): joining the domain again"
+                        );
+                        break now;
+                    }
+                    tracing::warn!(
+                        "dds: network interfaces changed ({what}): this coordinator candidate \
+                         keeps its participant, which hears no peer on a new interface; \
+                         restart it if it must"
+                    );
+                    seen = now;
+                }
+            };
+            seen = now;
+            let Some(config) = self.rejoin.clone() else {
+                continue;
+            };
+            let counters = self.counters.clone();
+            let peer_clocks = self.peer_clocks.clone();
+            let joined = tokio::task::spawn_blocking(move || {
+                let carrier = Arc::new(Ros2Carrier::join(
+                    config.domain_id,
+                    &config.networks,
+                    &config.node_name,
+                )?);
+                LocalRoles::open(carrier, &config, &counters, None, &peer_clocks)
+            })
+            .await;
+            match joined {
+                Ok(Ok(new)) => {
+                    tasks.abort_all();
+                    while tasks.join_next().await.is_some() {}
+                    let old = std::mem::replace(
+                        &mut *self.local.lock().unwrap_or_else(PoisonError::into_inner),
+                        Arc::new(new),
+                    );
+                    // Leaving the domain joins the old participant's threads.
+                    drop(local);
+                    let _ = tokio::task::spawn_blocking(move || drop(old)).await;
+                    tracing::warn!("dds: joined the domain again on the new interfaces");
+                }
+                Ok(Err(e)) => tracing::error!(
+                    "dds: could not join the domain again ({e}); on the old participant until \
+                     the interfaces change again"
+                ),
+                Err(e) => tracing::error!("dds: joining the domain again failed: {e}"),
+            }
+        }
+    }
 }
+
+/// How often the network interfaces are looked at.
+const INTERFACE_POLL: Duration = Duration::from_secs(1);
 
 /// The DDS link service actor: runs the roles' tasks while it lives (see the module
 /// docs).

@@ -16,6 +16,7 @@ use crate::error::DdsError;
 use crate::msgs::SwarmMessage;
 use crate::reframe::{FrameSource, into_frame, reframed};
 use crate::topics;
+use skein_swarm::clocks::PeerClocks;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
 use skein_swarm::formation::FormationMirror;
 use std::future::Future;
@@ -41,9 +42,18 @@ pub struct Mirror {
     counters: Arc<DdsCounters>,
     writer: TopicWriter<SwarmMessage>,
     reader: TopicReader<SwarmMessage>,
+    /// The other coordinators' clocks: a mirror's stamp is converted into this one's.
+    clocks: Arc<PeerClocks>,
 }
 
 impl Mirror {
+    /// Converts the mirrors' stamps with `clocks` (without, they are taken as this
+    /// process's).
+    pub fn with_clocks(mut self, clocks: Arc<PeerClocks>) -> Self {
+        self.clocks = clocks;
+        self
+    }
+
     /// Opens `/skein/formation` for reading and writing on `carrier`, counting in
     /// `counters`.
     ///
@@ -55,6 +65,7 @@ impl Mirror {
             writer: TopicWriter::open(carrier, &topic, counters)?,
             reader: TopicReader::open(carrier, &topic, counters, "formation sample")?,
             counters: counters.clone(),
+            clocks: Arc::default(),
         })
     }
 }
@@ -95,10 +106,16 @@ pub async fn run<C: MirrorContext>(
                 continue;
             };
             let reframe = into_frame(frame.as_ref(), env.origin);
+            let clocks = &mirror.clocks;
+            let formation = formation.map(|m| {
+                let mut m = reframed(m, reframe.as_ref(), |r, x| r.mirror(x));
+                m.stamp_us = clocks.to_local_us(&env.sender_id, m.stamp_us);
+                m
+            });
             heard = Some(Heard {
                 from: env.sender_id,
                 epoch: env.epoch,
-                mirror: formation.map(|m| reframed(m, reframe.as_ref(), |r, x| r.mirror(x))),
+                mirror: formation,
             });
         }
         let (active, epoch) = {

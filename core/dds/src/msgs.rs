@@ -3,18 +3,35 @@
 //! files would.
 //!
 //! - ROS 2 standard messages skein publishes: `std_msgs/Header`,
-//!   `geometry_msgs/{Point, Vector3, Quaternion, Pose, PoseStamped}`,
-//!   `sensor_msgs/{NavSatStatus, NavSatFix, BatteryState}` (Jazzy definitions).
-//! - skein's own messages (`skein_msgs/*`), defined by the `.msg` files in
-//!   `core/dds/msg/`: [`VehicleState`], [`Command`], [`CommandResult`], [`Track`],
-//!   [`Tracks`], [`CoordinatorLease`], [`SwarmMessage`]. A field added there is added here at the same place.
+//!   `geometry_msgs/{Point, Vector3, Quaternion, Pose, PoseStamped, Transform,
+//!   TransformStamped}`, `sensor_msgs/{NavSatStatus, NavSatFix, BatteryState}`,
+//!   `tf2_msgs/TFMessage` (Jazzy definitions).
+//! - skein's own messages (`skein_msgs/*`), defined by the `.msg` files of the ROS 2
+//!   interface package `ros2/skein_msgs/msg/`: [`VehicleState`], [`Command`],
+//!   [`CommandResult`], [`Track`], [`Tracks`], [`CoordinatorLease`], [`SwarmMessage`]. A
+//!   field added there is added here at the same place: a unit test reads those files
+//!   and checks every type here against them (`msg_files`), and `tests/e2e_ros2.rs`
+//!   compares [`to_cdr`]'s bytes with the rosidl-generated Python types'.
 //!
 //! Fixed-size arrays (`float64[9]`) are Rust arrays (CDR writes no length); sequences
 //! (`float32[]`, `Track[]`) are `Vec`s (CDR writes a `u32` length first).
 
 use ros2_client::MessageTypeName;
 use ros2_client::builtin_interfaces::Time;
+use ros2_client::dds::rustdds::CDRSerializerAdapter;
+use ros2_client::dds::rustdds::no_key::SerializerAdapter;
 use serde::{Deserialize, Serialize};
+
+/// `m` as DDS puts it on the wire: CDR, little-endian (XCDR1), without the 4-byte
+/// encapsulation header (`00 01 00 00`) that precedes it in a sample; padding is zeros.
+///
+/// # Errors
+/// `m` cannot be written as CDR (a map or an enum with data: none of the messages here).
+pub fn to_cdr<M: Serialize>(m: &M) -> Result<Vec<u8>, String> {
+    <CDRSerializerAdapter<M> as SerializerAdapter<M>>::to_bytes(m)
+        .map(|b| b.to_vec())
+        .map_err(|e| e.to_string())
+}
 
 /// A ROS message type with its `package/Type` name.
 pub trait RosMessage: Serialize + 'static {
@@ -259,6 +276,10 @@ pub struct Track {
     pub unseen_s: f64,
 }
 
+impl RosMessage for Track {
+    const TYPE: (&'static str, &'static str) = ("skein_msgs", "Track");
+}
+
 /// `skein_msgs/Tracks` (`msg/Tracks.msg`): `/skein/tracks`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Tracks {
@@ -317,4 +338,35 @@ pub struct SwarmMessage {
 
 impl RosMessage for SwarmMessage {
     const TYPE: (&'static str, &'static str) = ("skein_msgs", "SwarmMessage");
+}
+
+/// `geometry_msgs/Transform`: a frame's pose in its parent.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Transform {
+    /// The child frame's origin in the parent frame, metres.
+    pub translation: Vector3,
+    /// The child frame's orientation in the parent frame.
+    pub rotation: Quaternion,
+}
+
+/// `geometry_msgs/TransformStamped`: one edge of the TF tree.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TransformStamped {
+    /// Stamp and the parent frame (`frame_id`).
+    pub header: Header,
+    /// The child frame (`uav_1/base_link`).
+    pub child_frame_id: String,
+    /// The child's pose in the parent.
+    pub transform: Transform,
+}
+
+/// `tf2_msgs/TFMessage`: `/tf` and `/tf_static`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TfMessage {
+    /// The transforms.
+    pub transforms: Vec<TransformStamped>,
+}
+
+impl RosMessage for TfMessage {
+    const TYPE: (&'static str, &'static str) = ("tf2_msgs", "TFMessage");
 }

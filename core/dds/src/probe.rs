@@ -30,7 +30,7 @@ pub struct PoseProbe {
 impl PoseProbe {
     /// Joins `domain_id` (on `networks` only, when not empty) and subscribes to the poses
     /// of `vehicles` (ids as the API names them), and with `targets` to the slot targets
-    /// of every vehicle, best-effort as they are published.
+    /// of every vehicle, with the QoS they are published with.
     ///
     /// # Errors
     /// The participant, node or a subscription could not be created.

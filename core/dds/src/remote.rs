@@ -24,6 +24,7 @@ use crate::reframe::{FrameSource, SwarmFrame, into_frame, reframed};
 use crate::topics;
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::SwarmEvent;
+use skein_swarm::clocks::PeerClocks;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
 use std::collections::BTreeMap;
@@ -86,9 +87,18 @@ pub struct Remotes {
     /// `/skein/swarm/command_result` and `/skein/swarm/events`, read.
     results: TopicReader<SwarmMessage>,
     events: TopicReader<SwarmMessage>,
+    /// The agents' clocks: their reports' stamps are converted into this one's.
+    clocks: Arc<PeerClocks>,
 }
 
 impl Remotes {
+    /// Converts the agents' report stamps with `clocks` (without, they are taken as
+    /// this process's).
+    pub fn with_clocks(mut self, clocks: Arc<PeerClocks>) -> Self {
+        self.clocks = clocks;
+        self
+    }
+
     /// Opens the coordinator's protocol topics on `carrier`, counting in `counters`.
     ///
     /// # Errors
@@ -112,6 +122,7 @@ impl Remotes {
             events: TopicReader::open(carrier, &topics::swarm_events(), counters, "event sample")?,
             counters: counters.clone(),
             vehicles: Mutex::new(BTreeMap::new()),
+            clocks: Arc::default(),
         })
     }
 
@@ -200,7 +211,8 @@ pub async fn run<C: RemoteContext>(
         };
         // A coordinator without vehicles of its own anchors at the first agent's origin.
         let reframe = into_frame(frame.as_ref(), env.origin);
-        let report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));
+        let mut report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));
+        report.stamp_us = remotes.clocks.to_local_us(&env.sender_id, report.stamp_us);
         let snapshot = reframed(body.snapshot, reframe.as_ref(), |r, x| r.snapshot(x));
         let mut map = remotes
             .vehicles

@@ -1,6 +1,7 @@
 //! The one place where the DDS roles meet `skein_swarm`'s coordinator actor: the
 //! [`SwarmAdapter`] implements every role's context ([`ElectionContext`],
-//! [`AgentContext`], [`RemoteContext`], [`MirrorContext`], [`VehiclesContext`]) with
+//! [`AgentContext`], [`RemoteContext`], [`MirrorContext`], [`VehiclesContext`],
+//! [`TfContext`]) with
 //! messages to the coordinator (`CoordinatorMsg`, `DistributedMsg`), its swarm context (the
 //! frame), its event bus and its metrics. When the coordinator's messages or its view
 //! change, this file changes; the roles do not.
@@ -11,6 +12,7 @@ use crate::lease::{ElectionContext, RoleChange};
 use crate::mirror::MirrorContext;
 use crate::reframe::{FrameSource, SwarmFrame};
 use crate::remote::{RemoteContext, RemoteJoin};
+use crate::tf::TfContext;
 use crate::vehicles::VehiclesContext;
 use ractor::ActorRef;
 use ractor::rpc::CallResult;
@@ -142,6 +144,13 @@ impl AgentContext for SwarmAdapter {
     fn vehicle_events(&self) -> broadcast::Receiver<SwarmEvent> {
         self.events.subscribe()
     }
+
+    async fn geofence(&self) -> Option<skein_model::safety::Geofence> {
+        let view: Arc<SwarmContext> = self
+            .ask(|r| CoordinatorMsg::Distributed(DistributedMsg::GetContext(r)))
+            .await?;
+        Some(view.geofence().fence.clone())
+    }
 }
 
 impl RemoteContext for SwarmAdapter {
@@ -210,5 +219,15 @@ impl VehiclesContext for SwarmAdapter {
             Ok(CallResult::Success(Err(None))) => Err(format!("no vehicle `{vehicle_id}`")),
             _ => Err("the coordinator did not answer in 5 s".into()),
         }
+    }
+}
+
+impl TfContext for SwarmAdapter {
+    async fn vehicles(&self) -> Option<Vec<VehicleSnapshot>> {
+        self.ask(CoordinatorMsg::ListVehicles).await
+    }
+
+    async fn keep_round(&self, round: u64) -> bool {
+        VehiclesContext::keep_round(self, round).await
     }
 }

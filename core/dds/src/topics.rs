@@ -2,9 +2,9 @@
 //!
 //! | topic | type | QoS | rate |
 //! |---|---|---|---|
-//! | `/skein/<vehicle>/pose` | `geometry_msgs/PoseStamped` | best-effort, volatile, keep-last 1 | publish rate |
-//! | `/skein/<vehicle>/navsat` | `sensor_msgs/NavSatFix` | best-effort, volatile, keep-last 1 | publish rate |
-//! | `/skein/<vehicle>/battery` | `sensor_msgs/BatteryState` | best-effort, volatile, keep-last 1 | publish rate / 10 |
+//! | `/skein/<vehicle>/pose` | `geometry_msgs/PoseStamped` | reliable, volatile, keep-last 1 | publish rate |
+//! | `/skein/<vehicle>/navsat` | `sensor_msgs/NavSatFix` | reliable, volatile, keep-last 1 | publish rate |
+//! | `/skein/<vehicle>/battery` | `sensor_msgs/BatteryState` | reliable, volatile, keep-last 1 | publish rate / 10 |
 //! | `/skein/<vehicle>/state` | `skein_msgs/VehicleState` | reliable, volatile, keep-last 1 | publish rate |
 //! | `/skein/<vehicle>/command` | `skein_msgs/Command` | reliable, volatile, keep-last 16 | on demand |
 //! | `/skein/<vehicle>/command_result` | `skein_msgs/CommandResult` | reliable, volatile, keep-last 16 | per command |
@@ -16,10 +16,20 @@
 //! | `/skein/swarm/command_result` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | per command, state change |
 //! | `/skein/swarm/events` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | per vehicle event |
 //! | `/skein/formation` | `skein_msgs/SwarmMessage` | reliable, transient-local, keep-last 1 | 5 Hz from the active coordinator |
+//! | `/skein/swarm/clock` | `skein_msgs/SwarmMessage` | best-effort, volatile, keep-last 64 | 2 Hz per coordinator and agent |
+//! | `/tf` | `tf2_msgs/TFMessage` | reliable, volatile, keep-last 1 | publish rate |
+//! | `/tf_static` | `tf2_msgs/TFMessage` | reliable, transient-local, keep-last 1 | once the swarm frame is anchored |
 //!
-//! Poses are sensor data (REP 2003): a lost sample is replaced by the next one, so
-//! retransmitting it only delays the newer. State is reliable keep-last 1: a reader
-//! always ends with the newest state, but never waits for an old one. Commands and their
+//! Poses, fixes and batteries are sensor data, published as REP 2003 asks of a sensor
+//! driver: reliable (ROS 2's system default), so that every subscriber matches, a
+//! default `rclpy`/`rclcpp` one, RViz's displays and `ros2 topic echo` as much as one
+//! with `qos_profile_sensor_data` (best-effort, the profile REP 2003 asks consumers to
+//! use; a reliable writer serves a best-effort reader, never the other way round).
+//! Keep-last 1 keeps what reliability costs small: the writer holds only the newest
+//! sample, so a lost one is replaced by the next, never queued behind. State is reliable
+//! keep-last 1 likewise: a reader always ends with the newest state, but never waits
+//! for an old one. `/tf` and `/tf_static` have the QoS of tf2's broadcasters (reliable;
+//! static transforms transient-local, so RViz started later still gets them). Commands and their
 //! results are reliable with a queue, so a burst of commands is neither lost nor merged.
 //! Leases are liveness: a lost one is replaced 200 ms later, and a retransmitted old one
 //! would only make a dead candidate look alive longer; every candidate writes the one
@@ -33,7 +43,14 @@
 //! target carries its time and velocity, the agent moves it on by its age); commands and
 //! their results are reliable, so none is lost or merged. `/skein/formation` is the
 //! active coordinator's formation for the standbys to resume: transient-local, so a
-//! standby that starts late gets the last one at once.
+//! standby that starts late gets the last one at once; the agents read it too, to ride
+//! through a silence of their coordinator. `/skein/swarm/clock` carries the clock
+//! exchanges between processes ([`crate::clocks`]): like a report, the next one replaces
+//! a lost one.
+//!
+//! Those skein-to-skein topics, and the leases, stay best-effort: a ROS 2 tool reads them
+//! with a best-effort subscriber (`ros2 topic echo` picks one by itself), a default
+//! reliable one gets nothing.
 //!
 //! Each row is a [`TopicSpec`] made by one function here ([`pose`], [`swarm_report`] …);
 //! the roles open their topics from these, on DDS or on the in-memory carrier of the
@@ -74,9 +91,9 @@ impl TopicSpec {
 }
 
 impl std::fmt::Display for TopicSpec {
-    /// The full ROS 2 name (`/skein/swarm/report`).
+    /// The full ROS 2 name (`/skein/swarm/report`, `/tf`).
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}/{}", self.namespace, self.name)
+        write!(f, "{}/{}", self.namespace.trim_end_matches('/'), self.name)
     }
 }
 
@@ -145,9 +162,24 @@ pub fn swarm_events() -> TopicSpec {
     TopicSpec::new(SWARM_NAMESPACE, "events", protocol_commands())
 }
 
-/// `/skein/formation`: the active coordinator's formation, for the standbys.
+/// `/skein/swarm/clock`: every coordinator and agent, clock exchanges.
+pub fn swarm_clock() -> TopicSpec {
+    TopicSpec::new(SWARM_NAMESPACE, "clock", protocol_stream())
+}
+
+/// `/skein/formation`: the active coordinator's formation, for the standbys and agents.
 pub fn formation() -> TopicSpec {
     TopicSpec::new(NAMESPACE, "formation", formation_mirror())
+}
+
+/// `/tf`: the vehicles' frames in the swarm frame ([`crate::tf`]).
+pub fn tf() -> TopicSpec {
+    TopicSpec::new("/", "tf", latest_state())
+}
+
+/// `/tf_static`: the swarm frame's anchor ([`crate::tf`]).
+pub fn tf_static() -> TopicSpec {
+    TopicSpec::new("/", "tf_static", static_transforms())
 }
 
 /// A vehicle id as a ROS 2 name token: letters, digits and `_` kept, anything else
@@ -181,12 +213,10 @@ pub fn vehicle_namespace(id: &str) -> String {
     format!("{NAMESPACE}/{}", ros_name(id))
 }
 
-/// Sensor data (pose, navsat, battery): best-effort, volatile, keep-last 1.
+/// Sensor data (pose, navsat, battery): reliable, volatile, keep-last 1 (REP 2003's
+/// system default for a driver; see the module docs).
 pub fn sensor() -> QosProfile {
-    QosProfile::publisher_default()
-        .reliability_best_effort()
-        .durability(Durability::Volatile)
-        .history(History::KeepLast { depth: 1 })
+    latest_state()
 }
 
 /// Latest state (vehicle state, tracks): reliable, volatile, keep-last 1.
@@ -221,6 +251,12 @@ pub fn protocol_commands() -> QosProfile {
         .history(History::KeepLast { depth: 64 })
 }
 
+/// Static transforms (`/tf_static`, as tf2's static broadcaster): reliable,
+/// transient-local, keep-last 1.
+pub fn static_transforms() -> QosProfile {
+    formation_mirror()
+}
+
 /// The formation mirror: reliable, transient-local, keep-last 1.
 pub fn formation_mirror() -> QosProfile {
     QosProfile::publisher_default()
@@ -249,6 +285,8 @@ mod tests {
         assert_eq!(vehicle_namespace("uav-12"), "/skein/uav_12");
         assert_eq!(pose("uav-1").to_string(), "/skein/uav_1/pose");
         assert_eq!(swarm_report().to_string(), "/skein/swarm/report");
+        assert_eq!(tf().to_string(), "/tf");
+        assert_eq!(tf_static().to_string(), "/tf_static");
         assert_eq!(same_ros_name(["uav-1", "uav-2"], "uav.1"), Some("uav-1"));
         assert_eq!(same_ros_name(["uav-1", "uav-2"], "uav-1"), None);
         assert_eq!(same_ros_name(["uav-1"], "uav-3"), None);

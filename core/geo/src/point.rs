@@ -39,6 +39,18 @@ impl GeoPoint {
         )
     }
 
+    /// Earth-centred, earth-fixed coordinates `[x, y, z]`, metres (WGS84; the frame
+    /// `earth` of ROS REP 105).
+    pub fn to_ecef(&self) -> [f64; 3] {
+        let (x, y, z) = map_3d::geodetic2ecef(
+            self.lat_deg.to_radians(),
+            self.lon_deg.to_radians(),
+            self.alt_amsl_m,
+            map_3d::Ellipsoid::WGS84,
+        );
+        [x, y, z]
+    }
+
     /// The MAVLink integer encoding `(lat degE7, lon degE7, alt mm)`.
     pub fn to_mavlink(&self) -> (i32, i32, i32) {
         (
@@ -60,6 +72,17 @@ mod tests {
         assert_eq!((lat, lon, alt), (473_977_420, 85_455_940, 488_000));
         let back = GeoPoint::from_mavlink(lat, lon, alt);
         assert!((back.lat_deg - zurich.lat_deg).abs() < 1e-9);
+    }
+
+    #[test]
+    fn ecef_of_known_points() {
+        // On the equator at the prime meridian: x is the semi-major axis.
+        let [x, y, z] = GeoPoint::new(0.0, 0.0, 0.0).to_ecef();
+        assert!((x - 6_378_137.0).abs() < 1e-6 && y.abs() < 1e-6 && z.abs() < 1e-6);
+        // At the north pole: z is the semi-minor axis plus the height.
+        let [x, y, z] = GeoPoint::new(90.0, 0.0, 100.0).to_ecef();
+        assert!(x.abs() < 1e-6 && y.abs() < 1e-6, "{x} {y}");
+        assert!((z - 6_356_852.314_245).abs() < 1e-3, "{z}");
     }
 
     #[test]

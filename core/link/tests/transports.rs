@@ -89,7 +89,7 @@ async fn tcpout_discovers_carries_frames_and_reconnects() {
 #[tokio::test]
 async fn serial_over_a_pseudo_terminal() {
     let pty = nix::pty::openpty(None, None).unwrap();
-    let path = nix::unistd::ttyname(pty.slave).unwrap();
+    let path = nix::unistd::ttyname(&pty.slave).unwrap();
     let conn: ConnectionAddress = format!("serial:{}:57600", path.display()).parse().unwrap();
     let ep = Endpoint::open(conn, Identity::default()).await.unwrap();
     let found = Arc::new(Mutex::new(Vec::new()));
@@ -98,7 +98,7 @@ async fn serial_over_a_pseudo_terminal() {
     // The test plays the flight controller on the pty's master side.
     let master = pty.master;
     let frame = Encoder::new(3, 1).encode(&heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4));
-    let written = nix::unistd::write(master, frame.as_bytes()).unwrap();
+    let written = nix::unistd::write(&master, frame.as_bytes()).unwrap();
     assert_eq!(written, frame.as_bytes().len());
     eventually("discovery over serial", WAIT, || {
         (found.lock().unwrap().as_slice() == [3]).then_some(())
@@ -108,17 +108,16 @@ async fn serial_over_a_pseudo_terminal() {
         .unwrap();
     let reader = tokio::task::spawn_blocking(move || {
         let mut buf = vec![0u8; 512];
-        let n = nix::unistd::read(master, &mut buf).unwrap();
-        frames(&buf[..n])
+        let n = nix::unistd::read(&master, &mut buf).unwrap();
+        (frames(&buf[..n]), master)
     });
-    let got = tokio::time::timeout(Duration::from_secs(10), reader)
+    let (got, master) = tokio::time::timeout(Duration::from_secs(10), reader)
         .await
         .expect("frame written to the serial port")
         .unwrap();
     assert_eq!((got[0].sysid, got[0].compid), (255, 190));
     assert_eq!(ep.decode_counts().errors(), 0);
-    let _ = nix::unistd::close(pty.slave);
-    let _ = nix::unistd::close(master);
+    drop((pty.slave, master));
 }
 
 #[tokio::test]

@@ -18,6 +18,7 @@
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
+mod arrival;
 pub mod cli;
 pub mod client;
 mod config;
@@ -193,6 +194,13 @@ impl Simulator {
                 )
             })?;
             std_socket.set_nonblocking(true)?;
+            if let Err(e) = arrival::stamp_arrivals(&std_socket) {
+                tracing::warn!(
+                    sysid = vc.sysid,
+                    "no kernel receive timestamps ({e}): setpoint intervals are measured \
+                     when the simulator reads them"
+                );
+            }
             let socket = Arc::new(tokio::net::UdpSocket::from_std(std_socket)?);
             let bound = socket.local_addr()?;
             let (index, cols) = match cfg.grid_columns {

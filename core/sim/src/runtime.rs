@@ -1,8 +1,8 @@
 //! The simulator's I/O: one UDP socket and one receive task per vehicle, and a few shard
 //! tasks that step physics and send telemetry for groups of vehicles at the tick rate.
 //!
-//! Receive tasks timestamp each datagram as soon as `recv_from` returns and only hold the
-//! vehicle's lock while decoding it; shard ticks are short (a few dozen vehicles each, with
+//! Receive tasks take each datagram with the kernel's arrival stamp ([`crate::arrival`])
+//! and only hold the vehicle's lock while decoding it; shard ticks are short (a few dozen vehicles each, with
 //! staggered phases) so they never starve the receivers. Frames due in one tick are batched
 //! into as few datagrams as possible (split at frame boundaries below a typical MTU) and
 //! sent with a non-blocking `try_send_to`; a full socket buffer drops the datagram and
@@ -287,7 +287,7 @@ pub(crate) async fn recv_loop(cell: Arc<Cell>, socket: Arc<UdpSocket>) {
     loop {
         let received = tokio::select! {
             biased;
-            r = socket.recv_from(&mut buf) => match r {
+            r = crate::arrival::recv_stamped(&socket, &mut buf) => match r {
                 Ok(x) => Some(x),
                 Err(e) => {
                     // ICMP errors and the like: keep serving, but do not spin.
@@ -308,8 +308,8 @@ pub(crate) async fn recv_loop(cell: Arc<Cell>, socket: Arc<UdpSocket>) {
         if slot.killed {
             return;
         }
-        if let Some((n, from)) = received {
-            slot.arrive(&cell, &mut decoder, &buf[..n], from, now);
+        if let Some((n, from, arrived)) = received {
+            slot.arrive(&cell, &mut decoder, &buf[..n], from, arrived.min(now));
         }
         slot.drain_due(&cell, &mut decoder, now);
         let due = slot.impair.next_due();

@@ -12,6 +12,8 @@
 //! - `skein sim --vehicles N`: the simulator alone, for any MAVLink client.
 //! - `skein fault --target PATH --kind panic|hang|stop|error`: inject a fault through the
 //!   API of a running `skein up --enable-fault-injection`.
+//! - `skein health [--url URL]`: exit 0 when the skein behind that API is healthy (the
+//!   container image's health check, see [`cmd::health`]).
 //! - `skein token create --role viewer|operator|admin [--name NAME]`: a new API token
 //!   and the `[[http.tokens]]` line (with its salted hash) to add to the config.
 //! - `skein key create [--out FILE]`: a random MAVLink 2 signing key file (mode 0600) and
@@ -24,16 +26,20 @@
 //!
 //! Each command is a module of [`cmd`] (the table there maps roles to files); [`config`]
 //! reads the config file, [`process`] holds what every long-running command shares
-//! (signals, the exit status of a failed coordinator, the process watchdog).
+//! (signals, the exit status of a failed coordinator, the process watchdog), [`service`]
+//! talks to systemd (readiness, watchdog), [`shutdown`] is what an agent does with its
+//! vehicles before it exits.
 #![warn(missing_docs)]
 
 mod cmd;
 mod config;
 mod process;
+mod service;
+mod shutdown;
 mod sim_control;
 
 use clap::{Parser, Subcommand};
-use cmd::{agent, bench, candidate, fault, keys, plugin_new, replay, token, up};
+use cmd::{agent, bench, candidate, fault, health, keys, plugin_new, replay, token, up};
 use std::process::ExitCode;
 
 /// Command line.
@@ -51,7 +57,8 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Commands {
     /// Run the coordinator, the HTTP API and the dashboard (with simulated and/or real vehicles).
-    Up(up::UpArgs),
+    // Boxed: `skein up` has many more options than any other command.
+    Up(Box<up::UpArgs>),
     /// A coordinator candidate with no vehicles of its own: API, dashboard, DDS, and the
     /// election (`--priority P`; the live candidate with the highest is active).
     Coordinator(candidate::CoordinatorArgs),
@@ -66,6 +73,9 @@ enum Commands {
     Bench(bench::BenchArgs),
     /// Inject a fault into an actor of a running skein (needs --enable-fault-injection there).
     Fault(fault::FaultArgs),
+    /// Exit 0 when the skein behind an API is healthy (`GET /api/v1/health`), 1 otherwise:
+    /// the container image's health check.
+    Health(health::HealthArgs),
     /// Payload plugins: `skein plugin new NAME` writes a plugin crate ready to build.
     #[command(subcommand)]
     Plugin(PluginCommand),
@@ -135,7 +145,7 @@ fn main() -> ExitCode {
     skein_swarm::supervision::install_panic_hook();
     let result = runtime.block_on(async {
         match cli.command {
-            Commands::Up(args) => up::up(args).await,
+            Commands::Up(args) => up::up(*args).await,
             Commands::Coordinator(args) => candidate::coordinator(args).await,
             Commands::Agent(args) => agent::agent(args).await,
             Commands::Sim(args) => skein_sim::cli::run(args)
@@ -143,6 +153,7 @@ fn main() -> ExitCode {
                 .map(|()| ExitCode::SUCCESS)
                 .map_err(|e| e.to_string()),
             Commands::Fault(args) => fault::fault(args),
+            Commands::Health(args) => health::health(&args),
             Commands::Plugin(PluginCommand::New(args)) => plugin_new::run(args).map(|dir| {
                 println!(
                     "skein: plugin crate written to {} (build it with `cargo build --release` \

@@ -1,6 +1,7 @@
 //! The process around the swarm: signals that end it, the exit status that tells systemd
 //! or Docker the coordinator failed, and the watchdog thread that exits when the root
-//! actor stops answering.
+//! actor stops answering (and tells systemd's watchdog each time it answers, see
+//! [`crate::service`]).
 
 use std::time::Duration;
 
@@ -10,10 +11,15 @@ pub(crate) const EXIT_COORDINATOR_FAILED: u8 = 70;
 
 /// Pings the coordinator from a thread of its own (so a wedged runtime cannot stop it);
 /// a coordinator that does not answer within `deadline` is a hung root: exit non-zero.
+/// Every answer is a `WATCHDOG=1` to systemd (with `WatchdogSec=`), pinged at least twice
+/// per watchdog interval.
 pub(crate) fn spawn_process_watchdog(
     coordinator: ractor::ActorRef<skein_swarm::CoordinatorMsg>,
     deadline: Duration,
 ) {
+    let period = crate::service::watchdog_interval().map_or(Duration::from_millis(500), |w| {
+        (w / 2).clamp(Duration::from_millis(50), Duration::from_millis(500))
+    });
     std::thread::Builder::new()
         .name("skein-watchdog".into())
         .spawn(move || {
@@ -25,12 +31,12 @@ pub(crate) fn spawn_process_watchdog(
             };
             rt.block_on(async move {
                 loop {
-                    tokio::time::sleep(Duration::from_millis(500)).await;
+                    tokio::time::sleep(period).await;
                     match coordinator
                         .call(skein_swarm::CoordinatorMsg::Ping, Some(deadline))
                         .await
                     {
-                        Ok(ractor::rpc::CallResult::Success(())) => {}
+                        Ok(ractor::rpc::CallResult::Success(())) => crate::service::watchdog(),
                         Ok(ractor::rpc::CallResult::Timeout) => {
                             tracing::error!(
                                 "the coordinator did not answer for {} ms: exiting",

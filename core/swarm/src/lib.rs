@@ -13,6 +13,8 @@
 //! - [`carrier`]: the in-process carrier of the protocol.
 //! - [`coordinator`]: the root actor, vehicle discovery, commands, formation loop.
 //! - [`election`]: which coordinator candidate of a DDS domain is active (lease, failover).
+//! - [`clocks`]: this process's clock against its peers', so that stamps from another
+//!   host are aged right.
 //! - [`vehicle`]: the per-vehicle actor, its control loop and procedures.
 //! - [`formation`]: the formation engine's state between ticks.
 //! - [`payload`]: payload actors (children of their Vehicle), built-in payloads.
@@ -35,6 +37,7 @@
 #![warn(missing_docs)]
 
 pub mod carrier;
+pub mod clocks;
 pub mod config;
 pub mod context;
 pub mod coordinator;

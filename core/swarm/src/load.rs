@@ -101,6 +101,9 @@ pub struct LoadStatus {
     pub shedding_episodes: u64,
     /// Units of optional work shed, by kind (`snapshots`, `dashboard`, `dds`).
     pub shed: BTreeMap<String, u64>,
+    /// The scheduling the setpoint thread got (`realtime`: `SCHED_FIFO`; `nice`; or
+    /// `refused`), once a setpoint stream has started (see `skein_link::priority`).
+    pub setpoint_priority: Option<skein_link::priority::Priority>,
 }
 
 #[derive(Default)]
@@ -280,6 +283,7 @@ impl LoadMonitor {
             shed: ShedWork::iter()
                 .map(|w| (w.name().to_string(), self.shed_count(w)))
                 .collect(),
+            setpoint_priority: skein_link::priority::setpoint_priority(),
         }
     }
 }

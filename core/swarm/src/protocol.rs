@@ -9,21 +9,35 @@
 //!
 //! Time on the wire is wall-clock microseconds since the Unix epoch ([`wall_us`]): a slot
 //! target carries the instant it was computed and its velocity, so the vehicle side moves
-//! it on by its age (clocks of agents and coordinators are assumed NTP-synchronised; a
-//! negative age counts as zero, and the extrapolation is capped).
+//! it on by its age. Between hosts, the receiving carrier first converts a stamp into its
+//! own clock ([`crate::clocks`]: offsets estimated from clock exchanges); a negative age
+//! counts as zero, and the extrapolation is capped.
 
 use serde::{Deserialize, Serialize};
 pub use skein_model::command::{Command, CommandKind};
 use skein_model::fsm::VehicleState;
 use skein_model::geo::Ned;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicI64, Ordering};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-/// Wall-clock time now, microseconds since the Unix epoch (0 if the clock is before it).
+/// A skew added to this process's wall clock, µs ([`skew_wall_clock`]).
+static WALL_SKEW_US: AtomicI64 = AtomicI64::new(0);
+
+/// Wall-clock time now, microseconds since the Unix epoch (0 if the clock is before it),
+/// plus the skew a test gave this process ([`skew_wall_clock`]).
 pub fn wall_us() -> u64 {
-    SystemTime::now()
+    let now = SystemTime::now()
         .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_micros() as u64)
+        .map_or(0, |d| d.as_micros() as i64);
+    (now + WALL_SKEW_US.load(Ordering::Relaxed)).max(0) as u64
+}
+
+/// Skews this process's wall clock ([`wall_us`]) by `skew_ms`, as a host whose clock is
+/// off would be: for tests of the clock exchange (`--test-clock-skew-ms`, hidden), never
+/// for flight.
+pub fn skew_wall_clock(skew_ms: i64) {
+    WALL_SKEW_US.store(skew_ms.saturating_mul(1000), Ordering::Relaxed);
 }
 
 /// Longest a slot target is moved on along its velocity by its age (the formation loop
@@ -198,6 +212,11 @@ pub struct VehicleReport {
     pub target: Option<Ned>,
     /// When this report was made, wall-clock µs ([`wall_us`]).
     pub stamp_us: u64,
+    /// How long its agent flies it on its slot without hearing a coordinator, seconds
+    /// (`skein agent`'s `coordinator_ride_through_s`); `None` for a vehicle of the
+    /// reader's own process. A coordinator keeps a silent member's slot that long.
+    #[serde(default)]
+    pub ride_through_s: Option<f64>,
 }
 
 impl VehicleReport {
@@ -211,6 +230,7 @@ impl VehicleReport {
             link_silence_s: None,
             target: None,
             stamp_us: 0,
+            ride_through_s: None,
         }
     }
 

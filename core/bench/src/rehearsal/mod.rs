@@ -327,6 +327,7 @@ impl Rehearsal {
                             heading_rad: heading,
                             silence: Duration::ZERO,
                             target: Some(a.setpoint.0),
+                            ride_through: skein_swarm::formation::LEADER_SILENCE,
                         },
                     )
                 })

@@ -73,10 +73,14 @@ fn uav_1_in_formation() -> (Arc<Process>, Calls) {
     (process, calls)
 }
 
+/// An agent that does `lost_action` 4 s after holding, and does not ride through (the
+/// ride-through has its own scenario, in real time: it runs on the wall clock of the
+/// targets' stamps).
 fn config(lost_action: LostAction) -> AgentConfig {
     AgentConfig {
         lost_action_after: Duration::from_secs(4),
         lost_action,
+        ride_through: Duration::ZERO,
         ..AgentConfig::new("agent-a".into())
     }
 }
@@ -166,7 +170,7 @@ async fn an_agent_obeys_only_the_active_coordinator_of_the_highest_epoch() {
 }
 
 #[tokio::test(start_paused = true)]
-async fn an_agent_without_a_coordinator_holds_its_steered_vehicles_after_1_5_s_then_lands_the_airborne_ones_4_s_later()
+async fn an_agent_without_a_coordinator_holds_its_steered_vehicles_1_5_s_after_the_next_lease_was_due_then_lands_the_airborne_ones_4_s_later()
  {
     let bus = MemoryBus::new();
     let (process, mut calls) = Process::new(Some(origin_a()));
@@ -199,8 +203,9 @@ async fn an_agent_without_a_coordinator_holds_its_steered_vehicles_after_1_5_s_t
     )
     .await;
     assert_eq!(held, BTreeSet::from(["uav-1".into(), "uav-2".into()]));
+    // The next lease was due 0.2 s after the last: a cut of under 1.5 s never holds.
     assert!(
-        (1.5..1.6).contains(&at),
+        (1.7..1.8).contains(&at),
         "held {at:.2} s after the last lease"
     );
 
@@ -217,7 +222,7 @@ async fn an_agent_without_a_coordinator_holds_its_steered_vehicles_after_1_5_s_t
         BTreeSet::from(["uav-1".into(), "uav-2".into(), "uav-3".into()])
     );
     assert!(
-        (5.5..5.6).contains(&at),
+        (5.7..5.8).contains(&at),
         "landed {at:.2} s after the last lease"
     );
     let more = handed(&mut calls, Duration::from_secs(10)).await;
@@ -282,4 +287,122 @@ async fn an_agent_gives_its_coordinator_the_other_agents_vehicles_as_neighbours_
     // B's origin is 30 m north and 10 m east of A's.
     let p = report.position.unwrap();
     assert!((p - Ned::new(30.0, 10.0, -10.0)).norm() < 0.01, "{p:?}");
+}
+
+/// In real time (the ride runs on the wall clock the targets are stamped with): gcs-a
+/// flies a wedge north at 5 m/s and falls silent. The agent flies uav-1 on its slot from
+/// the mirror, 10 Hz or more, the targets moving north at 5 m/s from where the last one
+/// was, for the ride-through (1 s) after its last target; it holds 1 s after the next
+/// lease was due (the ride-through is longer than its 0.5 s timeout), and no sooner.
+#[tokio::test]
+async fn an_agent_whose_coordinator_falls_silent_rides_its_vehicle_on_its_slot_then_holds() {
+    use skein_swarm::formation::{FormationMirror, FormationSpec, LeaderMotion, Reference};
+    use skein_swarm::protocol::wall_us;
+    let bus = MemoryBus::new();
+    let (process, mut calls) = uav_1_in_formation();
+    let cfg = AgentConfig {
+        coordinator_timeout: Duration::from_millis(500),
+        ride_through: Duration::from_secs(1),
+        lost_action_after: Duration::from_secs(60),
+        ..AgentConfig::new("agent-a".into())
+    };
+    let (_, _agent) = start_agent(&bus, &process, cfg).await;
+    let leases = Peer::leases(&bus);
+    let (mirror, targets) = (
+        Peer::open(&bus, &topics::formation()),
+        Peer::open(&bus, &topics::swarm_target()),
+    );
+    let spec: FormationSpec = serde_json::from_value(serde_json::json!({
+        "shape": "wedge", "spacing_m": 6.0, "leader": "virtual", "altitude_m": 10.0,
+        "heading_deg": 0.0, "frame": "leader", "offsets": []
+    }))
+    .unwrap();
+    // The reference 4.24 m ahead of uav-1's slot (its first rank), cruising north.
+    let reference_at = |t0: u64, now: u64| {
+        let dt = now.saturating_sub(t0) as f64 / 1e6;
+        Ned::new(4.24 + 5.0 * dt, 4.24, -10.0)
+    };
+    let t0 = wall_us();
+    let mut period = tokio::time::interval(Duration::from_millis(100));
+    let mut last = Ned::ZERO;
+    for _ in 0..5 {
+        period.tick().await;
+        let now = wall_us();
+        leases.lease("gcs-a", 1, true);
+        let r = reference_at(t0, now);
+        let m = FormationMirror {
+            spec: spec.clone(),
+            reference: Reference {
+                position: r,
+                velocity: Ned::new(5.0, 0.0, 0.0),
+                heading_rad: 0.0,
+                heading_rate_rad_s: 0.0,
+                motion: LeaderMotion::GoTo {
+                    target: Ned::new(500.0, 4.24, -10.0),
+                    speed_m_s: 5.0,
+                },
+            },
+            leader: None,
+            pattern_heading_rad: Some(0.0),
+            assignment: [("uav-1".to_string(), 1)].into_iter().collect(),
+            stamp_us: now,
+        };
+        mirror.send("", "gcs-a", 1, origin_a(), &Some(m));
+        last = Ned::new(r.north_m - 4.24, 0.0, -10.0);
+        let target = ToVehicle::Slot {
+            target: Some(SlotTarget {
+                slot: 1,
+                leader: false,
+                position: last,
+                goal: last,
+                velocity: Ned::new(5.0, 0.0, 0.0),
+                yaw_rad: 0.0,
+                stamp_us: now,
+            }),
+        };
+        targets.send("uav-1", "gcs-a", 1, origin_a(), &target);
+    }
+    let silent = std::time::Instant::now();
+    let silent_us = wall_us();
+    // What the agent hands uav-1 from now on: the obeyed targets first, then its own.
+    let mut rides = Vec::new();
+    let held = loop {
+        let c = calls
+            .next(
+                Duration::from_secs(3),
+                "a ride target or a hold",
+                |c| match c {
+                    Call::ToVehicle(_, msg) => Some(msg),
+                    _ => None,
+                },
+            )
+            .await;
+        match c {
+            ToVehicle::Slot {
+                target: Some(t), ..
+            } if t.stamp_us > silent_us => rides.push(t),
+            ToVehicle::Command {
+                command: Command::Hold,
+                ..
+            } => break silent.elapsed(),
+            _ => {}
+        }
+    };
+    assert!(rides.len() >= 6, "{} ride targets: {rides:?}", rides.len());
+    for t in &rides {
+        let flown_s = t.stamp_us.saturating_sub(silent_us) as f64 / 1e6;
+        let expected = last.north_m + 5.0 * flown_s;
+        assert!(
+            (t.position.north_m - expected).abs() < 0.3 && t.position.east_m.abs() < 0.01,
+            "{t:?}: expected {expected:.2} m north"
+        );
+        assert!((t.velocity.north_m - 5.0).abs() < 0.01);
+        // Within the ride-through after its last target.
+        assert!(flown_s < 1.0 + 0.1, "{t:?}");
+    }
+    let hold_s = held.as_secs_f64();
+    assert!(
+        (1.1..1.6).contains(&hold_s),
+        "held {hold_s:.2} s after the last lease"
+    );
 }

@@ -255,6 +255,10 @@ impl AgentContext for Process {
     fn vehicle_events(&self) -> broadcast::Receiver<SwarmEvent> {
         self.events.subscribe()
     }
+
+    async fn geofence(&self) -> Option<skein_model::safety::Geofence> {
+        Some(skein_model::safety::Geofence::default())
+    }
 }
 
 impl RemoteContext for Process {

@@ -4,12 +4,18 @@
 //! see `skein_dds::agent`). Several agents may share a machine: `--sim N --first-sysid K`
 //! simulates vehicles K to K+N-1, laid out on a grid by sysid.
 //!
-//! The agent's own API listens on loopback only (`127.0.0.1`, a free port, printed at
-//! start): it is for looking at this computer's vehicles; the swarm is flown through the
-//! active coordinator's API.
+//! The agent's own API listens on loopback (`127.0.0.1`, a free port unless `--http`
+//! names one, printed at start): it is for looking at this computer's vehicles and for
+//! the container's health check (`skein health`); the swarm is flown through the active
+//! coordinator's API.
+//!
+//! Told to stop (SIGTERM, Ctrl-C), the agent first lands its airborne vehicles (or puts
+//! them in PX4 Hold or RTL: `--shutdown-action`, `[agent] shutdown_action`), then exits 0
+//! (see [`crate::shutdown`]).
 
 use super::up::{UpArgs, up};
 use crate::config::ConfigFile;
+use crate::shutdown::{ShutdownAction, ShutdownPlan};
 use clap::Args;
 use skein_dds::agent::{AgentConfig, LostAction};
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
@@ -21,10 +27,10 @@ use std::time::Duration;
 #[derive(Args, Debug)]
 pub struct AgentArgs {
     /// Simulate this many vehicles in-process (sysids from --first-sysid).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", env = "SKEIN_SIM")]
     sim: Option<usize>,
     /// With --sim: the first simulated vehicle's MAVLink system id (its id `uav-K`).
-    #[arg(long, value_name = "K", default_value_t = 1,
+    #[arg(long, value_name = "K", default_value_t = 1, env = "SKEIN_FIRST_SYSID",
           value_parser = clap::value_parser!(u8).range(1..))]
     first_sysid: u8,
     /// With --sim: links listen on PORT+sysid-1, simulated vehicles bind PORT+40+sysid-1;
@@ -42,11 +48,15 @@ pub struct AgentArgs {
     #[arg(long, value_name = "ADDR:PORT")]
     sim_stats: Option<SocketAddr>,
     /// Configuration file (TOML): `[[vehicles]]`, `[agent]`, `[dds]`, swarm settings.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", env = "SKEIN_CONFIG")]
     config: Option<PathBuf>,
     /// Id on the swarm protocol topics (default `<hostname>-<pid>`).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", env = "SKEIN_ID")]
     id: Option<String>,
+    /// Listen address of this agent's own API (default `127.0.0.1:0`, a free port; a
+    /// non-loopback address needs `[[http.tokens]]`, as `skein up`).
+    #[arg(long, value_name = "ADDR:PORT", env = "SKEIN_HTTP")]
+    http: Option<SocketAddr>,
     /// The DDS domain, 0 to 232 (default `[dds] domain_id`, else `ROS_DOMAIN_ID`, else 0).
     #[arg(long, value_name = "D", value_parser = skein_dds::parse_domain_id)]
     domain_id: Option<u16>,
@@ -57,6 +67,11 @@ pub struct AgentArgs {
     /// else 1.5).
     #[arg(long, value_name = "S")]
     coordinator_timeout_s: Option<f64>,
+    /// How long a vehicle flies its slot on from the formation's mirror when its slot
+    /// targets stop (a WLAN fade, a coordinator gone), before it holds; 0: never (default
+    /// `[agent] coordinator_ride_through_s`, else 4).
+    #[arg(long, value_name = "S")]
+    coordinator_ride_through_s: Option<f64>,
     /// What to do after holding for --coordinator-lost-action-s: hold, land or rtl
     /// (default `[agent] coordinator_lost_action`, else hold).
     #[arg(long, value_name = "ACTION")]
@@ -65,9 +80,21 @@ pub struct AgentArgs {
     /// coordinator_lost_action_s`, else 30).
     #[arg(long, value_name = "S")]
     coordinator_lost_action_s: Option<f64>,
+    /// What the airborne vehicles do before the agent exits on SIGTERM or Ctrl-C: land,
+    /// hold (PX4 Hold) or rtl (default `[agent] shutdown_action`, else land).
+    #[arg(long, value_name = "ACTION")]
+    shutdown_action: Option<String>,
+    /// The longest wait for them at shutdown (default `[agent] shutdown_timeout_s`, else
+    /// 60).
+    #[arg(long, value_name = "S")]
+    shutdown_timeout_s: Option<f64>,
     /// Plugin directory (as `skein up --plugin-dir`).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", env = "SKEIN_PLUGIN_DIR")]
     plugin_dir: Option<PathBuf>,
+    /// Tests only: runs this process's wall clock this many milliseconds off, as a host
+    /// whose clock is off would (the clock exchange must correct for it).
+    #[arg(long, value_name = "MS", hide = true, allow_hyphen_values = true)]
+    test_clock_skew_ms: Option<i64>,
 }
 
 /// What `skein up` needs to run as an agent.
@@ -77,6 +104,8 @@ pub struct AgentRole {
     pub first_sysid: u8,
     /// The carrier's settings.
     pub config: AgentConfig,
+    /// What the vehicles do before the process exits.
+    pub shutdown: ShutdownPlan,
 }
 
 /// Runs an agent until a signal or its coordinator actor's failure.
@@ -93,6 +122,10 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
         Some(path) => ConfigFile::load(path)?,
         None => ConfigFile::default(),
     };
+    if let Some(ms) = args.test_clock_skew_ms {
+        eprintln!("skein: tests only: this agent's wall clock runs {ms} ms off");
+        skein_swarm::protocol::skew_wall_clock(ms);
+    }
     let mut config = AgentConfig::new(id);
     let seconds = |what: &str, v: Option<f64>| -> Result<Option<Duration>, String> {
         match v {
@@ -110,6 +143,17 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
     )? {
         config.coordinator_timeout = d;
     }
+    match args
+        .coordinator_ride_through_s
+        .or(file.agent.coordinator_ride_through_s)
+    {
+        Some(0.0) => config.ride_through = Duration::ZERO,
+        v => {
+            if let Some(d) = seconds("coordinator_ride_through_s", v)? {
+                config.ride_through = d;
+            }
+        }
+    }
     if let Some(d) = seconds(
         "coordinator_lost_action_s",
         args.coordinator_lost_action_s
@@ -124,6 +168,18 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
         config.lost_action = a
             .parse::<LostAction>()
             .map_err(|e| format!("coordinator_lost_action: {e}"))?;
+    }
+    let mut shutdown = ShutdownPlan::default();
+    if let Some(a) = args.shutdown_action.or(file.agent.shutdown_action.clone()) {
+        shutdown.action = a
+            .parse::<ShutdownAction>()
+            .map_err(|e| format!("shutdown_action: {e}"))?;
+    }
+    if let Some(d) = seconds(
+        "shutdown_timeout_s",
+        args.shutdown_timeout_s.or(file.agent.shutdown_timeout_s),
+    )? {
+        shutdown.timeout = d;
     }
     if let Some(n) = args.sim
         && usize::from(args.first_sysid) + n > 256
@@ -142,12 +198,16 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
     up_args.sim_stats = args.sim_stats;
     up_args.config = args.config;
     up_args.plugin_dir = args.plugin_dir;
-    up_args.http = Some(SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0));
+    up_args.http = Some(
+        args.http
+            .unwrap_or(SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0)),
+    );
     up_args.domain_id = args.domain_id;
     up_args.dds_network = args.dds_network;
     up_args.agent = Some(AgentRole {
         first_sysid: args.first_sysid,
         config,
+        shutdown,
     });
     up(up_args).await
 }

@@ -15,16 +15,16 @@ use std::process::ExitCode;
 pub struct CoordinatorArgs {
     /// Election priority: the live candidate with the highest is active (equal: the
     /// smaller id).
-    #[arg(long, value_name = "P", default_value_t = 1)]
+    #[arg(long, value_name = "P", default_value_t = 1, env = "SKEIN_PRIORITY")]
     priority: u32,
     /// Id on `/skein/coordinator` (default `<hostname>-<pid>`).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", env = "SKEIN_ID")]
     id: Option<String>,
     /// Configuration file (TOML): `[http]` tokens and TLS, `[dds]`, swarm settings.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", env = "SKEIN_CONFIG")]
     config: Option<PathBuf>,
     /// Listen address of the HTTP API and dashboard (port 0 picks a free port).
-    #[arg(long, value_name = "ADDR:PORT")]
+    #[arg(long, value_name = "ADDR:PORT", env = "SKEIN_HTTP")]
     http: Option<SocketAddr>,
     /// The DDS domain, 0 to 232 (default `[dds] domain_id`, else `ROS_DOMAIN_ID`, else 0).
     #[arg(long, value_name = "D", value_parser = skein_dds::parse_domain_id)]

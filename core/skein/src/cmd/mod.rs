@@ -8,6 +8,7 @@
 //! | `skein bench` | runs the `skein-bench` executable (crate `skein-bench`) | [`bench`] |
 //! | `skein replay` | a recording played back into a read-only dashboard | [`replay`] |
 //! | `skein fault` | a fault injected through a running skein's API | [`fault`] |
+//! | `skein health` | the health check of a container or a monitor | [`health`] |
 //! | `skein token create` | an API token and its config lines | [`token`] |
 //! | `skein key create` | a MAVLink 2 signing key file | [`keys`] |
 //! | `skein plugin new` | a payload plugin crate that builds | [`plugin_new`] |
@@ -20,6 +21,7 @@ pub mod agent;
 pub mod bench;
 pub mod candidate;
 pub mod fault;
+pub mod health;
 pub mod keys;
 pub mod plugin_new;
 pub mod replay;

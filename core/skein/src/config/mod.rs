@@ -61,6 +61,13 @@
 //! [gcs]                        # forward every vehicle's MAVLink to QGroundControl and
 //! forward = "udpout:127.0.0.1:14550"  # its commands back (setpoints refused); or udpin:
 //!
+//! [agent]                      # `skein agent` only
+//! coordinator_timeout_s = 1.5  # no coordinator heard this long: hold (offboard)
+//! coordinator_lost_action = "land"  # then, after coordinator_lost_action_s: hold|land|rtl
+//! coordinator_lost_action_s = 30.0
+//! shutdown_action = "land"     # on SIGTERM / Ctrl-C, before exiting: land|hold|rtl
+//! shutdown_timeout_s = 60.0    # the longest wait for it
+//!
 //! [[vehicles]]                 # one table per vehicle (or per shared endpoint)
 //! connection = "udpin:0.0.0.0:14540"
 //! id = "uav-1"                 # optional, default uav-<sysid>
@@ -232,19 +239,32 @@ pub struct DdsSection {
     /// WLAN; `["127.0.0.1"]` keeps it on this host); default every interface.
     #[serde(default)]
     pub networks: Vec<std::net::IpAddr>,
+    /// The parent of the swarm frame `skein_swarm` on `/tf_static`, as an identity
+    /// (`"map"`; as `--dds-tf-parent`); default `earth`, the swarm origin's ECEF place.
+    pub tf_parent_frame: Option<String>,
 }
 
-/// `[agent]`: what `skein agent` does without a coordinator (`skein_dds::agent`).
+/// `[agent]`: what `skein agent` does without a coordinator (`skein_dds::agent`), and
+/// before it exits.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AgentSection {
-    /// No coordinator heard for this long: the agent's vehicles hold (default 1.5 s).
+    /// No coordinator heard for this long past when its next lease was due: the agent's
+    /// vehicles hold (default 1.5 s), unless they ride through for longer.
     pub coordinator_timeout_s: Option<f64>,
+    /// How long a vehicle flies its slot on from the formation's mirror when its slot
+    /// targets stop, before it holds (default 4 s; 0: never).
+    pub coordinator_ride_through_s: Option<f64>,
     /// `hold` | `land` | `rtl`: what they do after `coordinator_lost_action_s` more
     /// (default `hold`).
     pub coordinator_lost_action: Option<String>,
     /// Seconds of holding before the lost action (default 30).
     pub coordinator_lost_action_s: Option<f64>,
+    /// `land` | `hold` | `rtl`: what the airborne vehicles do before the agent exits on
+    /// SIGTERM or Ctrl-C (default `land`; see `crate::shutdown`).
+    pub shutdown_action: Option<String>,
+    /// The longest wait for that at shutdown, seconds (default 60).
+    pub shutdown_timeout_s: Option<f64>,
 }
 
 /// The whole file.

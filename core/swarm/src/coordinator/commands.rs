@@ -102,6 +102,10 @@ impl CoordinatorState {
             reply,
         };
         for id in targets {
+            if !self.vehicles.contains_key(&id) {
+                continue;
+            }
+            self.released_from_formation(&id, &cmd);
             let Some(v) = self.vehicles.get(&id) else {
                 continue;
             };

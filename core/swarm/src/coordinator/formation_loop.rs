@@ -4,7 +4,9 @@
 
 use super::CoordinatorState;
 use crate::events::SwarmEvent;
-use crate::formation::{FormationStatus, Member};
+use crate::formation::{
+    Absence, FormationStatus, LEADER_SILENCE, Member, PACE_SILENCE, Whereabouts,
+};
 use crate::metrics::Metrics;
 use crate::protocol::{Command, SlotTarget, ToVehicle, wall_us};
 use skein_model::fsm::VehicleState;
@@ -13,15 +15,52 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 impl CoordinatorState {
-    /// The formation as `GET /api/v1/formation` shows it.
+    /// The formation as `GET /api/v1/formation` shows it, its absent members included.
     pub(super) fn formation_status(&self) -> FormationStatus {
+        // Where the airborne vehicles are now: a silent one's last position is not where
+        // it is (a member riding through has flown on along its slot).
         let airborne: Vec<Ned> = self
             .vehicles
             .values()
             .filter(|v| v.state().is_airborne())
+            .filter(|v| v.report().silence_now() <= PACE_SILENCE)
             .filter_map(|v| v.position())
             .collect();
-        self.formation.status(&airborne)
+        let whereabouts: BTreeMap<String, Whereabouts> = self
+            .formation
+            .absent_ids()
+            .filter_map(|id| {
+                let v = self.vehicles.get(id)?;
+                let state = v.state();
+                Some((
+                    id.to_string(),
+                    Whereabouts {
+                        position: v.position(),
+                        absence: absence_of(state, v.report().silence_now() >= LEADER_SILENCE),
+                        state: state.name().to_string(),
+                    },
+                ))
+            })
+            .collect();
+        self.formation.status_with(&airborne, &whereabouts)
+    }
+
+    /// `id` was commanded out of the formation (by the operator, or to an observation
+    /// station): it is not an absent member (see [`crate::formation::AbsentMember`]).
+    pub(super) fn released_from_formation(&mut self, id: &str, command: &Command) {
+        if matches!(
+            command,
+            Command::Takeoff(_)
+                | Command::Land
+                | Command::Rtl
+                | Command::Hold
+                | Command::GoTo(_)
+                | Command::LeaveFormation
+                | Command::Disarm
+                | Command::ForceDisarm(_)
+        ) {
+            self.formation.release(id);
+        }
     }
 
     /// Every hovering vehicle joins the active formation (but observers on their
@@ -78,12 +117,14 @@ impl CoordinatorState {
         if !self.formation.is_active() || frame.is_none() {
             return;
         }
+        // Members: the vehicles flying a slot, the silent ones within their ride-through
+        // included (their agents fly them on their slots).
         let members: BTreeMap<String, Member> = self
             .vehicles
             .iter()
-            .filter(|(_, v)| !v.failed && v.state() == VehicleState::InFormation)
+            .filter(|(_, v)| !v.failed)
             .filter_map(|(id, v)| {
-                let r = v.report();
+                let r = v.formation_report()?;
                 Some((
                     id.clone(),
                     Member {
@@ -92,6 +133,7 @@ impl CoordinatorState {
                         heading_rad: r.heading_rad,
                         silence: r.silence_now(),
                         target: r.target,
+                        ride_through: v.ride_through(),
                     },
                 ))
             })
@@ -147,5 +189,17 @@ impl CoordinatorState {
                 });
             }
         }
+    }
+}
+
+/// Why a member that dropped out of the formation is out, from its state and whether it
+/// has been silent for [`LEADER_SILENCE`] (its link not yet declared lost).
+fn absence_of(state: VehicleState, silent: bool) -> Absence {
+    match state {
+        VehicleState::Lost => Absence::Lost,
+        VehicleState::Failsafe => Absence::Failsafe,
+        _ if silent => Absence::Silent,
+        VehicleState::Hovering => Absence::Held,
+        _ => Absence::Other,
     }
 }

@@ -82,18 +82,10 @@ pub struct FenceTrial {
     results: BTreeMap<String, FenceStatus>,
 }
 
-fn airborne(state: VehicleState) -> bool {
-    matches!(
-        state,
-        VehicleState::TakingOff
-            | VehicleState::Hovering
-            | VehicleState::InFormation
-            | VehicleState::GoTo
-            | VehicleState::Landing
-            | VehicleState::ReturnToLaunch
-            | VehicleState::Failsafe
-            | VehicleState::Lost
-    )
+/// Airborne as the FSM says, or lost (a vehicle unheard may still be in the air: a fence
+/// that would leave it outside is refused).
+fn maybe_airborne(state: VehicleState) -> bool {
+    state.is_airborne() || state == VehicleState::Lost
 }
 
 fn field_of(v: FenceViolation) -> &'static str {
@@ -164,7 +156,7 @@ impl CoordinatorState {
         let mut targets = Vec::new();
         for (id, v) in &self.vehicles {
             let report = v.report();
-            if airborne(report.state)
+            if maybe_airborne(report.state)
                 && let Some(p) = report.position
             {
                 let (q, violation) = fence.clamp(p, false);

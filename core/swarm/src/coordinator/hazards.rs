@@ -31,7 +31,8 @@ impl CoordinatorState {
         let mut events = Vec::new();
         for (id, v) in &self.vehicles {
             let r = v.report();
-            if v.failed || !is_hazard_state(r.state) {
+            // A silent member within its ride-through flies its slot: not a hazard.
+            if v.failed || !is_hazard_state(r.state) || v.riding_through() {
                 self.hazards.cleared.remove(id);
                 if self.hazards.active.remove(id).is_some() {
                     let on_ground = matches!(r.state, VehicleState::Landed | VehicleState::Armed)
@@ -107,6 +108,8 @@ impl CoordinatorState {
             )));
         }
         self.hazards.cleared.insert(id.to_string());
+        // The operator let it go: no longer an absent member of the formation either.
+        self.formation.release(id);
         let hazards = self.hazards.active.values().cloned().collect();
         self.formation.set_hazards(hazards);
         self.emit(SwarmEvent::HazardCleared {

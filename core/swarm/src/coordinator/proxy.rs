@@ -113,6 +113,37 @@ impl VehicleProxy {
         self.report().state
     }
 
+    /// The report of a vehicle that flies a formation slot: one last heard in
+    /// `InFormation`, and, if it is silent, silent for less than its ride-through (its
+    /// agent flies it on its slot meanwhile, see
+    /// [`crate::formation::Member::ride_through`]). `None` for any other.
+    pub fn formation_report(&self) -> Option<VehicleReport> {
+        let r = *self.reports.borrow();
+        if r.state != VehicleState::InFormation {
+            return None;
+        }
+        if self.remote_silent().is_none() {
+            return Some(r);
+        }
+        (r.silence_now() < self.ride_through()).then_some(r)
+    }
+
+    /// True for a silent remote member of the formation within its ride-through (see
+    /// [`VehicleProxy::formation_report`]): not lost to the formation, nor a hazard.
+    pub fn riding_through(&self) -> bool {
+        self.remote_silent().is_some() && self.formation_report().is_some()
+    }
+
+    /// How long a silent member flies its slot on its own: its agent's ride-through, or
+    /// [`crate::formation::LEADER_SILENCE`] for a vehicle of this process.
+    pub fn ride_through(&self) -> Duration {
+        self.reports
+            .borrow()
+            .ride_through_s
+            .filter(|s| s.is_finite() && *s >= 0.0)
+            .map_or(crate::formation::LEADER_SILENCE, Duration::from_secs_f64)
+    }
+
     /// Swarm-frame position now (the report's, moved on by its age).
     pub fn position(&self) -> Option<Ned> {
         self.reports.borrow().position_now(REPORT_EXTRAPOLATION)

@@ -123,7 +123,8 @@ impl CoordinatorState {
                     mirror.spec.shape,
                     mirror.assignment.len()
                 );
-                self.formation.resume(mirror);
+                self.formation
+                    .resume(mirror, &self.context.geofence().fence);
                 self.join_hovering();
                 self.formation_changed();
             }

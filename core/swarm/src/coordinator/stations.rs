@@ -161,8 +161,10 @@ impl CoordinatorState {
             &self.station_limits(standoff),
         )
         .map_err(ObserveRefusal::NoStations)?;
-        // An observer of another target's stations leaves them.
+        // An observer of another target's stations leaves them; every observer leaves the
+        // formation because it was asked to.
         for v in vehicles {
+            self.formation.release(v);
             let other = self
                 .stations
                 .iter()

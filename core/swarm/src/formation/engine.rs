@@ -2,18 +2,20 @@
 //! stopping a formation, the tick that turns the members' state into slot commands
 //! (leader, reference point, pattern, assignment, transition), and the status it shows.
 
+use super::absence::Absences;
 use super::assignment::assign;
 use super::hazard::{Hazard, HazardConfig, clearing_shift};
 use super::leader::{LeaderChange, healthy, resolve_leader};
 use super::pattern::{spin, turn};
 use super::reference::{Reference, inner_fence, pace};
 use super::spec::{FormationFrame, FormationSpec, LeaderMotion, VIRTUAL};
-use super::status::{FormationStatus, Member, MemberStatus, Replan, SlotCommand};
+use super::status::{Member, MemberStatus, Replan, SlotCommand};
 use super::transition::{LAG_SLOW_M, LAG_STOP_M, Transition};
 use skein_model::formation::slot_positions;
 use skein_model::geo::Ned;
 use skein_model::safety::Geofence;
 use std::collections::BTreeMap;
+use std::time::Duration;
 
 /// Separation of [`FormationEngine::default`] (3 m plus the default 0.5 m margin), metres.
 pub const DEFAULT_SEPARATION_M: f64 = 3.5;
@@ -60,7 +62,14 @@ pub struct FormationEngine {
     blocked: Option<String>,
     /// `blocked` changed since the last call of `take_blocked_change`.
     blocked_changed: bool,
+    /// Members that dropped out without being asked.
+    absences: Absences,
 }
+
+/// A member silent for longer than this (six of its reports at 20 Hz) neither slows
+/// the formation nor anchors it: its position is stale, and it flies its slot on its own
+/// (its ride-through) until it is heard again or its ride-through ends.
+pub const PACE_SILENCE: Duration = Duration::from_millis(300);
 
 impl Default for FormationEngine {
     fn default() -> Self {
@@ -86,6 +95,7 @@ impl Default for FormationEngine {
             replans: Vec::new(),
             blocked: None,
             blocked_changed: false,
+            absences: Absences::default(),
         }
     }
 }
@@ -202,6 +212,20 @@ impl FormationEngine {
         self.pending = None;
         self.stalled_s = 0.0;
         self.set_blocked(None);
+        self.absences.clear();
+    }
+
+    /// `id` leaves the formation because it was asked to (an operator's command, an
+    /// observation station): when it drops out it is not listed as absent, and it no
+    /// longer is if it was.
+    pub fn release(&mut self, id: &str) {
+        self.absences.release(id);
+    }
+
+    /// The members that dropped out without being released (see
+    /// [`FormationEngine::status_with`]).
+    pub fn absent_ids(&self) -> impl Iterator<Item = &str> {
+        self.absences.ids()
     }
 
     /// Gives the reference point a new motion (leader go-to, waypoints, orbit).
@@ -252,6 +276,7 @@ impl FormationEngine {
         let live = healthy(members);
         if live.is_empty() {
             self.last.clear();
+            self.absences.update(BTreeMap::new());
             return out;
         }
         let (leader, change) = resolve_leader(
@@ -263,6 +288,7 @@ impl FormationEngine {
         self.changes.extend(change);
         let Some(leader) = leader else {
             self.last.clear();
+            self.absences.update(BTreeMap::new());
             return out;
         };
         if self.leader.as_ref() != Some(&leader) {
@@ -311,11 +337,15 @@ impl FormationEngine {
         }
         let inner = inner_fence(fence, &extents);
         // The pace: how far the farthest member is from where it was sent (extrapolated
-        // to now), against PACE_SLOW_M … PACE_STOP_M.
+        // to now), against PACE_SLOW_M … PACE_STOP_M. A silent member's position is
+        // stale: it rides through on its slot and does not hold the others back.
         let behind = self
             .sent
             .iter()
-            .filter_map(|(id, (p, v))| Some((live.get(id)?.position - (*p + *v * dt_s)).norm()))
+            .filter_map(|(id, (p, v))| {
+                let m = live.get(id).filter(|m| m.silence <= PACE_SILENCE)?;
+                Some((m.position - (*p + *v * dt_s)).norm())
+            })
             .fold(0.0, f64::max);
         let pace = pace(behind);
         reference.step_paced(dt_s, &inner, pace);
@@ -347,6 +377,14 @@ impl FormationEngine {
         self.set_blocked(blocked);
         // Anchor and heading of the slot pattern.
         let (anchor, anchor_velocity, wanted_heading) = if virtual_leader {
+            let h = match spec.frame {
+                FormationFrame::World => spec.heading_deg.to_radians(),
+                FormationFrame::Leader => reference.heading_rad,
+            };
+            (reference.position, reference.velocity, h)
+        } else if live[&leader].silence > PACE_SILENCE {
+            // A silent leader vehicle rides through on the reference point (its slot):
+            // the pattern is laid around that, not around its stale position.
             let h = match spec.frame {
                 FormationFrame::World => spec.heading_deg.to_radians(),
                 FormationFrame::Leader => reference.heading_rad,
@@ -500,11 +538,24 @@ impl FormationEngine {
                 },
             );
             if let Some(m) = members.get(id) {
+                // A silent member: its error when last heard (its position is frozen
+                // while its slot moves on).
+                let silent = m.silence > PACE_SILENCE;
+                let unseen_s = m
+                    .silence
+                    .saturating_sub(crate::protocol::REPORT_EXTRAPOLATION)
+                    .as_secs_f64();
+                let at = if silent {
+                    m.position + velocity * unseen_s
+                } else {
+                    m.position
+                };
                 self.last.push(MemberStatus {
                     id: id.clone(),
                     slot,
                     target: goal,
-                    error_m: (m.position - goal).norm(),
+                    error_m: (at - goal).norm(),
+                    silent_s: silent.then_some(m.silence.as_secs_f64()),
                 });
             }
         }
@@ -512,40 +563,22 @@ impl FormationEngine {
             self.transition = None;
         }
         self.last.sort_by_key(|m| m.slot);
+        let offsets = out
+            .iter()
+            .map(|(id, c)| {
+                let offset = (c.goal - reference.position).rotated_yaw(-heading);
+                (id.clone(), (c.slot, offset))
+            })
+            .collect();
+        self.absences.update(offsets);
         out
-    }
-
-    /// The status of the last tick. `airborne` are the positions of all airborne vehicles
-    /// (swarm-frame NED, for the separation metric).
-    pub fn status(&self, airborne: &[Ned]) -> FormationStatus {
-        let rms = (!self.last.is_empty()).then(|| {
-            (self.last.iter().map(|m| m.error_m * m.error_m).sum::<f64>() / self.last.len() as f64)
-                .sqrt()
-        });
-        let mut min_sep: Option<f64> = None;
-        for (i, a) in airborne.iter().enumerate() {
-            for b in &airborne[i + 1..] {
-                let d = (*a - *b).norm();
-                min_sep = Some(min_sep.map_or(d, |m| m.min(d)));
-            }
-        }
-        FormationStatus {
-            spec: self.spec.clone(),
-            active: self.is_active(),
-            leader_id: self.leader.clone(),
-            reference: self.reference.clone().filter(|_| self.is_active()),
-            members: self.last.clone(),
-            rms_error_m: rms,
-            min_separation_m: min_sep,
-            transition_progress: self.transition.as_ref().map(|t| t.progress().0),
-            pending: self.pending.clone(),
-            hazards: self.hazards.clone(),
-            blocked: self.blocked.clone(),
-        }
     }
 }
 
 pub mod mirror;
+mod view;
 
+#[cfg(test)]
+mod silence_tests;
 #[cfg(test)]
 pub(super) mod tests;

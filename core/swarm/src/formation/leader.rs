@@ -1,7 +1,8 @@
 //! Who leads the formation: the requested vehicle, the first member by id, or the
-//! virtual leader; and failover, when a leader vehicle leaves the formation or falls
-//! silent for [`LEADER_SILENCE`]: the healthy member nearest to where it was takes over,
-//! with a [`LeaderChange`] saying who and why.
+//! virtual leader; and failover, when a leader vehicle leaves the formation or stays
+//! silent past its ride-through ([`Member::ride_through`]: [`LEADER_SILENCE`] for a
+//! vehicle of this process): the healthy member nearest to where it was takes over, with
+//! a [`LeaderChange`] saying who and why.
 
 use super::spec::{FormationSpec, VIRTUAL};
 use super::status::Member;
@@ -10,7 +11,8 @@ use skein_model::geo::Ned;
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-/// A leader vehicle silent this long loses the lead (PX4's own heartbeat timeout is 1.5 s).
+/// A vehicle of this process silent this long loses its slot and the lead (PX4's own
+/// heartbeat timeout is 1.5 s): its ride-through ([`Member::ride_through`]).
 pub const LEADER_SILENCE: Duration = Duration::from_millis(1500);
 
 /// A change of leader.
@@ -24,11 +26,12 @@ pub struct LeaderChange {
     pub reason: String,
 }
 
-/// The members heard from within [`LEADER_SILENCE`].
+/// The members heard from within their ride-through ([`Member::ride_through`]: a silent
+/// member flies its slot on its own meanwhile).
 pub(super) fn healthy(members: &BTreeMap<String, Member>) -> BTreeMap<String, Member> {
     members
         .iter()
-        .filter(|(_, m)| m.silence < LEADER_SILENCE)
+        .filter(|(_, m)| m.silence < m.ride_through)
         .map(|(k, v)| (k.clone(), *v))
         .collect()
 }
@@ -62,7 +65,7 @@ pub(super) fn resolve_leader(
     if spec.wants_virtual() {
         return (Some(VIRTUAL.to_string()), None);
     }
-    let is_healthy = |id: &str| members.get(id).is_some_and(|m| m.silence < LEADER_SILENCE);
+    let is_healthy = |id: &str| members.get(id).is_some_and(|m| m.silence < m.ride_through);
     let vehicle = current.filter(|l| *l != VIRTUAL);
     if let Some(l) = vehicle
         && is_healthy(l)
@@ -90,9 +93,10 @@ pub(super) fn resolve_leader(
                 None => healthy_members.keys().next().cloned(),
             };
             let why = match previous {
-                Some(p) if members.contains_key(p) => {
-                    format!("leader {p} silent for {} ms", LEADER_SILENCE.as_millis())
-                }
+                Some(p) if members.contains_key(p) => format!(
+                    "leader {p} silent for {} ms",
+                    members[p].silence.as_millis()
+                ),
                 Some(p) => format!("leader {p} left the formation"),
                 None => format!(
                     "requested leader {} is not in the formation",

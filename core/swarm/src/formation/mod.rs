@@ -57,8 +57,13 @@
 //! - `hazard`: vehicles that may still fly where the formation is not steering them, and
 //!   how slots and paths keep clear of them.
 //! - `status`: what goes into and comes out of a tick.
+//! - `ride`: the formation flown on from its mirror where its coordinator is not heard
+//!   (an agent's ride-through, a standby's resumption).
+//! - `absence`: members that dropped out without being asked, still listed with their
+//!   error, so that `rms_error_m` never improves because a member is out.
 //! - `engine`: the engine's state, its tick and its status.
 
+mod absence;
 mod assignment;
 mod climb;
 mod engine;
@@ -66,18 +71,23 @@ mod hazard;
 mod leader;
 mod pattern;
 mod reference;
+mod ride;
 mod spec;
 mod status;
 mod transition;
 
+pub use engine::PACE_SILENCE;
 pub use engine::mirror::FormationMirror;
 pub use engine::{DEFAULT_SEPARATION_M, FormationEngine, MAX_HAZARD_SHIFT_M};
 pub use hazard::{Hazard, HazardConfig, clearing_shift};
 pub use leader::{LEADER_SILENCE, LeaderChange};
 pub use pattern::{TURN_ACCEL_M_S2, TURN_SPEED_M_S};
 pub use reference::{FENCE_BUFFER_M, PACE_SLOW_M, PACE_STOP_M, RETURN_SPEED_M_S, Reference};
+pub use ride::{RIDE_STEP_S, RideThrough};
 pub use spec::{FormationFrame, FormationSpec, LeaderMotion, VIRTUAL};
-pub use status::{FormationStatus, Member, MemberStatus, Replan, SlotCommand};
+pub use status::{
+    Absence, AbsentMember, FormationStatus, Member, MemberStatus, Replan, SlotCommand, Whereabouts,
+};
 pub use transition::{
     LAG_SLOW_M, LAG_STOP_M, TRANSIT_ACCEL_M_S2, TRANSIT_CLIMB_M_S, TRANSIT_SPEED_M_S,
 };

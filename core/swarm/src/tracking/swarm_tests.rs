@@ -259,6 +259,57 @@ fn a_pair_that_loses_a_track_keeps_its_id_when_another_joins_and_young_tracks_wa
 }
 
 #[test]
+fn a_member_less_sure_of_its_velocity_joins_the_recognised_swarm_but_starts_none() {
+    let mut pic = AirPicture::new(GroupingConfig::default());
+    // Two aircraft flying together, both seen poorly (σ 4 m/s): two guesses, no swarm.
+    let unsure = |t: f64, k: u64| {
+        let mut v = formation(2, [0.0, 0.0], 90.0, 5.0, t, k);
+        for tr in &mut v {
+            tr.velocity_sigma_m_s = 4.0;
+        }
+        v
+    };
+    assert!(detected(&run(&mut pic, 0.0, 3.0, &unsure)).is_empty());
+    // A V of five whose leader's track is unsure (σ 4 m/s, its velocity 2 m/s off), and a
+    // single track as unsure crossing the V at right angles: the V is one swarm of five,
+    // the crossing one is not in it.
+    let mut pic = AirPicture::new(GroupingConfig::default());
+    let scene = |t: f64, k: u64| {
+        let mut v = formation(5, [0.0, 0.0], 90.0, 5.0, t, k);
+        v[0].velocity_sigma_m_s = 4.0;
+        v[0].velocity.north_m_s += 2.0;
+        let mut crossing = track("track-9", [30.0 - 5.0 * t, 5.0 * t - 3.0], [-5.0, 0.0]);
+        crossing.velocity_sigma_m_s = 4.0;
+        v.push(crossing);
+        v
+    };
+    let events = run(&mut pic, 0.0, 8.0, &scene);
+    let d = detected(&events);
+    assert_eq!(d.len(), 1, "{events:?}");
+    let mut tracks = scene(8.0, 80);
+    let (swarms, _) = pic.update(1_000_000_000 + 8_000_000, &mut tracks);
+    assert_eq!(swarms.len(), 1, "{swarms:?}");
+    assert_eq!(
+        swarms[0].members,
+        ["track-1", "track-2", "track-3", "track-4", "track-5"],
+        "{swarms:?}"
+    );
+    assert_eq!(tracks[5].swarm, None);
+    // Beyond `join_velocity_sigma_m_s` it does not join.
+    let mut pic = AirPicture::new(GroupingConfig::default());
+    let guess = |t: f64, k: u64| {
+        let mut v = formation(5, [0.0, 0.0], 90.0, 5.0, t, k);
+        v[0].velocity_sigma_m_s = 7.0;
+        v
+    };
+    run(&mut pic, 0.0, 4.0, &guess);
+    let mut tracks = guess(4.0, 40);
+    let (swarms, _) = pic.update(1_000_000_000 + 4_000_000, &mut tracks);
+    assert_eq!(swarms.len(), 1, "{swarms:?}");
+    assert_eq!(swarms[0].members.len(), 4, "{swarms:?}");
+}
+
+#[test]
 fn two_swarms_crossing_keep_their_ids_and_members() {
     let mut pic = AirPicture::new(GroupingConfig::default());
     // One V flies east, one north, their leaders meeting at the origin at t = 12 s.

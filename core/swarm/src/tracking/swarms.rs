@@ -13,6 +13,12 @@
 //!    8.5 m apart, is one swarm however long its arms). Tracks that cross at different
 //!    velocities are never neighbours; two swarms flying apart separate once their
 //!    distance and velocity difference together exceed the thresholds.
+//!    A confirmed track whose velocity is less certain (σ up to
+//!    [`GroupingConfig::join_velocity_sigma_m_s`]: an aircraft seen from observers close
+//!    together, whose range, and so its velocity, the rays fix poorly) starts nothing, but
+//!    joins a recognised swarm when it is a neighbour of one of its members with the
+//!    velocity scale widened by its σ (`eps_v² + σ²`): the one aircraft of a V whose track
+//!    is less sure is not left out as a lone track flying in the middle of the swarm.
 //! 2. **Ids**: each cluster takes the id of the swarm it shares the most tracks with (the
 //!    largest overlaps first; a tie goes to the older swarm), so an id survives members
 //!    leaving, joining and being replaced; a cluster sharing no track takes the swarm whose
@@ -62,8 +68,12 @@ pub struct GroupingConfig {
     pub leave_after_s: f64,
     /// A new shape counts once it held this long, s.
     pub shape_hold_s: f64,
-    /// Tracks whose velocity σ exceeds this do not start or join a swarm, m/s.
+    /// Tracks whose velocity σ exceeds this do not start a swarm or join a candidate,
+    /// m/s.
     pub max_velocity_sigma_m_s: f64,
+    /// Tracks whose velocity σ exceeds this do not join a recognised swarm either, m/s
+    /// (see the module docs, step 1).
+    pub join_velocity_sigma_m_s: f64,
     /// A swarm with fewer than `min_members` is lost after this long, s.
     pub lost_after_s: f64,
 }
@@ -79,6 +89,7 @@ impl Default for GroupingConfig {
             leave_after_s: 1.0,
             shape_hold_s: 1.0,
             max_velocity_sigma_m_s: 2.5,
+            join_velocity_sigma_m_s: 6.0,
             lost_after_s: 3.0,
         }
     }
@@ -112,8 +123,9 @@ pub struct SwarmRecognizer {
     next_id: u64,
 }
 
-/// `(Δp / eps_p)² + (Δv / eps_v)²`, rooted: below 1 the two are neighbours.
-fn scaled_distance(c: &GroupingConfig, a: &TrackView, b: &TrackView) -> f64 {
+/// `(Δp / eps_p)² + Δv² / (eps_v² + σ²)`, rooted: below 1 the two are neighbours. `σ`
+/// (`sigma_m_s`) widens the velocity scale for a less sure track, 0 for the others.
+fn scaled_distance(c: &GroupingConfig, a: &TrackView, b: &TrackView, sigma_m_s: f64) -> f64 {
     let (p, q) = (&a.position, &b.position);
     let (u, w) = (&a.velocity, &b.velocity);
     let dp2 = (p.north_m - q.north_m).powi(2)
@@ -122,7 +134,7 @@ fn scaled_distance(c: &GroupingConfig, a: &TrackView, b: &TrackView) -> f64 {
     let dv2 = (u.north_m_s - w.north_m_s).powi(2)
         + (u.east_m_s - w.east_m_s).powi(2)
         + (u.down_m_s - w.down_m_s).powi(2);
-    (dp2 / c.eps_position_m.powi(2) + dv2 / c.eps_velocity_m_s.powi(2)).sqrt()
+    (dp2 / c.eps_position_m.powi(2) + dv2 / (c.eps_velocity_m_s.powi(2) + sigma_m_s.powi(2))).sqrt()
 }
 
 fn features(c: &GroupingConfig, t: &TrackView) -> Vec<f64> {
@@ -135,6 +147,16 @@ fn features(c: &GroupingConfig, t: &TrackView) -> Vec<f64> {
         v.east_m_s / c.eps_velocity_m_s,
         v.down_m_s / c.eps_velocity_m_s,
     ]
+}
+
+/// The σ a track's velocity scale is widened by: its own when it is a less sure one (see
+/// [`GroupingConfig::join_velocity_sigma_m_s`]), else none.
+fn less_sure_sigma(c: &GroupingConfig, t: &TrackView) -> f64 {
+    if t.velocity_sigma_m_s > c.max_velocity_sigma_m_s {
+        t.velocity_sigma_m_s
+    } else {
+        0.0
+    }
 }
 
 /// The view of a swarm of `members` (their tracks) at `t_s`.
@@ -262,16 +284,22 @@ impl SwarmRecognizer {
             .map(|(i, t)| (t.id.clone(), i))
             .collect();
         let assigned = self.match_clusters(t, tracks, &clusters, &member_of);
+        let joining = self.less_sure_joiners(&c, tracks, &eligible, &clusters, &assigned);
 
         // New members, and who stays.
-        let eligible_set: BTreeSet<usize> = eligible.iter().copied().collect();
+        let mut eligible_set: BTreeSet<usize> = eligible.iter().copied().collect();
+        eligible_set.extend(joining.values().flatten().copied());
         for (g, group) in self.groups.iter_mut().enumerate() {
             let cluster = assigned.get(&g).map(|k| clusters[k].clone());
             let mine = cluster
                 .as_ref()
                 .and_then(|m| m.first())
                 .and_then(|i| cluster_of.get(i));
-            for &i in cluster.iter().flatten() {
+            for &i in cluster
+                .iter()
+                .flatten()
+                .chain(joining.get(&g).into_iter().flatten())
+            {
                 group.members.insert(tracks[i].id.clone(), t);
             }
             let current: Vec<usize> = group
@@ -291,10 +319,11 @@ impl SwarmRecognizer {
                 if let Some(k) = cluster_of.get(&i) {
                     return Some(k) == mine; // in another cluster: it went there
                 }
+                let sigma = less_sure_sigma(&c, &tracks[i]);
                 let near = current
                     .iter()
                     .filter(|&&j| j != i)
-                    .any(|&j| scaled_distance(&c, &tracks[i], &tracks[j]) < c.keep_factor);
+                    .any(|&j| scaled_distance(&c, &tracks[i], &tracks[j], sigma) < c.keep_factor);
                 if near {
                     *last_in = t;
                 }
@@ -331,6 +360,44 @@ impl SwarmRecognizer {
             }
         }
         events
+    }
+
+    /// The confirmed tracks too unsure of their velocity to be clustered (σ between
+    /// `max_velocity_sigma_m_s` and `join_velocity_sigma_m_s`) that join a recognised
+    /// swarm this step: group index → track indices. Each joins the recognised group whose
+    /// clustered member it is nearest to, when that distance, its velocity scale widened
+    /// by its σ, is under 1.
+    fn less_sure_joiners(
+        &self,
+        c: &GroupingConfig,
+        tracks: &[TrackView],
+        eligible: &[usize],
+        clusters: &BTreeMap<usize, Vec<usize>>,
+        assigned: &BTreeMap<usize, usize>,
+    ) -> BTreeMap<usize, Vec<usize>> {
+        let clustered: BTreeSet<usize> = eligible.iter().copied().collect();
+        let mut out: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+        for (i, tr) in tracks.iter().enumerate() {
+            let sigma = tr.velocity_sigma_m_s;
+            if clustered.contains(&i)
+                || tr.status != TrackStatus::Confirmed
+                || sigma <= c.max_velocity_sigma_m_s
+                || sigma > c.join_velocity_sigma_m_s
+            {
+                continue;
+            }
+            let best = assigned
+                .iter()
+                .filter(|(g, _)| self.groups[**g].id.is_some())
+                .flat_map(|(g, k)| clusters[k].iter().map(move |&j| (*g, j)))
+                .map(|(g, j)| (g, scaled_distance(c, tr, &tracks[j], sigma)))
+                .filter(|(_, d)| *d < 1.0)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((g, _)) = best {
+                out.entry(g).or_default().push(i);
+            }
+        }
+        out
     }
 
     /// Each group's cluster (group index → cluster number): by the most shared tracks,

@@ -38,19 +38,6 @@ pub struct FenceMemory {
     told: Option<(FenceSyncState, u64)>,
 }
 
-fn airborne(state: VehicleState) -> bool {
-    matches!(
-        state,
-        VehicleState::TakingOff
-            | VehicleState::Hovering
-            | VehicleState::InFormation
-            | VehicleState::GoTo
-            | VehicleState::Landing
-            | VehicleState::ReturnToLaunch
-            | VehicleState::Failsafe
-    )
-}
-
 impl VehicleActorState {
     /// The fence setpoints are clamped into now: the one in force, or with the test fault
     /// one nothing reaches. Brings the shaper up to date when either changed.
@@ -81,7 +68,7 @@ impl VehicleActorState {
     /// frame) in `state`, and the autopilot's fence status, as events when they change.
     pub(super) fn watch_fence(&self, current: Option<Ned>, state: VehicleState) {
         let live = self.context.geofence();
-        let outside = current.filter(|_| airborne(state)).and_then(|p| {
+        let outside = current.filter(|_| state.is_airborne()).and_then(|p| {
             let (q, v) = live.fence.clamp(p, false);
             (v.is_some() && (q - p).norm() > BREACH_TOLERANCE_M).then_some(p)
         });

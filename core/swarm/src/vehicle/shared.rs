@@ -234,6 +234,7 @@ impl VehicleShared {
             link_silence_s: self.link.silence().map(|s| s.as_secs_f64()),
             target,
             stamp_us: wall_us(),
+            ride_through_s: None,
         };
         self.report.send_replace(report);
     }

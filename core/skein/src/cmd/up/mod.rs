@@ -41,7 +41,7 @@ pub struct UpArgs {
     #[arg(long, value_name = "N")]
     pub(crate) sim: Option<usize>,
     /// Configuration file (TOML) with real vehicles and swarm settings.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", env = "SKEIN_CONFIG")]
     pub(crate) config: Option<PathBuf>,
     /// Listen address of the HTTP API and dashboard (port 0 picks a free port).
     #[arg(long, value_name = "ADDR:PORT")]
@@ -60,7 +60,7 @@ pub struct UpArgs {
     /// Payload plugin directory: every `lib*.so` in it is loaded at start (overrides
     /// `[plugins] dir`; default: the directory holding the skein executable, where
     /// `cargo build --release` puts the plugins).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", env = "SKEIN_PLUGIN_DIR")]
     pub(crate) plugin_dir: Option<PathBuf>,
     /// With --sim: open the simulator's stats socket here (one JSON line per command:
     /// stats, reset, silence SYSID MS, reboot SYSID); port 0 picks one, printed at start.
@@ -106,6 +106,11 @@ pub struct UpArgs {
     /// networks`); `127.0.0.1` keeps DDS on this host.
     #[arg(long, value_name = "ADDR")]
     pub(crate) dds_network: Vec<IpAddr>,
+    /// With --dds: the parent of the swarm frame `skein_swarm` on `/tf_static`, as an
+    /// identity (`map`: your map frame is the swarm frame; as `[dds] tf_parent_frame`);
+    /// default `earth`, the swarm origin's place in ECEF (REP 105).
+    #[arg(long, value_name = "FRAME", value_parser = parse_tf_frame)]
+    pub(crate) dds_tf_parent: Option<String>,
     /// With --sim: intruders, non-cooperative aircraft the simulated cameras see.
     #[command(flatten)]
     intruders: skein_sim::intruders::IntruderArgs,
@@ -399,6 +404,10 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
         Some(election) => state.with_election(election),
         None => state,
     };
+    let state = match dds.as_ref() {
+        Some((d, _)) => state.with_clocks(d.peer_clocks()),
+        None => state,
+    };
     let state = match tls {
         Some(t) => state.with_tls(t),
         None => state,
@@ -422,10 +431,12 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
         if let Some(a) = &args.agent {
             let c = &a.config;
             println!(
-                "skein: agent `{}`: obeys the active coordinator; without one for {:.1} s it \
-                 holds, then after {:.1} s more: {:?}",
+                "skein: agent `{}`: obeys the active coordinator; rides through {:.1} s of \
+                 silence on its slots; without a coordinator for {:.1} s it holds, then \
+                 after {:.1} s more: {:?}",
                 c.agent_id,
-                c.coordinator_timeout.as_secs_f64(),
+                c.ride_through.as_secs_f64(),
+                c.coordinator_timeout.max(c.ride_through).as_secs_f64(),
                 c.lost_action_after.as_secs_f64(),
                 c.lost_action
             );
@@ -441,15 +452,37 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
                 * 2,
         ),
     );
-    let code = tokio::select! {
-        _ = shutdown_signal() => {
-            eprintln!("skein: shutting down");
-            ExitCode::SUCCESS
+    // systemd (`Type=notify`) starts the units that wait for this one now.
+    crate::service::ready(&format!("dashboard at {scheme}://{local}/"));
+    let signalled = tokio::select! {
+        _ = shutdown_signal() => true,
+        _ = swarm.stopped() => false,
+    };
+    let code = if signalled {
+        eprintln!("skein: shutting down");
+        crate::service::stopping("shutting down");
+        match args.agent.as_ref().map(|a| a.shutdown) {
+            // An agent leaves its airborne vehicles in a mode PX4 flies alone, first.
+            Some(plan) => tokio::select! {
+                r = crate::shutdown::secure_vehicles(&swarm.coordinator, plan) => match r {
+                    Ok(()) => ExitCode::SUCCESS,
+                    Err(e) => {
+                        eprintln!("skein: shutdown: {e}");
+                        ExitCode::FAILURE
+                    }
+                },
+                _ = shutdown_signal() => {
+                    eprintln!("skein: shutdown: a second signal: exiting at once");
+                    ExitCode::FAILURE
+                }
+            },
+            None => ExitCode::SUCCESS,
         }
-        _ = swarm.stopped() => {
-            tracing::error!("the coordinator failed: exiting for the outer supervisor to restart skein");
-            ExitCode::from(EXIT_COORDINATOR_FAILED)
-        }
+    } else {
+        tracing::error!(
+            "the coordinator failed: exiting for the outer supervisor to restart skein"
+        );
+        ExitCode::from(EXIT_COORDINATOR_FAILED)
     };
     if recorder.status().is_some() {
         match recorder.stop().await {
@@ -503,8 +536,15 @@ fn dds_config(
     api_local: SocketAddr,
 ) -> Result<Option<skein_dds::DdsConfig>, String> {
     if !(args.dds || file.dds.enabled || args.candidate.is_some() || args.agent.is_some()) {
-        if args.domain_id.is_some() || args.dds_commands || !args.dds_network.is_empty() {
-            return Err("--domain-id, --dds-commands and --dds-network go with --dds".into());
+        if args.domain_id.is_some()
+            || args.dds_commands
+            || !args.dds_network.is_empty()
+            || args.dds_tf_parent.is_some()
+        {
+            return Err(
+                "--domain-id, --dds-commands, --dds-network and --dds-tf-parent go with --dds"
+                    .into(),
+            );
         }
         return Ok(None);
     }
@@ -520,6 +560,13 @@ fn dds_config(
             "[dds] publish_rate_hz: {publish_rate_hz} is not in (0, 100]"
         ));
     }
+    let tf_parent_frame = match (&args.dds_tf_parent, &file.dds.tf_parent_frame) {
+        (Some(f), _) => Some(f.clone()),
+        (None, Some(f)) => {
+            Some(parse_tf_frame(f).map_err(|e| format!("[dds] tf_parent_frame: {e}"))?)
+        }
+        (None, None) => None,
+    };
     let networks = if args.dds_network.is_empty() {
         file.dds.networks.clone()
     } else {
@@ -545,7 +592,13 @@ fn dds_config(
         publish_rate_hz,
         accept_commands: args.dds_commands || file.dds.accept_commands,
         networks,
+        tf_parent_frame,
     }))
+}
+
+/// A TF frame id for `--dds-tf-parent` (`skein_dds::tf::check_frame_id`'s rules).
+fn parse_tf_frame(s: &str) -> Result<String, String> {
+    skein_dds::tf::check_frame_id(s).map(|()| s.to_string())
 }
 
 /// Columns of the spawn grid of agents' simulated vehicles (index `sysid - 1`), so that

@@ -1,21 +1,20 @@
-//! The formation mirror: what a standby coordinator needs to fly on the active one's
-//! formation where it was, should it take over (`/skein/formation` on DDS, see
-//! `skein_dds::mirror`).
+//! The formation mirror: what a standby coordinator (and every agent) needs to fly on the
+//! active one's formation where it was, should it fall silent (`/skein/formation` on DDS,
+//! see `skein_dds::mirror` and `skein_dds::agent`).
 //!
 //! The mirror is the spec, the reference point with its motion, the leader vehicle, the
-//! pattern's heading and the slot assignment, stamped. Resuming puts the reference where
-//! the members' targets are: a vehicle moves its last slot target on by its age for at
-//! most [`TARGET_EXTRAPOLATION`] and then holds it, so the reference moves on by the
-//! mirror's age up to that much, at its velocity while the members still move, else at
-//! rest (its motion then accelerates it again as at the start). So the new coordinator's
-//! first targets are where the members are aiming, without a jump.
+//! pattern's heading and the slot assignment, stamped. While no coordinator is heard, the
+//! agents fly their vehicles' slots on from it ([`super::super::RideThrough`]); a standby
+//! that takes the role resumes the formation where they are: its reference is the
+//! mirror's, moved on by the mirror's age exactly as the agents move it, at speed. So
+//! the new coordinator's first targets are where the members are already flying, without
+//! a jump and without the formation stopping.
 
 use super::FormationEngine;
-use crate::formation::{FormationSpec, Reference};
-use crate::protocol::TARGET_EXTRAPOLATION;
-use crate::protocol::age_of;
+use crate::formation::{FormationSpec, Reference, RideThrough};
+use crate::protocol::wall_us;
 use serde::{Deserialize, Serialize};
-use skein_model::geo::Ned;
+use skein_model::safety::Geofence;
 use std::collections::BTreeMap;
 
 /// The formation as a standby mirrors it.
@@ -51,24 +50,21 @@ impl FormationEngine {
         })
     }
 
-    /// Flies `m` on: the formation, its reference where the members' targets are (see
-    /// the module docs), its leader and slot assignment.
-    pub fn resume(&mut self, m: FormationMirror) {
+    /// Flies `m` on: the formation, its reference moved on by the mirror's age as the
+    /// riding agents move it (inside `geofence`), its leader, pattern heading and slot
+    /// assignment (see the module docs).
+    pub fn resume(&mut self, m: FormationMirror, geofence: &Geofence) {
         self.deactivate();
-        let age = age_of(m.stamp_us);
-        let moved = age.min(TARGET_EXTRAPOLATION).as_secs_f64();
-        let mut reference = m.reference;
-        reference.position = reference.position + reference.velocity * moved;
-        reference.heading_rad += reference.heading_rate_rad_s * moved;
-        if age > TARGET_EXTRAPOLATION {
-            reference.velocity = Ned::ZERO;
-            reference.heading_rate_rad_s = 0.0;
-        }
+        let mut ride = RideThrough::new(m, geofence);
+        ride.advance_to(wall_us());
+        let heading = ride.heading_rad();
+        let reference = ride.reference().clone();
+        let m = ride.mirror().clone();
         self.spec = Some(m.spec);
         self.active = true;
         self.leader = m.leader;
         self.reference = Some(reference);
-        self.pattern_heading = m.pattern_heading_rad;
+        self.pattern_heading = m.pattern_heading_rad.map(|_| heading);
         self.assignment = m.assignment;
     }
 }
@@ -77,6 +73,7 @@ impl FormationEngine {
 mod tests {
     use super::*;
     use crate::formation::LeaderMotion;
+    use skein_model::geo::Ned;
 
     #[test]
     fn a_resumed_formation_goes_on_from_where_the_mirror_was() {
@@ -103,13 +100,14 @@ mod tests {
         assert_eq!(back, m);
 
         let mut b = FormationEngine::new(3.0);
-        b.resume(back);
+        b.resume(back, &Geofence::default());
         assert!(b.is_active());
         assert_eq!(b.spec(), Some(&spec));
         let r = b.reference.as_ref().unwrap();
-        // A second old: the members' targets stopped 0.5 s on, and so does the reference.
-        assert!((r.position.north_m - 42.5).abs() < 0.1, "{r:?}");
-        assert_eq!(r.velocity, Ned::ZERO);
+        // A second old: the riding members flew on for that second, at speed (its motion
+        // holds, so it brakes at the reference's 1.5 m/s² meanwhile: 5 m less 0.75 m).
+        assert!((r.position.north_m - 44.25).abs() < 0.1, "{r:?}");
+        assert!((r.velocity.north_m - 3.5).abs() < 0.05, "{r:?}");
         assert_eq!(b.assignment.get("uav-1"), Some(&0));
         b.deactivate();
         assert!(b.mirror().is_none());

@@ -14,6 +14,7 @@ pub(in crate::formation) fn member(n: f64, e: f64, d: f64) -> Member {
         heading_rad: 0.0,
         silence: std::time::Duration::ZERO,
         target: None,
+        ride_through: crate::formation::LEADER_SILENCE,
     }
 }
 
@@ -23,7 +24,7 @@ pub(in crate::formation) fn fence() -> Geofence {
 }
 
 /// One tick in which every member ends up exactly where it was sent, moving as sent.
-fn fly(
+pub(super) fn fly(
     e: &mut FormationEngine,
     members: &mut BTreeMap<String, Member>,
 ) -> BTreeMap<String, SlotCommand> {

@@ -1,0 +1,99 @@
+#!/usr/bin/env bash
+# Every test of the workspace (`cargo test --workspace`: unit, integration and doc tests),
+# in two lanes side by side, then the tests that must have the machine to themselves.
+#
+# Most of skein's end-to-end tests fly simulated vehicles in real time and wait on them:
+# run one after another they keep a 2-core machine about a fifth busy. Two lanes at once
+# halve the wall time. Test targets are split between the lanes by their duration on the
+# 2-core CI machine (LANE_A below; everything else goes to lane B), and those in ALONE run
+# after both lanes, one at a time (e2e_overload starves skein of CPU on purpose and
+# measures how it copes: another test's load would change what it measures; e2e_tracking
+# ranges five intruders from two cameras 5 m apart, and short of CPU it made more tracks
+# at wrong ranges (rays of two aircraft crossing): with two busy loops beside it, its
+# hostile swarm of five was whole in one run of two, and once in CI beside lane B, never).
+#
+# Tests that share something run in the same lane or keep it apart themselves: DDS
+# domains are derived from the test process id in disjoint ranges per target, network
+# namespaces and ports are per process, and the plugin builds take a file lock.
+# Each lane's output is prefixed with its name; a lane's failure fails the run after both
+# lanes end (both run to the end: one red lane does not hide the other's results).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+LANE_A=(e2e_distributed e2e_wlan e2e_formation e2e_hazards deploy_compose)
+# deploy_arm64 runs the arm64 build made beside the lanes (below), so after them.
+ALONE=(e2e_tracking e2e_overload deploy_arm64)
+
+# Build everything first, once: the lanes then only run.
+cargo test --workspace --locked --no-run
+
+# The arm64 cross-build of skein and its plugins (deploy_arm64's; about 5 min of CPU) runs
+# beside the lanes, which leave most of the two cores idle, at idle priority (SCHED_IDLE:
+# it gets the CPU only when no test wants it), in a target directory of its own (so no
+# lane waits for its lock). deploy_arm64 finds it built; had it failed, deploy_arm64
+# builds again and says why.
+arm64_log=target/arm64-build.log
+mkdir -p target
+chrt --idle 0 nice -n 19 deploy/docker/cross-build.sh --profile dev --target-dir "$PWD/target/arm64" \
+  >"$arm64_log" 2>&1 &
+pid_arm64=$!
+
+mapfile -t all_tests < <(cargo metadata --no-deps --format-version 1 --locked |
+  python3 -c 'import json, sys
+for p in json.load(sys.stdin)["packages"]:
+    for t in p["targets"]:
+        if "test" in t["kind"]:
+            print(t["name"])')
+
+in_list() { # name list...
+  local n=$1
+  shift
+  for x in "$@"; do [ "$x" = "$n" ] && return 0; done
+  return 1
+}
+lane_a=()
+lane_b=(--lib --bins)
+for t in "${all_tests[@]}"; do
+  if in_list "$t" "${LANE_A[@]}"; then
+    lane_a+=(--test "$t")
+  elif ! in_list "$t" "${ALONE[@]}"; then
+    lane_b+=(--test "$t")
+  fi
+done
+for t in "${LANE_A[@]}" "${ALONE[@]}"; do
+  in_list "$t" "${all_tests[@]}" || { echo "tests/lanes.sh: no test target $t" >&2; exit 2; }
+done
+
+# `lane NAME CARGO-TEST-ARGS...`: cargo test with the lane's name before every line.
+lane() {
+  local name=$1
+  shift
+  cargo test --workspace --locked --no-fail-fast "$@" 2>&1 | sed -u "s/^/[$name] /"
+  return "${PIPESTATUS[0]}"
+}
+started=$(date +%s)
+lane a "${lane_a[@]}" &
+pid_a=$!
+(
+  rc=0
+  lane b "${lane_b[@]}" || rc=$?
+  lane b --doc || rc=$?
+  exit "$rc"
+) &
+pid_b=$!
+failed=""
+wait "$pid_a" || failed="$failed a"
+wait "$pid_b" || failed="$failed b"
+echo "tests/lanes.sh: lanes done in $(($(date +%s) - started)) s" >&2
+if wait "$pid_arm64"; then
+  echo "tests/lanes.sh: arm64 cross-build done in $(($(date +%s) - started)) s" >&2
+else
+  echo "tests/lanes.sh: the arm64 cross-build failed (target/arm64-build.log)" >&2
+fi
+for t in "${ALONE[@]}"; do
+  cargo test --workspace --locked --test "$t" || failed="$failed $t"
+done
+if [ -n "$failed" ]; then
+  echo "tests/lanes.sh: failed:$failed (search the log for its lane's prefix)" >&2
+  exit 101
+fi
