@@ -146,7 +146,10 @@ mod tests {
             if at.saturating_duration_since(sent) < Duration::from_millis(10) {
                 break;
             }
-            assert!(Instant::now() < deadline, "the kernel never stamped a datagram");
+            assert!(
+                Instant::now() < deadline,
+                "the kernel never stamped a datagram"
+            );
         }
         let sent = Instant::now();
         tx.send_to(b"setpoint", addr).unwrap();
