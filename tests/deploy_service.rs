@@ -263,6 +263,10 @@ fn setpoint_priority_as_nobody(caps: Option<&str>, d: &str) -> Value {
         None => prefix.extend(["--inh-caps=-all", "--bounding-set=-all"]),
     }
     prefix.push("--");
+    // An empty plugin directory `nobody` can read (the default, beside the binary, may be
+    // in a checkout only root can enter).
+    let plugins = support::plugins::scratch(&format!("nobody-{}", caps.is_some()));
+    let plugins = plugins.to_str().expect("a UTF-8 path");
     let a = Skein::launch_with(
         &prefix,
         &[],
@@ -278,6 +282,8 @@ fn setpoint_priority_as_nobody(caps: Option<&str>, d: &str) -> Value {
             "127.0.0.1",
             "--http",
             "127.0.0.1:0",
+            "--plugin-dir",
+            plugins,
         ],
     );
     eventually(
