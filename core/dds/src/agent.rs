@@ -208,6 +208,20 @@ impl Agent {
         self
     }
 
+    /// Takes over what `old` (this agent on the participant it replaces, after a change
+    /// of the network interfaces) knew: the coordinators' leases (so the silence since
+    /// the last one, the highest epoch and the hold that follows are counted from the
+    /// last lease heard, not from the rejoin) and the formation it rides through.
+    pub fn carry_over(&self, old: &Agent) {
+        let observer = std::mem::replace(
+            &mut *old.observer.lock().unwrap_or_else(PoisonError::into_inner),
+            Observer::new(ElectionConfig::default(), clock::now()),
+        );
+        *self.observer.lock().unwrap_or_else(PoisonError::into_inner) = observer;
+        let riding = std::mem::replace(&mut *old.riding(), Riding::new(old.config.ride_through));
+        *self.riding() = riding;
+    }
+
     fn is_local(&self, id: &str) -> bool {
         self.local
             .lock()

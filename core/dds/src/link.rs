@@ -322,6 +322,9 @@ impl DdsRoles {
                 Ok(Ok(new)) => {
                     tasks.abort_all();
                     while tasks.join_next().await.is_some() {}
+                    if let (Some(new), Some(old)) = (&new.agent, &local.agent) {
+                        new.carry_over(old);
+                    }
                     let old = std::mem::replace(
                         &mut *self.local.lock().unwrap_or_else(PoisonError::into_inner),
                         Arc::new(new),

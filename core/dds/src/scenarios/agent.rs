@@ -406,3 +406,47 @@ async fn an_agent_whose_coordinator_falls_silent_rides_its_vehicle_on_its_slot_t
         "held {hold_s:.2} s after the last lease"
     );
 }
+
+#[tokio::test(start_paused = true)]
+async fn an_agent_that_joins_the_domain_again_keeps_its_coordinators_silence_and_epoch() {
+    let (process, mut calls) = uav_1_in_formation();
+    let old_bus = MemoryBus::new();
+    let counters = Arc::new(DdsCounters::default());
+    let old = Arc::new(Agent::open(old_bus.as_ref(), config(LostAction::Hold), &counters).unwrap());
+    let old_task = tokio::spawn(agent::run(old.clone(), process.clone()));
+    let leases = Peer::leases(&old_bus);
+    let mut period = tokio::time::interval(Duration::from_millis(200));
+    for _ in 0..5 {
+        period.tick().await;
+        leases.lease("gcs-a", 3, true);
+    }
+    let silent = tokio::time::Instant::now();
+    // 1 s into the silence the network interfaces change: a new participant (a new
+    // bus here), the old agent's tasks stopped, what it knew carried over.
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    old_task.abort();
+    let _ = old_task.await;
+    let bus = MemoryBus::new();
+    let new = Arc::new(Agent::open(bus.as_ref(), config(LostAction::Hold), &counters).unwrap());
+    new.carry_over(&old);
+    let _new_task = tokio::spawn(agent::run(new, process.clone()));
+    // The hold comes when it would have without the rejoin, not 1 s later.
+    let (held, at) = commanded(
+        &mut calls,
+        1,
+        &Command::Hold,
+        Duration::from_secs(2),
+        silent,
+    )
+    .await;
+    assert_eq!(held, BTreeSet::from(["uav-1".into()]));
+    assert!(
+        (1.7..1.8).contains(&at),
+        "held {at:.2} s after the last lease"
+    );
+    // A coordinator of an older epoch, heard first on the new participant, is not obeyed.
+    Peer::leases(&bus).lease("gcs-old", 2, true);
+    Peer::open(&bus, &topics::swarm_target()).send("uav-1", "gcs-old", 2, origin_a(), &slot(1.0));
+    let more = handed(&mut calls, Duration::from_millis(500)).await;
+    assert!(more.is_empty(), "{more:?}");
+}
