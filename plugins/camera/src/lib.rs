@@ -1,6 +1,9 @@
 //! The camera payload plugin: frames for the vehicle's video stream, as JPEG.
 //!
-//! The frames come from a [`source::FrameSource`]. The one provided, `simulated`, renders
+//! The frames come from a [`source::FrameSource`]: a real camera's RTSP/H.264 stream
+//! ([`stream`], `source = "rtsp://…"`: decoded by `skein_video`, each frame given the
+//! vehicle's and gimbal's pose interpolated at its capture time, its health in the state's
+//! `source_status`), or `simulated` ([`simulated`]), which renders
 //! what the vehicle would see: the other aircraft of the swarm projected through a pinhole
 //! model from the vehicle's position and heading and the angles its gimbal publishes,
 //! drawn over a sky/ground background split by the horizon; the focal length is the zoom.
@@ -19,12 +22,19 @@
 //! `frame_rate_hz` 0 captures only on command. `gimbal_slot` `""` means a fixed mount
 //! (`mount_pitch_deg`, `mount_yaw_deg` relative to the vehicle), which is also used while
 //! the gimbal has published no angles.
+//! A real camera adds `"rtsp_transport": "tcp" | "udp"`, `"stall_timeout_s": 2.0`,
+//! `"latency_ms": 0` and takes `"horizontal_fov_deg"` instead of `focal_length_mm`;
+//! `width_px`/`height_px` both or neither (the stream's own size); `frame_rate_hz` caps
+//! what it publishes.
 //!
 //! # Commands
 //! - `{"command": "capture"}`: capture, publish and describe one frame now →
 //!   `{"frame": 12, "bytes": 23114, "width_px": 640, "height_px": 480, "pointing": {...}, "visible": [...]}`
 //! - `{"command": "set_focal_length", "focal_length_mm": 12.0}` (within the zoom range)
 //! - `{"command": "set_zoom", "zoom": 3.0}` (focal length = `focal_min_mm` × zoom)
+//!
+//! A real camera (RTSP) refuses both zoom commands with the reason: its zoom is the
+//! camera's own, and skein's pinhole model follows the configured field of view.
 //! - `{"command": "set_frame_rate", "frame_rate_hz": 10}`
 //! - `{"command": "status"}`
 //!
@@ -34,19 +44,29 @@
 //!  "focal_length_mm": 4.0, "zoom": 1.0, "horizontal_fov_deg": 75.3, "vertical_fov_deg": 60.2,
 //!  "frames": 120, "last_frame_bytes": 23114, "last_error": null,
 //!  "pointing": {"azimuth_deg": 90.0, "elevation_deg": -10.0, "from": "gimbal"},
-//!  "visible": [{"id": "uav-2", "x_px": 311.5, "y_px": 240.2, "depth_m": 41.0, "radius_px": 3.0}]}
+//!  "visible": [{"id": "uav-2", "x_px": 311.5, "y_px": 240.2, "depth_m": 41.0, "radius_px": 3.0}],
+//!  "source_status": null, "published_rate_hz": 5.0, "viewer_kbit_s": 925.0}
 //! ```
+//! `source_status` is a real source's health ([`skein_video::status::StreamStatus`]).
 
+pub mod pose;
 pub mod render;
+pub mod simulated;
 pub mod source;
+pub mod stream;
 
 use render::Pinhole;
+use simulated::SimulatedSource;
 use skein_plugin_sdk::args::{self, in_range};
 use skein_plugin_sdk::frame_meta::FrameMeta;
 use skein_plugin_sdk::serde::Deserialize;
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::{Context, Plugin, export_plugin};
-use source::{CapturedFrame, FrameData, FrameSource, SimulatedSource};
+use skein_video::rtsp::{RtpTransport, RtspConfig};
+use source::{CapturedFrame, FrameData, FrameSource, Mount};
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+use stream::StreamSource;
 
 /// Encodes RGB8 pixels as a baseline JPEG, with the frame's pose as XMP metadata when
 /// given (see `skein_plugin_sdk::frame_meta`).
@@ -77,11 +97,30 @@ pub fn encode_jpeg(
     Ok(out)
 }
 
-/// Where frames come from (`source`): the one provided renders the simulated world.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(crate = "skein_plugin_sdk::serde", rename_all = "snake_case")]
+/// Where frames come from (`source`).
+#[derive(Debug, Clone, PartialEq)]
 enum SourceKind {
+    /// `"simulated"`: the rendered world.
     Simulated,
+    /// `"rtsp://…"`: a real camera's H.264 stream.
+    Rtsp(skein_video::rtsp::Url),
+}
+
+impl SourceKind {
+    /// Parses the `source` key.
+    fn parse(source: &str) -> Result<SourceKind, String> {
+        if source == "simulated" {
+            return Ok(SourceKind::Simulated);
+        }
+        if source.starts_with("rtsp://") {
+            return RtspConfig::parse_url(source)
+                .map(SourceKind::Rtsp)
+                .map_err(|e| format!("source: {e}"));
+        }
+        Err(format!(
+            "source: expected \"simulated\" or an RTSP URL (\"rtsp://host:8554/main\"), got \"{source}\""
+        ))
+    }
 }
 
 /// The configuration (see the crate docs): every field optional, ranges checked in
@@ -90,7 +129,11 @@ enum SourceKind {
 #[derive(Deserialize)]
 #[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
 struct Config {
-    source: Option<SourceKind>,
+    source: Option<String>,
+    rtsp_transport: Option<String>,
+    stall_timeout_s: Option<f64>,
+    latency_ms: Option<f64>,
+    horizontal_fov_deg: Option<f64>,
     width_px: Option<f64>,
     height_px: Option<f64>,
     frame_rate_hz: Option<f64>,
@@ -130,7 +173,16 @@ pub struct Camera {
     last_frame_bytes: usize,
     last_info: Value,
     last_error: Option<String>,
+    last_error_publish: Option<Instant>,
+    /// Publish times and JPEG sizes of the last [`THROUGHPUT_WINDOW`].
+    published: VecDeque<(Instant, usize)>,
 }
+
+/// How often a polled source's state is published while it fails the same way.
+const ERROR_STATE_PERIOD: Duration = Duration::from_millis(500);
+
+/// The window over which `published_rate_hz` and `viewer_kbit_s` are measured.
+const THROUGHPUT_WINDOW: Duration = Duration::from_secs(3);
 
 impl Camera {
     fn state(&self) -> Value {
@@ -148,6 +200,9 @@ impl Camera {
             "last_error": self.last_error,
             "pointing": Value::Null,
             "visible": [],
+            "source_status": self.source.status(),
+            "published_rate_hz": self.published_rate_hz(),
+            "viewer_kbit_s": self.viewer_kbit_s(),
         });
         if let (Some(s), Some(info)) = (s.as_object_mut(), self.last_info.as_object()) {
             for (k, v) in info {
@@ -157,15 +212,51 @@ impl Camera {
         s
     }
 
-    /// Captures, encodes and publishes one frame; returns its description.
-    fn capture(&mut self, ctx: &Context) -> Result<Value, String> {
-        let CapturedFrame {
+    /// Frames published per second over the last [`THROUGHPUT_WINDOW`].
+    fn published_rate_hz(&self) -> f64 {
+        match (self.published.front(), self.published.back()) {
+            (Some(a), Some(b)) if self.published.len() >= 2 && b.0 > a.0 => {
+                (self.published.len() - 1) as f64 / b.0.duration_since(a.0).as_secs_f64()
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// What one viewer of the MJPEG stream costs: the JPEG bytes published per second,
+    /// in kbit/s (every viewer gets every frame).
+    fn viewer_kbit_s(&self) -> f64 {
+        let n = self.published.len();
+        if n == 0 {
+            return 0.0;
+        }
+        let mean_bytes = self.published.iter().map(|p| p.1).sum::<usize>() as f64 / n as f64;
+        mean_bytes * 8.0 * self.published_rate_hz() / 1000.0
+    }
+
+    /// True when the camera should publish its next frame: `frame_rate_hz` caps it
+    /// (with a tenth of a period of slack for tick jitter); 0 only on command.
+    fn due(&self) -> bool {
+        if self.frame_rate_hz <= 0.0 {
+            return false;
+        }
+        self.published
+            .back()
+            .is_none_or(|(t, _)| t.elapsed().as_secs_f64() >= 0.9 / self.frame_rate_hz)
+    }
+
+    /// Captures, encodes and publishes one frame if the source has one (`take` false: a
+    /// polled source only updates its history); returns its description.
+    fn capture(&mut self, ctx: &Context, take: bool) -> Result<Option<Value>, String> {
+        let Some(CapturedFrame {
             width_px,
             height_px,
             data,
             info,
             meta,
-        } = self.source.capture(ctx, &self.optics)?;
+        }) = self.source.capture(ctx, &self.optics, take)?
+        else {
+            return Ok(None);
+        };
         let meta = meta.map(|m| FrameMeta {
             frame: self.frames + 1,
             ..m
@@ -177,6 +268,20 @@ impl Camera {
             }
         };
         ctx.publish_frame(&jpeg)?;
+        let now = Instant::now();
+        self.published.push_back((now, jpeg.len()));
+        while self
+            .published
+            .front()
+            .is_some_and(|p| now.duration_since(p.0) > THROUGHPUT_WINDOW)
+        {
+            self.published.pop_front();
+        }
+        if self.source.polls() {
+            // A real source's size is the stream's (or the configured output size).
+            self.optics.width_px = width_px;
+            self.optics.height_px = height_px;
+        }
         self.frames += 1;
         self.last_frame_bytes = jpeg.len();
         self.last_info = info;
@@ -192,7 +297,7 @@ impl Camera {
                 r.insert(k.clone(), v.clone());
             }
         }
-        Ok(reply)
+        Ok(Some(reply))
     }
 }
 
@@ -203,49 +308,77 @@ impl Plugin for Camera {
 
     fn create(_kind: &str, config: Value, _ctx: &Context) -> Result<Self, String> {
         let c: Config = args::config(config)?;
-        let focal_min_mm = in_range("focal_min_mm", c.focal_min_mm.unwrap_or(4.0), 0.5, 500.0)?;
+        let kind = SourceKind::parse(c.source.as_deref().unwrap_or("simulated"))?;
+        let sensor_width_mm = in_range(
+            "sensor_width_mm",
+            c.sensor_width_mm.unwrap_or(6.17),
+            1.0,
+            100.0,
+        )?;
+        // A real camera's lens is most often known by its field of view.
+        let fov_focal_mm = match (c.horizontal_fov_deg, c.focal_length_mm) {
+            (Some(_), Some(_)) => {
+                return Err("horizontal_fov_deg: give it or focal_length_mm, not both".to_string());
+            }
+            (Some(fov), None) => {
+                let fov = in_range("horizontal_fov_deg", fov, 1.0, 170.0)?;
+                Some(sensor_width_mm / (2.0 * (fov.to_radians() / 2.0).tan()))
+            }
+            (None, _) => None,
+        };
+        let focal_min_mm = in_range(
+            "focal_min_mm",
+            c.focal_min_mm.or(fov_focal_mm).unwrap_or(4.0),
+            0.5,
+            500.0,
+        )?;
         let focal_max_mm = in_range(
             "focal_max_mm",
-            c.focal_max_mm.unwrap_or(48.0),
+            c.focal_max_mm.unwrap_or(48f64.max(focal_min_mm)),
             focal_min_mm,
             2000.0,
         )?;
+        let size = |key: &str, v: Option<f64>| -> Result<Option<u32>, String> {
+            v.map(|v| in_range(key, v, 16.0, 4096.0).map(|v| v as u32))
+                .transpose()
+        };
+        let (width_px, height_px) = (
+            size("width_px", c.width_px)?,
+            size("height_px", c.height_px)?,
+        );
         let optics = Pinhole {
-            width_px: in_range("width_px", c.width_px.unwrap_or(640.0), 16.0, 4096.0)? as u32,
-            height_px: in_range("height_px", c.height_px.unwrap_or(480.0), 16.0, 4096.0)? as u32,
+            width_px: width_px.unwrap_or(640),
+            height_px: height_px.unwrap_or(480),
             focal_length_mm: in_range(
                 "focal_length_mm",
-                c.focal_length_mm.unwrap_or(focal_min_mm),
+                c.focal_length_mm.or(fov_focal_mm).unwrap_or(focal_min_mm),
                 focal_min_mm,
                 focal_max_mm,
             )?,
-            sensor_width_mm: in_range(
-                "sensor_width_mm",
-                c.sensor_width_mm.unwrap_or(6.17),
-                1.0,
-                100.0,
+            sensor_width_mm,
+        };
+        let mount = Mount {
+            gimbal_slot: match c.gimbal_slot.as_deref() {
+                None => Some("gimbal".to_string()),
+                Some("") => None,
+                Some(s) => Some(s.to_string()),
+            },
+            mount_pitch_deg: in_range(
+                "mount_pitch_deg",
+                c.mount_pitch_deg.unwrap_or(0.0),
+                -90.0,
+                90.0,
+            )?,
+            mount_yaw_deg: in_range(
+                "mount_yaw_deg",
+                c.mount_yaw_deg.unwrap_or(0.0),
+                -180.0,
+                180.0,
             )?,
         };
-        let gimbal_slot = match c.gimbal_slot.as_deref() {
-            None => Some("gimbal".to_string()),
-            Some("") => None,
-            Some(s) => Some(s.to_string()),
-        };
-        let source: Box<dyn FrameSource> = match c.source.unwrap_or(SourceKind::Simulated) {
+        let source: Box<dyn FrameSource> = match kind {
             SourceKind::Simulated => Box::new(SimulatedSource {
-                gimbal_slot,
-                mount_pitch_deg: in_range(
-                    "mount_pitch_deg",
-                    c.mount_pitch_deg.unwrap_or(0.0),
-                    -90.0,
-                    90.0,
-                )?,
-                mount_yaw_deg: in_range(
-                    "mount_yaw_deg",
-                    c.mount_yaw_deg.unwrap_or(0.0),
-                    -180.0,
-                    180.0,
-                )?,
+                mount,
                 ground_down_m: in_range(
                     "ground_down_m",
                     c.ground_down_m.unwrap_or(0.0),
@@ -259,6 +392,34 @@ impl Plugin for Camera {
                     100.0,
                 )?,
             }),
+            SourceKind::Rtsp(url) => {
+                let transport = match c.rtsp_transport.as_deref().unwrap_or("tcp") {
+                    "tcp" => RtpTransport::Tcp,
+                    "udp" => RtpTransport::Udp,
+                    other => {
+                        return Err(format!(
+                            "rtsp_transport: expected \"tcp\" or \"udp\", got \"{other}\""
+                        ));
+                    }
+                };
+                let config = RtspConfig {
+                    url,
+                    transport,
+                    stall_timeout: Duration::from_secs_f64(in_range(
+                        "stall_timeout_s",
+                        c.stall_timeout_s.unwrap_or(2.0),
+                        0.2,
+                        60.0,
+                    )?),
+                    latency_ms: in_range("latency_ms", c.latency_ms.unwrap_or(0.0), 0.0, 2000.0)?,
+                };
+                let size = match (width_px, height_px) {
+                    (Some(w), Some(h)) => Some((w, h)),
+                    (None, None) => None,
+                    _ => return Err("width_px: give both width_px and height_px, or neither (the stream's size)".into()),
+                };
+                Box::new(StreamSource::start(config, mount, size)?)
+            }
         };
         Ok(Camera {
             optics,
@@ -272,21 +433,46 @@ impl Plugin for Camera {
             last_frame_bytes: 0,
             last_info: Value::Null,
             last_error: None,
+            last_error_publish: None,
+            published: VecDeque::new(),
         })
     }
 
     fn tick_rate_hz(&self) -> f64 {
-        self.frame_rate_hz
+        if self.source.polls() {
+            self.source.poll_rate_hz()
+        } else {
+            self.frame_rate_hz
+        }
     }
 
     fn tick(&mut self, ctx: &Context, _dt_s: f64) -> Result<(), String> {
-        // A frame that cannot be made now (no position yet) is reported in the state, not
-        // raised: the supervisor need not restart a camera waiting for its vehicle.
-        if let Err(e) = self.capture(ctx) {
-            if self.last_error.as_deref() != Some(e.as_str()) {
-                ctx.log_warn(&format!("camera: no frame: {e}"));
+        // A frame that cannot be made now (no position yet, a stalled stream) is reported
+        // in the state, not raised: the supervisor need not restart a camera waiting for
+        // its vehicle or its stream.
+        let take = !self.source.polls() || self.due();
+        match self.capture(ctx, take) {
+            Ok(Some(_)) => {}
+            // Polled and nothing new: the state published with the last frame stands.
+            Ok(None) => return Ok(()),
+            Err(e) => {
+                let changed = self.last_error.as_deref() != Some(e.as_str());
+                if changed {
+                    ctx.log_warn(&format!("camera: no frame: {e}"));
+                }
+                self.last_error = Some(e);
+                // A polled source fails every tick while it is down: its state at most
+                // twice a second, at once when the reason changes.
+                if !changed
+                    && self.source.polls()
+                    && self
+                        .last_error_publish
+                        .is_some_and(|t| t.elapsed() < ERROR_STATE_PERIOD)
+                {
+                    return Ok(());
+                }
+                self.last_error_publish = Some(Instant::now());
             }
-            self.last_error = Some(e);
         }
         ctx.publish_state(&self.state())
     }
@@ -294,9 +480,20 @@ impl Plugin for Camera {
     fn handle(&mut self, ctx: &Context, command: Value) -> Result<Value, String> {
         let reply = match args::command(command)? {
             Command::Capture => {
-                let reply = self.capture(ctx)?;
+                let reply = self
+                    .capture(ctx, true)?
+                    .ok_or("no new frame from the source since the last one")?;
                 ctx.publish_state(&self.state())?;
                 return Ok(reply);
+            }
+            Command::SetFocalLength { .. } | Command::SetZoom { .. } if self.source.polls() => {
+                return Err(format!(
+                    "a {} camera zooms on the camera itself: skein only knows its configured \
+                     field of view ({:.1}°); set focal_length_mm or horizontal_fov_deg in the \
+                     payload's config to match it",
+                    self.source.name(),
+                    self.optics.horizontal_fov_deg()
+                ));
             }
             Command::SetFocalLength { focal_length_mm } => {
                 self.optics.focal_length_mm = in_range(
@@ -324,3 +521,27 @@ impl Plugin for Camera {
 }
 
 export_plugin!(Camera);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sources_are_parsed_and_bad_ones_named() {
+        assert_eq!(SourceKind::parse("simulated"), Ok(SourceKind::Simulated));
+        assert!(matches!(
+            SourceKind::parse("rtsp://cam:8554/main"),
+            Ok(SourceKind::Rtsp(u)) if u.port() == Some(8554)
+        ));
+        let e = SourceKind::parse("v4l2:/dev/video0").unwrap_err();
+        assert!(
+            e.starts_with("source:") && e.contains("v4l2:/dev/video0"),
+            "{e}"
+        );
+        assert!(
+            SourceKind::parse("rtsp://")
+                .unwrap_err()
+                .starts_with("source:")
+        );
+    }
+}

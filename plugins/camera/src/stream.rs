@@ -1,0 +1,160 @@
+//! A real camera's RTSP/H.264 stream as the camera's frame source (`source =
+//! "rtsp://…"`): frames decoded by `skein_video` on its own thread, taken here when the
+//! camera wants one, scaled to the configured size, and given the pose the vehicle and
+//! the gimbal had at the frame's capture time ([`crate::pose`]).
+
+use crate::pose::{PoseHistory, PoseSample};
+use crate::render::Pinhole;
+use crate::source::{CapturedFrame, FrameData, FrameSource, Mount, pose_info};
+use skein_plugin_sdk::Context;
+use skein_plugin_sdk::frame_meta::FrameMeta;
+use skein_plugin_sdk::geometry::wrap_deg_360;
+use skein_plugin_sdk::serde_json::{self, Value, json};
+use skein_video::rtsp::{RtspConfig, RtspSource};
+use skein_video::scale::scale;
+use skein_video::status::SourceState;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+/// How often the camera polls a stream (and samples the pose history), Hz.
+pub const POLL_RATE_HZ: f64 = 25.0;
+
+/// Wall-clock µs since the Unix epoch.
+fn now_us() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64)
+}
+
+/// The RTSP frame source.
+pub struct StreamSource {
+    rtsp: RtspSource,
+    mount: Mount,
+    /// Output size; `None`: the stream's own.
+    size_px: Option<(u32, u32)>,
+    poses: PoseHistory,
+}
+
+impl StreamSource {
+    /// Starts receiving `config`'s stream; frames come out at `size_px` (or the stream's
+    /// size), aimed by `mount`.
+    ///
+    /// # Errors
+    /// The receiving thread could not start.
+    pub fn start(
+        config: RtspConfig,
+        mount: Mount,
+        size_px: Option<(u32, u32)>,
+    ) -> Result<Self, String> {
+        Ok(StreamSource {
+            rtsp: RtspSource::start(config)?,
+            mount,
+            size_px,
+            poses: PoseHistory::default(),
+        })
+    }
+
+    /// Adds the vehicle's and gimbal's pose now (the telemetry's age taken off) to the
+    /// history; nothing while the vehicle's position is unknown.
+    fn sample_pose(&mut self, ctx: &Context) -> Result<(), String> {
+        let vehicle = ctx.vehicle()?;
+        let Some(position) = vehicle.ned() else {
+            return Ok(());
+        };
+        let (pitch_deg, yaw_deg, _) = self.mount.pointing(ctx);
+        self.poses.push(PoseSample {
+            stamp_us: now_us().saturating_sub(vehicle.link.last_seen_ms * 1000),
+            position,
+            heading_deg: vehicle.heading_deg,
+            pitch_deg,
+            yaw_deg,
+        });
+        Ok(())
+    }
+}
+
+impl FrameSource for StreamSource {
+    fn name(&self) -> &'static str {
+        "rtsp"
+    }
+
+    fn polls(&self) -> bool {
+        true
+    }
+
+    fn poll_rate_hz(&self) -> f64 {
+        POLL_RATE_HZ
+    }
+
+    fn status(&self) -> Option<Value> {
+        serde_json::to_value(self.rtsp.status()).ok()
+    }
+
+    fn capture(
+        &mut self,
+        ctx: &Context,
+        optics: &Pinhole,
+        take: bool,
+    ) -> Result<Option<CapturedFrame>, String> {
+        self.sample_pose(ctx)?;
+        if !take {
+            return Ok(None);
+        }
+        let Some(decoded) = self.rtsp.take_latest() else {
+            let status = self.rtsp.status();
+            return match status.state {
+                SourceState::Streaming => Ok(None),
+                state => Err(format!(
+                    "{} {}: {}",
+                    status.url,
+                    serde_json::to_value(state)
+                        .unwrap_or_default()
+                        .as_str()
+                        .unwrap_or("?"),
+                    status.detail.as_deref().unwrap_or("no frame yet")
+                )),
+            };
+        };
+        let frame = match self.size_px {
+            Some((w, h)) => scale(decoded.frame, w, h)?,
+            None => decoded.frame,
+        };
+        let (width_px, height_px) = (frame.width_px, frame.height_px);
+        let capture_us = decoded.capture_us;
+        let lens = Pinhole {
+            width_px,
+            height_px,
+            ..*optics
+        };
+        let (meta, info) = match self.poses.at(capture_us) {
+            Some((pose, outside_us)) => {
+                let meta = FrameMeta {
+                    frame: 0,
+                    stamp_us: capture_us,
+                    north_m: pose.position.north_m,
+                    east_m: pose.position.east_m,
+                    down_m: pose.position.down_m,
+                    azimuth_deg: wrap_deg_360(pose.heading_deg + pose.yaw_deg),
+                    elevation_deg: pose.pitch_deg.clamp(-90.0, 90.0),
+                    focal_px: lens.focal_px(),
+                    width_px,
+                    height_px,
+                };
+                let mut info = pose_info(&meta, "telemetry at capture time");
+                info["pose_outside_history_ms"] = json!(outside_us as f64 / 1000.0);
+                (Some(meta), info)
+            }
+            // No position yet: the video is shown, the detector skips frames without a pose.
+            None => (None, json!({"pointing": null, "stamp_us": capture_us})),
+        };
+        let mut info = info;
+        info["capture_latency_ms"] = json!(now_us().saturating_sub(capture_us) as f64 / 1000.0);
+        info["visible"] = json!([]);
+        Ok(Some(CapturedFrame {
+            width_px,
+            height_px,
+            data: FrameData::Rgb8(frame.rgb),
+            info,
+            meta,
+        }))
+    }
+}
