@@ -15,7 +15,7 @@ mod support;
 use serde_json::{Value, json};
 use std::path::Path;
 use std::time::{Duration, Instant};
-use support::payloads::{library, payload, plugins, write_config};
+use support::payloads::{jpeg_size, library, payload, plugins, write_config};
 use support::plugins::{build_into, scratch};
 use support::{
     Skein, assert_no_failsafe_and_no_gap, eventually, one_at_a_time, sim_stats, summary,
@@ -74,18 +74,6 @@ fn restarted(skein: &Skein, path: &str, before: u64, what: &str) -> Value {
             other => Err(format!("{other:?}")),
         }
     })
-}
-
-/// Checks the SOI and EOI markers, decodes the whole image with `jpeg-decoder` and returns
-/// its size (width, height), pixels.
-fn jpeg_size(jpeg: &[u8]) -> (u16, u16) {
-    assert!(jpeg.len() > 4, "{} bytes is no JPEG", jpeg.len());
-    assert_eq!(&jpeg[..2], &[0xFF, 0xD8], "no SOI marker");
-    assert_eq!(&jpeg[jpeg.len() - 2..], &[0xFF, 0xD9], "no EOI marker");
-    let mut decoder = jpeg_decoder::Decoder::new(jpeg);
-    decoder.decode().expect("the snapshot decodes as JPEG");
-    let info = decoder.info().expect("JPEG info");
-    (info.width, info.height)
 }
 
 /// The MAVLink datagrams skein received on `port` (one simulated vehicle's link).

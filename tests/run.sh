@@ -7,8 +7,9 @@
 #   - Debian's chromium and chromium-driver for the dashboard test
 #   - Debian's openssl for the HTTPS test's certificate
 #   - cargo-fuzz, for the fuzz smoke run (tests/fuzz.sh: each target 60 s) after the tests
+#   - Debian's ffmpeg, the RTSP/H.264 camera of e2e_video (tests/peers/rtsp_server.py)
 #   - for the deployment tests (deploy_*): Debian's gcc-aarch64-linux-gnu (the arm64 cross
-#     linker) and qemu-user (runs the arm64 image's files), systemd (systemd-analyze),
+#     linker), g++-aarch64-linux-gnu (OpenH264's C++) and qemu-user (runs the arm64 image's files), systemd (systemd-analyze),
 #     docker-compose when Docker has no Compose v2, and the Rust target
 #     aarch64-unknown-linux-gnu (the base images are made by the tests, once per machine)
 # The tests run in two lanes side by side (tests/lanes.sh); with arguments (test filters,
@@ -52,6 +53,10 @@ fi
 # The deployment tests: the arm64 cross-build and its qemu smoke test, the units, compose.
 missing=()
 command -v aarch64-linux-gnu-gcc >/dev/null 2>&1 || missing+=(gcc-aarch64-linux-gnu)
+# The camera plugin's H.264 decoder (OpenH264) is C++: its arm64 build needs the cross g++.
+command -v aarch64-linux-gnu-g++ >/dev/null 2>&1 || missing+=(g++-aarch64-linux-gnu)
+# The RTSP camera of e2e_video: Debian's ffmpeg encodes H.264 (libx264).
+command -v ffmpeg >/dev/null 2>&1 || missing+=(ffmpeg)
 command -v qemu-aarch64 >/dev/null 2>&1 || missing+=(qemu-user)
 command -v systemd-analyze >/dev/null 2>&1 || missing+=(systemd)
 if ! docker compose version >/dev/null 2>&1 && ! command -v docker-compose >/dev/null 2>&1; then

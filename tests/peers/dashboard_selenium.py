@@ -70,6 +70,13 @@ def parse_args():
     return p.parse_args()
 
 
+def no_console_errors(driver):
+    """Raises Failure when the browser console holds a severe error."""
+    severe = [e for e in driver.get_log("browser") if e.get("level") == "SEVERE"]
+    if severe:
+        raise Failure(f"browser console errors: {severe}")
+
+
 def add_browser_args(p):
     """The browser options of every dashboard script: --chromium, --chromedriver, --headed."""
     p.add_argument("--chromium", default="/usr/bin/chromium")

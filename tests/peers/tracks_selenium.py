@@ -25,7 +25,7 @@ import time
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
-from dashboard_selenium import Dashboard, Failure, add_browser_args, drive
+from dashboard_selenium import Dashboard, add_browser_args, drive, no_console_errors
 
 SWARMS_JS = """
 return [...document.querySelectorAll('[data-testid="swarm-list"] li[data-swarm-id]')].map(li => ({
@@ -103,9 +103,7 @@ def run(args, driver, summary):
         return ui.last is not None and int(ui.last) >= 1
     ui.wait("the detector's boxes over uav-2's video", detections)
     summary["detections"] = int(ui.last)
-    severe = [e for e in driver.get_log("browser") if e.get("level") == "SEVERE"]
-    if severe:
-        raise Failure(f"browser console errors: {severe}")
+    no_console_errors(driver)
 
 
 def main():

@@ -53,12 +53,23 @@ fn up_with_pass(
     speed_m_s: f64,
     extra: &[&str],
 ) -> Skein {
-    let (speed, count) = (speed_m_s.to_string(), n.to_string());
     let mut args = vec![
-        "--plugin-dir",
-        plugin_dir.to_str().unwrap(),
+        "--plugin-dir".to_string(),
+        plugin_dir.to_str().unwrap().to_string(),
+    ];
+    args.extend(pass_args(pattern, n, speed_m_s));
+    args.extend(extra.iter().map(|a| a.to_string()));
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    Skein::up_sim(4, &args)
+}
+
+/// The `skein up` arguments of `n` intruders in `pattern` on the pass southward (and
+/// back) 60 m east of home, 14 m up, at `speed_m_s`, starting 90 m north of the closest
+/// point of approach.
+pub fn pass_args(pattern: &str, n: usize, speed_m_s: f64) -> Vec<String> {
+    [
         "--intruders",
-        &count,
+        &n.to_string(),
         "--intruder-pattern",
         pattern,
         "--intruder-heading-deg",
@@ -70,10 +81,10 @@ fn up_with_pass(
         "--intruder-altitude-m",
         "14",
         "--intruder-speed-m-s",
-        &speed,
-    ];
-    args.extend_from_slice(extra);
-    Skein::up_sim(4, &args)
+        &speed_m_s.to_string(),
+    ]
+    .map(str::to_string)
+    .to_vec()
 }
 
 impl Skein {

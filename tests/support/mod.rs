@@ -22,6 +22,7 @@ mod ports;
 mod process;
 mod python;
 pub mod ros2;
+pub mod rtsp;
 mod sim_stats;
 mod skein;
 

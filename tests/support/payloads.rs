@@ -49,3 +49,15 @@ pub fn library(listing: &Value, name: &str) -> Option<Value> {
         .find(|l| l["name"] == name && l["status"] == "loaded")
         .cloned()
 }
+
+/// Checks the SOI and EOI markers, decodes the whole image with `jpeg-decoder` and returns
+/// its size (width, height), pixels.
+pub fn jpeg_size(jpeg: &[u8]) -> (u16, u16) {
+    assert!(jpeg.len() > 4, "{} bytes is no JPEG", jpeg.len());
+    assert_eq!(&jpeg[..2], &[0xFF, 0xD8], "no SOI marker");
+    assert_eq!(&jpeg[jpeg.len() - 2..], &[0xFF, 0xD9], "no EOI marker");
+    let mut decoder = jpeg_decoder::Decoder::new(jpeg);
+    decoder.decode().expect("the snapshot decodes as JPEG");
+    let info = decoder.info().expect("JPEG info");
+    (info.width, info.height)
+}
