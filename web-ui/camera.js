@@ -4,7 +4,10 @@
 // and optics, and zoom / capture controls.
 // Test hooks: img[data-testid=camera-video], [data-field=frames] (data-frames), the
 // widget's data-visible (ids of the aircraft in view), data-detections (boxes the
-// vehicle's `detector` payload found in this camera's last processed frame), canvas.overlay.
+// vehicle's `detector` payload found in this camera's last processed frame), canvas.overlay,
+// the widget's data-source-state (a real source's `source_status.state`: `streaming`,
+// `stalled`, `connecting`, `failed`; the video is dimmed and marked while not streaming,
+// so a stalled camera never passes for a frozen live image).
 
 import * as api from './api.js';
 import { fmt } from './model.js';
@@ -97,11 +100,20 @@ export class CameraCard {
     this.el.querySelector('[data-field="frames"]').dataset.frames = String(frames ?? '');
     const pt = s.pointing;
     put('pointing', pt ? `az ${fmt(pt.azimuth_deg, 0)}° el ${fmt(pt.elevation_deg, 0)}° (${pt.from || '?'})` : 'pointing –');
-    put('optics', `zoom ${fmt(s.zoom, 1)}× · fov ${fmt(s.horizontal_fov_deg, 0)}°`);
+    const src = s.source_status;
+    put('optics', `zoom ${fmt(s.zoom, 1)}× · fov ${fmt(s.horizontal_fov_deg, 0)}°` +
+      (src ? ` · ${s.source} ${src.transport} · ${fmt(src.stream_rate_hz, 0)} fps · ${fmt(s.viewer_kbit_s, 0)} kbit/s per viewer` : ''));
+    const srcState = src ? src.state : 'simulated';
+    if (this.el.dataset.sourceState !== srcState) {
+      this.el.dataset.sourceState = srcState;
+      this.el.classList.toggle('source-down', srcState !== 'streaming' && srcState !== 'simulated');
+    }
     const zoom = this.el.querySelector('[data-field="zoom"]');
     if (document.activeElement !== zoom && Number.isFinite(s.zoom)) zoom.value = String(s.zoom);
-    if (s.last_error) this.status.textContent = `camera: ${s.last_error}`;
-    else if (this.status.textContent.startsWith('camera:')) this.status.textContent = '';
+    if (src && src.state !== 'streaming') {
+      this.status.textContent = `camera ${src.state.toUpperCase()}: ${src.detail || 'no frame yet'}`;
+    } else if (s.last_error) this.status.textContent = `camera: ${s.last_error}`;
+    else if (this.status.textContent.startsWith('camera')) this.status.textContent = '';
     const seen = (s.visible || []).map((o) => o.id).join(',');
     if (this.el.dataset.visible !== seen) this.el.dataset.visible = seen;
     this.drawOverlay();
