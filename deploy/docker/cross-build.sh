@@ -5,8 +5,9 @@
 #
 #   deploy/docker/cross-build.sh [--profile release|dev] [--target-dir DIR]
 #
-# Needs `rustup target add aarch64-unknown-linux-gnu` and Debian's gcc-aarch64-linux-gnu
-# (tests/run.sh installs both). Builds only what the image holds (skein and the gimbal,
+# Needs `rustup target add aarch64-unknown-linux-gnu`, Debian's gcc-aarch64-linux-gnu and,
+# for the camera plugin's OpenH264 (C++), g++-aarch64-linux-gnu (tests/run.sh installs
+# them). Builds only what the image holds (skein and the gimbal,
 # camera, detector, radio and example plugins, one cargo invocation so that they share
 # one build of their dependencies) and prints the directory that has them, for
 # `build-image.sh --arch arm64 DIR`. The binary needs glibc 2.35 or newer (Raspberry Pi
@@ -30,6 +31,10 @@ if command -v rustup >/dev/null 2>&1 && ! rustup target list --installed | grep 
 fi
 if ! command -v aarch64-linux-gnu-gcc >/dev/null 2>&1; then
   echo "cross-build.sh: no cross linker: apt-get install gcc-aarch64-linux-gnu" >&2
+  exit 1
+fi
+if ! command -v aarch64-linux-gnu-g++ >/dev/null 2>&1; then
+  echo "cross-build.sh: no cross C++ compiler (OpenH264): apt-get install g++-aarch64-linux-gnu" >&2
   exit 1
 fi
 # A program cargo runs (a test calling this script) has its own package's

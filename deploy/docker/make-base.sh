@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Makes the base image skein's image is built on, on a machine that has no registry (or
 # wants no pull): the C runtime the `skein` binary and its plugins link (glibc's loader,
-# libc, libm, the libdl/libpthread/librt stubs, and libgcc_s), /etc/passwd and /etc/group
+# libc, libm, the libdl/libpthread/librt stubs, libgcc_s, and libstdc++ for the camera
+# plugin's H.264 decoder, OpenH264, which is C++), /etc/passwd and /etc/group
 # with the `skein` user (uid 10001) and `dialout` (gid 20, the serial ports), and /tmp.
 # Nothing else: no shell, no package manager (skein needs none; the health check is
 # `skein health`).
@@ -10,14 +11,14 @@
 #
 # Where the files come from:
 #   - the machine's own architecture: the machine's own installed packages (libc6,
-#     libgcc-s1), so the base holds the C library the binaries were linked against here;
-#   - another architecture (arm64 on an amd64 machine): the same two Debian packages of
+#     libgcc-s1, libstdc++6), so the base holds the C library the binaries were linked against here;
+#   - another architecture (arm64 on an amd64 machine): the same three Debian packages of
 #     that architecture, downloaded with apt-get from the mirror this machine's apt sources
 #     already name (a private apt state in a temporary directory: the machine's own apt
 #     configuration and architectures are left alone).
 #
 # The image is tagged `skein-base:bookworm-ARCH` (or --tag) and labelled with the libc6
-# version; an image with that tag and label is reused (this script then takes a second),
+# version and the list of libraries it holds; an image with that tag and labels is reused (this script then takes a second),
 # unless --force. Prints the tag. With a registry, `--base debian:bookworm-slim` in
 # build-image.sh needs none of this.
 set -euo pipefail
@@ -74,8 +75,9 @@ else
 fi
 [ -n "$libc_version" ] || { echo "make-base.sh: no libc6 for $arch" >&2; exit 1; }
 
+libs=("$loader" libc.so.6 libm.so.6 libdl.so.2 libpthread.so.0 librt.so.1 libgcc_s.so.1 libstdc++.so.6)
 if [ "$force" = 0 ] &&
-  [ "$(docker image inspect -f '{{index .Config.Labels "org.skein.libc6"}}' "$tag" 2>/dev/null)" = "$libc_version" ]; then
+  [ "$(docker image inspect -f '{{index .Config.Labels "org.skein.libc6"}} {{index .Config.Labels "org.skein.libs"}}' "$tag" 2>/dev/null)" = "$libc_version ${libs[*]}" ]; then
   echo "$tag"
   exit 0
 fi
@@ -92,11 +94,10 @@ else
 fi
 chmod 1777 "$root/tmp"
 
-libs=("$loader" libc.so.6 libm.so.6 libdl.so.2 libpthread.so.0 librt.so.1 libgcc_s.so.1)
 if [ "$arch" = "$host_arch" ]; then
   from=""
 else
-  (cd "$debs" && apt-get "${apt_opts[@]}" download "libc6:$arch" "libgcc-s1:$arch")
+  (cd "$debs" && apt-get "${apt_opts[@]}" download "libc6:$arch" "libgcc-s1:$arch" "libstdc++6:$arch")
   for deb in "$debs"/*.deb; do dpkg-deb -x "$deb" "$work/unpacked"; done
   from=$work/unpacked
 fi
@@ -107,7 +108,7 @@ for lib in "${libs[@]}"; do
   for dir in "$from/usr/lib/$triplet" "$from/lib/$triplet"; do
     [ -e "$dir/$lib" ] && { src=$dir/$lib; break; }
   done
-  [ -n "$src" ] || { echo "make-base.sh: no $lib in libc6/libgcc-s1 ($arch)" >&2; exit 1; }
+  [ -n "$src" ] || { echo "make-base.sh: no $lib in libc6/libgcc-s1/libstdc++6 ($arch)" >&2; exit 1; }
   cp -L "$src" "$root/usr/lib/$triplet/$lib"
 done
 
@@ -136,7 +137,7 @@ created=$(date -u +%Y-%m-%dT%H:%M:%SZ)
 cat >"$image/config.json" <<EOF
 {"architecture": "$arch", "os": "linux", "created": "$created",
  "config": {"Env": ["PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin"],
-            "Labels": {"org.skein.libc6": "$libc_version"}},
+            "Labels": {"org.skein.libc6": "$libc_version", "org.skein.libs": "${libs[*]}"}},
  "rootfs": {"type": "layers", "diff_ids": ["sha256:$diff_id"]},
  "history": [{"created": "$created", "created_by": "deploy/docker/make-base.sh",
               "comment": "glibc $libc_version runtime ($arch)"}]}
