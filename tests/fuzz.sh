@@ -6,8 +6,15 @@
 # fuzz/artifacts/<target>/. Installs cargo-fuzz if missing, idempotently.
 #   tests/fuzz.sh                      # all targets, 60 s each
 #   SKEIN_FUZZ_SECONDS=3600 tests/fuzz.sh mavlink_ingress   # one long run
+#   tests/fuzz.sh --build-only         # install and build, run nothing (tests/lanes.sh
+#                                      # does this beside the tests, at idle priority)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+build_only=0
+if [ "${1:-}" = "--build-only" ]; then
+  build_only=1
+  shift
+fi
 
 if ! cargo fuzz --version >/dev/null 2>&1; then
   echo "tests/fuzz.sh: installing cargo-fuzz" >&2
@@ -32,6 +39,7 @@ for t in "${targets[@]}"; do
   }
 done
 rm -f "$build_log"
+[ "$build_only" = 1 ] && exit 0
 jobs_max=$(nproc)
 declare -A pids scratch_of
 failed=""
