@@ -186,12 +186,7 @@ async fn an_agent_without_a_coordinator_holds_its_steered_vehicles_1_5_s_after_t
     let (_, _agent) = start_agent(&bus, &process, config(LostAction::Land)).await;
     // gcs-a is active for 3 s, at its lease period, then falls silent.
     let leases = Peer::leases(&bus);
-    let mut period = tokio::time::interval(Duration::from_millis(200));
-    for _ in 0..15 {
-        period.tick().await;
-        leases.lease("gcs-a", 1, true);
-    }
-    let silent = tokio::time::Instant::now();
+    let silent = leases.lease_then_fall_silent("gcs-a", 1, 15).await;
     assert!(handed(&mut calls, Duration::ZERO).await.is_empty());
 
     let (held, at) = commanded(
@@ -414,15 +409,12 @@ async fn an_agent_that_joins_the_domain_again_keeps_its_coordinators_silence_and
     let counters = Arc::new(DdsCounters::default());
     let old = Arc::new(Agent::open(old_bus.as_ref(), config(LostAction::Hold), &counters).unwrap());
     let old_task = tokio::spawn(agent::run(old.clone(), process.clone()));
-    let leases = Peer::leases(&old_bus);
-    let mut period = tokio::time::interval(Duration::from_millis(200));
-    for _ in 0..5 {
-        period.tick().await;
-        leases.lease("gcs-a", 3, true);
-    }
-    let silent = tokio::time::Instant::now();
-    // 1 s into the silence the network interfaces change: a new participant (a new
-    // bus here), the old agent's tasks stopped, what it knew carried over.
+    let silent = Peer::leases(&old_bus)
+        .lease_then_fall_silent("gcs-a", 3, 5)
+        .await;
+    // 1 s into the silence (virtual time: the scenario's clock, not a wait for anything)
+    // the network interfaces change: a new participant (a new bus here), the old agent's
+    // tasks stopped, what it knew carried over.
     tokio::time::sleep(Duration::from_secs(1)).await;
     old_task.abort();
     let _ = old_task.await;

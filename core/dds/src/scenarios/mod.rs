@@ -307,6 +307,22 @@ impl Peer<CoordinatorLease> {
         Peer::open(bus, &topics::coordinator())
     }
 
+    /// `coordinator_id` active in `epoch` for `periods` lease periods (200 ms), a lease
+    /// each period, then silent; returns the instant it fell silent (virtual time).
+    pub(super) async fn lease_then_fall_silent(
+        &self,
+        coordinator_id: &str,
+        epoch: u64,
+        periods: usize,
+    ) -> tokio::time::Instant {
+        let mut period = tokio::time::interval(std::time::Duration::from_millis(200));
+        for _ in 0..periods {
+            period.tick().await;
+            self.lease(coordinator_id, epoch, true);
+        }
+        tokio::time::Instant::now()
+    }
+
     /// Publishes the lease of `coordinator_id` in `epoch`, `active` or not.
     pub(super) fn lease(&self, coordinator_id: &str, epoch: u64, active: bool) {
         let lease = Lease {
