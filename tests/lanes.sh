@@ -12,6 +12,11 @@
 # at wrong ranges (rays of two aircraft crossing): with two busy loops beside it, its
 # hostile swarm of five was whole in one run of two, and once in CI beside lane B, never).
 #
+# Two builds run beside all of it at idle priority (SCHED_IDLE: they get only the CPU no
+# test wants), but for e2e_tracking, during which they are stopped: the arm64
+# cross-build (deploy_arm64 waits for it) and the fuzz targets' (tests/fuzz.sh runs them
+# afterwards).
+#
 # Tests that share something run in the same lane or keep it apart themselves: DDS
 # domains are derived from the test process id in disjoint ranges per target, network
 # namespaces and ports are per process, and the plugin builds take a file lock.
@@ -34,9 +39,16 @@ cargo test --workspace --locked --no-run
 # builds again and says why.
 arm64_log=target/arm64-build.log
 mkdir -p target
-chrt --idle 0 nice -n 19 deploy/docker/cross-build.sh --profile dev --target-dir "$PWD/target/arm64" \
+setsid chrt --idle 0 nice -n 19 deploy/docker/cross-build.sh --profile dev --target-dir "$PWD/target/arm64" \
   >"$arm64_log" 2>&1 &
 pid_arm64=$!
+# The fuzz targets' build (tests/fuzz.sh runs them after this script; cargo-fuzz's install
+# and a second, instrumented build of the API, the link and the video decoder: minutes of
+# CPU) beside them too, the same way; fuzz.sh then finds them built, or builds again and
+# says why.
+fuzz_log=target/fuzz-build.log
+setsid chrt --idle 0 nice -n 19 tests/fuzz.sh --build-only >"$fuzz_log" 2>&1 &
+pid_fuzz=$!
 
 mapfile -t all_tests < <(cargo metadata --no-deps --format-version 1 --locked |
   python3 -c 'import json, sys
@@ -85,14 +97,32 @@ failed=""
 wait "$pid_a" || failed="$failed a"
 wait "$pid_b" || failed="$failed b"
 echo "tests/lanes.sh: lanes done in $(($(date +%s) - started)) s" >&2
-if wait "$pid_arm64"; then
-  echo "tests/lanes.sh: arm64 cross-build done in $(($(date +%s) - started)) s" >&2
-else
-  echo "tests/lanes.sh: the arm64 cross-build failed (target/arm64-build.log)" >&2
-fi
+# The tests in ALONE do not wait for the idle-priority builds, which go on beside them
+# (they take only what those tests leave idle), but for deploy_arm64, which needs one;
+# e2e_tracking has the machine to itself all the same: the builds (each its own process
+# group, by setsid) are stopped while it runs and continued after (once, beside them, it
+# found no hostile swarm: its image processing is short of CPU before anything else).
+builds() { # STOP|CONT: every idle-priority build still running
+  local p
+  for p in "$pid_arm64" "$pid_fuzz"; do kill "-$1" -- "-$p" 2>/dev/null || true; done
+}
 for t in "${ALONE[@]}"; do
+  if [ "$t" = e2e_tracking ]; then builds STOP; fi
+  if [ "$t" = deploy_arm64 ]; then
+    if wait "$pid_arm64"; then
+      echo "tests/lanes.sh: arm64 cross-build done in $(($(date +%s) - started)) s" >&2
+    else
+      echo "tests/lanes.sh: the arm64 cross-build failed (target/arm64-build.log)" >&2
+    fi
+  fi
   cargo test --workspace --locked --test "$t" || failed="$failed $t"
+  if [ "$t" = e2e_tracking ]; then builds CONT; fi
 done
+if wait "$pid_fuzz"; then
+  echo "tests/lanes.sh: fuzz build done in $(($(date +%s) - started)) s" >&2
+else
+  echo "tests/lanes.sh: the fuzz build failed (target/fuzz-build.log); fuzz.sh builds again" >&2
+fi
 if [ -n "$failed" ]; then
   echo "tests/lanes.sh: failed:$failed (search the log for its lane's prefix)" >&2
   exit 101
