@@ -38,6 +38,28 @@ fn camera_sees_intruder(vehicles: &[Value], vehicle: &str) -> bool {
         .is_some_and(|vis| vis.iter().any(|a| a["intruder"] == true))
 }
 
+/// How many intruders both observers' cameras drew in their last frames (by id).
+fn seen_by_both(vehicles: &[Value]) -> usize {
+    let drawn = |vehicle: &str| -> Vec<Value> {
+        vehicles
+            .iter()
+            .find(|v| v["id"] == vehicle)
+            .and_then(|v| v["payloads"].as_array())
+            .and_then(|ps| ps.iter().find(|p| p["slot"] == "camera"))
+            .and_then(|p| p["state"]["visible"].as_array())
+            .map(|vis| {
+                vis.iter()
+                    .filter(|a| a["intruder"] == true)
+                    .map(|a| a["id"].clone())
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let first = drawn(OBSERVERS[0]);
+    let second = drawn(OBSERVERS[1]);
+    first.iter().filter(|id| second.contains(id)).count()
+}
+
 fn ned(v: &Value) -> [f64; 3] {
     [
         v["north_m"].as_f64().unwrap_or(f64::NAN),
@@ -371,6 +393,12 @@ fn a_formation_of_five_is_one_hostile_swarm_observed_from_stations() {
     let stream = EventLog::connect(&skein.base);
     skein.take_off(4, 10.0);
     skein.point_gimbals(&OBSERVERS, 90.0, 3.0);
+    // What the run saw at its best, for a failure's message: the most intruders both
+    // cameras drew at once, the most tracks and confirmed tracks at once, the largest swarm.
+    let mut best = [0usize; 4];
+    // Every change of the swarms listed (ids and member counts), with the time since the
+    // gimbals pointed: printed, and in a failure's message.
+    let (pointed, mut history, mut last) = (Instant::now(), Vec::<String>::new(), String::new());
     let swarm = support::eventually(
         "one hostile swarm of five",
         Duration::from_secs(150),
@@ -383,12 +411,36 @@ fn a_formation_of_five_is_one_hostile_swarm_observed_from_stations() {
             {
                 Some(s) => Ok(s.clone()),
                 None => {
+                    let listed: Vec<String> = list
+                        .iter()
+                        .map(|s| {
+                            let n = s["members"].as_array().map_or(0, Vec::len);
+                            format!("{} of {n}", s["id"].as_str().unwrap_or("?"))
+                        })
+                        .collect();
+                    let listed = listed.join(", ");
+                    if listed != last {
+                        history.push(format!(
+                            "{:.1} s: [{listed}]",
+                            pointed.elapsed().as_secs_f64()
+                        ));
+                        last = listed;
+                    }
+                    let largest = list
+                        .iter()
+                        .filter_map(|s| s["members"].as_array().map(Vec::len))
+                        .max()
+                        .unwrap_or(0);
+                    let seen = seen_by_both(&skein.vehicles());
                     // What the tracker has, for the message: id, status, swarm, velocity σ.
                     let (_, tracks) = skein.get("/api/v1/tracks");
-                    let tracks: Vec<String> = tracks["tracks"]
-                        .as_array()
-                        .into_iter()
-                        .flatten()
+                    let all = tracks["tracks"].as_array().cloned().unwrap_or_default();
+                    let confirmed = all.iter().filter(|t| t["status"] == "confirmed").count();
+                    for (b, now) in best.iter_mut().zip([seen, all.len(), confirmed, largest]) {
+                        *b = (*b).max(now);
+                    }
+                    let tracks: Vec<String> = all
+                        .iter()
                         .map(|t| {
                             format!(
                                 "{} {} {} σv {:.1}",
@@ -399,12 +451,25 @@ fn a_formation_of_five_is_one_hostile_swarm_observed_from_stations() {
                             )
                         })
                         .collect();
-                    Err(format!("swarms {swarms}; tracks {tracks:?}"))
+                    Err(format!(
+                        "swarms {swarms}; tracks {tracks:?}; at best: {} intruders drawn by \
+                         both cameras, {} tracks, {} confirmed, a swarm of {}; swarms listed \
+                         {history:?}",
+                        best[0], best[1], best[2], best[3]
+                    ))
                 }
             }
         },
     );
     let id = swarm["id"].as_str().unwrap().to_string();
+    println!(
+        "swarms: found after {:.1} s; listed before {history:?}; at best {} intruders drawn by \
+         both cameras, {} tracks, {} confirmed",
+        pointed.elapsed().as_secs_f64(),
+        best[0],
+        best[1],
+        best[2]
+    );
     println!(
         "swarms: {id} of {} as a {} heading {:.0} deg, {:.1} m/s, forecast {}",
         swarm["members"],
