@@ -16,6 +16,11 @@
 //! simulator's own rendered view of an intruder, encoded to H.264 by ffmpeg and served
 //! over RTSP, decoded by a second camera with the same optics and mount on the same
 //! vehicle; the detector finds the intruder at the same bearing on both (within 0.5°).
+//! Then the same render warped through a calibrated lens (principal point off the centre,
+//! barrel distortion; `support::lens`) and served by a second RTSP camera: the camera
+//! given the lens's `camera_info` YAML rectifies it and its detector finds the intruder at
+//! the render's bearing (within 0.5°); a camera taking it for an ideal pinhole is off by
+//! more than 0.8°.
 
 mod support;
 
@@ -326,7 +331,18 @@ fn the_detector_finds_the_intruder_on_decoded_h264_where_it_finds_it_on_the_rend
     // Both cameras: a 12 mm lens on a fixed mount looking 45° right of the nose and 7° up,
     // where the intruder passes (60 m east, 14 m up, starting 90 m north); one renders,
     // one decodes the RTSP stream of that render.
-    let port = free_tcp_port();
+    let (port, lens_port) = (free_tcp_port(), free_tcp_port());
+    // A third and fourth camera: the same render as a calibrated lens (off-centre axis,
+    // barrel distortion) would have taken it, with its calibration and without.
+    let focal_px = 12.0 * 640.0 / 6.17; // the render's: 12 mm on the default 6.17 mm sensor
+    let camera_info = support::lens::camera_info_yaml(focal_px);
+    let camera_info_file = dir.join("camera_info.yaml");
+    std::fs::write(&camera_info_file, &camera_info).unwrap();
+    let lens = format!(
+        "camera_info_file = \"{}\", width_px = 640, height_px = 480, gimbal_slot = \"\", \
+         mount_pitch_deg = 7.0, mount_yaw_deg = 45.0",
+        camera_info_file.display()
+    );
     let optics = "focal_length_mm = 12.0, width_px = 640, height_px = 480, gimbal_slot = \"\", \
                   mount_pitch_deg = 7.0, mount_yaw_deg = 45.0";
     let config = format!(
@@ -335,7 +351,13 @@ fn the_detector_finds_the_intruder_on_decoded_h264_where_it_finds_it_on_the_rend
          {{ slot = \"detector\", kind = \"detector\", config = {{ camera_slot = \"camera\" }} }},\n\
          {{ slot = \"camera_rtsp\", kind = \"camera\", config = {{ source = \"rtsp://127.0.0.1:{port}/main\", \
             frame_rate_hz = 10.0, {optics} }} }},\n\
-         {{ slot = \"detector_rtsp\", kind = \"detector\", config = {{ camera_slot = \"camera_rtsp\" }} }},\n]\n"
+         {{ slot = \"detector_rtsp\", kind = \"detector\", config = {{ camera_slot = \"camera_rtsp\" }} }},\n\
+         {{ slot = \"camera_lens\", kind = \"camera\", config = {{ source = \"rtsp://127.0.0.1:{lens_port}/main\", \
+            frame_rate_hz = 10.0, {lens} }} }},\n\
+         {{ slot = \"detector_lens\", kind = \"detector\", config = {{ camera_slot = \"camera_lens\" }} }},\n\
+         {{ slot = \"camera_lens_raw\", kind = \"camera\", config = {{ source = \"rtsp://127.0.0.1:{lens_port}/main\", \
+            frame_rate_hz = 10.0, {optics} }} }},\n\
+         {{ slot = \"detector_lens_raw\", kind = \"detector\", config = {{ camera_slot = \"camera_lens_raw\" }} }},\n]\n"
     );
     let config = write_config(&dir, &config);
     let mut args = vec!["--config", &config, "--plugin-dir", dir.to_str().unwrap()];
@@ -411,8 +433,78 @@ fn the_detector_finds_the_intruder_on_decoded_h264_where_it_finds_it_on_the_rend
     );
     let s = camera(&skein, "camera_rtsp");
     assert_eq!(s["source_status"]["state"], "streaming", "{s}");
+
+    // Through the lens: rectified with its calibration, the intruder is where the render
+    // has it; taken for an ideal pinhole, it is not.
+    let ideal = {
+        let mut decoder = jpeg_decoder::Decoder::new(jpeg.as_slice());
+        decoder.decode().expect("the render decodes")
+    };
+    let warped = support::lens::warp_through(&camera_info, &ideal, 640, 480, focal_px);
+    let warped_file = dir.join("through_the_lens.ppm");
+    std::fs::write(&warped_file, support::lens::ppm(&warped, 640, 480)).unwrap();
+    let warped_arg = warped_file.to_str().unwrap().to_string();
+    let _lens_server = RtspCamera::start(
+        lens_port,
+        &["--image", &warped_arg, "--size", "640x480", "--rate", "10"],
+    );
+    let through = |slot: &str, near_x: f64| {
+        eventually(
+            &format!("{slot} on the lens's stream"),
+            Duration::from_secs(40),
+            || {
+                let s = payload(&skein, "uav-1", slot)["state"].clone();
+                match detection_near(&s, near_x).filter(|d| (d.0 - near_x).abs() < 40.0) {
+                    Some(d) => Ok(d),
+                    None => Err(s.to_string()),
+                }
+            },
+        )
+    };
+    let rectified = through("detector_lens", truth_x);
+    let raw = through("detector_lens_raw", truth_x);
+    let off = |d: (f64, f64, f64, f64)| {
+        (
+            (d.2 - on_render.2 + 180.0).rem_euclid(360.0) - 180.0,
+            d.3 - on_render.3,
+        )
+    };
+    let (rect_off, raw_off) = (off(rectified), off(raw));
+    eprintln!(
+        "through the lens: rectified x {:.2} y {:.2}, {:.3}° / {:.3}° from the render; \
+         not rectified x {:.2} y {:.2}, {:.3}° / {:.3}°",
+        rectified.0, rectified.1, rect_off.0, rect_off.1, raw.0, raw.1, raw_off.0, raw_off.1
+    );
+    assert!(
+        rect_off.0.abs() < 0.5 && rect_off.1.abs() < 0.5,
+        "rectified bearing {rect_off:?}° off the render's"
+    );
+    assert!(
+        raw_off.0.hypot(raw_off.1) > 0.8,
+        "the lens should matter here: {raw_off:?}°"
+    );
+    let s = camera(&skein, "camera_lens");
+    assert_eq!(s["camera_info"]["camera_name"], "test_lens", "{s}");
+    assert!(
+        (s["horizontal_fov_deg"].as_f64().unwrap()
+            - camera(&skein, "camera")["horizontal_fov_deg"]
+                .as_f64()
+                .unwrap())
+        .abs()
+            < 1e-6,
+        "{s}"
+    );
     never_restarted(
         &skein,
-        &["camera", "camera_rtsp", "detector", "detector_rtsp"],
+        &[
+            "camera",
+            "camera_rtsp",
+            "detector",
+            "detector_rtsp",
+            "camera_lens",
+            "detector_lens",
+            "camera_lens_raw",
+            "detector_lens_raw",
+        ],
     );
 }

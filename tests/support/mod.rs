@@ -12,6 +12,7 @@ pub mod distributed;
 pub mod docker;
 mod events;
 pub mod formation;
+pub mod lens;
 pub mod map_tiles;
 pub mod netns;
 pub mod payloads;

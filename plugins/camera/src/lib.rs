@@ -23,9 +23,12 @@
 //! (`mount_pitch_deg`, `mount_yaw_deg` relative to the vehicle), which is also used while
 //! the gimbal has published no angles.
 //! A real camera adds `"rtsp_transport": "tcp" | "udp"`, `"stall_timeout_s": 2.0`,
-//! `"latency_ms": 0` and takes `"horizontal_fov_deg"` instead of `focal_length_mm`;
-//! `width_px`/`height_px` both or neither (the stream's own size); `frame_rate_hz` caps
-//! what it publishes.
+//! `"latency_ms": 0` and takes `"horizontal_fov_deg"` instead of `focal_length_mm`, or
+//! `"camera_info_file": "/etc/skein/camera_info/gimbal.yaml"` (its ROS/OpenCV
+//! `camera_info` calibration: every frame is rectified into the ideal pinhole the
+//! detector assumes, [`skein_video::rectify`], and the calibration gives the field of
+//! view); `width_px`/`height_px` both or neither (the stream's own size); `frame_rate_hz`
+//! caps what it publishes.
 //!
 //! # Commands
 //! - `{"command": "capture"}`: capture, publish and describe one frame now →
@@ -62,9 +65,11 @@ use skein_plugin_sdk::frame_meta::FrameMeta;
 use skein_plugin_sdk::serde::Deserialize;
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::{Context, Plugin, export_plugin};
+use skein_video::rectify::{Calibration, Rectifier};
 use skein_video::rtsp::{RtpTransport, RtspConfig};
 use source::{CapturedFrame, FrameData, FrameSource, Mount};
 use std::collections::VecDeque;
+use std::path::Path;
 use std::time::{Duration, Instant};
 use stream::StreamSource;
 
@@ -133,6 +138,7 @@ struct Config {
     rtsp_transport: Option<String>,
     stall_timeout_s: Option<f64>,
     latency_ms: Option<f64>,
+    camera_info_file: Option<String>,
     horizontal_fov_deg: Option<f64>,
     width_px: Option<f64>,
     height_px: Option<f64>,
@@ -301,6 +307,30 @@ impl Camera {
     }
 }
 
+/// A calibrated lens (`camera_info_file`: a real camera's, rectified into an ideal
+/// pinhole by the stream source; the calibration gives the field of view), or none.
+///
+/// # Errors
+/// A calibration for the simulated camera (an ideal pinhole already), one given beside
+/// `horizontal_fov_deg` or `focal_length_mm`, or a file that is no valid calibration
+/// ([`Calibration::from_ros_yaml_file`]).
+fn lens_calibration(kind: &SourceKind, c: &Config) -> Result<Option<Calibration>, String> {
+    match c.camera_info_file.as_deref() {
+        None => Ok(None),
+        Some(_) if *kind == SourceKind::Simulated => Err(
+            "camera_info_file: the simulated camera is an ideal pinhole; a calibration is \
+             for a real camera's frames"
+                .to_string(),
+        ),
+        Some(_) if c.horizontal_fov_deg.is_some() || c.focal_length_mm.is_some() => Err(
+            "camera_info_file: the calibration gives the field of view; leave out \
+             horizontal_fov_deg and focal_length_mm"
+                .to_string(),
+        ),
+        Some(path) => Calibration::from_ros_yaml_file(Path::new(path)).map(Some),
+    }
+}
+
 impl Plugin for Camera {
     const NAME: &'static str = "camera";
     const VERSION: &'static str = env!("CARGO_PKG_VERSION");
@@ -315,8 +345,12 @@ impl Plugin for Camera {
             1.0,
             100.0,
         )?;
+        let calibration = lens_calibration(&kind, &c)?;
+        let horizontal_fov_deg = c
+            .horizontal_fov_deg
+            .or(calibration.as_ref().map(Calibration::horizontal_fov_deg));
         // A real camera's lens is most often known by its field of view.
-        let fov_focal_mm = match (c.horizontal_fov_deg, c.focal_length_mm) {
+        let fov_focal_mm = match (horizontal_fov_deg, c.focal_length_mm) {
             (Some(_), Some(_)) => {
                 return Err("horizontal_fov_deg: give it or focal_length_mm, not both".to_string());
             }
@@ -418,7 +452,12 @@ impl Plugin for Camera {
                     (None, None) => None,
                     _ => return Err("width_px: give both width_px and height_px, or neither (the stream's size)".into()),
                 };
-                Box::new(StreamSource::start(config, mount, size)?)
+                Box::new(StreamSource::start(
+                    config,
+                    mount,
+                    size,
+                    calibration.map(Rectifier::new),
+                )?)
             }
         };
         Ok(Camera {
@@ -525,6 +564,29 @@ export_plugin!(Camera);
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_lens_calibration_is_for_a_real_camera_and_alone() {
+        let config = |v: Value| -> Config { args::config(v).unwrap() };
+        let rtsp = SourceKind::parse("rtsp://cam:8554/main").unwrap();
+        let none = config(json!({"source": "rtsp://cam:8554/main"}));
+        assert!(lens_calibration(&rtsp, &none).unwrap().is_none());
+        let simulated = config(json!({"camera_info_file": "/etc/cam.yaml"}));
+        let e = lens_calibration(&SourceKind::Simulated, &simulated).unwrap_err();
+        assert!(
+            e.starts_with("camera_info_file: the simulated camera"),
+            "{e}"
+        );
+        let both = config(json!({"camera_info_file": "/etc/cam.yaml", "horizontal_fov_deg": 80.0}));
+        let e = lens_calibration(&rtsp, &both).unwrap_err();
+        assert!(e.contains("leave out horizontal_fov_deg"), "{e}");
+        let missing = config(json!({"camera_info_file": "/nonexistent/cam.yaml"}));
+        let e = lens_calibration(&rtsp, &missing).unwrap_err();
+        assert!(
+            e.starts_with("camera_info_file /nonexistent/cam.yaml:"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn sources_are_parsed_and_bad_ones_named() {

@@ -1,7 +1,8 @@
 //! A real camera's RTSP/H.264 stream as the camera's frame source (`source =
 //! "rtsp://…"`): frames decoded by `skein_video` on its own thread, taken here when the
-//! camera wants one, scaled to the configured size, and given the pose the vehicle and
-//! the gimbal had at the frame's capture time ([`crate::pose`]).
+//! camera wants one, rectified when the lens is calibrated or else scaled to the
+//! configured size, and given the pose the vehicle and the gimbal had at the frame's
+//! capture time ([`crate::pose`]).
 
 use crate::pose::{PoseHistory, PoseSample};
 use crate::render::Pinhole;
@@ -10,8 +11,9 @@ use skein_plugin_sdk::Context;
 use skein_plugin_sdk::frame_meta::FrameMeta;
 use skein_plugin_sdk::geometry::wrap_deg_360;
 use skein_plugin_sdk::serde_json::{self, Value, json};
+use skein_video::rectify::Rectifier;
 use skein_video::rtsp::{RtspConfig, RtspSource};
-use skein_video::scale::scale;
+use skein_video::scale::{RgbFrame, scale};
 use skein_video::status::SourceState;
 use std::time::{SystemTime, UNIX_EPOCH};
 
@@ -31,12 +33,14 @@ pub struct StreamSource {
     mount: Mount,
     /// Output size; `None`: the stream's own.
     size_px: Option<(u32, u32)>,
+    /// The calibrated lens's correction (`camera_info_file`).
+    rectifier: Option<Rectifier>,
     poses: PoseHistory,
 }
 
 impl StreamSource {
     /// Starts receiving `config`'s stream; frames come out at `size_px` (or the stream's
-    /// size), aimed by `mount`.
+    /// size), rectified by `rectifier` when the lens is calibrated, aimed by `mount`.
     ///
     /// # Errors
     /// The receiving thread could not start.
@@ -44,13 +48,31 @@ impl StreamSource {
         config: RtspConfig,
         mount: Mount,
         size_px: Option<(u32, u32)>,
+        rectifier: Option<Rectifier>,
     ) -> Result<Self, String> {
         Ok(StreamSource {
             rtsp: RtspSource::start(config)?,
             mount,
             size_px,
+            rectifier,
             poses: PoseHistory::default(),
         })
+    }
+
+    /// The decoded `frame` at the output size: rectified (after a filtered scale down to
+    /// about that size, which bilinear sampling alone would alias), or scaled.
+    fn output_frame(&mut self, frame: RgbFrame) -> Result<RgbFrame, String> {
+        let (w, h) = self.size_px.unwrap_or((frame.width_px, frame.height_px));
+        let Some(rectifier) = self.rectifier.as_mut() else {
+            return scale(frame, w, h);
+        };
+        let frame = if frame.width_px > w {
+            let h_kept = f64::from(frame.height_px) * f64::from(w) / f64::from(frame.width_px);
+            scale(frame, w, (h_kept.round() as u32).max(1))?
+        } else {
+            frame
+        };
+        rectifier.rectify(&frame, w, h)
     }
 
     /// Adds the vehicle's and gimbal's pose now (the telemetry's age taken off) to the
@@ -114,10 +136,7 @@ impl FrameSource for StreamSource {
                 )),
             };
         };
-        let frame = match self.size_px {
-            Some((w, h)) => scale(decoded.frame, w, h)?,
-            None => decoded.frame,
-        };
+        let frame = self.output_frame(decoded.frame)?;
         let (width_px, height_px) = (frame.width_px, frame.height_px);
         let capture_us = decoded.capture_us;
         let lens = Pinhole {
@@ -149,6 +168,11 @@ impl FrameSource for StreamSource {
         let mut info = info;
         info["capture_latency_ms"] = json!(now_us().saturating_sub(capture_us) as f64 / 1000.0);
         info["visible"] = json!([]);
+        info["camera_info"] = self.rectifier.as_ref().map_or(Value::Null, |r| {
+            let c = r.calibration();
+            json!({"camera_name": c.name, "width_px": c.width_px, "height_px": c.height_px,
+                   "rectified": true})
+        });
         Ok(Some(CapturedFrame {
             width_px,
             height_px,

@@ -5,7 +5,8 @@
 //! transport), decodes it with OpenH264 ([`h264`]), stamps each frame with its capture
 //! time from the stream's own timestamps ([`clock`]), and reports its health
 //! ([`status`]): connecting, streaming, stalled or failed, frames decoded and frames
-//! dropped by reason. The camera plugin takes the newest frame, scales it ([`scale`]),
+//! dropped by reason. The camera plugin takes the newest frame, corrects a calibrated lens
+//! ([`rectify`]) or scales it ([`scale`]),
 //! adds the pose the vehicle and gimbal had at the capture time and publishes it as a
 //! JPEG like the simulated camera's.
 //!
@@ -14,6 +15,7 @@
 
 pub mod clock;
 pub mod h264;
+pub mod rectify;
 pub mod rtsp;
 pub mod scale;
 pub mod status;
