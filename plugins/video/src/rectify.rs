@@ -171,8 +171,8 @@ impl Rectifier {
     ///
     /// # Errors
     /// The frame's aspect ratio is not the calibrated one (more than 1 % apart: the
-    /// stream is not the calibrated camera's, or it is cropped), or its buffer has the
-    /// wrong length.
+    /// stream is not the calibrated camera's, or it is cropped), either size is empty, or
+    /// the frame's buffer has the wrong length.
     pub fn rectify(
         &mut self,
         frame: &RgbFrame,
@@ -180,6 +180,9 @@ impl Rectifier {
         out_h: u32,
     ) -> Result<RgbFrame, String> {
         let (w, h) = (frame.width_px, frame.height_px);
+        if w == 0 || h == 0 || out_w == 0 || out_h == 0 {
+            return Err(format!("an empty frame ({w}x{h} to {out_w}x{out_h})"));
+        }
         if frame.rgb.len() != w as usize * h as usize * 3 {
             return Err(format!("a {w}x{h} frame with the wrong number of bytes"));
         }
@@ -387,5 +390,12 @@ projection_matrix:
             e.contains("calibrated at 640x480, the stream is 640x360"),
             "{e}"
         );
+        let empty = RgbFrame {
+            width_px: 0,
+            height_px: 0,
+            rgb: Vec::new(),
+        };
+        let e = rectifier.rectify(&empty, 640, 480).unwrap_err();
+        assert!(e.contains("empty"), "{e}");
     }
 }
