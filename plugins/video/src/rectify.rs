@@ -17,7 +17,7 @@
 //! frame (scaled from the calibrated size to the stream's when they differ by a factor,
 //! e.g. a camera calibrated at 1920x1080 streaming 1280x720) and sampled bilinearly;
 //! rays that land outside the decoded frame are black. The lookup table is made once per
-//! (stream size, output size).
+//! (stream size, output size), exactly on a grid every 8 pixels and interpolated between.
 
 use crate::scale::RgbFrame;
 use nalgebra::{Dyn, OMatrix, U2};
@@ -137,6 +137,9 @@ impl Calibration {
     }
 }
 
+/// Spacing of the grid on which the lens is computed exactly, output pixels.
+const GRID_PX: u32 = 8;
+
 /// For each output pixel, where to sample the decoded frame (`x`, `y` in its pixels);
 /// `None` outside it.
 #[derive(Debug)]
@@ -203,13 +206,29 @@ impl Rectifier {
             .as_ref()
             .is_none_or(|t| t.input != (w, h) || t.output != (out_w, out_h))
         {
-            let points: Vec<(f64, f64)> = (0..out_h)
-                .flat_map(|v| (0..out_w).map(move |u| (f64::from(u), f64::from(v))))
+            // The lens is distorted exactly at the nodes of a grid every GRID_PX pixels
+            // and interpolated between them (distortion is smooth): the table is made in
+            // milliseconds, within a camera tick, at any size.
+            let (nx, ny) = (out_w.div_ceil(GRID_PX) + 1, out_h.div_ceil(GRID_PX) + 1);
+            let nodes: Vec<(f64, f64)> = (0..ny)
+                .flat_map(|j| {
+                    (0..nx).map(move |i| (f64::from(i * GRID_PX), f64::from(j * GRID_PX)))
+                })
                 .collect();
-            let source = c
-                .distort(&points, out_w, out_h)
-                .into_iter()
-                .map(|(x, y)| {
+            let nodes = c.distort(&nodes, out_w, out_h);
+            let node = |i: u32, j: u32| nodes[(j * nx + i) as usize];
+            let g = f64::from(GRID_PX);
+            let source = (0..out_h)
+                .flat_map(|v| (0..out_w).map(move |u| (u, v)))
+                .map(|(u, v)| {
+                    let (i, j) = (u / GRID_PX, v / GRID_PX);
+                    let (a, b) = (f64::from(u % GRID_PX) / g, f64::from(v % GRID_PX) / g);
+                    let lerp = |p: (f64, f64), q: (f64, f64), t: f64| {
+                        (p.0 + (q.0 - p.0) * t, p.1 + (q.1 - p.1) * t)
+                    };
+                    let top = lerp(node(i, j), node(i + 1, j), a);
+                    let bottom = lerp(node(i, j + 1), node(i + 1, j + 1), a);
+                    let (x, y) = lerp(top, bottom, b);
                     let (x, y) = (x * sx, y * sy);
                     (x >= 0.0 && y >= 0.0 && x <= f64::from(w - 1) && y <= f64::from(h - 1))
                         .then_some((x as f32, y as f32))
