@@ -65,10 +65,10 @@ use skein_plugin_sdk::frame_meta::FrameMeta;
 use skein_plugin_sdk::serde::Deserialize;
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::{Context, Plugin, export_plugin};
+use skein_video::recent::Recent;
 use skein_video::rectify::{Calibration, Rectifier};
 use skein_video::rtsp::{RtpTransport, RtspConfig};
 use source::{CapturedFrame, FrameData, FrameSource, Mount};
-use std::collections::VecDeque;
 use std::path::Path;
 use std::time::{Duration, Instant};
 use stream::StreamSource;
@@ -180,8 +180,8 @@ pub struct Camera {
     last_info: Value,
     last_error: Option<String>,
     last_error_publish: Option<Instant>,
-    /// Publish times and JPEG sizes of the last [`THROUGHPUT_WINDOW`].
-    published: VecDeque<(Instant, usize)>,
+    /// The frames published in the last [`THROUGHPUT_WINDOW`], with their JPEG sizes.
+    published: Recent<usize>,
 }
 
 /// How often a polled source's state is published while it fails the same way.
@@ -220,22 +220,18 @@ impl Camera {
 
     /// Frames published per second over the last [`THROUGHPUT_WINDOW`].
     fn published_rate_hz(&self) -> f64 {
-        match (self.published.front(), self.published.back()) {
-            (Some(a), Some(b)) if self.published.len() >= 2 && b.0 > a.0 => {
-                (self.published.len() - 1) as f64 / b.0.duration_since(a.0).as_secs_f64()
-            }
-            _ => 0.0,
-        }
+        self.published.rate_hz().unwrap_or(0.0)
     }
 
     /// What one viewer of the MJPEG stream costs: the JPEG bytes published per second,
     /// in kbit/s (every viewer gets every frame).
     fn viewer_kbit_s(&self) -> f64 {
-        let n = self.published.len();
+        let sizes = self.published.values();
+        let n = sizes.len();
         if n == 0 {
             return 0.0;
         }
-        let mean_bytes = self.published.iter().map(|p| p.1).sum::<usize>() as f64 / n as f64;
+        let mean_bytes = sizes.sum::<usize>() as f64 / n as f64;
         mean_bytes * 8.0 * self.published_rate_hz() / 1000.0
     }
 
@@ -246,8 +242,8 @@ impl Camera {
             return false;
         }
         self.published
-            .back()
-            .is_none_or(|(t, _)| t.elapsed().as_secs_f64() >= 0.9 / self.frame_rate_hz)
+            .last_at()
+            .is_none_or(|t| t.elapsed().as_secs_f64() >= 0.9 / self.frame_rate_hz)
     }
 
     /// Captures, encodes and publishes one frame if the source has one (`take` false: a
@@ -274,15 +270,7 @@ impl Camera {
             }
         };
         ctx.publish_frame(&jpeg)?;
-        let now = Instant::now();
-        self.published.push_back((now, jpeg.len()));
-        while self
-            .published
-            .front()
-            .is_some_and(|p| now.duration_since(p.0) > THROUGHPUT_WINDOW)
-        {
-            self.published.pop_front();
-        }
+        self.published.push(Instant::now(), jpeg.len());
         if self.source.polls() {
             // A real source's size is the stream's (or the configured output size).
             self.optics.width_px = width_px;
@@ -473,7 +461,7 @@ impl Plugin for Camera {
             last_info: Value::Null,
             last_error: None,
             last_error_publish: None,
-            published: VecDeque::new(),
+            published: Recent::new(THROUGHPUT_WINDOW),
         })
     }
 

@@ -15,6 +15,7 @@
 
 pub mod clock;
 pub mod h264;
+pub mod recent;
 pub mod rectify;
 pub mod rtsp;
 pub mod scale;

@@ -8,12 +8,12 @@
 
 use crate::clock::CaptureClock;
 use crate::h264::{DecodeError, H264Decoder};
+use crate::recent::Recent;
 use crate::scale::RgbFrame;
 use crate::status::{Dropped, SourceState, StreamStatus};
 use futures_util::StreamExt;
 use retina::client::{Credentials, PlayOptions, Session, SessionOptions, SetupOptions, Transport};
 use retina::codec::{CodecItem, FrameFormat};
-use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
@@ -108,8 +108,8 @@ pub struct DecodedFrame {
 
 struct Health {
     status: StreamStatus,
-    /// When the frames of the last [`RATE_WINDOW`] were decoded (the newest last).
-    recent: VecDeque<Instant>,
+    /// The frames decoded in the last [`RATE_WINDOW`].
+    recent: Recent<()>,
 }
 
 struct Shared {
@@ -143,14 +143,7 @@ impl Shared {
             s.stream_height_px = Some(h);
             s.state = SourceState::Streaming;
             s.detail = None;
-            h_.recent.push_back(now);
-            while h_
-                .recent
-                .front()
-                .is_some_and(|t| now.duration_since(*t) > RATE_WINDOW)
-            {
-                h_.recent.pop_front();
-            }
+            h_.recent.push(now, ());
         });
     }
 
@@ -201,7 +194,7 @@ impl RtspSource {
             latest: Mutex::new(None),
             health: Mutex::new(Health {
                 status,
-                recent: VecDeque::new(),
+                recent: Recent::new(RATE_WINDOW),
             }),
             stop: AtomicBool::new(false),
             wake: Notify::new(),
@@ -227,13 +220,8 @@ impl RtspSource {
     pub fn status(&self) -> StreamStatus {
         self.shared.health(|h| {
             let mut s = h.status.clone();
-            s.last_frame_age_ms = h.recent.back().map(|t| t.elapsed().as_millis() as u64);
-            s.stream_rate_hz = match (h.recent.front(), h.recent.back()) {
-                (Some(a), Some(b)) if h.recent.len() >= 2 && b > a => {
-                    Some((h.recent.len() - 1) as f64 / b.duration_since(*a).as_secs_f64())
-                }
-                _ => None,
-            };
+            s.last_frame_age_ms = h.recent.last_at().map(|t| t.elapsed().as_millis() as u64);
+            s.stream_rate_hz = h.recent.rate_hz();
             s
         })
     }
