@@ -3,7 +3,7 @@
 //! the pose written into it (and so every bearing the detector takes from it) is the one
 //! interpolated at its capture time, not the pose when it arrived.
 
-use skein_plugin_sdk::geometry::{Ned, wrap_deg_360};
+use skein_plugin_sdk::geometry::{Ned, wrap_deg_180, wrap_deg_360};
 use std::collections::VecDeque;
 
 /// How far back poses are kept, µs (real streams arrive well within a second).
@@ -26,8 +26,7 @@ pub struct PoseSample {
 
 /// `a + (b - a) * k` for angles in degrees, along the shorter arc.
 fn lerp_deg(a: f64, b: f64, k: f64) -> f64 {
-    let d = (b - a + 540.0).rem_euclid(360.0) - 180.0;
-    a + d * k
+    a + wrap_deg_180(b - a) * k
 }
 
 /// Poses, oldest first, no older than [`HISTORY_US`] behind the newest.

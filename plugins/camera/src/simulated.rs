@@ -1,7 +1,7 @@
 //! The simulated frame source: what the vehicle would see, rendered.
 
 use crate::render::{Aircraft, CameraPose, Pinhole, Scene, render};
-use crate::source::{CapturedFrame, FrameData, FrameSource, Mount, pose_info};
+use crate::source::{CapturedFrame, FrameData, FrameSource, Mount, now_us, pose_info};
 use skein_plugin_sdk::Context;
 use skein_plugin_sdk::frame_meta::FrameMeta;
 use skein_plugin_sdk::geometry::wrap_deg_360;
@@ -63,9 +63,7 @@ impl FrameSource for SimulatedSource {
                 intruder: true,
             }));
         }
-        let stamp_us = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_micros() as u64);
+        let stamp_us = now_us();
         let scene = Scene {
             pose,
             ground_down_m: self.ground_down_m,

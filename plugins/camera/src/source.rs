@@ -117,3 +117,10 @@ pub fn pose_info(meta: &FrameMeta, from: &str) -> Value {
         "stamp_us": meta.stamp_us,
     })
 }
+
+/// Wall-clock µs since the Unix epoch: the frames' capture stamps (`FrameMeta::stamp_us`).
+pub fn now_us() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64)
+}

@@ -6,7 +6,7 @@
 
 use crate::pose::{PoseHistory, PoseSample};
 use crate::render::Pinhole;
-use crate::source::{CapturedFrame, FrameData, FrameSource, Mount, pose_info};
+use crate::source::{CapturedFrame, FrameData, FrameSource, Mount, now_us, pose_info};
 use skein_plugin_sdk::Context;
 use skein_plugin_sdk::frame_meta::FrameMeta;
 use skein_plugin_sdk::geometry::wrap_deg_360;
@@ -15,17 +15,9 @@ use skein_video::rectify::Rectifier;
 use skein_video::rtsp::{RtspConfig, RtspSource};
 use skein_video::scale::{RgbFrame, scale};
 use skein_video::status::SourceState;
-use std::time::{SystemTime, UNIX_EPOCH};
 
 /// How often the camera polls a stream (and samples the pose history), Hz.
 pub const POLL_RATE_HZ: f64 = 25.0;
-
-/// Wall-clock µs since the Unix epoch.
-fn now_us() -> u64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_micros() as u64)
-}
 
 /// The RTSP frame source.
 pub struct StreamSource {
