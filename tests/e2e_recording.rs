@@ -94,17 +94,7 @@ fn a_flight_is_recorded_to_mcap_read_by_the_reference_reader_and_replayed() {
         (400, json!("name")),
         "{body}"
     );
-    let (status, started) = skein.post("/api/v1/recording/start", json!({"name": "hover"}));
-    assert_eq!(status, 201, "{started}");
-    eventually("a second of recording", Duration::from_secs(30), || {
-        let r = skein.get("/api/v1/recording").1;
-        match r["recording"]["elapsed_s"].as_f64() {
-            Some(t) if t >= 1.5 => Ok(()),
-            _ => Err(format!("{r}")),
-        }
-    });
-    let (status, hover) = skein.post("/api/v1/recording/stop", json!({}));
-    assert_eq!(status, 200, "{hover}");
+    let hover = skein.record_for("hover", 1.5, Duration::from_secs(30));
     let on_demand = dir.join("on-demand/hover.mcap");
     assert_eq!(hover["path"], on_demand.to_str().unwrap(), "{hover}");
     drop(skein);

@@ -26,38 +26,36 @@ use support::counter_uas::{
 };
 use support::{EventLog, Skein, one_at_a_time};
 
-/// True when the camera of `vehicle` drew an intruder in its last frame (the simulated
+/// The ids of the intruders the camera of `vehicle` drew in its last frame (the simulated
 /// camera's own account of what it drew, for evaluation).
-fn camera_sees_intruder(vehicles: &[Value], vehicle: &str) -> bool {
+fn drawn_intruders(vehicles: &[Value], vehicle: &str) -> Vec<Value> {
     vehicles
         .iter()
         .find(|v| v["id"] == vehicle)
         .and_then(|v| v["payloads"].as_array())
         .and_then(|ps| ps.iter().find(|p| p["slot"] == "camera"))
         .and_then(|p| p["state"]["visible"].as_array())
-        .is_some_and(|vis| vis.iter().any(|a| a["intruder"] == true))
+        .map(|vis| {
+            vis.iter()
+                .filter(|a| a["intruder"] == true)
+                .map(|a| a["id"].clone())
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// True when the camera of `vehicle` drew an intruder in its last frame.
+fn camera_sees_intruder(vehicles: &[Value], vehicle: &str) -> bool {
+    !drawn_intruders(vehicles, vehicle).is_empty()
 }
 
 /// How many intruders both observers' cameras drew in their last frames (by id).
 fn seen_by_both(vehicles: &[Value]) -> usize {
-    let drawn = |vehicle: &str| -> Vec<Value> {
-        vehicles
-            .iter()
-            .find(|v| v["id"] == vehicle)
-            .and_then(|v| v["payloads"].as_array())
-            .and_then(|ps| ps.iter().find(|p| p["slot"] == "camera"))
-            .and_then(|p| p["state"]["visible"].as_array())
-            .map(|vis| {
-                vis.iter()
-                    .filter(|a| a["intruder"] == true)
-                    .map(|a| a["id"].clone())
-                    .collect()
-            })
-            .unwrap_or_default()
-    };
-    let first = drawn(OBSERVERS[0]);
-    let second = drawn(OBSERVERS[1]);
-    first.iter().filter(|id| second.contains(id)).count()
+    let second = drawn_intruders(vehicles, OBSERVERS[1]);
+    drawn_intruders(vehicles, OBSERVERS[0])
+        .iter()
+        .filter(|id| second.contains(id))
+        .count()
 }
 
 fn ned(v: &Value) -> [f64; 3] {

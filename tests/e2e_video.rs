@@ -187,17 +187,7 @@ fn rtsp_cameras_stream_stall_come_back_and_count_what_is_broken() {
     dashboard_shows(&skein, "camera", "streaming");
 
     // A recording holds the real camera's frames as it holds the simulated ones.
-    let (code, body) = skein.post("/api/v1/recording/start", json!({"name": "rtsp"}));
-    assert_eq!(code, 201, "{body}");
-    eventually("1.5 s recorded", Duration::from_secs(20), || {
-        let r = skein.get("/api/v1/recording").1;
-        match r["recording"]["elapsed_s"].as_f64() {
-            Some(t) if t >= 1.5 => Ok(()),
-            _ => Err(r.to_string()),
-        }
-    });
-    let (code, body) = skein.post("/api/v1/recording/stop", json!({}));
-    assert_eq!(code, 200, "{body}");
+    let body = skein.record_for("rtsp", 1.5, Duration::from_secs(20));
     let (code, out, err) = run_peer(
         "read_mcap.py",
         &[body["path"].as_str().unwrap()],

@@ -47,8 +47,7 @@ def parse_args():
 
 def run(args, driver, summary):
     ui = Dashboard(driver, args.timeout)
-    driver.get(args.url)
-    ui.wait("connected", lambda d: d.find_element(By.CSS_SELECTOR, '[data-testid="connection"]').text.strip() == "connected")
+    ui.open(args.url)
     ui.click("tab-payloads")
     Select(driver.find_element(By.CSS_SELECTOR, '[data-testid="payload-vehicle"]')).select_by_value(args.vehicle)
 

@@ -16,7 +16,6 @@ Prints one JSON summary line; exits 0 only on success.
 import argparse
 import sys
 
-from selenium.webdriver.common.by import By
 
 from dashboard_selenium import Dashboard, Failure, add_browser_args, drive
 
@@ -48,9 +47,7 @@ def run(args, driver, summary):
     ui = Dashboard(driver, args.timeout)
     active_base = args.active.rstrip("/")
 
-    driver.get(args.standby)
-    ui.wait("the connected stream", lambda d: d.find_element(
-        By.CSS_SELECTOR, '[data-testid="connection"]').text.strip() == "connected")
+    ui.open(args.standby)
 
     def standby_shown(_):
         ui.last = driver.execute_script(ROLE_JS)

@@ -136,6 +136,12 @@ class Dashboard:
             raise Failure(f"timed out after {timeout or self.timeout:.0f} s waiting for {what}; "
                           f"last seen: {json.dumps(self.last)}") from None
 
+    def open(self, url, what="the connection indicator to read `connected`"):
+        """Loads the dashboard at url and waits until its stream is connected."""
+        self.d.get(url)
+        self.wait(what, lambda d: d.find_element(
+            By.CSS_SELECTOR, '[data-testid="connection"]').text.strip() == "connected")
+
     def rows(self):
         self.last = self.d.execute_script(ROWS_JS)
         return self.last
@@ -196,9 +202,7 @@ def run(args, driver, summary):
     lap = lambda: round(time.monotonic() - t0, 1)  # noqa: E731
 
     # 1. Page, stream, rows.
-    driver.get(args.url)
-    ui.wait("the connection indicator to read `connected`",
-            lambda d: d.find_element(By.CSS_SELECTOR, '[data-testid="connection"]').text.strip() == "connected")
+    ui.open(args.url)
     # The load indicator (every `vehicles` frame carries the process's load).
     ui.wait("the load indicator to show the process's load",
             lambda d: d.find_element(By.CSS_SELECTOR, '[data-testid="load"]').get_attribute("data-level")

@@ -135,9 +135,8 @@ def run(args, driver, summary):
             canvas, int(round(x - r["width"] / 2)), int(round(y - r["height"] / 2)))
 
     # 1. The page, the vehicles, the map.
-    driver.get(args.url)
+    ui.open(args.url)
     canvas = driver.find_element(By.CSS_SELECTOR, '[data-testid="plan"]')
-    ui.wait("`connected`", lambda d: d.find_element(By.CSS_SELECTOR, '[data-testid="connection"]').text.strip() == "connected")
     ui.wait(f"{n} vehicle rows", lambda d: len(ui.rows()) == n)
     ui.wait("the map and the swarm origin", lambda d: view()["source"] == "mbtiles" and view()["lat0"] is not None)
     v = settled()

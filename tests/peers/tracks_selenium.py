@@ -55,8 +55,7 @@ def parse_args():
 def run(args, driver, summary):
     ui = Dashboard(driver, args.timeout)
     t0 = time.monotonic()
-    driver.get(args.url)
-    ui.wait("connected", lambda d: d.find_element(By.CSS_SELECTOR, '[data-testid="connection"]').text.strip() == "connected")
+    ui.open(args.url)
     ui.click("tab-tracks")
     size = driver.execute_script(
         "const c = document.getElementById('plan'); return [c.clientWidth, c.clientHeight];")

@@ -303,6 +303,24 @@ impl Skein {
 }
 
 impl Api {
+    /// Records on demand as `name` (`POST /api/v1/recording/start`, 201) until the
+    /// recording reports `elapsed_s` of at least `seconds` (within `within`), then stops
+    /// it (`POST /api/v1/recording/stop`, 200); returns the stop's body (`path`, ...).
+    pub fn record_for(&self, name: &str, seconds: f64, within: Duration) -> Value {
+        let (status, body) = self.post("/api/v1/recording/start", json!({"name": name}));
+        assert_eq!(status, 201, "{body}");
+        eventually(&format!("{seconds} s recorded"), within, || {
+            let r = self.get("/api/v1/recording").1;
+            match r["recording"]["elapsed_s"].as_f64() {
+                Some(t) if t >= seconds => Ok(()),
+                _ => Err(r.to_string()),
+            }
+        });
+        let (status, body) = self.post("/api/v1/recording/stop", json!({}));
+        assert_eq!(status, 200, "{body}");
+        body
+    }
+
     /// `GET /api/v1/formation`.
     pub fn formation(&self) -> Value {
         self.get("/api/v1/formation").1
