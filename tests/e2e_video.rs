@@ -21,6 +21,8 @@
 //! given the lens's `camera_info` YAML rectifies it and its detector finds the intruder at
 //! the render's bearing (within 0.5°); a camera taking it for an ideal pinhole is off by
 //! more than 0.8°.
+//!
+//! The camera's other real sources (ROS 2 image topics, V4L2 devices): `e2e_video_sources`.
 
 mod support;
 
@@ -29,12 +31,11 @@ use std::time::Duration;
 use support::payloads::{jpeg_size, payload, write_config};
 use support::plugins::{build_into, scratch};
 use support::rtsp::RtspCamera;
+use support::video::{
+    camera, dashboard_shows, detection_near, never_restarted, streaming_past,
+    up_rendering_the_intruder,
+};
 use support::{Skein, eventually, free_tcp_port, run_peer};
-
-/// The camera's state in `slot` of uav-1.
-fn camera(skein: &Skein, slot: &str) -> Value {
-    payload(skein, "uav-1", slot)["state"].clone()
-}
 
 /// The payloads of `deploy/config/observation-rtsp.toml` (the seed's observation UAV:
 /// gimbal, RTSP camera, detector), its camera pointed at `url`, as a `[models.observation]`
@@ -51,58 +52,6 @@ fn observation_preset(url: &str) -> String {
         "the preset's camera URL changed: update this test"
     );
     table.replace(shipped, url)
-}
-
-/// Waits until `slot` streams and has published more than `frames` frames; its state.
-fn streaming_past(skein: &Skein, slot: &str, frames: u64) -> Value {
-    eventually(
-        &format!("{slot} streaming past frame {frames}"),
-        Duration::from_secs(40),
-        || {
-            let s = camera(skein, slot);
-            let ok = s["source_status"]["state"] == "streaming"
-                && s["frames"].as_u64().is_some_and(|f| f > frames);
-            if ok { Ok(s) } else { Err(s.to_string()) }
-        },
-    )
-}
-
-/// The payload at `coordinator/uav-1/payload/SLOT` was never restarted, nor the vehicle.
-fn never_restarted(skein: &Skein, slots: &[&str]) {
-    for slot in slots {
-        assert_eq!(
-            skein.restarts(&format!("coordinator/uav-1/payload/{slot}")),
-            0,
-            "{slot}"
-        );
-    }
-    assert_eq!(skein.restarts("coordinator/uav-1"), 0, "the vehicle");
-}
-
-/// The dashboard in headless Chromium shows uav-1's camera card in `slot` as `expect`
-/// (`tests/peers/camera_selenium.py`).
-fn dashboard_shows(skein: &Skein, slot: &str, expect: &str) {
-    let url = format!("{}/", skein.base);
-    let (code, out, err) = run_peer(
-        "camera_selenium.py",
-        &[
-            "--url",
-            &url,
-            "--vehicle",
-            "uav-1",
-            "--slot",
-            slot,
-            "--expect",
-            expect,
-        ],
-        Duration::from_secs(120),
-    );
-    assert_eq!(
-        code,
-        Some(0),
-        "camera_selenium.py --expect {expect} (exit {code:?})\n--- stdout\n{out}\n--- stderr\n{err}"
-    );
-    eprintln!("dashboard: {}", out.trim());
 }
 
 #[test]
@@ -297,23 +246,6 @@ fn rtsp_cameras_stream_stall_come_back_and_count_what_is_broken() {
     drop((good, corrupt, garbage));
 }
 
-/// The detection nearest `x_px` in the detector's last frame, as (center x, center y,
-/// azimuth, elevation).
-fn detection_near(state: &Value, x_px: f64) -> Option<(f64, f64, f64, f64)> {
-    state["last"]["detections"]
-        .as_array()?
-        .iter()
-        .map(|d| {
-            (
-                d["center_px"]["x"].as_f64().unwrap(),
-                d["center_px"]["y"].as_f64().unwrap(),
-                d["azimuth_deg"].as_f64().unwrap(),
-                d["elevation_deg"].as_f64().unwrap(),
-            )
-        })
-        .min_by(|a, b| (a.0 - x_px).abs().total_cmp(&(b.0 - x_px).abs()))
-}
-
 #[test]
 fn the_detector_finds_the_intruder_on_decoded_h264_where_it_finds_it_on_the_render() {
     let dir = scratch("video-detector");
@@ -349,40 +281,9 @@ fn the_detector_finds_the_intruder_on_decoded_h264_where_it_finds_it_on_the_rend
             frame_rate_hz = 10.0, {optics} }} }},\n\
          {{ slot = \"detector_lens_raw\", kind = \"detector\", config = {{ camera_slot = \"camera_lens_raw\" }} }},\n]\n"
     );
-    let config = write_config(&dir, &config);
-    let mut args = vec!["--config", &config, "--plugin-dir", dir.to_str().unwrap()];
-    let pass = support::counter_uas::pass_args("straight", 1, 0.5);
-    args.extend(pass.iter().map(String::as_str));
-    let skein = Skein::up_sim(1, &args);
-
     // The render: one frame with the intruder in it, and what the detector finds on it.
-    let (truth_x, render) = eventually("the intruder rendered", Duration::from_secs(30), || {
-        let (code, frame) = skein.post(
-            "/api/v1/vehicles/uav-1/payloads/camera",
-            json!({"command": "capture"}),
-        );
-        let intruder = frame["visible"]
-            .as_array()
-            .and_then(|v| v.iter().find(|a| a["intruder"] == true).cloned());
-        let Some(intruder) = intruder.filter(|_| code == 200) else {
-            return Err(format!("{code}: {frame}"));
-        };
-        let (code, _, jpeg) = skein.get_bytes("/api/v1/vehicles/uav-1/payloads/camera/snapshot");
-        let (dcode, det) = skein.post(
-            "/api/v1/vehicles/uav-1/payloads/detector",
-            json!({"command": "detect"}),
-        );
-        let x = intruder["x_px"].as_f64().unwrap();
-        let found = detection_near(&json!({"last": det}), x)
-            .filter(|d| (d.0 - x).abs() < 6.0 && code == 200 && dcode == 200);
-        match found {
-            Some(d) => Ok((x, (jpeg, d))),
-            None => Err(format!("no detection near x = {x}: {det}")),
-        }
-    });
-    let (jpeg, on_render) = render;
-    let image = dir.join("render.jpg");
-    std::fs::write(&image, &jpeg).unwrap();
+    let (skein, render) = up_rendering_the_intruder(&dir, &config);
+    let (truth_x, on_render, image) = (render.truth_x, render.on_render, &render.image);
 
     // The same picture through H.264 and RTSP.
     let image_arg = image.to_str().unwrap().to_string();
@@ -427,7 +328,7 @@ fn the_detector_finds_the_intruder_on_decoded_h264_where_it_finds_it_on_the_rend
     // Through the lens: rectified with its calibration, the intruder is where the render
     // has it; taken for an ideal pinhole, it is not.
     let ideal = {
-        let mut decoder = jpeg_decoder::Decoder::new(jpeg.as_slice());
+        let mut decoder = jpeg_decoder::Decoder::new(render.jpeg.as_slice());
         decoder.decode().expect("the render decodes")
     };
     let warped = support::lens::warp_through(&camera_info, &ideal, 640, 480, focal_px);

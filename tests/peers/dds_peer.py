@@ -27,7 +27,6 @@ Prints one JSON line with what it saw; exits non-zero with the reason on any fai
 import argparse
 import json
 import math
-import os
 import sys
 import time
 import urllib.request
@@ -36,23 +35,13 @@ from dataclasses import dataclass
 from cyclonedds.core import DDSStatus, Policy, Qos, WaitSet
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.idl import IdlStruct
-from cyclonedds.idl.types import array, float64, int32, sequence, uint32, uint64
+from cyclonedds.idl.types import array, float64, sequence, uint32, uint64
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
-
-@dataclass
-class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
-    sec: int32
-    nanosec: uint32
-
-
-@dataclass
-class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
-    stamp: Time
-    frame_id: str
+from cyclone_ros import XCDR1, Header, use_loopback
 
 
 @dataclass
@@ -210,29 +199,20 @@ def main():
     ap.add_argument("--tracks", action="store_true")
     args = ap.parse_args()
     if args.loopback:
-        os.environ["CYCLONEDDS_URI"] = (
-            "<CycloneDDS><Domain Id='any'><General><Interfaces>"
-            "<NetworkInterface address='127.0.0.1'/></Interfaces>"
-            "<AllowMulticast>false</AllowMulticast></General>"
-            "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
-            "<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex>"
-            "<Peers><Peer address='127.0.0.1'/></Peers></Discovery></Domain></CycloneDDS>"
-        )
+        use_loopback()
     ros = args.vehicle.replace("-", "_")
     deadline = time.monotonic() + args.timeout
 
-    # ROS 2's rmw_cyclonedds writes XCDR1; so does skein (RustDDS).
-    xcdr1 = Policy.DataRepresentation(use_cdrv0_representation=True)
     dp = DomainParticipant(args.domain)
     pose_reader = DataReader(
         dp,
         Topic(dp, f"rt/skein/{ros}/pose", PoseStamped),
-        qos=Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(1), xcdr1),
+        qos=Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(1), XCDR1),
     )
     reliable = Qos(
         Policy.Reliability.Reliable(duration(milliseconds=100)),
         Policy.History.KeepLast(16),
-        xcdr1,
+        XCDR1,
     )
     cmd_writer = DataWriter(dp, Topic(dp, f"rt/skein/{ros}/command", Command), qos=reliable)
     result_reader = DataReader(

@@ -26,6 +26,7 @@ pub mod ros2;
 pub mod rtsp;
 mod sim_stats;
 mod skein;
+pub mod video;
 
 // Each test binary uses a different subset.
 #[allow(unused_imports)]

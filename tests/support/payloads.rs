@@ -61,3 +61,36 @@ pub fn jpeg_size(jpeg: &[u8]) -> (u16, u16) {
     let info = decoder.info().expect("JPEG info");
     (info.width, info.height)
 }
+
+/// The first `n` JPEG parts of the camera's MJPEG stream (`GET
+/// /api/v1/vehicles/{vehicle}/payloads/{slot}/stream`, `multipart/x-mixed-replace`, what
+/// the dashboard's `<img>` shows as video), each checked by [`jpeg_size`]; panics when
+/// the stream breaks or gives fewer within 20 s.
+pub fn mjpeg_parts(skein: &Skein, vehicle: &str, slot: &str, n: usize) -> Vec<Vec<u8>> {
+    use std::io::{BufRead, BufReader, Read};
+    let path = format!("/api/v1/vehicles/{vehicle}/payloads/{slot}/stream");
+    let (status, ctype, body) = skein.get_stream(&path);
+    assert_eq!(status, 200, "{path}");
+    assert!(ctype.starts_with("multipart/x-mixed-replace"), "{ctype}");
+    let mut reader = BufReader::new(body);
+    let mut parts = Vec::new();
+    let mut length = None;
+    let mut line = String::new();
+    while parts.len() < n {
+        line.clear();
+        let read = reader.read_line(&mut line).expect("the stream goes on");
+        assert!(read > 0, "the stream ended after {} parts", parts.len());
+        let l = line.trim_end();
+        if let Some(v) = l.strip_prefix("Content-Length: ") {
+            length = Some(v.parse::<usize>().expect("a length"));
+        } else if l.is_empty()
+            && let Some(len) = length.take()
+        {
+            let mut jpeg = vec![0; len];
+            reader.read_exact(&mut jpeg).expect("a whole part");
+            jpeg_size(&jpeg);
+            parts.push(jpeg);
+        }
+    }
+    parts
+}

@@ -374,10 +374,11 @@ impl Api {
             .unwrap_or_else(|| panic!("{path}: no restart count"))
     }
 
-    /// `GET path` → (status, content type, raw body): snapshots and other binary bodies.
-    pub fn get_bytes(&self, path: &str) -> (u16, String, Vec<u8>) {
+    /// `GET path` → (status, content type, the body as it arrives): streamed bodies
+    /// (MJPEG), read within the agent's 20 s.
+    pub fn get_stream(&self, path: &str) -> (u16, String, impl std::io::Read + use<>) {
         let url = format!("{}{path}", self.base);
-        let mut r = self.agent.get(&url).call().expect("GET");
+        let r = self.agent.get(&url).call().expect("GET");
         let status = r.status().as_u16();
         let ctype = r
             .headers()
@@ -385,12 +386,18 @@ impl Api {
             .and_then(|v| v.to_str().ok())
             .unwrap_or_default()
             .to_string();
-        let body = r
-            .body_mut()
-            .with_config()
-            .limit(64 * 1024 * 1024)
-            .read_to_vec()
+        (status, ctype, r.into_body().into_reader())
+    }
+
+    /// `GET path` → (status, content type, raw body): snapshots and other binary bodies
+    /// (at most 64 MiB).
+    pub fn get_bytes(&self, path: &str) -> (u16, String, Vec<u8>) {
+        use std::io::Read;
+        let (status, ctype, body) = self.get_stream(path);
+        let mut bytes = Vec::new();
+        body.take(64 * 1024 * 1024)
+            .read_to_end(&mut bytes)
             .expect("read the body");
-        (status, ctype, body)
+        (status, ctype, bytes)
     }
 }

@@ -1,9 +1,11 @@
 //! The camera payload plugin: frames for the vehicle's video stream, as JPEG.
 //!
-//! The frames come from a [`source::FrameSource`]: a real camera's RTSP/H.264 stream
-//! ([`stream`], `source = "rtsp://…"`: decoded by `skein_video`, each frame given the
-//! vehicle's and gimbal's pose interpolated at its capture time, its health in the state's
-//! `source_status`), or `simulated` ([`simulated`]), which renders
+//! The frames come from a [`source::FrameSource`]: a real camera ([`stream`]: an
+//! RTSP/H.264 stream, `source = "rtsp://…"`, a ROS 2 camera node's image topic, `source =
+//! "ros2:/camera/image_raw/compressed"`, or a V4L2 device, `source = "v4l2:/dev/video0"`
+//! (asked for `width_px` × `height_px` at `frame_rate_hz`); decoded by `skein_video`, each frame
+//! given the vehicle's and gimbal's pose interpolated at its capture time, its health in
+//! the state's `source_status`), or `simulated` ([`simulated`]), which renders
 //! what the vehicle would see: the other aircraft of the swarm projected through a pinhole
 //! model from the vehicle's position and heading and the angles its gimbal publishes,
 //! drawn over a sky/ground background split by the horizon; the focal length is the zoom.
@@ -22,8 +24,11 @@
 //! `frame_rate_hz` 0 captures only on command. `gimbal_slot` `""` means a fixed mount
 //! (`mount_pitch_deg`, `mount_yaw_deg` relative to the vehicle), which is also used while
 //! the gimbal has published no angles.
-//! A real camera adds `"rtsp_transport": "tcp" | "udp"`, `"stall_timeout_s": 2.0`,
-//! `"latency_ms": 0` and takes `"horizontal_fov_deg"` instead of `focal_length_mm`, or
+//! A real camera adds `"stall_timeout_s": 2.0`, `"latency_ms": 0` (capture to arrival,
+//! for frames without their own capture time), for RTSP `"rtsp_transport": "tcp" |
+//! "udp"`, for ROS 2 `"ros_domain_id": 0` (default `ROS_DOMAIN_ID`, else 0) and
+//! `"dds_network": ["192.168.144.20"]` (the local addresses DDS may use; default all),
+//! and takes `"horizontal_fov_deg"` instead of `focal_length_mm`, or
 //! `"camera_info_file": "/etc/skein/camera_info/gimbal.yaml"` (its ROS/OpenCV
 //! `camera_info` calibration: every frame is rectified into the ideal pinhole the
 //! detector assumes, [`skein_video::rectify`], and the calibration gives the field of
@@ -36,7 +41,7 @@
 //! - `{"command": "set_focal_length", "focal_length_mm": 12.0}` (within the zoom range)
 //! - `{"command": "set_zoom", "zoom": 3.0}` (focal length = `focal_min_mm` × zoom)
 //!
-//! A real camera (RTSP) refuses both zoom commands with the reason: its zoom is the
+//! A real camera (RTSP, ROS 2, V4L2) refuses both zoom commands with the reason: its zoom is the
 //! camera's own, and skein's pinhole model follows the configured field of view.
 //! - `{"command": "set_frame_rate", "frame_rate_hz": 10}`
 //! - `{"command": "status"}`
@@ -52,12 +57,14 @@
 //! ```
 //! `source_status` is a real source's health ([`skein_video::status::StreamStatus`]).
 
+pub mod config;
 pub mod pose;
 pub mod render;
 pub mod simulated;
 pub mod source;
 pub mod stream;
 
+use config::{Config, SourceKind, lens_calibration, only_for, open_real};
 use render::Pinhole;
 use simulated::SimulatedSource;
 use skein_plugin_sdk::args::{self, in_range};
@@ -66,12 +73,9 @@ use skein_plugin_sdk::serde::Deserialize;
 use skein_plugin_sdk::serde_json::{Value, json};
 use skein_plugin_sdk::{Context, Plugin, export_plugin};
 use skein_video::recent::Recent;
-use skein_video::rectify::{Calibration, Rectifier};
-use skein_video::rtsp::{RtpTransport, RtspConfig};
+use skein_video::rectify::Calibration;
 use source::{CapturedFrame, FrameData, FrameSource, Mount};
-use std::path::Path;
 use std::time::{Duration, Instant};
-use stream::StreamSource;
 
 /// Encodes RGB8 pixels as a baseline JPEG, with the frame's pose as XMP metadata when
 /// given (see `skein_plugin_sdk::frame_meta`).
@@ -100,59 +104,6 @@ pub fn encode_jpeg(
         .encode(rgb, w, h, jpeg_encoder::ColorType::Rgb)
         .map_err(|e| format!("JPEG encoding failed: {e}"))?;
     Ok(out)
-}
-
-/// Where frames come from (`source`).
-#[derive(Debug, Clone, PartialEq)]
-enum SourceKind {
-    /// `"simulated"`: the rendered world.
-    Simulated,
-    /// `"rtsp://…"`: a real camera's H.264 stream.
-    Rtsp(skein_video::rtsp::Url),
-}
-
-impl SourceKind {
-    /// Parses the `source` key.
-    fn parse(source: &str) -> Result<SourceKind, String> {
-        if source == "simulated" {
-            return Ok(SourceKind::Simulated);
-        }
-        if source.starts_with("rtsp://") {
-            return RtspConfig::parse_url(source)
-                .map(SourceKind::Rtsp)
-                .map_err(|e| format!("source: {e}"));
-        }
-        Err(format!(
-            "source: expected \"simulated\" or an RTSP URL (\"rtsp://host:8554/main\"), got \"{source}\""
-        ))
-    }
-}
-
-/// The configuration (see the crate docs): every field optional, ranges checked in
-/// `create`. Pixel counts and the JPEG quality are read as numbers, as they
-/// always were (`640.0` is 640).
-#[derive(Deserialize)]
-#[serde(crate = "skein_plugin_sdk::serde", deny_unknown_fields)]
-struct Config {
-    source: Option<String>,
-    rtsp_transport: Option<String>,
-    stall_timeout_s: Option<f64>,
-    latency_ms: Option<f64>,
-    camera_info_file: Option<String>,
-    horizontal_fov_deg: Option<f64>,
-    width_px: Option<f64>,
-    height_px: Option<f64>,
-    frame_rate_hz: Option<f64>,
-    focal_length_mm: Option<f64>,
-    focal_min_mm: Option<f64>,
-    focal_max_mm: Option<f64>,
-    sensor_width_mm: Option<f64>,
-    jpeg_quality: Option<f64>,
-    gimbal_slot: Option<String>,
-    mount_pitch_deg: Option<f64>,
-    mount_yaw_deg: Option<f64>,
-    ground_down_m: Option<f64>,
-    aircraft_span_m: Option<f64>,
 }
 
 /// The camera's commands (see the crate docs), tagged by `command`.
@@ -295,30 +246,6 @@ impl Camera {
     }
 }
 
-/// A calibrated lens (`camera_info_file`: a real camera's, rectified into an ideal
-/// pinhole by the stream source; the calibration gives the field of view), or none.
-///
-/// # Errors
-/// A calibration for the simulated camera (an ideal pinhole already), one given beside
-/// `horizontal_fov_deg` or `focal_length_mm`, or a file that is no valid calibration
-/// ([`Calibration::from_ros_yaml_file`]).
-fn lens_calibration(kind: &SourceKind, c: &Config) -> Result<Option<Calibration>, String> {
-    match c.camera_info_file.as_deref() {
-        None => Ok(None),
-        Some(_) if *kind == SourceKind::Simulated => Err(
-            "camera_info_file: the simulated camera is an ideal pinhole; a calibration is \
-             for a real camera's frames"
-                .to_string(),
-        ),
-        Some(_) if c.horizontal_fov_deg.is_some() || c.focal_length_mm.is_some() => Err(
-            "camera_info_file: the calibration gives the field of view; leave out \
-             horizontal_fov_deg and focal_length_mm"
-                .to_string(),
-        ),
-        Some(path) => Calibration::from_ros_yaml_file(Path::new(path)).map(Some),
-    }
-}
-
 impl Plugin for Camera {
     const NAME: &'static str = "camera";
     const VERSION: &'static str = env!("CARGO_PKG_VERSION");
@@ -327,6 +254,7 @@ impl Plugin for Camera {
     fn create(_kind: &str, config: Value, _ctx: &Context) -> Result<Self, String> {
         let c: Config = args::config(config)?;
         let kind = SourceKind::parse(c.source.as_deref().unwrap_or("simulated"))?;
+        only_for(&kind, &c)?;
         let sensor_width_mm = in_range(
             "sensor_width_mm",
             c.sensor_width_mm.unwrap_or(6.17),
@@ -414,38 +342,13 @@ impl Plugin for Camera {
                     100.0,
                 )?,
             }),
-            SourceKind::Rtsp(url) => {
-                let transport = match c.rtsp_transport.as_deref().unwrap_or("tcp") {
-                    "tcp" => RtpTransport::Tcp,
-                    "udp" => RtpTransport::Udp,
-                    other => {
-                        return Err(format!(
-                            "rtsp_transport: expected \"tcp\" or \"udp\", got \"{other}\""
-                        ));
-                    }
-                };
-                let config = RtspConfig {
-                    url,
-                    transport,
-                    stall_timeout: Duration::from_secs_f64(in_range(
-                        "stall_timeout_s",
-                        c.stall_timeout_s.unwrap_or(2.0),
-                        0.2,
-                        60.0,
-                    )?),
-                    latency_ms: in_range("latency_ms", c.latency_ms.unwrap_or(0.0), 0.0, 2000.0)?,
-                };
+            real => {
                 let size = match (width_px, height_px) {
                     (Some(w), Some(h)) => Some((w, h)),
                     (None, None) => None,
-                    _ => return Err("width_px: give both width_px and height_px, or neither (the stream's size)".into()),
+                    _ => return Err("width_px: give both width_px and height_px, or neither (the source's size)".into()),
                 };
-                Box::new(StreamSource::start(
-                    config,
-                    mount,
-                    size,
-                    calibration.map(Rectifier::new),
-                )?)
+                Box::new(open_real(real, &c, mount, size, calibration)?)
             }
         };
         Ok(Camera {
@@ -548,50 +451,3 @@ impl Plugin for Camera {
 }
 
 export_plugin!(Camera);
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_lens_calibration_is_for_a_real_camera_and_alone() {
-        let config = |v: Value| -> Config { args::config(v).unwrap() };
-        let rtsp = SourceKind::parse("rtsp://cam:8554/main").unwrap();
-        let none = config(json!({"source": "rtsp://cam:8554/main"}));
-        assert!(lens_calibration(&rtsp, &none).unwrap().is_none());
-        let simulated = config(json!({"camera_info_file": "/etc/cam.yaml"}));
-        let e = lens_calibration(&SourceKind::Simulated, &simulated).unwrap_err();
-        assert!(
-            e.starts_with("camera_info_file: the simulated camera"),
-            "{e}"
-        );
-        let both = config(json!({"camera_info_file": "/etc/cam.yaml", "horizontal_fov_deg": 80.0}));
-        let e = lens_calibration(&rtsp, &both).unwrap_err();
-        assert!(e.contains("leave out horizontal_fov_deg"), "{e}");
-        let missing = config(json!({"camera_info_file": "/nonexistent/cam.yaml"}));
-        let e = lens_calibration(&rtsp, &missing).unwrap_err();
-        assert!(
-            e.starts_with("camera_info_file /nonexistent/cam.yaml:"),
-            "{e}"
-        );
-    }
-
-    #[test]
-    fn sources_are_parsed_and_bad_ones_named() {
-        assert_eq!(SourceKind::parse("simulated"), Ok(SourceKind::Simulated));
-        assert!(matches!(
-            SourceKind::parse("rtsp://cam:8554/main"),
-            Ok(SourceKind::Rtsp(u)) if u.port() == Some(8554)
-        ));
-        let e = SourceKind::parse("v4l2:/dev/video0").unwrap_err();
-        assert!(
-            e.starts_with("source:") && e.contains("v4l2:/dev/video0"),
-            "{e}"
-        );
-        assert!(
-            SourceKind::parse("rtsp://")
-                .unwrap_err()
-                .starts_with("source:")
-        );
-    }
-}

@@ -118,9 +118,6 @@ pub fn pose_info(meta: &FrameMeta, from: &str) -> Value {
     })
 }
 
-/// Wall-clock µs since the Unix epoch: the frames' capture stamps (`FrameMeta::stamp_us`).
-pub fn now_us() -> u64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_micros() as u64)
-}
+/// Wall-clock µs since the Unix epoch: the frames' capture stamps (`FrameMeta::stamp_us`),
+/// on the clock the real sources stamp with.
+pub use skein_video::clock::wall_us as now_us;

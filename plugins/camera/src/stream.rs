@@ -1,5 +1,6 @@
-//! A real camera's RTSP/H.264 stream as the camera's frame source (`source =
-//! "rtsp://…"`): frames decoded by `skein_video` on its own thread, taken here when the
+//! A real camera as the camera's frame source: an RTSP/H.264 stream (`source =
+//! "rtsp://…"`), a ROS 2 image topic (`"ros2:/topic"`) or a V4L2 device
+//! (`"v4l2:/dev/video0"`), its frames decoded by `skein_video` on a thread of its own, taken here when the
 //! camera wants one, rectified when the lens is calibrated or else scaled to the
 //! configured size, and given the pose the vehicle and the gimbal had at the frame's
 //! capture time ([`crate::pose`]).
@@ -11,17 +12,19 @@ use skein_plugin_sdk::Context;
 use skein_plugin_sdk::frame_meta::FrameMeta;
 use skein_plugin_sdk::geometry::wrap_deg_360;
 use skein_plugin_sdk::serde_json::{self, Value, json};
+use skein_video::input::VideoInput;
 use skein_video::rectify::Rectifier;
-use skein_video::rtsp::{RtspConfig, RtspSource};
 use skein_video::scale::{RgbFrame, scale};
 use skein_video::status::SourceState;
 
 /// How often the camera polls a stream (and samples the pose history), Hz.
 pub const POLL_RATE_HZ: f64 = 25.0;
 
-/// The RTSP frame source.
+/// A real camera's frame source.
 pub struct StreamSource {
-    rtsp: RtspSource,
+    /// `"rtsp"`, `"ros2"` or `"v4l2"`.
+    name: &'static str,
+    input: VideoInput,
     mount: Mount,
     /// Output size; `None`: the stream's own.
     size_px: Option<(u32, u32)>,
@@ -31,24 +34,24 @@ pub struct StreamSource {
 }
 
 impl StreamSource {
-    /// Starts receiving `config`'s stream; frames come out at `size_px` (or the stream's
-    /// size), rectified by `rectifier` when the lens is calibrated, aimed by `mount`.
-    ///
-    /// # Errors
-    /// The receiving thread could not start.
-    pub fn start(
-        config: RtspConfig,
+    /// The camera's source `name` on the running `input`; frames come out at `size_px`
+    /// (or the source's size), rectified by `rectifier` when the lens is calibrated,
+    /// aimed by `mount`.
+    pub fn new(
+        name: &'static str,
+        input: VideoInput,
         mount: Mount,
         size_px: Option<(u32, u32)>,
         rectifier: Option<Rectifier>,
-    ) -> Result<Self, String> {
-        Ok(StreamSource {
-            rtsp: RtspSource::start(config)?,
+    ) -> Self {
+        StreamSource {
+            name,
+            input,
             mount,
             size_px,
             rectifier,
             poses: PoseHistory::default(),
-        })
+        }
     }
 
     /// The decoded `frame` at the output size: rectified (after a filtered scale down to
@@ -88,7 +91,7 @@ impl StreamSource {
 
 impl FrameSource for StreamSource {
     fn name(&self) -> &'static str {
-        "rtsp"
+        self.name
     }
 
     fn polls(&self) -> bool {
@@ -100,7 +103,7 @@ impl FrameSource for StreamSource {
     }
 
     fn status(&self) -> Option<Value> {
-        serde_json::to_value(self.rtsp.status()).ok()
+        serde_json::to_value(self.input.status()).ok()
     }
 
     fn capture(
@@ -113,8 +116,8 @@ impl FrameSource for StreamSource {
         if !take {
             return Ok(None);
         }
-        let Some(decoded) = self.rtsp.take_latest() else {
-            let status = self.rtsp.status();
+        let Some(decoded) = self.input.take_latest() else {
+            let status = self.input.status();
             return match status.state {
                 SourceState::Streaming => Ok(None),
                 state => Err(format!(

@@ -8,6 +8,14 @@
 //! and subtracts the camera's own latency (sensor to encoder output, from the config or
 //! the camera's datasheet), which no receiver can measure.
 
+/// Wall-clock µs since the Unix epoch (0 before it): the unit of every capture time here
+/// and of the frames' `stamp_us`.
+pub fn wall_us() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64)
+}
+
 /// Maps media times (seconds since the session's first frame) to wall-clock capture times
 /// (µs since the Unix epoch). One per session: a new session restarts the media clock.
 #[derive(Debug, Clone, Copy, PartialEq)]

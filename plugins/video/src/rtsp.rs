@@ -3,32 +3,20 @@
 //! single-threaded tokio runtime, decodes each H.264 access unit ([`crate::h264`]) and
 //! keeps the newest frame for the camera to take. A stream that ends, stalls (no frame
 //! decoded within the stall timeout) or cannot be opened is reported in
-//! [`StreamStatus`] and opened again with backoff (0.5 s doubling to 5 s); the camera
+//! the source's status and opened again with backoff ([`crate::input`]); the camera
 //! and the vehicle never wait on it.
 
 use crate::clock::CaptureClock;
 use crate::h264::{DecodeError, H264Decoder};
-use crate::recent::Recent;
-use crate::scale::RgbFrame;
-use crate::status::{Dropped, SourceState, StreamStatus};
+use crate::input::{Shared, VideoInput, runtime};
 use futures_util::StreamExt;
 use retina::client::{Credentials, PlayOptions, Session, SessionOptions, SetupOptions, Transport};
 use retina::codec::{CodecItem, FrameFormat};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
-use tokio::sync::Notify;
 pub use url::Url;
 
-/// First wait before opening a failed stream again; doubled after each failure.
-pub const MIN_BACKOFF: Duration = Duration::from_millis(500);
-/// Longest wait between attempts to open a stream.
-pub const MAX_BACKOFF: Duration = Duration::from_secs(5);
 /// How long `DESCRIBE`, `SETUP` and `PLAY` may each take before the attempt fails.
 pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(5);
-/// The window over which `stream_rate_hz` is measured.
-const RATE_WINDOW: Duration = Duration::from_secs(3);
 
 /// RTP transport (RFC 2326 §12.39).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -97,191 +85,20 @@ fn scrub(text: String, url: &Url) -> String {
     }
 }
 
-/// A decoded frame and when the camera captured it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DecodedFrame {
-    /// The pixels, at the stream's size.
-    pub frame: RgbFrame,
-    /// Capture time, wall-clock µs since the Unix epoch ([`CaptureClock`]).
-    pub capture_us: u64,
-}
-
-struct Health {
-    status: StreamStatus,
-    /// The frames decoded in the last [`RATE_WINDOW`].
-    recent: Recent<()>,
-}
-
-struct Shared {
-    latest: Mutex<Option<DecodedFrame>>,
-    health: Mutex<Health>,
-    stop: AtomicBool,
-    wake: Notify,
-}
-
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    // A panic elsewhere while holding the lock leaves the data as it was: still usable.
-    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-}
-
-impl Shared {
-    fn health<R>(&self, f: impl FnOnce(&mut Health) -> R) -> R {
-        f(&mut lock(&self.health))
-    }
-
-    fn publish(&self, frame: RgbFrame, capture_us: u64) {
-        let (w, h) = (frame.width_px, frame.height_px);
-        let superseded = lock(&self.latest)
-            .replace(DecodedFrame { frame, capture_us })
-            .is_some();
-        let now = Instant::now();
-        self.health(|h_| {
-            let s = &mut h_.status;
-            s.frames_decoded += 1;
-            s.dropped.superseded += u64::from(superseded);
-            s.stream_width_px = Some(w);
-            s.stream_height_px = Some(h);
-            s.state = SourceState::Streaming;
-            s.detail = None;
-            h_.recent.push(now, ());
-        });
-    }
-
-    /// The session ended or could not start: stalled once it has streamed, else failed.
-    fn lost(&self, why: String) {
-        self.health(|h| {
-            h.status.state = if h.status.frames_decoded > 0 {
-                SourceState::Stalled
-            } else {
-                SourceState::Failed
-            };
-            h.status.detail = Some(why);
-        });
-    }
-
-    fn count(&self, f: impl FnOnce(&mut Dropped)) {
-        self.health(|h| f(&mut h.status.dropped));
-    }
-}
-
-/// A running RTSP source. Dropping it stops its thread and waits for it (a plugin's
-/// library must not be unloaded under a thread still running its code).
-pub struct RtspSource {
-    shared: Arc<Shared>,
-    thread: Option<JoinHandle<()>>,
-}
-
-impl RtspSource {
-    /// Starts the source's thread; it connects at once and keeps trying.
-    ///
-    /// # Errors
-    /// The thread could not be started.
-    pub fn start(config: RtspConfig) -> Result<Self, String> {
-        let status = StreamStatus {
-            state: SourceState::Connecting,
-            url: shown(&config.url),
-            transport: config.transport.name(),
-            detail: None,
-            frames_decoded: 0,
-            dropped: Dropped::default(),
-            sessions: 0,
-            stream_width_px: None,
-            stream_height_px: None,
-            stream_rate_hz: None,
-            last_frame_age_ms: None,
-        };
-        let shared = Arc::new(Shared {
-            latest: Mutex::new(None),
-            health: Mutex::new(Health {
-                status,
-                recent: Recent::new(RATE_WINDOW),
-            }),
-            stop: AtomicBool::new(false),
-            wake: Notify::new(),
-        });
-        let s = shared.clone();
-        let thread = std::thread::Builder::new()
-            .name("skein-rtsp".into())
-            .spawn(move || run(&s, &config))
-            .map_err(|e| format!("cannot start the RTSP thread: {e}"))?;
-        Ok(RtspSource {
-            shared,
-            thread: Some(thread),
-        })
-    }
-
-    /// The newest decoded frame not taken yet, taken (a later call gives it no more;
-    /// `None` until a newer one is decoded).
-    pub fn take_latest(&self) -> Option<DecodedFrame> {
-        lock(&self.shared.latest).take()
-    }
-
-    /// The source's health now.
-    pub fn status(&self) -> StreamStatus {
-        self.shared.health(|h| {
-            let mut s = h.status.clone();
-            s.last_frame_age_ms = h.recent.last_at().map(|t| t.elapsed().as_millis() as u64);
-            s.stream_rate_hz = h.recent.rate_hz();
-            s
-        })
-    }
-}
-
-impl Drop for RtspSource {
-    fn drop(&mut self) {
-        self.shared.stop.store(true, Ordering::SeqCst);
-        self.shared.wake.notify_one();
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-/// The thread: sessions, one after the other, with backoff between failures.
-fn run(shared: &Shared, config: &RtspConfig) {
-    let rt = match tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-    {
-        Ok(rt) => rt,
-        Err(e) => return shared.lost(format!("no runtime for the RTSP session: {e}")),
-    };
-    rt.block_on(async {
-        let mut backoff = MIN_BACKOFF;
-        while !shared.stop.load(Ordering::SeqCst) {
-            let before = shared.health(|h| {
-                h.status.sessions += 1;
-                if h.status.frames_decoded == 0 {
-                    h.status.state = SourceState::Connecting;
-                }
-                h.status.frames_decoded
-            });
-            let outcome = tokio::select! {
-                r = session(shared, config) => r,
-                () = shared.wake.notified() => return,
-            };
-            if shared.stop.load(Ordering::SeqCst) {
-                return;
-            }
-            let streamed = shared.health(|h| h.status.frames_decoded > before);
-            if streamed {
-                backoff = MIN_BACKOFF;
-            }
-            let why = scrub(
-                outcome.err().unwrap_or_else(|| "the stream ended".into()),
-                &config.url,
+/// Starts receiving `config`'s stream on a thread of its own; it connects at once and
+/// keeps trying.
+///
+/// # Errors
+/// The thread could not be started.
+pub fn start(config: RtspConfig) -> Result<VideoInput, String> {
+    let url = shown(&config.url);
+    VideoInput::spawn("skein-rtsp", url, config.transport.name(), move |shared| {
+        if let Some(rt) = runtime(shared, "RTSP session") {
+            rt.block_on(
+                shared.sessions(|| session(shared, &config), |why| scrub(why, &config.url)),
             );
-            shared.lost(format!(
-                "{why}; opening it again in {:.1} s",
-                backoff.as_secs_f64()
-            ));
-            tokio::select! {
-                () = tokio::time::sleep(backoff) => {}
-                () = shared.wake.notified() => return,
-            }
-            backoff = (backoff * 2).min(MAX_BACKOFF);
         }
-    });
+    })
 }
 
 async fn within<T, E: std::fmt::Display>(
@@ -383,6 +200,7 @@ async fn session(shared: &Shared, config: &RtspConfig) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::status::SourceState;
 
     #[test]
     fn urls_are_checked_and_passwords_never_shown() {
@@ -407,21 +225,14 @@ mod tests {
             .local_addr()
             .unwrap()
             .port();
-        let source = RtspSource::start(RtspConfig {
+        let source = start(RtspConfig {
             url: RtspConfig::parse_url(&format!("rtsp://127.0.0.1:{port}/main")).unwrap(),
             transport: RtpTransport::Tcp,
             stall_timeout: Duration::from_secs(1),
             latency_ms: 0.0,
         })
         .unwrap();
-        let deadline = Instant::now() + Duration::from_secs(20);
-        let status = loop {
-            let s = source.status();
-            if s.state == SourceState::Failed || Instant::now() > deadline {
-                break s;
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        };
+        let status = source.status_when(SourceState::Failed, Duration::from_secs(20));
         assert_eq!(status.state, SourceState::Failed, "{status:?}");
         let detail = status.detail.unwrap();
         assert!(

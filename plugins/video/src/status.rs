@@ -7,12 +7,14 @@ use serde::Serialize;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SourceState {
-    /// Opening the stream (RTSP `DESCRIBE`/`SETUP`/`PLAY`), first time or after a retry.
+    /// Opening the source (RTSP `DESCRIBE`/`SETUP`/`PLAY`, a DDS subscription, a V4L2
+    /// device), first time or after a retry.
     Connecting,
     /// Frames arrive and decode.
     Streaming,
-    /// The stream was open but no frame decoded within the stall timeout; the source
-    /// closes the session and reconnects with backoff. The dashboard shows the camera as
+    /// The source was streaming but no frame decoded within the stall timeout; an RTSP or
+    /// V4L2 source closes the session and reopens it with backoff, a ROS 2 subscription
+    /// stays and waits. The dashboard shows the camera as
     /// stalled rather than its last image.
     Stalled,
     /// The stream could not be opened (refused, unreachable, a codec this build does not
@@ -23,14 +25,16 @@ pub enum SourceState {
 /// Frames (or parts of them) dropped, by reason. Every count only grows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 pub struct Dropped {
-    /// Access units the H.264 decoder refused (a corrupt or truncated bitstream) after
-    /// the session's first picture.
+    /// Frames the decoder refused: H.264 access units (a corrupt or truncated bitstream)
+    /// after the session's first picture, JPEG or PNG images that do not decode.
     pub decode_error: u64,
     /// Access units refused before the session's first picture: a session joins a stream
     /// between key frames, and the frames up to the next one refer to pictures it never
     /// received.
     pub before_key_frame: u64,
-    /// Access units with no Annex B start code or an empty payload: not H.264 at all.
+    /// Frames that are no image of their kind: access units with no Annex B start code or
+    /// an empty payload, ROS 2 samples that are not the topic's message (not its CDR) or
+    /// name an unsupported `format`/`encoding` or a size their data does not hold.
     pub malformed: u64,
     /// RTP packets lost before a frame (sequence number gaps, RFC 3550).
     pub lost_packets: u64,
@@ -51,9 +55,11 @@ pub struct Dropped {
 pub struct StreamStatus {
     /// The state.
     pub state: SourceState,
-    /// The source's address, without credentials.
+    /// The source's address, without credentials (`rtsp://…`, `ros2:/topic`,
+    /// `v4l2:/dev/video0`).
     pub url: String,
-    /// RTP transport: `"tcp"` (interleaved on the RTSP connection) or `"udp"`.
+    /// How frames arrive: RTP over `"tcp"` (interleaved on the RTSP connection) or
+    /// `"udp"`, `"dds"` (a ROS 2 topic), `"mmap"` (V4L2 buffers).
     pub transport: &'static str,
     /// Why the source is not streaming (the last error), `null` while it streams.
     pub detail: Option<String>,
@@ -61,7 +67,8 @@ pub struct StreamStatus {
     pub frames_decoded: u64,
     /// Frames dropped, by reason.
     pub dropped: Dropped,
-    /// RTSP sessions opened (the first plus every reconnection).
+    /// Sessions opened (RTSP connections, DDS participants, device openings: the first
+    /// plus every reconnection).
     pub sessions: u64,
     /// Size of the decoded stream, pixels (`null` before the first frame).
     pub stream_width_px: Option<u32>,
