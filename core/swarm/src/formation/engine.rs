@@ -64,7 +64,17 @@ pub struct FormationEngine {
     blocked_changed: bool,
     /// Members that dropped out without being asked.
     absences: Absences,
+    /// Seconds left of [`RESUME_PACE_GRACE`] after a resumed formation.
+    pace_grace_s: f64,
 }
+
+/// After this coordinator resumes another's formation (a failover or a handover,
+/// [`FormationEngine::resume`]), how long the members' distance from where it sent them
+/// does not slow the formation: their agents fly on from their own mirror until they
+/// obey the new coordinator, so that distance says nothing of a member lagging yet, and
+/// a formation slowed for it falls ever further behind where the members fly (the pace
+/// stops it, and the members then have metres to make up).
+pub const RESUME_PACE_GRACE: Duration = Duration::from_secs(3);
 
 /// A member silent for longer than this (six of its reports at 20 Hz) neither slows
 /// the formation nor anchors it: its position is stale, and it flies its slot on its own
@@ -96,6 +106,7 @@ impl Default for FormationEngine {
             blocked: None,
             blocked_changed: false,
             absences: Absences::default(),
+            pace_grace_s: 0.0,
         }
     }
 }
@@ -213,6 +224,7 @@ impl FormationEngine {
         self.stalled_s = 0.0;
         self.set_blocked(None);
         self.absences.clear();
+        self.pace_grace_s = 0.0;
     }
 
     /// `id` leaves the formation because it was asked to (an operator's command, an
@@ -347,7 +359,12 @@ impl FormationEngine {
                 Some((m.position - (*p + *v * dt_s)).norm())
             })
             .fold(0.0, f64::max);
-        let pace = pace(behind);
+        let pace = if self.pace_grace_s > 0.0 {
+            self.pace_grace_s -= dt_s;
+            1.0
+        } else {
+            pace(behind)
+        };
         reference.step_paced(dt_s, &inner, pace);
         // Hazards: the slots, laid around where the leader is sent, keep clear of them by
         // the smallest horizontal shift of the reference; failing that, it holds.

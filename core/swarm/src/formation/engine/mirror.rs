@@ -52,7 +52,8 @@ impl FormationEngine {
 
     /// Flies `m` on: the formation, its reference moved on by the mirror's age as the
     /// riding agents move it (inside `geofence`), its leader, pattern heading and slot
-    /// assignment (see the module docs).
+    /// assignment (see the module docs); for [`super::RESUME_PACE_GRACE`] at the mirror's
+    /// speed, however far the members are from where this coordinator sends them.
     pub fn resume(&mut self, m: FormationMirror, geofence: &Geofence) {
         self.deactivate();
         let mut ride = RideThrough::new(m, geofence);
@@ -66,14 +67,17 @@ impl FormationEngine {
         self.reference = Some(reference);
         self.pattern_heading = m.pattern_heading_rad.map(|_| heading);
         self.assignment = m.assignment;
+        self.pace_grace_s = super::RESUME_PACE_GRACE.as_secs_f64();
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::RESUME_PACE_GRACE;
     use super::*;
     use crate::formation::LeaderMotion;
     use skein_model::geo::Ned;
+    use std::time::Duration;
 
     #[test]
     fn a_resumed_formation_goes_on_from_where_the_mirror_was() {
@@ -111,5 +115,65 @@ mod tests {
         assert_eq!(b.assignment.get("uav-1"), Some(&0));
         b.deactivate();
         assert!(b.mirror().is_none());
+    }
+
+    #[test]
+    fn a_resumed_formation_keeps_its_speed_while_the_members_still_ride_on_their_own() {
+        let spec: FormationSpec = serde_json::from_value(serde_json::json!({
+            "shape": "line", "spacing_m": 6.0, "leader": "virtual", "altitude_m": 12.0,
+            "heading_deg": 0.0, "frame": "world", "offsets": []
+        }))
+        .unwrap();
+        let mirror = FormationMirror {
+            spec,
+            reference: Reference {
+                position: Ned::new(0.0, 0.0, -12.0),
+                velocity: Ned::new(5.0, 0.0, 0.0),
+                heading_rad: 0.0,
+                heading_rate_rad_s: 0.0,
+                motion: LeaderMotion::GoTo {
+                    target: Ned::new(400.0, 0.0, -12.0),
+                    speed_m_s: 5.0,
+                },
+            },
+            leader: None,
+            pattern_heading_rad: None,
+            assignment: [("uav-1".to_string(), 0), ("uav-2".to_string(), 1)].into(),
+            stamp_us: wall_us(),
+        };
+        let mut e = FormationEngine::new(3.0);
+        e.resume(mirror, &Geofence::default());
+        // The members are nowhere near where this coordinator sends them: their agents
+        // still fly the old coordinator's formation (here: they stay 20 m behind).
+        let members: BTreeMap<String, crate::formation::Member> = ["uav-1", "uav-2"]
+            .iter()
+            .map(|id| {
+                (
+                    id.to_string(),
+                    super::super::tests::member(-20.0, 0.0, -12.0),
+                )
+            })
+            .collect();
+        let speed = |e: &FormationEngine| e.reference.as_ref().unwrap().velocity.norm();
+        // 2.5 s: longer than the pace takes to stop a formation from 5 m/s (it brakes
+        // at 1.5 m/s²), shorter than the grace.
+        assert!(RESUME_PACE_GRACE > Duration::from_millis(2500));
+        for _ in 0..25 {
+            e.tick(&members, 0.1, &Geofence::default());
+        }
+        assert!(
+            speed(&e) > 4.9,
+            "slowed within the grace: {} m/s",
+            speed(&e)
+        );
+        // After it, a member that far from its slot stops the formation (the pace).
+        for _ in 0..30 {
+            e.tick(&members, 0.1, &Geofence::default());
+        }
+        assert!(
+            speed(&e) < 2.5,
+            "not paced after the grace: {} m/s",
+            speed(&e)
+        );
     }
 }
