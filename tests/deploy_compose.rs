@@ -69,7 +69,10 @@ fn the_compose_swarm_flies_fails_over_rejoins_and_lands_before_it_goes_down() {
     support::plugins::build_into(&PLUGINS, &[], &stage);
     let image = Image::build("amd64", &format!("skein:test-{pid}-amd64"), &stage, &[]);
     assert_eq!(image.architecture(), "amd64");
-    assert!(image.size < 60_000_000, "the image is {} bytes", image.size);
+    // The test build's binaries, stripped: under 60 MB before the camera plugin carried a DDS
+    // participant of its own for ROS 2 image topics (about 8 MB of RustDDS and
+    // ros2-client in this build), 69 MB since (2026-11-25).
+    assert!(image.size < 80_000_000, "the image is {} bytes", image.size);
 
     let (port_a, port_b) = (support::free_tcp_port(), support::free_tcp_port());
     let compose = Compose::new(
