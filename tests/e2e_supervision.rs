@@ -383,11 +383,15 @@ fn fault_injection_is_off_by_default_and_unknown_targets_are_named() {
 fn a_failed_coordinator_exits_non_zero_for_the_outer_supervisor() {
     let _serial = one_at_a_time();
     let mut skein = start(1, CONFIG, "exit");
-    let (status, body) = skein.post(
+    // The 202, or no answer at all: the panic may end the process before the answer
+    // leaves it (CI saw "Peer disconnected"); the exit code says what happened.
+    let answer = skein.try_post(
         "/api/v1/faults",
         json!({"target": "coordinator", "kind": "panic"}),
     );
-    assert_eq!(status, 202, "{body}");
+    if let Some((status, body)) = answer {
+        assert_eq!(status, 202, "{body}");
+    }
     let code = skein.process.wait_exit(Duration::from_secs(30));
     assert_eq!(code, Some(70), "{}", skein.process.stderr_text());
     let _ = skein_bin();
