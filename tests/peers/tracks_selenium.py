@@ -8,7 +8,9 @@ at the intruders' pass:
 2. it lists the hostile swarm the tracks form, drawn on the plan: its centroid inside the
    canvas, its hull (data-hull: the hull's corners, 3 for three members) and its forecast
    cone (data-cone);
-3. a track's Observe button makes the observation UAVs follow it (data-observed-by);
+3. a track's Observe button makes the observation UAVs follow it (data-observed-by); a
+   clicked track that the tracker ends before it is marked observed (it starts another on
+   the same aircraft) is replaced by a track listed then, at most three clicks in all;
 4. the Payloads tab of uav-2 shows its camera with the detector's boxes over the video
    (data-detections >= 1);
 5. no severe error in the browser console.
@@ -22,10 +24,11 @@ import argparse
 import sys
 import time
 
+from selenium.common.exceptions import NoSuchElementException, StaleElementReferenceException
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
-from dashboard_selenium import Dashboard, add_browser_args, drive, no_console_errors
+from dashboard_selenium import Dashboard, Failure, add_browser_args, drive, no_console_errors
 
 SWARMS_JS = """
 return [...document.querySelectorAll('[data-testid="swarm-list"] li[data-swarm-id]')].map(li => ({
@@ -84,14 +87,40 @@ def run(args, driver, summary):
     if args.screenshot:
         driver.save_screenshot(args.screenshot)
         summary["screenshot"] = args.screenshot
-    driver.find_element(
-        By.CSS_SELECTOR, f'li[data-track-id="{track["id"]}"] button[data-act="observe"]').click()
-
-    def observed(_):
+    # "observe" on a confirmed track listed now (the first one found may be gone by
+    # then: the tracker ends a track and starts another on the same aircraft). When the
+    # clicked track ends before it is marked observed, an operator clicks the track that
+    # replaced it: so does this, at most three times, each click recorded.
+    summary["observe_clicks"] = []
+    while True:
         ui.last = driver.execute_script(TRACKS_JS)
-        return next((t for t in ui.last if t["id"] == track["id"] and t["by"]), None)
+        current = next((t for t in ui.last if t["status"] == "confirmed"), None)
+        if current is None:
+            current = ui.wait("a confirmed track to observe", lambda _: next(
+                (t for t in driver.execute_script(TRACKS_JS) if t["status"] == "confirmed"),
+                None))
+        summary["observe_clicks"].append(current["id"])
+        if len(summary["observe_clicks"]) > 3:
+            raise Failure(f"three observed tracks ended before they were marked observed: "
+                          f"{summary['observe_clicks'][:3]}")
+        try:
+            driver.find_element(
+                By.CSS_SELECTOR,
+                f'li[data-track-id="{current["id"]}"] button[data-act="observe"]').click()
+        except (NoSuchElementException, StaleElementReferenceException):
+            continue  # ended between the listing and the click: the next one
 
-    summary["observed"] = ui.wait("the track observed after the click", observed)
+        def observed(_, tid=current["id"]):
+            ui.last = driver.execute_script(TRACKS_JS)
+            mine = next((t for t in ui.last if t["id"] == tid), None)
+            if mine is None:
+                return {"gone": tid}
+            return mine if mine["by"] else None
+
+        result = ui.wait("the track observed after the click", observed)
+        if "gone" not in result:
+            summary["observed"] = result
+            break
     ui.click("tab-payloads")
     Select(driver.find_element(By.CSS_SELECTOR, '[data-testid="payload-vehicle"]')).select_by_value("uav-2")
 
