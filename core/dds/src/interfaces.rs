@@ -42,6 +42,17 @@ pub fn changes(before: &Interfaces, now: &Interfaces) -> Option<String> {
     Some(added.chain(removed).collect::<Vec<_>>().join(" "))
 }
 
+/// A change from `seen` that held: `first` and `second`, read a moment apart, agree and
+/// differ from `seen`. A listing read while sysfs changes under it, or a device that is
+/// re-created within the moment, gives no change here until it is stable; the next poll
+/// looks again.
+pub fn settled(seen: &Interfaces, first: &Interfaces, second: &Interfaces) -> Option<String> {
+    if first != second {
+        return None;
+    }
+    changes(seen, second)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -58,6 +69,13 @@ mod tests {
         let after: Interfaces = [("lo".into(), 1), ("eth1".into(), 57)].into();
         assert_eq!(
             changes(&before, &after).as_deref(),
+            Some("+eth1#57 -eth0#55")
+        );
+        // A change counts once two readings agree on it.
+        assert_eq!(settled(&before, &after, &before), None);
+        assert_eq!(settled(&before, &before, &before), None);
+        assert_eq!(
+            settled(&before, &after, &after).as_deref(),
             Some("+eth1#57 -eth0#55")
         );
         // The same name with a new index: re-created, the old memberships gone.

@@ -287,8 +287,15 @@ impl DdsRoles {
             local.spawn(&mut tasks, &self.swarm);
             let now = loop {
                 tokio::time::sleep(INTERFACE_POLL).await;
+                let first = interfaces::current();
+                if first == seen {
+                    continue;
+                }
+                // Acted on once it holds (`interfaces::settled`): rejoining the domain
+                // costs the agent its coordinator's samples for a moment.
+                tokio::time::sleep(INTERFACE_CONFIRM).await;
                 let now = interfaces::current();
-                if let Some(what) = interfaces::changes(&seen, &now) {
+                if let Some(what) = interfaces::settled(&seen, &first, &now) {
                     if self.rejoin.is_some() {
                         tracing::warn!(
                             "dds: network interfaces changed ({what}): joining the domain again"
@@ -346,6 +353,8 @@ impl DdsRoles {
 
 /// How often the network interfaces are looked at.
 const INTERFACE_POLL: Duration = Duration::from_secs(1);
+/// How long a change of the interfaces must hold before it is acted on.
+const INTERFACE_CONFIRM: Duration = Duration::from_millis(300);
 
 /// The DDS link service actor: runs the roles' tasks while it lives (see the module
 /// docs).
