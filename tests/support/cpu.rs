@@ -12,7 +12,8 @@
 
 use std::process::{Child, Command, Stdio};
 
-/// Busy loops pinned to CPU 0 beside the starved process; killed on drop.
+/// Busy loops pinned to CPU 0 beside the starved process; killed on drop, and by the
+/// kernel when the thread that started them dies.
 pub struct Starvation {
     hogs: Vec<Child>,
 }
@@ -29,12 +30,16 @@ impl Starvation {
         Starvation {
             hogs: (0..n)
                 .map(|_| {
-                    Command::new("taskset")
-                        .args(["-c", "0", "sh", "-c", "while :; do :; done"])
+                    // The parent-death signal kills the loop with the test that started it,
+                    // even when a timeout SIGKILLs the test binary before `Drop` runs:
+                    // orphaned loops would starve every later test on this machine.
+                    Command::new("setpriv")
+                        .args(["--pdeathsig", "KILL", "taskset", "-c", "0"])
+                        .args(["sh", "-c", "while :; do :; done"])
                         .stdout(Stdio::null())
                         .stderr(Stdio::null())
                         .spawn()
-                        .expect("taskset (util-linux) starts a busy loop")
+                        .expect("setpriv and taskset (util-linux) start a busy loop")
                 })
                 .collect(),
         }
