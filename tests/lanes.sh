@@ -8,9 +8,10 @@
 # 2-core CI machine (LANE_A below; everything else goes to lane B), and those in ALONE run
 # after both lanes, one at a time (e2e_overload starves skein of CPU on purpose and
 # measures how it copes: another test's load would change what it measures; e2e_tracking
-# ranges five intruders from two cameras 5 m apart, and short of CPU it made more tracks
-# at wrong ranges (rays of two aircraft crossing): with two busy loops beside it, its
-# hostile swarm of five was whole in one run of two, and once in CI beside lane B, never).
+# ranges five intruders from two cameras, and with them 5 m apart, short of CPU, it made
+# more tracks at wrong ranges (rays of two aircraft crossing): with two busy loops beside
+# it, its hostile swarm of five was whole in one run of two, and once in CI beside lane
+# B, never; the test now spreads the cameras 20 m apart first, but keeps the machine).
 #
 # Two builds run beside all of it at idle priority (SCHED_IDLE: they get only the CPU no
 # test wants), but for e2e_tracking, during which they are stopped: the arm64

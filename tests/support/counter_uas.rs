@@ -88,6 +88,53 @@ pub fn pass_args(pattern: &str, n: usize, speed_m_s: f64) -> Vec<String> {
 }
 
 impl Skein {
+    /// Flies the two observers `baseline_m` apart north–south (uav-2 north, uav-4 south of
+    /// the origin, each keeping its east, 10 m up) and waits until both are within 1 m of there. Two cameras
+    /// range an aircraft by the angle between their rays: from the spawn grid's 5 m at
+    /// 60 m that angle is under 5°, and the rays of two aircraft of a formation run nearly
+    /// parallel and meet at ghosts hundreds of metres out.
+    pub fn spread_observers(&self, baseline_m: f64) {
+        let half = baseline_m / 2.0;
+        let east_of = |id: &str| {
+            self.vehicles()
+                .iter()
+                .find(|v| v["id"] == id)
+                .and_then(|v| v["position"]["east_m"].as_f64())
+                .expect("the observer's position")
+        };
+        // Each along its own column of the spawn grid, clear of the others'.
+        let spots = [
+            (OBSERVERS[0], half, east_of(OBSERVERS[0])),
+            (OBSERVERS[1], -half, east_of(OBSERVERS[1])),
+        ];
+        for (id, north_m, east_m) in spots {
+            let (status, body) = self.post(
+                &format!("/api/v1/vehicles/{id}/commands"),
+                json!({"command": "goto", "north_m": north_m, "east_m": east_m, "down_m": -10.0}),
+            );
+            assert_eq!(status, 202, "{body}");
+        }
+        eventually("the observers spread", Duration::from_secs(30), || {
+            let vs = self.vehicles();
+            let off: Vec<String> = spots
+                .iter()
+                .filter_map(|(id, north_m, east_m)| {
+                    let v = vs.iter().find(|v| v["id"] == *id)?;
+                    let p = &v["position"];
+                    let n = p["north_m"].as_f64().unwrap_or(f64::NAN);
+                    let e = p["east_m"].as_f64().unwrap_or(f64::NAN);
+                    let d = (n - north_m).hypot(e - east_m);
+                    (d.is_nan() || d > 1.0).then(|| format!("{id} {d:.1} m off"))
+                })
+                .collect();
+            if off.is_empty() {
+                Ok(())
+            } else {
+                Err(off.join(", "))
+            }
+        });
+    }
+
     /// Points the gimbals of `ids` at `yaw_deg` (earth frame), `pitch_deg` up, and waits
     /// until their cameras report that azimuth.
     pub fn point_gimbals(&self, ids: &[&str], yaw_deg: f64, pitch_deg: f64) {
