@@ -89,10 +89,10 @@ pub fn pass_args(pattern: &str, n: usize, speed_m_s: f64) -> Vec<String> {
 
 impl Skein {
     /// Flies the two observers `baseline_m` apart north–south (uav-2 north, uav-4 south of
-    /// the origin, each keeping its east, 10 m up) and waits until both are within 1 m of there. Two cameras
-    /// range an aircraft by the angle between their rays: from the spawn grid's 5 m at
-    /// 60 m that angle is under 5°, and the rays of two aircraft of a formation run nearly
-    /// parallel and meet at ghosts hundreds of metres out.
+    /// the origin, each keeping its east, 10 m up) and waits until both are within 1 m of
+    /// there. Two cameras range an aircraft by the angle between their rays: from the
+    /// spawn grid's 5 m at 60 m that angle is under 5°, and the rays of two aircraft of a
+    /// formation run nearly parallel and meet at ghosts hundreds of metres out.
     pub fn spread_observers(&self, baseline_m: f64) {
         let half = baseline_m / 2.0;
         let east_of = |id: &str| {
@@ -119,7 +119,9 @@ impl Skein {
             let off: Vec<String> = spots
                 .iter()
                 .filter_map(|(id, north_m, east_m)| {
-                    let v = vs.iter().find(|v| v["id"] == *id)?;
+                    let Some(v) = vs.iter().find(|v| v["id"] == *id) else {
+                        return Some(format!("{id} not listed"));
+                    };
                     let p = &v["position"];
                     let n = p["north_m"].as_f64().unwrap_or(f64::NAN);
                     let e = p["east_m"].as_f64().unwrap_or(f64::NAN);
