@@ -29,6 +29,8 @@ pub struct FormationEngine {
     spec: Option<FormationSpec>,
     active: bool,
     leader: Option<String>,
+    /// The requested leader has led since the spec was set (see `resolve_leader`).
+    requested_led: bool,
     reference: Option<Reference>,
     assignment: BTreeMap<String, usize>,
     last: Vec<MemberStatus>,
@@ -87,6 +89,7 @@ impl Default for FormationEngine {
             spec: None,
             active: false,
             leader: None,
+            requested_led: false,
             reference: None,
             assignment: BTreeMap::new(),
             last: Vec::new(),
@@ -195,6 +198,7 @@ impl FormationEngine {
             .is_none_or(|old| old.leader != spec.leader);
         if leader_changes {
             self.leader = None;
+            self.requested_led = false;
             self.reference = None;
         }
         self.spec = Some(spec);
@@ -212,6 +216,7 @@ impl FormationEngine {
     pub fn deactivate(&mut self) {
         self.active = false;
         self.leader = None;
+        self.requested_led = false;
         self.reference = None;
         self.assignment.clear();
         self.last.clear();
@@ -296,6 +301,7 @@ impl FormationEngine {
             self.reference.as_ref().map(|r| r.position),
             &spec,
             members,
+            self.requested_led,
         );
         self.changes.extend(change);
         let Some(leader) = leader else {
@@ -303,6 +309,7 @@ impl FormationEngine {
             self.absences.update(BTreeMap::new());
             return out;
         };
+        self.requested_led |= spec.leader.as_ref() == Some(&leader);
         if self.leader.as_ref() != Some(&leader) {
             let failover = self.leader.as_ref().is_some_and(|l| l != VIRTUAL);
             self.leader = Some(leader.clone());

@@ -64,6 +64,8 @@ impl FormationEngine {
         self.spec = Some(m.spec);
         self.active = true;
         self.leader = m.leader;
+        // The previous coordinator's choice of leader stands.
+        self.requested_led = self.leader.is_some();
         self.reference = Some(reference);
         self.pattern_heading = m.pattern_heading_rad.map(|_| heading);
         self.assignment = m.assignment;
