@@ -23,7 +23,7 @@
 //! vehicle holds the last position instead of flying on along a stale velocity while its
 //! owner is away.
 
-use crate::endpoint::Endpoint;
+use crate::endpoint::{Endpoint, Outgoing, Peer};
 use serde::Serialize;
 use skein_mavlink::MavMessage;
 use skein_mavlink::dialect::{
@@ -181,6 +181,9 @@ struct Current {
 /// the clock sends its own copy of what it sent last.
 struct Stream {
     endpoint: Arc<Endpoint>,
+    /// The endpoint's record of `sysid` (its address), kept rather than looked up at
+    /// every send.
+    peer: Arc<Peer>,
     sysid: u8,
     compid: u8,
     /// `time_boot_ms` and the instants below count from here.
@@ -202,12 +205,13 @@ impl Stream {
         (stamp != 0).then(|| self.start + Duration::from_micros(stamp - 1))
     }
 
-    /// Sends `current` at `now` (nothing, and the run ends, when it holds no setpoint).
-    fn send(&self, current: Current, now: Instant) {
+    /// The frame that sends `current` at `now` (`None`, and the run ends, when it holds no
+    /// setpoint; `None` too when it has nowhere to go, counted as a send error).
+    fn prepare(&self, current: Current, now: Instant) -> Option<Outgoing> {
         let Some(mut sp) = current.setpoint else {
             self.last_sent_us.store(0, Ordering::Relaxed);
             self.since_us.store(0, Ordering::Relaxed);
-            return;
+            return None;
         };
         if now.duration_since(current.updated) > STALE_AFTER {
             let hold = sp.as_hold();
@@ -218,20 +222,28 @@ impl Stream {
         }
         let time_boot_ms = now.duration_since(self.start).as_millis() as u32;
         let msg = sp.to_mavlink(time_boot_ms, self.sysid, self.compid);
-        match self.endpoint.send(self.sysid, &msg) {
-            Ok(()) => {
-                self.counters.sent.fetch_add(1, Ordering::Relaxed);
-                let stamp = self.stamp(now);
-                match self.last_sent_us.swap(stamp, Ordering::Relaxed) {
-                    0 => self.since_us.store(stamp, Ordering::Relaxed),
-                    prev => {
-                        let gap = stamp.saturating_sub(prev);
-                        self.counters.max_gap_us.fetch_max(gap, Ordering::Relaxed);
-                    }
-                }
-            }
+        match self.endpoint.prepare(Some(&self.peer), self.sysid, &msg) {
+            Ok(out) => Some(out),
             Err(_) => {
                 self.counters.send_errors.fetch_add(1, Ordering::Relaxed);
+                None
+            }
+        }
+    }
+
+    /// Counts the outcome of the frame [`Stream::prepare`] made at `now`.
+    fn sent(&self, ok: bool, now: Instant) {
+        if !ok {
+            self.counters.send_errors.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        self.counters.sent.fetch_add(1, Ordering::Relaxed);
+        let stamp = self.stamp(now);
+        match self.last_sent_us.swap(stamp, Ordering::Relaxed) {
+            0 => self.since_us.store(stamp, Ordering::Relaxed),
+            prev => {
+                let gap = stamp.saturating_sub(prev);
+                self.counters.max_gap_us.fetch_max(gap, Ordering::Relaxed);
             }
         }
     }
@@ -250,6 +262,7 @@ impl SetpointStream {
     pub fn start(endpoint: Arc<Endpoint>, sysid: u8, compid: u8, rate_hz: f64) -> Self {
         let now = Instant::now();
         let stream = Arc::new(Stream {
+            peer: endpoint.peer(sysid),
             endpoint,
             sysid,
             compid,
@@ -340,6 +353,8 @@ impl Clock {
         let mut ticker = tokio::time::interval(period / SLICES as u32);
         ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut slices: [Vec<Entry>; SLICES] = Default::default();
+        // The frames of one tick, grouped by endpoint before they are sent.
+        let mut batch: Vec<(Arc<Stream>, Outgoing)> = Vec::new();
         let mut tick: usize = 0;
         loop {
             ticker.tick().await;
@@ -367,12 +382,30 @@ impl Clock {
                 };
                 if let Some(c) = current {
                     e.last = Some(c);
-                    stream.send(c, now);
+                    if let Some(out) = stream.prepare(c, now) {
+                        batch.push((stream, out));
+                    }
                 }
                 true
             });
+            send_batch(&mut batch, now);
         }
     }
+}
+
+/// Hands the frames of one tick to their endpoints, all frames of an endpoint in one
+/// call ([`Endpoint::write_batch`]: one `sendmmsg` for a shared port), counts each
+/// stream's outcome and leaves `batch` empty (its capacity kept for the next tick).
+fn send_batch(batch: &mut Vec<(Arc<Stream>, Outgoing)>, now: Instant) {
+    batch.sort_unstable_by_key(|(s, _)| Arc::as_ptr(&s.endpoint) as usize);
+    for group in batch.chunk_by(|a, b| Arc::ptr_eq(&a.0.endpoint, &b.0.endpoint)) {
+        group[0].0.endpoint.write_batch(
+            group,
+            |(_, out)| out,
+            |(stream, _), ok| stream.sent(ok, now),
+        );
+    }
+    batch.clear();
 }
 
 /// Groups of streams a clock sends a sub-period apart (see [`Clock::run`]).

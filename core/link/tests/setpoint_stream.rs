@@ -4,7 +4,12 @@
 //! does to the workers. Real UDP: the stream sends to a socket that plays PX4 and stamps
 //! every datagram as it arrives.
 
+mod common;
+
+use common::{eventually, heartbeat};
 use skein_link::{ConnectionAddress, Endpoint, Identity, LocalSetpoint, SetpointStream};
+use skein_mavlink::dialect::MavAutopilot;
+use skein_mavlink::{DecodeStats, Decoder, MavMessage};
 use skein_model::geo::Ned;
 use std::net::UdpSocket;
 use std::sync::{Arc, Barrier, Mutex};
@@ -98,4 +103,99 @@ async fn the_stream_keeps_its_rate_while_every_worker_is_blocked() {
         "setpoint gap of {gap:?} while the workers were blocked for {BLOCKED:?}"
     );
     assert_eq!(counts.send_errors, 0);
+}
+
+/// Vehicles sharing one `udpin` port (PX4's instances from the 10th on send to 14549):
+/// the clock hands every stream of the endpoint to the socket in one `sendmmsg`, and each
+/// vehicle still gets its own setpoints at the stream's rate, at its own address. A
+/// stream to a sysid the endpoint has not heard counts its sends as errors without
+/// holding back the others.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn streams_sharing_a_port_each_reach_their_own_vehicle() {
+    let endpoint = Endpoint::open(
+        ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
+        Identity::default(),
+    )
+    .await
+    .unwrap();
+    let port = endpoint.local_addr().unwrap();
+    let sysids: Vec<u8> = (1..=6).collect();
+    // Each vehicle's socket: it announces itself, then keeps the target_system of every
+    // setpoint that reaches it.
+    let received: Vec<Arc<Mutex<Vec<u8>>>> = sysids
+        .iter()
+        .map(|&sysid| {
+            let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+            let hb = skein_mavlink::encode_frame(
+                sysid,
+                1,
+                0,
+                &heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4),
+                None,
+            );
+            sock.send_to(hb.as_bytes(), port).unwrap();
+            sock.set_read_timeout(Some(Duration::from_millis(100)))
+                .unwrap();
+            let got = Arc::new(Mutex::new(Vec::new()));
+            let g = got.clone();
+            std::thread::spawn(move || {
+                let mut decoder = Decoder::new(Arc::new(DecodeStats::default()));
+                let mut buf = [0u8; 512];
+                while Arc::strong_count(&g) > 1 {
+                    if let Ok(n) = sock.recv(&mut buf) {
+                        decoder.decode_datagram(&buf[..n], |f| {
+                            if let MavMessage::SET_POSITION_TARGET_LOCAL_NED(sp) = f.msg {
+                                g.lock().unwrap().push(sp.target_system);
+                            }
+                        });
+                    }
+                }
+            });
+            got
+        })
+        .collect();
+    eventually(
+        "the endpoint to hear every vehicle",
+        Duration::from_secs(10),
+        || (endpoint.sysids().len() == sysids.len()).then_some(()),
+    )
+    .await;
+    let streams: Vec<SetpointStream> = sysids
+        .iter()
+        .chain([&42u8]) // never heard: no address
+        .map(|&sysid| {
+            let s = SetpointStream::start(endpoint.clone(), sysid, 1, 50.0);
+            s.set(Some(LocalSetpoint::position(Ned::new(0.0, 0.0, -5.0), 0.0)));
+            s
+        })
+        .collect();
+    eventually(
+        "25 setpoints at every vehicle",
+        Duration::from_secs(20),
+        || {
+            received
+                .iter()
+                .all(|r| r.lock().unwrap().len() >= 25)
+                .then_some(())
+        },
+    )
+    .await;
+    for (sysid, got) in sysids.iter().zip(&received) {
+        let got = got.lock().unwrap();
+        assert!(
+            got.iter().all(|t| t == sysid),
+            "vehicle {sysid} got setpoints for {got:?}"
+        );
+    }
+    for s in &streams[..sysids.len()] {
+        let c = s.counts();
+        assert_eq!(c.send_errors, 0, "{c:?}");
+        assert!(c.max_gap_ms < 500.0, "{c:?}");
+    }
+    let unheard = streams[sysids.len()].counts();
+    assert_eq!(unheard.sent, 0, "{unheard:?}");
+    assert!(unheard.send_errors > 0, "{unheard:?}");
+    let counts = endpoint.send_counts();
+    assert!(counts.no_route > 0, "{counts:?}");
+    assert_eq!(counts.send_errors, 0, "{counts:?}");
 }

@@ -31,7 +31,10 @@ use tokio::net::{TcpStream, UdpSocket};
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
+mod send;
 mod signing;
+pub(crate) use send::Outgoing;
+pub use send::{SendCounts, SendError};
 pub use signing::SigningSpec;
 
 /// Our own MAVLink identity on an endpoint (sender of heartbeats, commands, setpoints).
@@ -85,7 +88,7 @@ pub type SentTap = Arc<dyn Fn(u8, &MavMessage) + Send + Sync>;
 /// between them: the receive task may be descheduled at any instant (a starved process,
 /// a CPU quota), and a send must never wait for it.
 #[derive(Default)]
-struct Peer {
+pub(crate) struct Peer {
     /// Where its datagrams come from (`udpin`), written only when it changes.
     addr: Mutex<Option<SocketAddr>>,
     /// A fingerprint of `addr`, so the receive path compares without the lock.
@@ -136,37 +139,6 @@ enum Transport {
         tx: mpsc::UnboundedSender<Vec<u8>>,
     },
 }
-
-/// Counters of the send path.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
-pub struct SendCounts {
-    /// Frames handed to the socket.
-    pub frames_sent: u64,
-    /// Frames dropped because the socket would block or failed.
-    pub send_errors: u64,
-    /// Frames dropped because the vehicle's address is not known yet.
-    pub no_route: u64,
-}
-
-/// Why a frame could not be sent.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum SendError {
-    /// A `udpin` endpoint has not heard from this sysid yet, so it has no address.
-    NoAddress(u8),
-    /// The socket refused the datagram.
-    Io(String),
-}
-
-impl std::fmt::Display for SendError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            SendError::NoAddress(s) => write!(f, "no address known yet for sysid {s}"),
-            SendError::Io(e) => write!(f, "send failed: {e}"),
-        }
-    }
-}
-
-impl std::error::Error for SendError {}
 
 /// A MAVLink endpoint (see module docs). Shared as `Arc<Endpoint>`; the receive task holds
 /// only a weak reference and stops when the last `Arc` is dropped.
@@ -349,8 +321,9 @@ impl Endpoint {
             .collect()
     }
 
-    /// The peer of `sysid`, made on first use.
-    fn peer(&self, sysid: u8) -> Arc<Peer> {
+    /// The peer of `sysid`, made on first use (a sender that sends to it every period
+    /// keeps it rather than looking it up each time).
+    pub(crate) fn peer(&self, sysid: u8) -> Arc<Peer> {
         if let Some(p) = self.peers.read().expect("peers lock").get(&sysid) {
             return p.clone();
         }
@@ -365,30 +338,6 @@ impl Endpoint {
     /// The peer of `sysid`, if it is known.
     fn known_peer(&self, sysid: u8) -> Option<Arc<Peer>> {
         self.peers.read().expect("peers lock").get(&sysid).cloned()
-    }
-
-    /// Sends a frame that another system encoded (a ground station's command) to vehicle
-    /// `sysid`: its bytes unchanged, or, when that vehicle signs, re-encoded with the
-    /// sender's own sysid, compid and sequence and signed with the vehicle's key.
-    ///
-    /// # Errors
-    /// As [`Endpoint::send`].
-    pub fn forward(&self, sysid: u8, frame: &Frame, raw: &[u8]) -> Result<(), SendError> {
-        let signed;
-        let bytes = match self.signing_of(sysid) {
-            Some(s) => {
-                signed = skein_mavlink::encode_frame(
-                    frame.sysid,
-                    frame.compid,
-                    frame.seq,
-                    &frame.msg,
-                    Some(&s),
-                );
-                signed.as_bytes()
-            }
-            None => raw,
-        };
-        self.send_bytes(sysid, bytes)
     }
 
     /// Routes every frame from `sysid` (any component) to `handler`, replacing a previous
@@ -427,102 +376,6 @@ impl Endpoint {
     /// Decoder counters (malformed, bad CRC, unknown messages …) of this endpoint.
     pub fn decode_counts(&self) -> DecodeCounts {
         self.decode_stats.snapshot()
-    }
-
-    /// Send-path counters.
-    pub fn send_counts(&self) -> SendCounts {
-        SendCounts {
-            frames_sent: self.frames_sent.load(Ordering::Relaxed),
-            send_errors: self.send_errors.load(Ordering::Relaxed),
-            no_route: self.no_route.load(Ordering::Relaxed),
-        }
-    }
-
-    /// Encodes `msg` with our identity and sends it to vehicle `sysid`. Never blocks: a
-    /// datagram the socket cannot take right now is dropped and counted.
-    ///
-    /// # Errors
-    /// [`SendError::NoAddress`] before a `udpin` endpoint has heard from `sysid`;
-    /// [`SendError::Io`] when the socket refuses.
-    pub fn send(&self, sysid: u8, msg: &MavMessage) -> Result<(), SendError> {
-        if let Some(tap) = self.sent_tap.read().expect("sent tap lock").as_ref() {
-            tap(sysid, msg);
-        }
-        let dest = self.dest(sysid)?;
-        let signing = self.signing_of(sysid);
-        let seq = self.seq.fetch_add(1, Ordering::Relaxed);
-        let frame = skein_mavlink::encode_frame(
-            self.identity.sysid,
-            self.identity.compid,
-            seq,
-            msg,
-            signing.as_deref(),
-        );
-        self.write(dest, frame.as_bytes())
-    }
-
-    /// Sends bytes that already are whole frames to vehicle `sysid`.
-    fn send_bytes(&self, sysid: u8, bytes: &[u8]) -> Result<(), SendError> {
-        let dest = self.dest(sysid)?;
-        self.write(dest, bytes)
-    }
-
-    /// Where frames to `sysid` go (`None` on a byte stream).
-    fn dest(&self, sysid: u8) -> Result<Option<SocketAddr>, SendError> {
-        Ok(match &self.transport {
-            Transport::Udp { remote, .. } => match remote.or_else(|| self.peer_addr(sysid)) {
-                Some(a) => Some(a),
-                None => {
-                    self.no_route.fetch_add(1, Ordering::Relaxed);
-                    return Err(SendError::NoAddress(sysid));
-                }
-            },
-            Transport::Stream { .. } => None,
-        })
-    }
-
-    fn write(&self, dest: Option<SocketAddr>, bytes: &[u8]) -> Result<(), SendError> {
-        let result = match (&self.transport, dest) {
-            // Straight to the kernel: the socket is non-blocking, so a full buffer is an
-            // error at once, as it would be through the runtime; this way a send made
-            // from any thread (the setpoint streams' own) never waits for the runtime to
-            // have seen the socket writable, and costs one system call.
-            (Transport::Udp { socket, .. }, Some(dest)) => socket2::SockRef::from(&**socket)
-                .send_to(bytes, &dest.into())
-                .map(|_| ())
-                .map_err(|e| SendError::Io(e.to_string())),
-            (Transport::Stream { tx }, _) => tx
-                .send(bytes.to_vec())
-                .map_err(|_| SendError::Io("stream closed".into())),
-            (Transport::Udp { .. }, None) => Err(SendError::Io("no destination".into())),
-        };
-        match &result {
-            Ok(()) => self.frames_sent.fetch_add(1, Ordering::Relaxed),
-            Err(_) => self.send_errors.fetch_add(1, Ordering::Relaxed),
-        };
-        result
-    }
-
-    /// Sends `msg` where vehicles of this endpoint will hear it: to the remote (`udpout`,
-    /// `tcpout`), or to every vehicle heard so far (`udpin`). Returns how many were sent.
-    pub fn broadcast(&self, msg: &MavMessage) -> usize {
-        match &self.transport {
-            Transport::Udp { remote: None, .. } => {
-                let sysids: Vec<u8> = self
-                    .peers
-                    .read()
-                    .expect("peers lock")
-                    .iter()
-                    .filter(|(_, p)| p.addr().is_some())
-                    .map(|(s, _)| *s)
-                    .collect();
-                sysids
-                    .iter()
-                    .filter(|s| self.send(**s, msg).is_ok())
-                    .count()
-            }
-            _ => usize::from(self.send(0, msg).is_ok()),
-        }
     }
 
     /// Feeds one received datagram through the endpoint's ingress, as the receive task
