@@ -37,7 +37,7 @@ use skein_model::px4::Px4Mode;
 use std::collections::{HashMap, VecDeque};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// Silence after which a vehicle is Lost.
 pub const LINK_TIMEOUT: Duration = Duration::from_secs(3);
@@ -97,6 +97,9 @@ pub struct Px4LinkArgs {
 pub enum Px4LinkMsg {
     /// A frame from the vehicle (from the endpoint route).
     Frame(Frame),
+    /// What a kinematic message the route applied itself changed (see
+    /// [`applies_on_route`]); never [`Change::None`].
+    Applied(Change),
     /// Run a command; the reply comes when it is acknowledged (and, for modes, confirmed).
     Command(LinkCommand, RpcReplyPort<Result<(), LinkError>>),
     /// Run a command without waiting for the outcome (fire and forget, still retried).
@@ -407,12 +410,7 @@ impl Px4LinkState {
                 .on_value(&param_name(&pv.param_id), value, self.target());
             self.transmit_param(myself, t);
         }
-        let change = self
-            .link
-            .telemetry
-            .write()
-            .expect("telemetry lock")
-            .apply(&frame.msg, Instant::now());
+        let change = self.link.apply(&frame.msg);
         // The link is back with the autopilot's first HEARTBEAT after the loss: what it
         // says (armed, mode) is fresh, where other messages would leave the FSM settling
         // on the state from before the loss.
@@ -425,6 +423,12 @@ impl Px4LinkState {
             }
             self.greet(myself);
         }
+        self.on_change(myself, change);
+    }
+
+    /// Acts on what a telemetry message changed: events for the vehicle, and the
+    /// greeting (stream rates, fence) once the autopilot is heard or rebooted.
+    fn on_change(&mut self, myself: &ActorRef<Px4LinkMsg>, change: Change) {
         match change {
             Change::None => {}
             Change::Observed(o) => {
@@ -459,6 +463,21 @@ impl Px4LinkState {
     }
 }
 
+/// Whether the route applies `frame` to the telemetry itself instead of handing it to the
+/// actor: the autopilot's position and attitude (`LOCAL_POSITION_NED`,
+/// `GLOBAL_POSITION_INT`, `ATTITUDE`), which no command, parameter or mission exchange
+/// waits for. What they change that matters (a reboot seen in their `time_boot_ms`)
+/// still reaches the actor as [`Px4LinkMsg::Applied`].
+fn applies_on_route(frame: &Frame, autopilot_compid: u8) -> bool {
+    frame.compid == autopilot_compid
+        && matches!(
+            frame.msg,
+            MavMessage::LOCAL_POSITION_NED(_)
+                | MavMessage::GLOBAL_POSITION_INT(_)
+                | MavMessage::ATTITUDE(_)
+        )
+}
+
 impl Actor for Px4Link {
     type Msg = Px4LinkMsg;
     type State = Px4LinkState;
@@ -470,10 +489,24 @@ impl Actor for Px4Link {
         args: Px4LinkArgs,
     ) -> Result<Self::State, ActorProcessingErr> {
         let route_to = myself.clone();
+        let (link, components) = (args.link.clone(), args.components.clone());
         args.link.endpoint.route(
             args.link.sysid,
             Arc::new(move |f| {
-                let _ = route_to.cast(Px4LinkMsg::Frame(f));
+                if applies_on_route(&f, link.compid) {
+                    // Position and attitude change nothing but the telemetry: applied
+                    // here, on the receive task, they cost no actor message (they are
+                    // most of the traffic of a large swarm).
+                    if let Some(sink) = &components {
+                        sink(&f);
+                    }
+                    let change = link.apply(&f.msg);
+                    if change != Change::None {
+                        let _ = route_to.cast(Px4LinkMsg::Applied(change));
+                    }
+                } else {
+                    let _ = route_to.cast(Px4LinkMsg::Frame(f));
+                }
             }),
         );
         myself.send_interval(HEARTBEAT_PERIOD, || Px4LinkMsg::Tick);
@@ -512,6 +545,7 @@ impl Actor for Px4Link {
     ) -> Result<(), ActorProcessingErr> {
         match msg {
             Px4LinkMsg::Frame(f) => state.on_frame(&myself, f),
+            Px4LinkMsg::Applied(change) => state.on_change(&myself, change),
             Px4LinkMsg::Command(cmd, reply) => {
                 if state.link.is_lost() {
                     let _ = reply.send(Err(LinkError::NoLink));

@@ -6,10 +6,11 @@ use crate::endpoint::Endpoint;
 use crate::fence_sync::{FenceLink, FencePlans};
 use crate::setpoint::SetpointStream;
 use crate::setup::LinkSetup;
-use crate::telemetry::Telemetry;
+use crate::telemetry::{Change, Telemetry};
+use skein_mavlink::MavMessage;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, RwLock};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// The per-vehicle state that outlives the link actor: the endpoint route, the latest
 /// telemetry and the setpoint stream. Identity of a vehicle is (endpoint, sysid).
@@ -79,6 +80,15 @@ impl VehicleLink {
     /// Reads the telemetry in place (no clone) under the lock.
     pub fn with_telemetry<R>(&self, f: impl FnOnce(&Telemetry) -> R) -> R {
         f(&self.telemetry.read().expect("telemetry lock"))
+    }
+
+    /// Applies a message from the autopilot to the telemetry now; returns what it
+    /// changed that matters to the vehicle's state machine.
+    pub(super) fn apply(&self, msg: &MavMessage) -> Change {
+        self.telemetry
+            .write()
+            .expect("telemetry lock")
+            .apply(msg, Instant::now())
     }
 
     /// The offboard setpoint stream.
