@@ -1,5 +1,5 @@
-//! The benchmarks end to end, small: `skein bench swarm` (20 vehicles at 50 Hz for 3 s, the
-//! simulator in its own process, then the same with the plain pymavlink loop), `skein bench formation` (8 vehicles), `skein bench
+//! The benchmarks end to end, small: `skein bench swarm` (20 vehicles at 50 Hz for 3 s, ten
+//! to a port, the simulator in its own process, then the same with the plain pymavlink loop), `skein bench formation` (8 vehicles), `skein bench
 //! restart` (40 panics) and `skein bench tracking` (15 s). Each checks the report's shape
 //! and that the swarm really flew; never its timing (that is what the benchmarks themselves are for, on a quiet machine).
 
@@ -21,6 +21,10 @@ fn bench_swarm_reports_every_field_with_all_vehicles_offboard_and_the_pymavlink_
             "3",
             "--peer",
             "pymavlink",
+            // Two ports of ten vehicles each (the restart bench below keeps a port per
+            // vehicle): the shared endpoints' batched sends, end to end.
+            "--vehicles-per-port",
+            "10",
         ],
         "vehicles",
         Duration::from_secs(300),
@@ -60,6 +64,8 @@ fn bench_swarm_reports_every_field_with_all_vehicles_offboard_and_the_pymavlink_
         );
     }
     assert_eq!(report["vehicles"], 20, "{report}");
+    assert_eq!(report["vehicles_per_port"], 10, "{report}");
+    assert_eq!(report["skein_send_errors"], 0, "{report}");
     assert_eq!(report["rate_hz"], 50.0, "{report}");
     assert_eq!(report["all_offboard"], true, "{report}");
     assert!(

@@ -93,6 +93,13 @@ pub struct SwarmBenchArgs {
     /// The baseline's script, instead of the repository's.
     #[arg(long)]
     pub peer_script: Option<std::path::PathBuf>,
+    /// Vehicles per UDP port (1 to 250): 1 gives each vehicle its own port pair, as PX4
+    /// SITL's first instances have; more share one `udpin` endpoint per group, as PX4's
+    /// instances from the 10th on share port 14549 (frames told apart by sysid, the
+    /// setpoints of a group handed to the socket in one `sendmmsg`). The pymavlink
+    /// baseline keeps a port per vehicle.
+    #[arg(long, default_value_t = 1)]
+    pub vehicles_per_port: usize,
 }
 
 /// Runs `skein bench <what>`.

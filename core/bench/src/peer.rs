@@ -107,7 +107,12 @@ async fn fly(
     });
     // The script has bound its ports once it runs; give it a moment before the simulator
     // starts sending to them by waiting for the simulator's own start.
-    let mut sim = SimProcess::start(args, base).await?;
+    // The loop keeps a port per vehicle, whatever skein's run shared.
+    let per_vehicle = SwarmBenchArgs {
+        vehicles_per_port: 1,
+        ..args.clone()
+    };
+    let mut sim = SimProcess::start(&per_vehicle, base).await?;
     let wait = Duration::from_secs_f64(setup_s + 30.0);
     let ready = tokio::time::timeout(wait, lines.next_line()).await;
     let line = match ready {

@@ -76,6 +76,7 @@ pub async fn restart(args: RestartBenchArgs) -> Result<Value, String> {
         seed: args.seed,
         peer: None,
         peer_script: None,
+        vehicles_per_port: 1,
     };
     let mut config = bench_config(&swarm_args);
     let mut model = skein_swarm::VehicleModel::generic();

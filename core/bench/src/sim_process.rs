@@ -24,7 +24,8 @@ pub(crate) struct SimProcess {
 }
 
 impl SimProcess {
-    /// Starts `skein sim` with vehicle i sending to `target_base + i`; returns once the
+    /// Starts `skein sim` with vehicle i sending to `target_base + i / vehicles_per_port`;
+    /// returns once the
     /// simulator is ready and its stats socket is connected.
     pub(crate) async fn start(
         args: &SwarmBenchArgs,
@@ -36,6 +37,10 @@ impl SimProcess {
             .args(["--vehicles", &args.vehicles.to_string()])
             .args(["--listen-base-port", "0"])
             .args(["--target-base-port", &target_base.to_string()])
+            .args([
+                "--vehicles-per-target-port",
+                &args.vehicles_per_port.to_string(),
+            ])
             .args(["--spacing-m", &args.spacing_m.to_string()])
             .args(["--seed", &args.seed.to_string()])
             .args(["--stats", "127.0.0.1:0"])

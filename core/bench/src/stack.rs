@@ -49,9 +49,9 @@ pub(crate) fn bench_config(args: &SwarmBenchArgs) -> SwarmConfig {
     config
 }
 
-/// Starts skein's stack with one `udpin` endpoint per vehicle on a free block of
-/// consecutive ports, every vehicle of `model` (`None`: generic); returns the swarm and
-/// the first port.
+/// Starts skein's stack with one `udpin` endpoint per `args.vehicles_per_port` vehicles
+/// on a free block of consecutive ports, every vehicle of `model` (`None`: generic);
+/// returns the swarm and the first port.
 pub(crate) async fn start_swarm(
     args: &SwarmBenchArgs,
     config: SwarmConfig,
@@ -59,22 +59,32 @@ pub(crate) async fn start_swarm(
     model: Option<&str>,
 ) -> Result<(Swarm, u16), String> {
     let n = args.vehicles;
+    let per_port = args.vehicles_per_port;
+    if !(1..=skein_sim::MAX_SHARED_SYSIDS).contains(&per_port) {
+        return Err(format!(
+            "--vehicles-per-port {per_port}: 1 to {} (their sysids must differ)",
+            skein_sim::MAX_SHARED_SYSIDS
+        ));
+    }
+    let ports = n.div_ceil(per_port);
     let mut last_error = String::new();
     for attempt in 0..20 {
-        let base = candidate_base(n, attempt)
+        let base = candidate_base(ports, attempt)
             .ok_or_else(|| format!("{n} vehicles need more local UDP ports than available"))?;
-        let endpoints = (0..n)
-            .map(|i| EndpointSpec {
+        let endpoints = (0..ports)
+            .map(|p| EndpointSpec {
                 connection: skein_link::ConnectionAddress::UdpIn(SocketAddr::new(
                     LOCALHOST,
-                    base + i as u16,
+                    base + p as u16,
                 )),
-                vehicles: vec![VehicleSpec {
-                    id: Some(format!("uav-{}", i + 1)),
-                    sysid: Some(skein_sim::instance_sysid(i, n)),
-                    model: model.map(str::to_string),
-                    signing: None,
-                }],
+                vehicles: (p * per_port..n.min((p + 1) * per_port))
+                    .map(|i| VehicleSpec {
+                        id: Some(format!("uav-{}", i + 1)),
+                        sysid: Some(skein_sim::instance_sysid(i, n)),
+                        model: model.map(str::to_string),
+                        signing: None,
+                    })
+                    .collect(),
                 // The simulator runs in its own process: nothing in-process to drive.
                 simulated: false,
             })

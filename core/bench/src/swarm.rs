@@ -74,7 +74,7 @@ pub async fn swarm(args: SwarmBenchArgs) -> Result<Value, String> {
         start_swarm(&args, bench_config(&args), SwarmServices::default(), None).await?;
     eprintln!(
         "bench: skein listening on udp 127.0.0.1:{base}..{}",
-        usize::from(base) + n - 1
+        usize::from(base) + n.div_ceil(args.vehicles_per_port) - 1
     );
     let mut sim = match SimProcess::start(&args, base).await {
         Ok(s) => s,
@@ -166,6 +166,7 @@ async fn measure(
     let iv = &summary["setpoint_intervals"];
     Ok(json!({
         "vehicles": n,
+        "vehicles_per_port": args.vehicles_per_port,
         "rate_hz": args.rate_hz,
         "seconds": round(window_s, 2),
         "setpoints_sent": setpoints_sent,

@@ -40,6 +40,11 @@ pub struct SimArgs {
     /// port + 9 from instance 10 on): one port pair per vehicle, any number of vehicles.
     #[arg(long)]
     pub per_vehicle_targets: bool,
+    /// With --per-vehicle-targets: this many vehicles share each target port (vehicle i
+    /// sends to target base port + i / K), as PX4's instances from the 10th on share
+    /// one; 1 to 250.
+    #[arg(long, default_value_t = 1, requires = "per_vehicle_targets")]
+    pub vehicles_per_target_port: usize,
     /// Address the vehicles' sockets bind to.
     #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST))]
     pub bind_ip: IpAddr,
@@ -147,12 +152,13 @@ impl SimArgs {
             return Err("--vehicles must be at least 1".into());
         }
         let mut cfg = if self.per_vehicle_targets {
-            SimConfig::per_vehicle_ports(
+            SimConfig::grouped_target_ports(
                 self.vehicles,
                 self.bind_ip,
                 self.target_ip,
                 self.listen_base_port,
                 self.target_base_port,
+                self.vehicles_per_target_port,
             )?
         } else if self.vehicles > 255 {
             return Err(format!(

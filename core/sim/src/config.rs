@@ -214,11 +214,35 @@ impl SimConfig {
         listen_base: u16,
         target_base: u16,
     ) -> Result<Self, String> {
+        Self::grouped_target_ports(n, bind_ip, target_ip, listen_base, target_base, 1)
+    }
+
+    /// As [`SimConfig::per_vehicle_ports`], but `per_port` vehicles share each target
+    /// port: vehicle i sends to `target_ip:target_base + i / per_port`, as PX4 instances
+    /// from the 10th on share one port (a client demultiplexes them by sysid, which
+    /// [`instance_sysid`] keeps unique within a group of at most 250).
+    ///
+    /// # Errors
+    /// As [`SimConfig::per_vehicle_ports`], and a `per_port` of 0 or over 250.
+    pub fn grouped_target_ports(
+        n: usize,
+        bind_ip: IpAddr,
+        target_ip: IpAddr,
+        listen_base: u16,
+        target_base: u16,
+        per_port: usize,
+    ) -> Result<Self, String> {
         if n == 0 {
             return Err("no vehicles".into());
         }
         if target_base == 0 {
             return Err("per-vehicle targets need a target base port".into());
+        }
+        if !(1..=MAX_SHARED_SYSIDS).contains(&per_port) {
+            return Err(format!(
+                "{per_port} vehicles per target port: 1 to {MAX_SHARED_SYSIDS} (their sysids \
+                 must differ)"
+            ));
         }
         let port = |base: u16, i: usize, what: &str| -> Result<u16, String> {
             u16::try_from(usize::from(base) + i)
@@ -234,7 +258,7 @@ impl SimConfig {
                 Ok(SimVehicleConfig {
                     sysid: instance_sysid(i, n),
                     bind: SocketAddr::new(bind_ip, listen),
-                    target: SocketAddr::new(target_ip, port(target_base, i, "target")?),
+                    target: SocketAddr::new(target_ip, port(target_base, i / per_port, "target")?),
                 })
             })
             .collect::<Result<Vec<_>, String>>()?;
@@ -291,6 +315,23 @@ mod tests {
         assert!(SimConfig::per_vehicle_ports(1000, ip, ip, 0, 65_000).is_err());
         assert!(SimConfig::per_vehicle_ports(10, ip, ip, 65_530, 20_000).is_err());
         assert!(SimConfig::per_vehicle_ports(10, ip, ip, 0, 0).is_err());
+    }
+
+    #[test]
+    fn grouped_target_ports_share_a_port_per_group_with_distinct_sysids() {
+        let ip = IpAddr::V4(Ipv4Addr::LOCALHOST);
+        let cfg = SimConfig::grouped_target_ports(1000, ip, ip, 0, 20_000, 250).expect("config");
+        assert_eq!(cfg.vehicles[0].target.port(), 20_000);
+        assert_eq!(cfg.vehicles[249].target.port(), 20_000);
+        assert_eq!(cfg.vehicles[250].target.port(), 20_001);
+        assert_eq!(cfg.vehicles[999].target.port(), 20_003);
+        let pairs: std::collections::HashSet<_> =
+            cfg.vehicles.iter().map(|v| (v.sysid, v.target)).collect();
+        assert_eq!(pairs.len(), 1000, "(sysid, target) unique");
+        for bad in [0, 251] {
+            let err = SimConfig::grouped_target_ports(10, ip, ip, 0, 20_000, bad).unwrap_err();
+            assert!(err.contains("vehicles per target port"), "{err}");
+        }
     }
 
     #[test]
