@@ -96,10 +96,8 @@ impl Skein {
     pub fn spread_observers(&self, baseline_m: f64) {
         let half = baseline_m / 2.0;
         let east_of = |id: &str| {
-            self.vehicles()
-                .iter()
-                .find(|v| v["id"] == id)
-                .and_then(|v| v["position"]["east_m"].as_f64())
+            super::distributed::vehicle(self, id)["position"]["east_m"]
+                .as_f64()
                 .expect("the observer's position")
         };
         // Each along its own column of the spawn grid, clear of the others'.
