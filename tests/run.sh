@@ -12,75 +12,95 @@
 #     linker), g++-aarch64-linux-gnu (OpenH264's C++) and qemu-user (runs the arm64 image's files), systemd (systemd-analyze),
 #     docker-compose when Docker has no Compose v2, and the Rust target
 #     aarch64-unknown-linux-gnu (the base images are made by the tests, once per machine)
-# The tests run in two lanes side by side (tests/lanes.sh); with arguments (test filters,
-# `-p CRATE`) this runs `cargo test --workspace` with them instead, and no fuzzing.
+# The installs run beside the test build (on a fresh machine they are minutes of
+# downloads and unpacking, which leave the cores to the compiler); the tests wait for
+# both. The tests run in two lanes side by side (tests/lanes.sh); with arguments (test
+# filters, `-p CRATE`) this runs `cargo test --workspace` with them instead, after the
+# installs, and no fuzzing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-req=tests/peers/requirements.txt
-if [ ! -x .venv/bin/python ] || ! cmp -s "$req" .venv/.skein-requirements; then
-  echo "tests/run.sh: preparing .venv from $req" >&2
-  python3 -m venv .venv
-  .venv/bin/python -m pip install --quiet --disable-pip-version-check -r "$req"
-  cp "$req" .venv/.skein-requirements
-fi
-
-# The ROS 2 peers (tests/e2e_ros2.rs): built once per machine, again when a message
-# package or the wheels change.
-tests/peers/ros2/setup.sh
-
-have_chromium() {
-  command -v chromedriver >/dev/null 2>&1 &&
-    { command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; }
+# `apt_install PACKAGE...`: Debian's packages, as root or through sudo.
+apt_install() {
+  local sudo=""
+  [ "$(id -u)" = 0 ] || sudo="sudo"
+  echo "tests/run.sh: installing $*" >&2
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "$@" >/dev/null
 }
-if ! have_chromium; then
-  echo "tests/run.sh: installing chromium and chromium-driver" >&2
-  sudo=""
-  [ "$(id -u)" = 0 ] || sudo="sudo"
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq chromium chromium-driver >/dev/null
-fi
 
-# The HTTPS test makes its self-signed certificate with the openssl command-line tool.
-if ! command -v openssl >/dev/null 2>&1; then
-  echo "tests/run.sh: installing openssl" >&2
-  sudo=""
-  [ "$(id -u)" = 0 ] || sudo="sudo"
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq openssl >/dev/null
-fi
+# What the build itself needs: C and C++ compilers (the plugins' and OpenH264's build
+# scripts), and cmake and make (tests/peers/ros2/setup.sh, which would otherwise install
+# them itself, beside this script's own apt-get).
+build_needs=()
+command -v cc >/dev/null 2>&1 || build_needs+=(gcc)
+command -v c++ >/dev/null 2>&1 || build_needs+=(g++)
+command -v cmake >/dev/null 2>&1 || build_needs+=(cmake)
+command -v make >/dev/null 2>&1 || build_needs+=(make)
+[ ${#build_needs[@]} -eq 0 ] || apt_install "${build_needs[@]}"
 
-# The deployment tests: the arm64 cross-build and its qemu smoke test, the units, compose.
-missing=()
-command -v aarch64-linux-gnu-gcc >/dev/null 2>&1 || missing+=(gcc-aarch64-linux-gnu)
-# The camera plugin's H.264 decoder (OpenH264) is C++: its arm64 build needs the cross g++.
-command -v aarch64-linux-gnu-g++ >/dev/null 2>&1 || missing+=(g++-aarch64-linux-gnu)
-# The RTSP camera of e2e_video: Debian's ffmpeg encodes H.264 (libx264).
-command -v ffmpeg >/dev/null 2>&1 || missing+=(ffmpeg)
-command -v qemu-aarch64 >/dev/null 2>&1 || missing+=(qemu-user)
-command -v systemd-analyze >/dev/null 2>&1 || missing+=(systemd)
-if ! docker compose version >/dev/null 2>&1 && ! command -v docker-compose >/dev/null 2>&1; then
-  missing+=(docker-compose)
-fi
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "tests/run.sh: installing ${missing[*]}" >&2
-  sudo=""
-  [ "$(id -u)" = 0 ] || sudo="sudo"
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
-fi
-if ! rustup target list --installed | grep -qx aarch64-unknown-linux-gnu; then
-  echo "tests/run.sh: adding the Rust target aarch64-unknown-linux-gnu" >&2
-  rustup target add aarch64-unknown-linux-gnu
-fi
+# Everything else the tests need (see the top of this file).
+prepare() {
+  local req=tests/peers/requirements.txt
+  if [ ! -x .venv/bin/python ] || ! cmp -s "$req" .venv/.skein-requirements; then
+    echo "tests/run.sh: preparing .venv from $req" >&2
+    python3 -m venv .venv
+    .venv/bin/python -m pip install --quiet --disable-pip-version-check -r "$req"
+    cp "$req" .venv/.skein-requirements
+  fi
+  # The ROS 2 peers (tests/e2e_ros2.rs): built once per machine, again when a message
+  # package or the wheels change.
+  tests/peers/ros2/setup.sh
+  local missing=()
+  # The dashboard tests.
+  command -v chromedriver >/dev/null 2>&1 || missing+=(chromium-driver)
+  command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 ||
+    missing+=(chromium)
+  # The HTTPS test makes its self-signed certificate with the openssl command-line tool.
+  command -v openssl >/dev/null 2>&1 || missing+=(openssl)
+  # The RTSP camera of e2e_video: Debian's ffmpeg encodes H.264 (libx264).
+  command -v ffmpeg >/dev/null 2>&1 || missing+=(ffmpeg)
+  # The deployment tests: the arm64 cross-build and its qemu smoke test, the units,
+  # compose. The camera plugin's H.264 decoder (OpenH264) is C++: its arm64 build needs
+  # the cross g++.
+  command -v aarch64-linux-gnu-gcc >/dev/null 2>&1 || missing+=(gcc-aarch64-linux-gnu)
+  command -v aarch64-linux-gnu-g++ >/dev/null 2>&1 || missing+=(g++-aarch64-linux-gnu)
+  command -v qemu-aarch64 >/dev/null 2>&1 || missing+=(qemu-user)
+  command -v systemd-analyze >/dev/null 2>&1 || missing+=(systemd)
+  if ! docker compose version >/dev/null 2>&1 && ! command -v docker-compose >/dev/null 2>&1; then
+    missing+=(docker-compose)
+  fi
+  [ ${#missing[@]} -eq 0 ] || apt_install "${missing[@]}"
+  if ! rustup target list --installed | grep -qx aarch64-unknown-linux-gnu; then
+    echo "tests/run.sh: adding the Rust target aarch64-unknown-linux-gnu" >&2
+    rustup target add aarch64-unknown-linux-gnu
+  fi
+}
 
 export SKEIN_PYTHON="$PWD/.venv/bin/python"
 # The plugin tests build the plugin libraries with this run's package selection, so that
 # shared dependencies are not compiled a second time with other features.
 export SKEIN_PLUGIN_TEST_SELECTION=workspace
 if [ $# -gt 0 ]; then
-  # A partial run (the caller's filters): as cargo runs it.
+  # A partial run (the caller's filters): as cargo runs it, once everything is in place.
+  prepare
   exec cargo test --workspace --locked "$@"
 fi
+mkdir -p target
+prepare_log=target/prepare.log
+started=$(date +%s)
+prepare >"$prepare_log" 2>&1 &
+pid_prepare=$!
+build_rc=0
+cargo test --workspace --locked --no-run || build_rc=$?
+prepare_rc=0
+wait "$pid_prepare" || prepare_rc=$?
+cat "$prepare_log" >&2
+if [ "$prepare_rc" -ne 0 ]; then
+  echo "tests/run.sh: installing what the tests need failed (exit $prepare_rc)" >&2
+  exit "$prepare_rc"
+fi
+echo "tests/run.sh: build and installs done in $(($(date +%s) - started)) s" >&2
+[ "$build_rc" -eq 0 ] || exit "$build_rc"
 tests/lanes.sh
 tests/fuzz.sh
