@@ -85,12 +85,18 @@ lane() {
   return "${PIPESTATUS[0]}"
 }
 started=$(date +%s)
-lane a "${lane_a[@]}" &
+(
+  rc=0
+  lane a "${lane_a[@]}" || rc=$?
+  echo "tests/lanes.sh: lane a done in $(($(date +%s) - started)) s" >&2
+  exit "$rc"
+) &
 pid_a=$!
 (
   rc=0
   lane b "${lane_b[@]}" || rc=$?
   lane b --doc || rc=$?
+  echo "tests/lanes.sh: lane b done in $(($(date +%s) - started)) s" >&2
   exit "$rc"
 ) &
 pid_b=$!
