@@ -131,8 +131,11 @@ pub enum Change {
 /// reorder a few milliseconds, never this much).
 pub const REBOOT_JUMP_MS: u32 = 200;
 
-/// `time_boot_ms` of the messages that carry it.
-fn boot_time_ms(msg: &MavMessage) -> Option<u32> {
+/// `time_boot_ms` of the messages that carry it (`ATTITUDE`, `GLOBAL_POSITION_INT`,
+/// `LOCAL_POSITION_NED`, `SYSTEM_TIME`), milliseconds since the autopilot booted; `None`
+/// for the others. [`Telemetry::apply`] compares it across messages to see a reboot, so
+/// whoever applies messages must apply all of these in the order they arrived.
+pub fn boot_time_ms(msg: &MavMessage) -> Option<u32> {
     match msg {
         MavMessage::ATTITUDE(m) => Some(m.time_boot_ms),
         MavMessage::GLOBAL_POSITION_INT(m) => Some(m.time_boot_ms),

@@ -15,6 +15,7 @@
 //! restarted actor picks it up and re-registers its route.
 
 mod missions;
+mod route;
 mod vehicle_link;
 
 pub use vehicle_link::VehicleLink;
@@ -97,8 +98,8 @@ pub struct Px4LinkArgs {
 pub enum Px4LinkMsg {
     /// A frame from the vehicle (from the endpoint route).
     Frame(Frame),
-    /// What a kinematic message the route applied itself changed (see
-    /// [`applies_on_route`]); never [`Change::None`].
+    /// What a message the route applied itself changed (see `route::applies_on_route`);
+    /// never [`Change::None`].
     Applied(Change),
     /// Run a command; the reply comes when it is acknowledged (and, for modes, confirmed).
     Command(LinkCommand, RpcReplyPort<Result<(), LinkError>>),
@@ -463,21 +464,6 @@ impl Px4LinkState {
     }
 }
 
-/// Whether the route applies `frame` to the telemetry itself instead of handing it to the
-/// actor: the autopilot's position and attitude (`LOCAL_POSITION_NED`,
-/// `GLOBAL_POSITION_INT`, `ATTITUDE`), which no command, parameter or mission exchange
-/// waits for. What they change that matters (a reboot seen in their `time_boot_ms`)
-/// still reaches the actor as [`Px4LinkMsg::Applied`].
-fn applies_on_route(frame: &Frame, autopilot_compid: u8) -> bool {
-    frame.compid == autopilot_compid
-        && matches!(
-            frame.msg,
-            MavMessage::LOCAL_POSITION_NED(_)
-                | MavMessage::GLOBAL_POSITION_INT(_)
-                | MavMessage::ATTITUDE(_)
-        )
-}
-
 impl Actor for Px4Link {
     type Msg = Px4LinkMsg;
     type State = Px4LinkState;
@@ -488,26 +474,9 @@ impl Actor for Px4Link {
         myself: ActorRef<Self::Msg>,
         args: Px4LinkArgs,
     ) -> Result<Self::State, ActorProcessingErr> {
-        let route_to = myself.clone();
-        let (link, components) = (args.link.clone(), args.components.clone());
         args.link.endpoint.route(
             args.link.sysid,
-            Arc::new(move |f| {
-                if applies_on_route(&f, link.compid) {
-                    // Position and attitude change nothing but the telemetry: applied
-                    // here, on the receive task, they cost no actor message (they are
-                    // most of the traffic of a large swarm).
-                    if let Some(sink) = &components {
-                        sink(&f);
-                    }
-                    let change = link.apply(&f.msg);
-                    if change != Change::None {
-                        let _ = route_to.cast(Px4LinkMsg::Applied(change));
-                    }
-                } else {
-                    let _ = route_to.cast(Px4LinkMsg::Frame(f));
-                }
-            }),
+            route::handler(args.link.clone(), args.components.clone(), myself.clone()),
         );
         myself.send_interval(HEARTBEAT_PERIOD, || Px4LinkMsg::Tick);
         missions::watch_plans(&args.link, &myself);
