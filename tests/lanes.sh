@@ -15,9 +15,8 @@
 #
 # Two builds run beside all of it at idle priority (SCHED_IDLE: they get only the CPU no
 # test wants), but for e2e_tracking, during which they are stopped: the arm64
-# cross-build, started here (deploy_arm64 waits for it), and the fuzz targets', which
-# tests/run.sh started before the test build and waits for after this script (its
-# process group in SKEIN_FUZZ_BUILD_PGID).
+# cross-build (deploy_arm64 waits for it) and the fuzz targets' (tests/fuzz.sh runs them
+# afterwards).
 #
 # Tests that share something run in the same lane or keep it apart themselves: DDS
 # domains are derived from the test process id in disjoint ranges per target, network
@@ -44,6 +43,14 @@ mkdir -p target
 setsid chrt --idle 0 nice -n 19 deploy/docker/cross-build.sh --profile dev --target-dir "$PWD/target/arm64" \
   >"$arm64_log" 2>&1 &
 pid_arm64=$!
+# The fuzz targets' build (tests/fuzz.sh runs them after this script; cargo-fuzz's install
+# and a second, instrumented build of the API, the link and the video decoder: minutes of
+# CPU) beside them too, the same way; fuzz.sh then finds them built, or builds again and
+# says why.
+fuzz_log=target/fuzz-build.log
+setsid chrt --idle 0 nice -n 19 tests/fuzz.sh --build-only >"$fuzz_log" 2>&1 &
+pid_fuzz=$!
+
 mapfile -t all_tests < <(cargo metadata --no-deps --format-version 1 --locked |
   python3 -c 'import json, sys
 for p in json.load(sys.stdin)["packages"]:
@@ -104,7 +111,7 @@ echo "tests/lanes.sh: lanes done in $(($(date +%s) - started)) s" >&2
 # found no hostile swarm: its image processing is short of CPU before anything else).
 builds() { # STOP|CONT: every idle-priority build still running
   local p
-  for p in "$pid_arm64" ${SKEIN_FUZZ_BUILD_PGID:-}; do kill "-$1" -- "-$p" 2>/dev/null || true; done
+  for p in "$pid_arm64" "$pid_fuzz"; do kill "-$1" -- "-$p" 2>/dev/null || true; done
 }
 for t in "${ALONE[@]}"; do
   if [ "$t" = e2e_tracking ]; then builds STOP; fi
@@ -118,6 +125,11 @@ for t in "${ALONE[@]}"; do
   cargo test --workspace --locked --test "$t" || failed="$failed $t"
   if [ "$t" = e2e_tracking ]; then builds CONT; fi
 done
+if wait "$pid_fuzz"; then
+  echo "tests/lanes.sh: fuzz build done in $(($(date +%s) - started)) s" >&2
+else
+  echo "tests/lanes.sh: the fuzz build failed (target/fuzz-build.log); fuzz.sh builds again" >&2
+fi
 if [ -n "$failed" ]; then
   echo "tests/lanes.sh: failed:$failed (search the log for its lane's prefix)" >&2
   exit 101

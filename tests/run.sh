@@ -87,19 +87,8 @@ if [ $# -gt 0 ]; then
   exec cargo test --workspace --locked "$@"
 fi
 mkdir -p target
-started=$(date +%s)
-# The fuzz targets' build (tests/fuzz.sh runs them after the tests; cargo-fuzz's install
-# and a second, instrumented build of the API, the link and the video decoders: minutes
-# of CPU) at idle priority (SCHED_IDLE: only the CPU the test build and the tests leave
-# idle), from now on; fuzz.sh then finds them built, or builds again and says why.
-# tests/lanes.sh stops it while e2e_tracking runs (its process group, by setsid).
-fuzz_log=target/fuzz-build.log
-setsid chrt --idle 0 nice -n 19 tests/fuzz.sh --build-only >"$fuzz_log" 2>&1 &
-pid_fuzz=$!
-export SKEIN_FUZZ_BUILD_PGID=$pid_fuzz
-# A run that stops early (a failed build, install or test) leaves no build behind.
-trap 'kill -- "-$pid_fuzz" 2>/dev/null || true' EXIT
 prepare_log=target/prepare.log
+started=$(date +%s)
 prepare >"$prepare_log" 2>&1 &
 pid_prepare=$!
 build_rc=0
@@ -114,9 +103,4 @@ fi
 echo "tests/run.sh: build and installs done in $(($(date +%s) - started)) s" >&2
 [ "$build_rc" -eq 0 ] || exit "$build_rc"
 tests/lanes.sh
-if wait "$pid_fuzz"; then
-  echo "tests/run.sh: fuzz build done at $(($(date +%s) - started)) s" >&2
-else
-  echo "tests/run.sh: the fuzz build failed ($fuzz_log); fuzz.sh builds again" >&2
-fi
 tests/fuzz.sh
