@@ -253,17 +253,15 @@ mod tests {
     fn a_requested_leader_that_joins_late_takes_the_lead_once() {
         let mut e = FormationEngine::default();
         e.set(line());
-        let mut members = BTreeMap::new();
-        members.insert("uav-1".to_string(), member(0.0, -5.0, -10.0));
-        members.insert("uav-3".to_string(), member(0.0, 12.0, -10.0));
+        let mut m = members(&[("uav-1", -5.0), ("uav-3", 12.0)]);
         // uav-2, the requested leader, is still on its way: someone leads meanwhile.
-        e.tick(&members, 0.1, &fence());
+        e.tick(&m, 0.1, &fence());
         let first = e.take_leader_changes();
         assert_eq!(first.len(), 1, "{first:?}");
         assert_ne!(first[0].to, "uav-2");
         // It joins: it takes the lead it was given.
-        members.insert("uav-2".to_string(), member(0.0, 0.0, -10.0));
-        let slots = e.tick(&members, 0.1, &fence());
+        m.insert("uav-2".to_string(), member(0.0, 0.0, -10.0));
+        let slots = e.tick(&m, 0.1, &fence());
         let joined = e.take_leader_changes();
         assert_eq!(joined.len(), 1, "{joined:?}");
         assert_eq!(joined[0].to, "uav-2");
@@ -271,19 +269,19 @@ mod tests {
         assert_eq!(joined[0].reason, "requested leader joined the formation");
         assert_eq!(slots["uav-2"].slot, 0);
         // Silent, it hands over; back, it does not take the lead again.
-        silence(&mut members, "uav-2");
-        e.tick(&members, 0.1, &fence());
+        silence(&mut m, "uav-2");
+        e.tick(&m, 0.1, &fence());
         let over = e.take_leader_changes();
         assert_eq!(over.len(), 1, "{over:?}");
         assert_eq!(over[0].from.as_deref(), Some("uav-2"));
-        members.get_mut("uav-2").unwrap().silence = Duration::ZERO;
-        e.tick(&members, 0.1, &fence());
+        m.get_mut("uav-2").unwrap().silence = Duration::ZERO;
+        e.tick(&m, 0.1, &fence());
         assert!(e.take_leader_changes().is_empty());
         assert_eq!(e.leader(), Some(over[0].to.as_str()));
         // A new spec naming it again: it leads again.
         e.deactivate();
         e.set(line());
-        e.tick(&members, 0.1, &fence());
+        e.tick(&m, 0.1, &fence());
         assert_eq!(e.leader(), Some("uav-2"));
     }
 
