@@ -14,6 +14,12 @@
 //!   commands) further and further. Each actor calls [`TickGate::done`] when it handles
 //!   its tick.
 //!
+//! Work that needs no actor of its own runs on the clock itself ([`Ticker::run_every`]):
+//! every vehicle's control step is a direct call there, not a message, so a control
+//! period costs one task wake-up for the whole swarm instead of one per vehicle. A clock
+//! that runs late (its own period overrun, the process short of CPU) counts the periods it
+//! missed as overruns of each of its direct entries.
+//!
 //! A clock runs on the runtime of the first actor that registers with it; dropping the
 //! [`Ticker`] stops its clocks.
 
@@ -28,7 +34,9 @@ use tokio::task::JoinHandle;
 type Fire = Box<dyn Fn() -> bool + Send + Sync>;
 
 struct Entry {
-    pending: Arc<AtomicBool>,
+    /// Set while the message sent is not handled yet; `None` for direct work, which is
+    /// done by the time `fire` returns.
+    pending: Option<Arc<AtomicBool>>,
     fire: Fire,
 }
 
@@ -44,9 +52,10 @@ type Running = (Arc<Clock>, JoinHandle<()>);
 struct Inner {
     /// One clock per period, µs.
     clocks: Mutex<BTreeMap<u64, Running>>,
-    /// Ticks not sent because the previous one was still waiting.
+    /// Ticks not sent because the previous one was still waiting, and periods of direct
+    /// work missed by a late clock.
     overruns: AtomicU64,
-    /// Ticks sent.
+    /// Ticks sent and rounds of direct work done.
     sent: AtomicU64,
 }
 
@@ -90,12 +99,33 @@ impl Ticker {
         period: Duration,
         fire: impl Fn() -> bool + Send + Sync + 'static,
     ) -> TickGate {
-        let period = period.max(Duration::from_millis(1));
         let pending = Arc::new(AtomicBool::new(false));
-        let entry = Entry {
-            pending: pending.clone(),
-            fire: Box::new(fire),
-        };
+        self.register(
+            period,
+            Entry {
+                pending: Some(pending.clone()),
+                fire: Box::new(fire),
+            },
+        );
+        TickGate(pending)
+    }
+
+    /// Calls `work` on the clock's task every `period` (at least 1 ms), until it returns
+    /// false. `work` runs beside every other direct entry of the period, one after the
+    /// other: it must be short and must not block (a control step, not I/O). Must be
+    /// called on a tokio runtime, as [`Ticker::every`].
+    pub fn run_every(&self, period: Duration, work: impl Fn() -> bool + Send + Sync + 'static) {
+        self.register(
+            period,
+            Entry {
+                pending: None,
+                fire: Box::new(work),
+            },
+        );
+    }
+
+    fn register(&self, period: Duration, entry: Entry) {
+        let period = period.max(Duration::from_millis(1));
         let mut clocks = self.inner.clocks.lock().expect("ticker lock");
         let key = period.as_micros() as u64;
         let clock = match clocks.get(&key) {
@@ -112,15 +142,15 @@ impl Ticker {
             }
         };
         clock.entries.lock().expect("clock lock").push(entry);
-        TickGate(pending)
     }
 
-    /// Ticks skipped so far because the actor had not handled the previous one.
+    /// Ticks skipped so far because the actor had not handled the previous one, and
+    /// periods of direct work ([`Ticker::run_every`]) missed because the clock ran late.
     pub fn overruns(&self) -> u64 {
         self.inner.overruns.load(Ordering::Relaxed)
     }
 
-    /// Ticks sent so far.
+    /// Ticks sent and rounds of direct work done so far.
     pub fn sent(&self) -> u64 {
         self.inner.sent.load(Ordering::Relaxed)
     }
@@ -148,20 +178,43 @@ async fn run(period: Duration, clock: std::sync::Weak<Clock>, inner: std::sync::
     let mut interval = tokio::time::interval(period);
     interval.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     interval.tick().await; // the first tick is immediate
+    let mut last = tokio::time::Instant::now();
     loop {
         interval.tick().await;
+        let now = tokio::time::Instant::now();
+        // Whole periods this clock missed (it ran late): each direct entry missed them.
+        let missed = (now.duration_since(last).as_secs_f64() / period.as_secs_f64() - 1.0)
+            .round()
+            .max(0.0) as u64;
+        last = now;
         let (Some(clock), Some(inner)) = (clock.upgrade(), inner.upgrade()) else {
             return;
         };
+        // Taken out of the lock while they run: a registration (an actor starting) never
+        // waits for a round, and work that registers cannot deadlock.
+        let mut entries = std::mem::take(&mut *clock.entries.lock().expect("clock lock"));
         let (mut sent, mut overruns) = (0, 0);
-        clock.entries.lock().expect("clock lock").retain(|e| {
-            if e.pending.swap(true, Ordering::AcqRel) {
+        entries.retain(|e| match &e.pending {
+            Some(pending) if pending.swap(true, Ordering::AcqRel) => {
                 overruns += 1;
-                return true;
+                true
             }
-            sent += 1;
-            (e.fire)()
+            Some(_) => {
+                sent += 1;
+                (e.fire)()
+            }
+            None => {
+                overruns += missed;
+                sent += 1;
+                (e.fire)()
+            }
         });
+        {
+            let mut current = clock.entries.lock().expect("clock lock");
+            // Registered while the round ran: after the others.
+            entries.append(&mut current);
+            *current = entries;
+        }
         inner.sent.fetch_add(sent, Ordering::Relaxed);
         inner.overruns.fetch_add(overruns, Ordering::Relaxed);
     }
@@ -220,5 +273,28 @@ mod tests {
         tokio::time::sleep(Duration::from_millis(30)).await;
         assert_eq!(ticker.registered(), 0);
         assert_eq!(fired.load(Ordering::Relaxed), 6);
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn direct_work_runs_on_the_clock_and_counts_the_periods_a_late_clock_missed() {
+        let ticker = Ticker::new();
+        let done = Arc::new(AtomicUsize::new(0));
+        let d = done.clone();
+        ticker.run_every(Duration::from_millis(10), move || {
+            d.fetch_add(1, Ordering::Relaxed) < 7
+        });
+        tokio::time::sleep(Duration::from_millis(35)).await;
+        assert_eq!(done.load(Ordering::Relaxed), 3);
+        assert_eq!(ticker.overruns(), 0);
+        // The clock's task held up from its round at 30 ms to 80 ms: it runs once at 80,
+        // the rounds of 40, 50, 60 and 70 missed.
+        tokio::time::advance(Duration::from_millis(45)).await;
+        tokio::time::sleep(Duration::from_millis(1)).await;
+        assert_eq!(done.load(Ordering::Relaxed), 4);
+        assert_eq!(ticker.overruns(), 4);
+        // Until the work says it is done.
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        assert_eq!(done.load(Ordering::Relaxed), 8);
+        assert_eq!(ticker.registered(), 0);
     }
 }

@@ -3,10 +3,10 @@
 //! telemetry, loss, return, reboot) become FSM events. State changes go up to the
 //! coordinator through the uplink.
 
-use super::VehicleActorState;
 use super::control::Target;
 use super::procedures::Procedure;
 use super::shared::Memory;
+use super::{VehicleActorState, VehicleCore};
 use crate::config::SwarmConfig;
 use crate::events::SwarmEvent;
 use crate::protocol::{Command, FromVehicle};
@@ -20,7 +20,7 @@ use skein_model::safety::SetpointShaper;
 
 use super::messages::VehicleMsg;
 
-impl VehicleActorState {
+impl VehicleCore {
     pub(super) fn config(&self) -> &SwarmConfig {
         &self.context.config
     }
@@ -93,7 +93,9 @@ impl VehicleActorState {
         }
         mem.target = Some(target);
     }
+}
 
+impl VehicleActorState {
     pub(super) fn command(
         &self,
         myself: &ActorRef<VehicleMsg>,
@@ -228,7 +230,9 @@ impl VehicleActorState {
         }
         Ok(())
     }
+}
 
+impl VehicleCore {
     pub(super) fn emit_result(&self, command_id: u64, command: &str, result: Result<(), String>) {
         if command_id == 0 {
             return; // internal command (the coordinator's formation joins)

@@ -3,8 +3,12 @@
 //! separation from the neighbours), converted from the swarm frame to the vehicle's own
 //! local NED frame through geodetic coordinates, and handed to the setpoint stream.
 //! Formation slot targets arrive stamped and move on by their age.
+//!
+//! The step runs on the process's control clock, one direct call per vehicle per period
+//! (see [`super::VehicleCore`]), with what the step keeps between periods in its
+//! [`ControlClock`].
 
-use super::VehicleActorState;
+use super::VehicleCore;
 use super::slot_correction::SlotCorrectionGains;
 use crate::events::SwarmEvent;
 use crate::load::ShedWork;
@@ -64,7 +68,23 @@ impl Target {
     }
 }
 
-impl VehicleActorState {
+/// What one vehicle's control step keeps from one period to the next.
+#[derive(Debug)]
+pub(super) struct ControlClock {
+    last_tick: Instant,
+    ticks: u64,
+}
+
+impl ControlClock {
+    pub(super) fn new() -> Self {
+        ControlClock {
+            last_tick: Instant::now(),
+            ticks: 0,
+        }
+    }
+}
+
+impl VehicleCore {
     pub(super) fn on_slot(&self, slot: Option<SlotTarget>) {
         let mut mem = self.shared.memory();
         if mem.state != VehicleState::InFormation {
@@ -91,17 +111,18 @@ impl VehicleActorState {
         }
     }
 
-    /// The control loop.
-    pub(super) fn tick(&mut self) {
+    /// One control step (see the module docs).
+    pub(super) fn tick(&self, clock: &mut ControlClock) {
         let now = Instant::now();
         let dt = now
-            .duration_since(self.last_tick)
+            .duration_since(clock.last_tick)
             .as_secs_f64()
             .clamp(0.0, 0.2);
-        self.last_tick = now;
-        self.ticks += 1;
+        clock.last_tick = now;
+        clock.ticks += 1;
+        let ticks = clock.ticks;
         let Some(frame) = self.swarm_frame() else {
-            self.shared.publish(None, None, self.children.supervision());
+            self.shared.publish(None, None, &self.supervision);
             self.shared.publish_report(None);
             return;
         };
@@ -227,17 +248,15 @@ impl VehicleActorState {
         self.position.set(measured, steered, planned);
         let publish_every = (self.config().control_rate_hz / 10.0).round().max(1.0) as u64;
         self.shared.publish_measured(measured);
-        if self.ticks.is_multiple_of(publish_every) {
+        if ticks.is_multiple_of(publish_every) {
             self.watch_fence(measured.map(|(p, _)| p), state);
             // The API's snapshot is optional work: a fifth of its rate while short of CPU.
             if self
-                .children
-                .supervision()
+                .supervision
                 .load
-                .keep(ShedWork::Snapshots, self.ticks / publish_every)
+                .keep(ShedWork::Snapshots, ticks / publish_every)
             {
-                self.shared
-                    .publish(Some(frame), slot, self.children.supervision());
+                self.shared.publish(Some(frame), slot, &self.supervision);
             }
         }
     }

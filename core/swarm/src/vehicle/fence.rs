@@ -3,7 +3,7 @@
 //! it), skein's own breach check of the vehicle in the air, and the events that tell the
 //! operator about both and about its autopilot's copy of the fence.
 
-use super::VehicleActorState;
+use super::VehicleCore;
 use super::shared::Memory;
 use crate::context::LiveFence;
 use crate::events::SwarmEvent;
@@ -38,7 +38,7 @@ pub struct FenceMemory {
     told: Option<(FenceSyncState, u64)>,
 }
 
-impl VehicleActorState {
+impl VehicleCore {
     /// The fence setpoints are clamped into now: the one in force, or with the test fault
     /// one nothing reaches. Brings the shaper up to date when either changed.
     pub(super) fn setpoint_fence(&self, mem: &mut Memory) -> Arc<LiveFence> {

@@ -68,8 +68,9 @@ pub enum VehicleMsg {
     Protocol(ToVehicle),
     /// An event from the `Px4Link` child.
     Link(LinkEvent),
-    /// Control loop tick.
-    Tick,
+    /// The control step panicked (the message): the actor fails, and its supervisor
+    /// restarts it.
+    ControlFailed(String),
     /// A procedure task finished.
     ProcedureDone {
         /// Generation of the procedure.

@@ -12,7 +12,10 @@
 //!   report;
 //! - [`commands`]: operator commands and link events into the FSM;
 //! - [`procedures`]: multi-step operations (arm, enter OFFBOARD, land) as tasks;
-//! - [`control`]: the control loop feeding the setpoint stream;
+//! - [`control`]: the control loop feeding the setpoint stream: a direct call on the
+//!   process's control clock ([`crate::ticker::Ticker::run_every`]) with the
+//!   [`VehicleCore`], not a message to the actor, so it runs on time whatever the actor
+//!   is busy with;
 //! - [`fence`]: the geofence the setpoints are clamped into, skein's breach check;
 //! - [`slot_correction`]: the outer loop that cancels PX4's lag behind a formation slot;
 //! - [`fleet`]: the coordinator's registry of this process's vehicles, and its readers;
@@ -43,39 +46,95 @@ use crate::events::SwarmEvent;
 use crate::neighbours::{NeighbourSlot, Neighbours};
 use crate::payload::PayloadMsg;
 use crate::protocol::{FromVehicle, PayloadCommandError, ToVehicle, Uplink};
-use crate::supervision::Children;
+use crate::supervision::{Children, Supervision};
 use crate::ticker::TickGate;
 use fleet::Fleet;
 use ractor::{Actor, ActorProcessingErr, ActorRef, SupervisionEvent};
 use skein_link::Px4LinkMsg;
 use skein_model::supervision::{ChildStatus, FaultKind};
 use std::collections::{BTreeMap, BTreeSet};
-use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::panic::AssertUnwindSafe;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
 use tokio::sync::broadcast;
 
 /// The `Vehicle` actor (see module docs).
 pub struct Vehicle;
 
-/// State of [`Vehicle`].
-pub struct VehicleActorState {
+/// What a vehicle's control step and its actor share: the handles of the vehicle's
+/// persistent part and of the swarm, no actor state. The control step runs on the
+/// process's control clock while the actor handles its messages; both change the FSM
+/// memory only under its lock ([`VehicleShared::memory`]).
+pub struct VehicleCore {
     shared: Arc<VehicleShared>,
     context: Arc<SwarmContext>,
-    fleet: Fleet,
     neighbours: Neighbours,
     position: NeighbourSlot,
     events: broadcast::Sender<SwarmEvent>,
     uplink: Uplink,
+    supervision: Arc<Supervision>,
+    /// Set when the actor that owns this core has stopped: its control step stops too
+    /// (its replacement brings its own).
+    retired: AtomicBool,
+}
+
+/// State of [`Vehicle`]. Reads through to its [`VehicleCore`].
+pub struct VehicleActorState {
+    core: Arc<VehicleCore>,
+    fleet: Fleet,
     children: Children<Child>,
-    /// The control tick and the watchdog tick from the process's [`crate::ticker::Ticker`].
-    tick_gate: TickGate,
+    /// The watchdog tick from the process's [`crate::ticker::Ticker`].
     watch_gate: TickGate,
-    last_tick: Instant,
-    ticks: u64,
     /// Slots being attached, with the request to answer once the driver exists.
     attaching: BTreeMap<String, u64>,
     /// Slots whose payload is being stopped on purpose (unload, detach).
     stopping: BTreeSet<String>,
+}
+
+impl std::ops::Deref for VehicleActorState {
+    type Target = VehicleCore;
+
+    fn deref(&self) -> &VehicleCore {
+        &self.core
+    }
+}
+
+impl Drop for VehicleActorState {
+    fn drop(&mut self) {
+        self.core.retired.store(true, Ordering::Release);
+    }
+}
+
+/// Registers `core`'s control step on the process's control clock at the control rate:
+/// it runs until the core is retired or dropped. A panic in the step is the actor's
+/// failure: `actor` is told ([`VehicleMsg::ControlFailed`]) and fails, and its
+/// supervisor restarts it with a fresh step.
+fn start_control(core: &Arc<VehicleCore>, actor: ActorRef<VehicleMsg>) {
+    let period = Duration::from_secs_f64(1.0 / core.context.config.control_rate_hz.max(1.0));
+    let weak = Arc::downgrade(core);
+    let clock = Mutex::new(control::ControlClock::new());
+    core.context.ticker.run_every(period, move || {
+        let Some(core) = weak.upgrade() else {
+            return false;
+        };
+        if core.retired.load(Ordering::Acquire) {
+            return false;
+        }
+        let mut clock = clock.lock().unwrap_or_else(PoisonError::into_inner);
+        match std::panic::catch_unwind(AssertUnwindSafe(|| core.tick(&mut clock))) {
+            Ok(()) => true,
+            Err(panic) => {
+                let why = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "a panic".into());
+                let _ = actor.cast(VehicleMsg::ControlFailed(why));
+                false
+            }
+        }
+    });
 }
 
 impl VehicleActorState {
@@ -182,28 +241,30 @@ impl Actor for Vehicle {
         myself: ActorRef<Self::Msg>,
         args: VehicleArgs,
     ) -> Result<Self::State, ActorProcessingErr> {
-        let period = Duration::from_secs_f64(1.0 / args.context.config.control_rate_hz.max(1.0));
-        let ticker = &args.context.ticker;
         let me = myself.clone();
-        let tick_gate = ticker.every(period, move || me.cast(VehicleMsg::Tick).is_ok());
-        let me = myself.clone();
-        let watch_gate = ticker.every(args.supervision.config.watchdog_period(), move || {
-            me.cast(VehicleMsg::WatchTick).is_ok()
-        });
+        let watch_gate = args
+            .context
+            .ticker
+            .every(args.supervision.config.watchdog_period(), move || {
+                me.cast(VehicleMsg::WatchTick).is_ok()
+            });
         let path = format!("{}/{}", crate::supervision::ROOT, args.shared.id);
-        let mut state = VehicleActorState {
+        let core = Arc::new(VehicleCore {
             shared: args.shared,
             context: args.context,
-            fleet: args.fleet,
             neighbours: args.neighbours,
             position: args.position,
             events: args.events,
             uplink: args.uplink,
+            supervision: args.supervision.clone(),
+            retired: AtomicBool::new(false),
+        });
+        start_control(&core, myself.clone());
+        let mut state = VehicleActorState {
+            core,
+            fleet: args.fleet,
             children: Children::new(path, args.supervision),
-            tick_gate,
             watch_gate,
-            last_tick: Instant::now(),
-            ticks: 0,
             attaching: BTreeMap::new(),
             stopping: BTreeSet::new(),
         };
@@ -235,9 +296,8 @@ impl Actor for Vehicle {
         match msg {
             VehicleMsg::Protocol(msg) => state.on_protocol(&myself, msg).await?,
             VehicleMsg::Link(ev) => state.on_link_event(ev),
-            VehicleMsg::Tick => {
-                state.tick_gate.done();
-                state.tick();
+            VehicleMsg::ControlFailed(why) => {
+                return Err(format!("control step failed: {why}").into());
             }
             VehicleMsg::ProcedureDone {
                 generation,
