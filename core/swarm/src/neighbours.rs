@@ -122,6 +122,7 @@ impl NeighbourBoard {
         Neighbours {
             list: self.list.subscribe(),
             index: self.index.clone(),
+            own: Arc::default(),
         }
     }
 }
@@ -260,6 +261,17 @@ impl SharedIndex {
 pub struct Neighbours {
     list: watch::Receiver<Arc<[Entry]>>,
     index: Arc<SharedIndex>,
+    /// What one reader keeps between control steps: its own place in the list it last
+    /// read, and the scratch list of places found.
+    own: Arc<Mutex<ReaderCache>>,
+}
+
+/// See [`Neighbours::own`].
+#[derive(Debug, Default)]
+struct ReaderCache {
+    /// The list, the id looked up in it and where that id is in it.
+    position: Option<(Arc<[Entry]>, String, Option<u32>)>,
+    found: Vec<u32>,
 }
 
 impl Neighbours {
@@ -269,19 +281,31 @@ impl Neighbours {
     /// does not steer and controllers that lag. With `planned` (vehicle `id` flies a
     /// slot), the other members are [`Obstacle::planned`]: the formation's transition
     /// plan keeps them apart.
-    pub fn around(&self, id: &str, planned: bool) -> Neighbourhood {
+    pub fn around(&self, id: &str, planned: bool) -> Neighbourhood<'_> {
         let list = self.list.borrow().clone();
         let snapshot = self.index.snapshot(&list);
-        let own = snapshot
-            .list
-            .binary_search_by(|(other, _)| other.as_str().cmp(id))
-            .ok()
-            .map(|i| i as u32);
+        let mut cache = self.own.lock().unwrap_or_else(|p| p.into_inner());
+        // Looked up again only when the list changed (a vehicle joined): the ids are
+        // strings apart in memory, a search per step would cost a cache miss per probe.
+        let own = match &cache.position {
+            Some((l, i, own)) if Arc::ptr_eq(l, &snapshot.list) && i == id => *own,
+            _ => {
+                let own = snapshot
+                    .list
+                    .binary_search_by(|(other, _)| other.as_str().cmp(id))
+                    .ok()
+                    .map(|i| i as u32);
+                cache.position = Some((snapshot.list.clone(), id.to_string(), own));
+                own
+            }
+        };
+        let found = std::mem::take(&mut cache.found);
         Neighbourhood {
             snapshot,
             own,
             planned,
-            found: Mutex::new(Vec::new()),
+            found: Mutex::new(found),
+            reader: &self.own,
         }
     }
 
@@ -295,15 +319,24 @@ impl Neighbours {
 
 /// The others around one vehicle at one control step (see [`Neighbours::around`]).
 #[derive(Debug)]
-pub struct Neighbourhood {
+pub struct Neighbourhood<'a> {
     snapshot: Arc<Snapshot>,
     own: Option<u32>,
     planned: bool,
-    /// Scratch list of the places found (kept between the shaper's queries).
+    /// Scratch list of the places found (kept between the shaper's queries, and given
+    /// back to the reader for its next step).
     found: Mutex<Vec<u32>>,
+    reader: &'a Mutex<ReaderCache>,
 }
 
-impl Neighbourhood {
+impl Drop for Neighbourhood<'_> {
+    fn drop(&mut self) {
+        let found = std::mem::take(self.found.get_mut().unwrap_or_else(|p| p.into_inner()));
+        self.reader.lock().unwrap_or_else(|p| p.into_inner()).found = found;
+    }
+}
+
+impl Neighbourhood<'_> {
     fn obstacle(&self, p: &Place) -> Obstacle {
         Obstacle {
             position: p.position,
@@ -336,7 +369,7 @@ fn within(tree: &RTree<Indexed>, center: Ned, radius_m: f64, found: &mut Vec<u32
     );
 }
 
-impl ObstacleSource for Neighbourhood {
+impl ObstacleSource for Neighbourhood<'_> {
     fn near(&self, center: Ned, radius_m: f64, planned_radius_m: f64, out: &mut Vec<Obstacle>) {
         out.clear();
         let mut found = self.found.lock().unwrap_or_else(|p| p.into_inner());
