@@ -166,7 +166,15 @@ impl SetpointShaper {
             target_velocity
         };
         desired = self.limit_speed(desired);
-        let avoided = self.avoid_near(desired, others);
+        // The carrot moves at most this far in this step, unless the fence moves it (the
+        // margin by which the obstacles found for avoidance also cover the separation
+        // check at the next point).
+        let step_bound_m = dt_s.max(0.0)
+            * self
+                .limits
+                .max_speed_m_s
+                .hypot(self.limits.max_climb_m_s.max(self.limits.max_descent_m_s));
+        let avoided = self.avoid_near(desired, others, step_bound_m);
         desired = self.limit_speed(avoided);
         // Acceleration limit on the change of the carrot's velocity.
         let dv = desired - self.velocity;
@@ -186,7 +194,13 @@ impl SetpointShaper {
         }
         let min = self.min_separation_m.max(self.planned_separation_m);
         let mut near = std::mem::take(&mut self.near);
-        others.near(next, min, self.planned_separation_m, &mut near);
+        // What `avoid_near` found around the carrot holds every obstacle within the
+        // separations of any point up to `step_bound_m` away: asked again only when the
+        // step went further (the fence moved it).
+        let covered = (next - self.carrot).norm() <= step_bound_m;
+        if !covered {
+            others.near(next, min, self.planned_separation_m, &mut near);
+        }
         let separation_hold = self.violates_separation(next, &near);
         self.near = near;
         if separation_hold {
@@ -288,13 +302,29 @@ impl SetpointShaper {
     /// The velocity grows as obstacles act, so the bound is checked afterwards: when the
     /// velocity grew past it, the pass is made again over the wider reach (rare: it takes
     /// several obstacles acting at once).
-    fn avoid_near(&mut self, v: Ned, others: &(impl ObstacleSource + ?Sized)) -> Ned {
+    ///
+    /// The obstacles are asked for with `margin_m` more than each separation (the radii
+    /// only grow: more obstacles than can act change nothing), and are left in
+    /// `self.near`: every obstacle within the separations of a point at most `margin_m`
+    /// from the carrot, what [`SetpointShaper::violates_separation`] needs after the step.
+    fn avoid_near(
+        &mut self,
+        v: Ned,
+        others: &(impl ObstacleSource + ?Sized),
+        margin_m: f64,
+    ) -> Ned {
         let others_speed = others.max_speed_m_s();
         let mut bound = v.norm();
         let mut near = std::mem::take(&mut self.near);
+        let min = self.min_separation_m.max(self.planned_separation_m);
         let out = loop {
-            let reach = self.reach_m(bound, others_speed);
-            others.near(self.carrot, reach, self.planned_separation_m, &mut near);
+            let reach = self.reach_m(bound, others_speed).max(min + margin_m);
+            others.near(
+                self.carrot,
+                reach,
+                self.planned_separation_m + margin_m,
+                &mut near,
+            );
             let (out, peak) = self.avoid(v, &near);
             if peak <= bound || !peak.is_finite() {
                 break out;
@@ -480,6 +510,63 @@ mod tests {
             }
             proptest::prop_assert!(closest >= 3.0 - 1e-9, "came within {} m", closest);
             proptest::prop_assert!((s.carrot() - target).norm() < 1e-3, "stuck at {:?}", s.carrot());
+        }
+    }
+
+    /// Every obstacle whatever the radii (what a source may always give), counting the
+    /// separation check's questions (those asked with the planned separation itself as
+    /// its radius; avoidance asks with a margin).
+    struct Everything(Vec<Obstacle>, std::cell::Cell<usize>, f64);
+
+    impl ObstacleSource for Everything {
+        fn near(&self, _: Ned, _: f64, planned_radius_m: f64, out: &mut Vec<Obstacle>) {
+            if planned_radius_m == self.2 {
+                self.1.set(self.1.get() + 1);
+            }
+            out.clear();
+            out.extend(self.0.iter().copied());
+        }
+
+        fn max_speed_m_s(&self) -> f64 {
+            self.0.as_slice().max_speed_m_s()
+        }
+    }
+
+    proptest::proptest! {
+        /// The separation check reuses what avoidance found around the carrot: a source
+        /// that answers by distance gives the same setpoints, step after step, as one
+        /// that gives every obstacle, asked once a step while the fence moves nothing.
+        #[test]
+        fn one_question_a_step_gives_what_the_whole_swarm_gives(
+            obstacles in proptest::collection::vec(
+                (-12.0..12.0f64, -12.0..12.0f64, -3.0..3.0f64, -4.0..4.0f64, -4.0..4.0f64,
+                 proptest::bool::ANY, proptest::bool::ANY),
+                1..12),
+            tx in -20.0..20.0f64, ty in -20.0..20.0f64,
+            planned_separation in 1.0..3.0f64,
+        ) {
+            let obstacles: Vec<Obstacle> = obstacles
+                .into_iter()
+                .map(|(n, e, d, vn, ve, reciprocal, planned)| Obstacle {
+                    position: Ned::new(n, e, -10.0 + d),
+                    velocity: Ned::new(vn, ve, 0.0),
+                    reciprocal,
+                    planned,
+                })
+                .collect();
+            let start = Ned::new(0.0, 0.0, -10.0);
+            let mut by_distance = shaper(start).with_planned_separation(planned_separation);
+            let mut whole = by_distance.clone();
+            let everything =
+                Everything(obstacles.clone(), std::cell::Cell::new(0), planned_separation);
+            let target = Ned::new(tx, ty, -10.0);
+            for k in 0..400 {
+                let a = by_distance.step(target, Ned::ZERO, 0.0, 0.02, obstacles.as_slice());
+                let b = whole.step(target, Ned::ZERO, 0.0, 0.02, &everything);
+                proptest::prop_assert_eq!(a, b, "step {}", k);
+            }
+            // Only avoidance's questions: no fence moves the carrot here.
+            proptest::prop_assert_eq!(everything.1.get(), 0);
         }
     }
 
