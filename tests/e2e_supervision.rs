@@ -147,6 +147,42 @@ fn every_kind_of_actor_recovers_from_panics_and_hangs_while_the_swarm_flies() {
             }));
         }
     }
+    // The control step is no actor: a direct call on the process's control clock. Its
+    // panic fails its vehicle, which is restarted and flies its slot again.
+    let before = skein.restarts("coordinator/uav-2");
+    let (status, body) = skein.post(
+        "/api/v1/faults",
+        json!({"target": "coordinator/uav-2/control", "kind": "panic"}),
+    );
+    assert_eq!(status, 202, "{body}");
+    let rec = eventually(
+        "uav-2 restarted after its control step panicked",
+        Duration::from_secs(20),
+        || match skein.supervised("coordinator/uav-2") {
+            Some(r) if r["restarts"].as_u64() == Some(before + 1) && r["status"] == "running" => {
+                Ok(r)
+            }
+            other => Err(format!("{other:?}")),
+        },
+    );
+    let reason = rec["last_failure"]["reason"].as_str().unwrap_or_default();
+    assert!(
+        reason.contains("control step") && reason.contains("injected panic"),
+        "{reason}"
+    );
+    let settled = formation_settled(&skein, 4, Duration::from_secs(5));
+    report.push(json!({
+        "target": "coordinator/uav-2/control", "kind": "panic",
+        "restart_latency_us": rec["last_restart_latency_us"],
+        "formation_back_after_ms": settled.as_millis() as u64,
+    }));
+    // A hang there would hold up every vehicle's control: refused, naming why.
+    let (status, body) = skein.post(
+        "/api/v1/faults",
+        json!({"target": "coordinator/uav-2/control", "kind": "hang"}),
+    );
+    assert_eq!(status, 404, "{body}");
+    assert!(body.to_string().contains("takes only `panic`"), "{body}");
     let worst_gap = assert_no_failsafe_and_no_gap(&stats);
     eprintln!(
         "{}",
@@ -179,9 +215,12 @@ fn every_kind_of_actor_recovers_from_panics_and_hangs_while_the_swarm_flies() {
         .body_mut()
         .read_to_string()
         .unwrap();
-    for kind in ["vehicle", "px4link", "api", "payload"] {
+    // The vehicle's third restart is its control step's panic.
+    for (kind, restarts) in [("vehicle", 3), ("px4link", 2), ("api", 2), ("payload", 2)] {
         assert!(
-            text.contains(&format!("skein_actor_restarts_total{{kind=\"{kind}\"}} 2")),
+            text.contains(&format!(
+                "skein_actor_restarts_total{{kind=\"{kind}\"}} {restarts}"
+            )),
             "{kind}: {text}"
         );
         assert!(

@@ -172,7 +172,10 @@ impl VehicleActorState {
     /// Routes a fault to `sub` (`"px4link"`, `"payload/<slot>"`).
     pub(super) fn inject(&self, sub: &str, kind: FaultKind) -> Result<(), String> {
         let unknown = || {
-            let mut known = vec![format!("{}/px4link", self.path())];
+            let mut known = vec![
+                format!("{}/px4link", self.path()),
+                format!("{}/{}", self.path(), super::CONTROL_FAULT_TARGET),
+            ];
             known.extend(
                 self.shared
                     .payloads()

@@ -18,6 +18,7 @@ use skein_model::fsm::{Event, VehicleState};
 use skein_model::geo::Ned;
 use skein_model::px4::Px4Mode;
 use skein_model::safety::SetpointShaper;
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 /// Distance to a takeoff altitude or go-to point that counts as arrived, metres.
@@ -113,6 +114,9 @@ impl VehicleCore {
 
     /// One control step (see the module docs).
     pub(super) fn tick(&self, clock: &mut ControlClock) {
+        if self.control_fault.swap(false, Ordering::AcqRel) {
+            panic!("injected panic in the control step of {}", self.shared.id);
+        }
         let now = Instant::now();
         let dt = now
             .duration_since(clock.last_tick)

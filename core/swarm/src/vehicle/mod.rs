@@ -77,6 +77,36 @@ pub struct VehicleCore {
     /// Set when the actor that owns this core has stopped: its control step stops too
     /// (its replacement brings its own).
     retired: AtomicBool,
+    /// The test fault `panic` at `<vehicle>/control` ([`CONTROL_FAULT_TARGET`]): the next
+    /// control step panics.
+    control_fault: AtomicBool,
+}
+
+/// The fault-injection target of a vehicle's control step, under the vehicle's path
+/// (`coordinator/uav-1/control`). Only `panic` is injected there: the step runs on the
+/// process's control clock beside every other vehicle's, so a hang would hold up the
+/// whole swarm's control.
+pub const CONTROL_FAULT_TARGET: &str = "control";
+
+impl VehicleCore {
+    /// Fault injection into the control step (see [`CONTROL_FAULT_TARGET`]).
+    fn inject_control(&self, kind: FaultKind) -> Result<(), String> {
+        match kind {
+            FaultKind::Panic => {
+                tracing::warn!(id = %self.shared.id, "fault injected: the next control step panics");
+                self.control_fault.store(true, Ordering::Release);
+                Ok(())
+            }
+            other => Err(format!(
+                "{}/{}/{CONTROL_FAULT_TARGET} takes only `panic`, not `{}`: the control step \
+                 runs beside every other vehicle's, a {} there would hold up the swarm's control",
+                crate::supervision::ROOT,
+                self.shared.id,
+                other.name(),
+                other.name()
+            )),
+        }
+    }
 }
 
 /// State of [`Vehicle`]. Reads through to its [`VehicleCore`].
@@ -258,6 +288,7 @@ impl Actor for Vehicle {
             uplink: args.uplink,
             supervision: args.supervision.clone(),
             retired: AtomicBool::new(false),
+            control_fault: AtomicBool::new(false),
         });
         start_control(&core, myself.clone());
         let mut state = VehicleActorState {
@@ -349,6 +380,9 @@ impl Actor for Vehicle {
                 if state.children.get(&child).is_none() && !gone {
                     state.restart_child(&myself, child, noticed, reason).await?;
                 }
+            }
+            VehicleMsg::InjectFault(sub, kind, reply) if sub == CONTROL_FAULT_TARGET => {
+                let _ = reply.send(state.inject_control(kind));
             }
             VehicleMsg::InjectFault(sub, FaultKind::BypassGeofence, reply) => {
                 let r = if sub.is_empty() {
