@@ -63,10 +63,13 @@ pub fn cruise(c: &Api) -> (f64, f64, f64) {
         Duration::from_secs(40),
         || at_speed(&c.formation()),
     );
+    // Within 40 s, as the wait for the reference above: on a loaded machine a member
+    // that lags over a metre makes the pace ease the reference off 5 m/s for a while
+    // (seen once in CI, 4.91 m/s, beside the other test lane).
     let samples = steady_for(
         "the wedge cruising at 5 m/s",
         Duration::from_secs(5),
-        Duration::from_secs(20),
+        Duration::from_secs(40),
         || {
             let f = c.formation();
             at_speed(&f)?;
