@@ -91,7 +91,8 @@ fn the_compose_swarm_flies_fails_over_rejoins_and_lands_before_it_goes_down() {
     let ids: Vec<String> = services.iter().map(|s| compose.container(s)).collect();
     let logs: Vec<Follower> = ids
         .iter()
-        .map(|id| Follower::start(&["logs", "-f", id]))
+        .zip(services)
+        .map(|(id, service)| Follower::start(&["logs", "-f", id]).dumped_on_failure(service))
         .collect();
     // The dashboards on this machine's loopback only.
     for (id, port) in [(&ids[0], port_a), (&ids[1], port_b)] {

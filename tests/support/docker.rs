@@ -171,6 +171,8 @@ impl Drop for Compose {
 pub struct Follower {
     child: Child,
     lines: Arc<Mutex<Vec<String>>>,
+    /// Printed with the last lines when the test fails ([`Follower::dumped_on_failure`]).
+    label: Option<String>,
 }
 
 impl Follower {
@@ -194,7 +196,18 @@ impl Follower {
                 }
             });
         }
-        Follower { child, lines }
+        Follower {
+            child,
+            lines,
+            label: None,
+        }
+    }
+
+    /// Prints the last 200 lines under `label` if the test panics while this follower
+    /// lives (a container's log is gone once the test's compose project is removed).
+    pub fn dumped_on_failure(mut self, label: &str) -> Follower {
+        self.label = Some(label.to_string());
+        self
     }
 
     /// Every line so far.
@@ -210,6 +223,16 @@ impl Follower {
 
 impl Drop for Follower {
     fn drop(&mut self) {
+        if let Some(label) = &self.label
+            && std::thread::panicking()
+        {
+            let lines = self.lines();
+            let tail = &lines[lines.len().saturating_sub(200)..];
+            eprintln!("---- last {} lines of {label} ----", tail.len());
+            for line in tail {
+                eprintln!("{label}: {line}");
+            }
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
