@@ -4,6 +4,7 @@
 //! this thread only.
 
 use super::actor::{PayloadArgs, PayloadMsg};
+use crate::supervision::panic_text;
 use ractor::ActorRef;
 use serde_json::Value;
 use skein_mavlink::MavMessage;
@@ -49,13 +50,6 @@ pub(super) struct Job {
 /// re-created to run the new build (the plugin host's `STALE_INSTANCE_ERROR` prefix).
 pub(super) fn is_stale(error: &str) -> bool {
     error.starts_with("plugin reloaded:")
-}
-
-fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
-    p.downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| p.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "non-string panic payload".into())
 }
 
 /// The driver thread: creates the driver, answers jobs until the actor drops its sender,

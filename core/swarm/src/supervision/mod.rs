@@ -44,18 +44,22 @@ pub use policy::{
 };
 pub use registry::{ROOT, Supervision, TreeNode};
 
+/// A panic's message (`panic!`'s text), from its payload.
+pub fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "non-string panic payload".into())
+}
+
 /// Replaces the process's panic hook by one that logs one line per panic (message and
 /// place), no backtrace: supervised actors panic on purpose in fault tests, and the
 /// default hook (with `RUST_BACKTRACE=1`) costs ~100 µs of restart latency. Every
 /// executable that runs supervised actors (`skein`, `skein-bench`) installs it first.
 pub fn install_panic_hook() {
     std::panic::set_hook(Box::new(|info| {
-        let msg = info
-            .payload()
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| info.payload().downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "non-string panic payload".into());
+        let msg = panic_text(info.payload());
         let at = info
             .location()
             .map(|l| format!(" at {}:{}", l.file(), l.line()))

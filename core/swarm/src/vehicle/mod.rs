@@ -155,11 +155,7 @@ fn start_control(core: &Arc<VehicleCore>, actor: ActorRef<VehicleMsg>) {
         match std::panic::catch_unwind(AssertUnwindSafe(|| core.tick(&mut clock))) {
             Ok(()) => true,
             Err(panic) => {
-                let why = panic
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_else(|| "a panic".into());
+                let why = crate::supervision::panic_text(panic.as_ref());
                 let _ = actor.cast(VehicleMsg::ControlFailed(why));
                 false
             }
