@@ -74,9 +74,6 @@ pub struct VehicleCore {
     events: broadcast::Sender<SwarmEvent>,
     uplink: Uplink,
     supervision: Arc<Supervision>,
-    /// Set when the actor that owns this core has stopped: its control step stops too
-    /// (its replacement brings its own).
-    retired: AtomicBool,
     /// The test fault `panic` at `<vehicle>/control` ([`CONTROL_FAULT_TARGET`]): the next
     /// control step panics.
     control_fault: AtomicBool,
@@ -130,14 +127,9 @@ impl std::ops::Deref for VehicleActorState {
     }
 }
 
-impl Drop for VehicleActorState {
-    fn drop(&mut self) {
-        self.core.retired.store(true, Ordering::Release);
-    }
-}
-
 /// Registers `core`'s control step on the process's control clock at the control rate:
-/// it runs until the core is retired or dropped. A panic in the step is the actor's
+/// it runs until the core is dropped (only the actor's state holds it: the step stops
+/// with its actor, and a replacement brings its own). A panic in the step is the actor's
 /// failure: `actor` is told ([`VehicleMsg::ControlFailed`]) and fails, and its
 /// supervisor restarts it with a fresh step.
 fn start_control(core: &Arc<VehicleCore>, actor: ActorRef<VehicleMsg>) {
@@ -148,9 +140,6 @@ fn start_control(core: &Arc<VehicleCore>, actor: ActorRef<VehicleMsg>) {
         let Some(core) = weak.upgrade() else {
             return false;
         };
-        if core.retired.load(Ordering::Acquire) {
-            return false;
-        }
         let mut clock = clock.lock().unwrap_or_else(PoisonError::into_inner);
         match std::panic::catch_unwind(AssertUnwindSafe(|| core.tick(&mut clock))) {
             Ok(()) => true,
@@ -283,7 +272,6 @@ impl Actor for Vehicle {
             events: args.events,
             uplink: args.uplink,
             supervision: args.supervision.clone(),
-            retired: AtomicBool::new(false),
             control_fault: AtomicBool::new(false),
         });
         start_control(&core, myself.clone());
