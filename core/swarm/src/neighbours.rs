@@ -299,12 +299,10 @@ impl Neighbours {
                 own
             }
         };
-        let found = std::mem::take(&mut cache.found);
         Neighbourhood {
             snapshot,
             own,
             planned,
-            found: Mutex::new(found),
             reader: &self.own,
         }
     }
@@ -323,17 +321,8 @@ pub struct Neighbourhood<'a> {
     snapshot: Arc<Snapshot>,
     own: Option<u32>,
     planned: bool,
-    /// Scratch list of the places found (kept between the shaper's queries, and given
-    /// back to the reader for its next step).
-    found: Mutex<Vec<u32>>,
+    /// The reader's cache, whose scratch list of the places found serves every query.
     reader: &'a Mutex<ReaderCache>,
-}
-
-impl Drop for Neighbourhood<'_> {
-    fn drop(&mut self) {
-        let found = std::mem::take(self.found.get_mut().unwrap_or_else(|p| p.into_inner()));
-        self.reader.lock().unwrap_or_else(|p| p.into_inner()).found = found;
-    }
 }
 
 impl Neighbourhood<'_> {
@@ -372,16 +361,17 @@ fn within(tree: &RTree<Indexed>, center: Ned, radius_m: f64, found: &mut Vec<u32
 impl ObstacleSource for Neighbourhood<'_> {
     fn near(&self, center: Ned, radius_m: f64, planned_radius_m: f64, out: &mut Vec<Obstacle>) {
         out.clear();
-        let mut found = self.found.lock().unwrap_or_else(|p| p.into_inner());
+        let mut cache = self.reader.lock().unwrap_or_else(|p| p.into_inner());
+        let found = &mut cache.found;
         found.clear();
         let s = &self.snapshot;
-        within(&s.free, center, radius_m, &mut found);
+        within(&s.free, center, radius_m, found);
         let planned_r = if self.planned {
             planned_radius_m
         } else {
             radius_m
         };
-        within(&s.planned, center, planned_r, &mut found);
+        within(&s.planned, center, planned_r, found);
         // The list's order, as the whole list would give them.
         found.sort_unstable();
         out.extend(
