@@ -114,7 +114,10 @@ impl VehicleCore {
 
     /// One control step (see the module docs).
     pub(super) fn tick(&self, clock: &mut ControlClock) {
-        if self.control_fault.swap(false, Ordering::AcqRel) {
+        // A load first: the step does not write the flag's line unless a fault is set.
+        if self.control_fault.load(Ordering::Relaxed)
+            && self.control_fault.swap(false, Ordering::AcqRel)
+        {
             panic!("injected panic in the control step of {}", self.shared.id);
         }
         let now = Instant::now();
