@@ -25,7 +25,8 @@
 //!   `DdsLink` service, on a new participant after a change of the network
 //!   [`interfaces`];
 //! - [`convert`]: skein's NED swarm frame to the ENU of REP 103, commands back;
-//! - [`probe`]: a listener of the pose topics (`skein bench dds`).
+//! - [`probe`]: a listener of the pose topics (`skein bench dds`);
+//! - [`security`]: DDS Security (SROS 2 keystores and enclaves, permissions by role).
 //!
 //! The roles' scenario tests (`src/scenarios/`) wire several processes together on the
 //! in-memory carrier, on tokio's paused clock.
@@ -55,6 +56,7 @@ pub mod remote;
 pub mod ride;
 #[cfg(test)]
 mod scenarios;
+pub mod security;
 pub mod swarm_adapter;
 pub mod tf;
 pub mod topics;

@@ -66,6 +66,9 @@ pub struct DdsConfig {
     /// With `skein agent`: this process's vehicles obey the active coordinator of the
     /// domain ([`crate::agent`]).
     pub agent: Option<AgentConfig>,
+    /// DDS Security (`--dds-keystore`, `--dds-enclave`, or ROS 2's `ROS_SECURITY_*`):
+    /// `None` for an unsecured participant ([`crate::security`]).
+    pub security: Option<crate::security::DdsSecurity>,
     /// The parent of the swarm frame on `/tf_static` (`--dds-tf-parent`): `None` for
     /// `earth` ([`crate::tf`]).
     pub tf_parent_frame: Option<String>,
@@ -185,6 +188,7 @@ impl DdsRoles {
             config.domain_id,
             &config.networks,
             &config.node_name,
+            config.security.as_ref(),
         )?);
         let counters = Arc::new(DdsCounters::default());
         let peer_clocks = Arc::new(PeerClocks::default());
@@ -321,6 +325,7 @@ impl DdsRoles {
                     config.domain_id,
                     &config.networks,
                     &config.node_name,
+                    config.security.as_ref(),
                 )?);
                 LocalRoles::open(carrier, &config, &counters, None, &peer_clocks)
             })

@@ -44,6 +44,7 @@ impl PoseProbe {
             domain_id,
             networks,
             &format!("skein_probe_{}", std::process::id()),
+            None,
         )?;
         let arrivals: Arc<Mutex<Vec<Arrival>>> = Arc::new(Mutex::new(Vec::new()));
         let mut tasks = JoinSet::new();

@@ -4,6 +4,7 @@
 
 use super::{Carrier, CarrierError, NextSample, Reader, Sample, Writer};
 use crate::error::{DdsError, err};
+use crate::security::DdsSecurity;
 use crate::topics::{self, TopicSpec};
 use ros2_client::dds::rustdds::{DomainParticipantBuilder, Topic};
 use ros2_client::{Context, Name, Node, NodeName, NodeOptions, Publisher, Subscription};
@@ -24,16 +25,35 @@ pub struct Ros2Carrier {
 impl Ros2Carrier {
     /// Joins DDS domain `domain_id` (0–232) as node `/skein/<node_name>`; with
     /// `networks`, DDS uses only the interfaces of those local addresses (RustDDS
-    /// `with_only_networks`), else every interface.
+    /// `with_only_networks`), else every interface. With `security`, the participant
+    /// presents that enclave and speaks only DDS Security (RustDDS's builtin plugins):
+    /// peers without a certificate of the keystore's CA are refused, and every reader
+    /// and writer is checked against the enclave's permissions.
     ///
     /// # Errors
-    /// The participant (sockets), context or node (name) could not be created.
-    pub fn join(domain_id: u16, networks: &[IpAddr], node_name: &str) -> Result<Self, DdsError> {
+    /// The participant (sockets, or the enclave's certificate, key, governance or
+    /// permissions), context or node (name) could not be created.
+    pub fn join(
+        domain_id: u16,
+        networks: &[IpAddr],
+        node_name: &str,
+        security: Option<&DdsSecurity>,
+    ) -> Result<Self, DdsError> {
         let mut participant = DomainParticipantBuilder::new(domain_id);
         if !networks.is_empty() {
             participant = participant.with_only_networks(networks.iter().copied());
         }
-        let participant = participant.build().map_err(err("DDS participant"))?;
+        if let Some(s) = security {
+            participant = participant.builtin_security(s.config_files());
+        }
+        let participant = participant.build().map_err(|e| match security {
+            Some(s) => DdsError(format!(
+                "DDS participant with enclave {} ({}): {e:?}",
+                s.enclave,
+                s.dir.display()
+            )),
+            None => DdsError(format!("DDS participant: {e:?}")),
+        })?;
         let context =
             Context::from_domain_participant(participant).map_err(err("ROS 2 context"))?;
         let node = context

@@ -1,0 +1,213 @@
+//! DDS Security on real RustDDS participants over loopback: enclaves made by
+//! `skein_dds::security::keystore` let a coordinator and an agent talk; a participant
+//! without a certificate, or with one from another keystore's CA, neither reaches them
+//! nor reads them; an expired enclave does not join; a role's permissions refuse a
+//! writer its role does not grant.
+
+use skein_dds::carrier::ros2::Ros2Carrier;
+use skein_dds::carrier::{Carrier, Reader, Writer};
+use skein_dds::envelope::Envelope;
+use skein_dds::msgs::SwarmMessage;
+use skein_dds::security::keystore::{Validity, create_enclave, create_keystore};
+use skein_dds::security::{DdsSecurity, Role};
+use skein_dds::topics::{self, TopicSpec};
+use std::net::{IpAddr, Ipv4Addr};
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+const LOOPBACK: [IpAddr; 1] = [IpAddr::V4(Ipv4Addr::LOCALHOST)];
+
+/// A domain of this test process alone (other tests' participants may share the host).
+fn domain() -> u16 {
+    u16::try_from(150 + std::process::id() % 80).unwrap()
+}
+
+fn enclave(keystore: &Path, name: &str, role: Role, validity: Validity) -> DdsSecurity {
+    create_enclave(keystore, name, role, validity).unwrap();
+    DdsSecurity::new(keystore, name).unwrap()
+}
+
+fn join(name: &str, security: Option<&DdsSecurity>) -> Ros2Carrier {
+    Ros2Carrier::join(domain(), &LOOPBACK, name, security)
+        .unwrap_or_else(|e| panic!("{name} joins: {e}"))
+}
+
+fn message(sender: &str, n: u64) -> SwarmMessage {
+    Envelope::message("uav-1", sender, n, None, &serde_json::json!({ "n": n })).unwrap()
+}
+
+/// Senders of the samples `reader` holds now.
+fn drain(reader: &Arc<dyn Reader<SwarmMessage>>, into: &mut Vec<String>) {
+    while let Ok(Some(m)) = reader.try_take() {
+        into.push(m.sender_id);
+    }
+}
+
+struct Peer {
+    name: &'static str,
+    writer: Arc<dyn Writer<SwarmMessage>>,
+}
+
+/// Every `peers` writes on its topic each 50 ms until `done(heard)` holds for what
+/// `reader` heard (its senders), or `limit` passes; returns what it heard.
+fn exchange(
+    peers: &[Peer],
+    reader: &Arc<dyn Reader<SwarmMessage>>,
+    limit: Duration,
+    done: impl Fn(&[String]) -> bool,
+) -> Vec<String> {
+    let start = Instant::now();
+    let mut heard = Vec::new();
+    let mut n = 0;
+    while start.elapsed() < limit && !done(&heard) {
+        n += 1;
+        for p in peers {
+            p.writer.write(message(p.name, n)).unwrap();
+        }
+        std::thread::sleep(Duration::from_millis(50));
+        drain(reader, &mut heard);
+    }
+    heard
+}
+
+fn count(heard: &[String], who: &str) -> usize {
+    heard.iter().filter(|s| *s == who).count()
+}
+
+#[test]
+fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let ks = dir.path().join("keystore");
+    create_keystore(&ks, Validity::days(30)).unwrap();
+    let coordinator = enclave(
+        &ks,
+        "/skein/coordinator/c1",
+        Role::Coordinator,
+        Validity::days(30),
+    );
+    let agent = enclave(&ks, "/skein/agent/a1", Role::Agent, Validity::days(30));
+    let viewer = enclave(&ks, "/skein/viewer/v1", Role::Viewer, Validity::days(30));
+    // Another keystore's agent: a valid certificate from a CA this swarm does not trust.
+    let foreign_ks = dir.path().join("foreign");
+    create_keystore(&foreign_ks, Validity::days(30)).unwrap();
+    let foreign = enclave(
+        &foreign_ks,
+        "/skein/agent/a9",
+        Role::Agent,
+        Validity::days(30),
+    );
+
+    let c = join("c1", Some(&coordinator));
+    let a = join("a1", Some(&agent));
+    let v = join("v1", Some(&viewer));
+    let f = join("f9", Some(&foreign));
+    let x = join("intruder", None);
+
+    // Targets: the coordinator's reach the agent; the intruder's never do, and the
+    // intruder reads none of the coordinator's.
+    let target = topics::swarm_target();
+    let agent_targets = a.reader::<SwarmMessage>(&target).unwrap();
+    let intruder_targets = x.reader::<SwarmMessage>(&target).unwrap();
+    let peers = [
+        Peer {
+            name: "c1",
+            writer: c.writer(&target).unwrap(),
+        },
+        Peer {
+            name: "intruder",
+            writer: x.writer(&target).unwrap(),
+        },
+    ];
+    let heard = exchange(&peers, &agent_targets, Duration::from_secs(30), |h| {
+        count(h, "c1") >= 20
+    });
+    assert!(
+        count(&heard, "c1") >= 20,
+        "the agent heard the coordinator: {heard:?}"
+    );
+    // A further second of both writing, then the tally.
+    let more = exchange(&peers, &agent_targets, Duration::from_secs(1), |_| false);
+    let heard = [heard, more].concat();
+    assert_eq!(
+        count(&heard, "intruder"),
+        0,
+        "the agent obeyed no intruder: {heard:?}"
+    );
+    let mut read_by_intruder = Vec::new();
+    drain(&intruder_targets, &mut read_by_intruder);
+    assert!(
+        !read_by_intruder.contains(&"c1".to_string()),
+        "the intruder read the coordinator's targets: {read_by_intruder:?}"
+    );
+
+    // Reports: the enrolled agent's reach the coordinator; a foreign-CA agent's do not.
+    let report = topics::swarm_report();
+    let coordinator_reports = c.reader::<SwarmMessage>(&report).unwrap();
+    let peers = [
+        Peer {
+            name: "a1",
+            writer: a.writer(&report).unwrap(),
+        },
+        Peer {
+            name: "f9",
+            writer: f.writer(&report).unwrap(),
+        },
+    ];
+    let heard = exchange(&peers, &coordinator_reports, Duration::from_secs(30), |h| {
+        count(h, "a1") >= 20
+    });
+    assert!(
+        count(&heard, "a1") >= 20,
+        "the coordinator heard the agent: {heard:?}"
+    );
+    assert_eq!(
+        count(&heard, "f9"),
+        0,
+        "a foreign CA's agent was heard: {heard:?}"
+    );
+
+    // Permissions by role, refused where the writer is made.
+    let refused =
+        |carrier: &Ros2Carrier, spec: &TopicSpec| match carrier.writer::<SwarmMessage>(spec) {
+            Ok(_) => panic!("a writer on {spec} was allowed"),
+            Err(e) => e.to_string(),
+        };
+    let e = refused(&a, &topics::swarm_target());
+    assert!(e.contains("not allowed"), "agent writing targets: {e}");
+    let e = refused(&v, &topics::swarm_command());
+    assert!(e.contains("not allowed"), "viewer writing commands: {e}");
+    assert!(
+        v.reader::<SwarmMessage>(&topics::swarm_target()).is_ok(),
+        "viewers read"
+    );
+}
+
+#[test]
+fn an_expired_enclave_is_refused_with_its_dates() {
+    let dir = tempfile::tempdir().unwrap();
+    let ks = dir.path().join("keystore");
+    create_keystore(&ks, Validity::days(30)).unwrap();
+    let expired = Validity {
+        from_days_ago: 10,
+        days: -1,
+    };
+    create_enclave(&ks, "/skein/agent/old", Role::Agent, expired).unwrap();
+    let e = DdsSecurity::new(&ks, "/skein/agent/old").unwrap_err();
+    assert!(
+        e.contains("/skein/agent/old") && e.contains("certificate expired on"),
+        "{e}"
+    );
+    // Its permissions expired with it: a participant that skips the check above is
+    // refused by DDS Security itself, which finds no grant valid now.
+    let unchecked = DdsSecurity {
+        keystore: ks.clone(),
+        enclave: "/skein/agent/old".into(),
+        dir: ks.join("enclaves/skein/agent/old"),
+    };
+    let e = match Ros2Carrier::join(domain(), &LOOPBACK, "old", Some(&unchecked)) {
+        Ok(_) => panic!("an expired enclave joined"),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("not found in the permissions document"), "{e}");
+}
