@@ -52,7 +52,7 @@ fn agent(sysid: u8, d: &str) -> Skein {
         ride_through_s: RIDE_S,
         lost_action: "land",
         lost_action_s: LOST_ACTION_S,
-        clock_skew_ms: None,
+        ..AgentOptions::default()
     };
     agent_on(None, sysid, d, &o)
 }

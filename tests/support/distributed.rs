@@ -20,6 +20,8 @@ pub struct AgentOptions {
     pub lost_action_s: f64,
     /// `--test-clock-skew-ms`: its wall clock this far off.
     pub clock_skew_ms: Option<i64>,
+    /// `--dds-keystore`, `--dds-enclave`: DDS Security with this enclave.
+    pub dds_security: Option<(String, String)>,
 }
 
 impl Default for AgentOptions {
@@ -31,6 +33,7 @@ impl Default for AgentOptions {
             lost_action: "hold",
             lost_action_s: 60.0,
             clock_skew_ms: None,
+            dds_security: None,
         }
     }
 }
@@ -75,6 +78,9 @@ pub fn agent_on(host: Option<&Host>, sysid: u8, d: &str, o: &AgentOptions) -> Sk
     ];
     if let Some(ms) = &skew {
         args.extend_from_slice(&["--test-clock-skew-ms", ms]);
+    }
+    if let Some((keystore, enclave)) = &o.dds_security {
+        args.extend_from_slice(&["--dds-keystore", keystore, "--dds-enclave", enclave]);
     }
     Skein::launch_in(host.map(|h| h.ns.as_str()), "agent", &args)
 }

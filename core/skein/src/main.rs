@@ -18,6 +18,9 @@
 //!   and the `[[http.tokens]]` line (with its salted hash) to add to the config.
 //! - `skein key create [--out FILE]`: a random MAVLink 2 signing key file (mode 0600) and
 //!   the `signing_key_file` line that uses it (see [`cmd::keys`]).
+//! - `skein dds keystore create DIR`, `skein dds enclave create DIR --enclave NAME --role
+//!   agent|coordinator|viewer`: DDS Security's SROS 2 keystore and a participant's enclave
+//!   (see [`cmd::dds`]).
 //! - `skein plugin new NAME [--kind KIND] [--dir DIR]`: write a payload plugin crate that
 //!   builds as it is (see [`cmd::plugin_new`]).
 //! - `skein plugin-host --socket PATH --library PATH` (internal, not in `--help`): the
@@ -39,7 +42,7 @@ mod shutdown;
 mod sim_control;
 
 use clap::{Parser, Subcommand};
-use cmd::{agent, bench, candidate, fault, health, keys, plugin_new, replay, token, up};
+use cmd::{agent, bench, candidate, dds, fault, health, keys, plugin_new, replay, token, up};
 use std::process::ExitCode;
 
 /// Command line.
@@ -89,6 +92,10 @@ enum Commands {
     Key(KeyCommand),
     /// Play a recording (`skein up --record FILE.mcap`) back into the dashboard, read-only.
     Replay(replay::ReplayArgs),
+    /// DDS Security: `skein dds keystore create DIR`, then `skein dds enclave create DIR
+    /// --enclave /skein/agent/a1 --role agent` for each participant.
+    #[command(subcommand)]
+    Dds(dds::DdsCommand),
 }
 
 #[derive(Subcommand, Debug)]
@@ -166,6 +173,7 @@ fn main() -> ExitCode {
             Commands::Token(TokenCommand::Create(args)) => token::token_create(&args),
             Commands::Key(KeyCommand::Create(args)) => keys::key_create(&args),
             Commands::Replay(args) => replay::run(args).await,
+            Commands::Dds(command) => dds::run(command),
         }
     });
     match result {

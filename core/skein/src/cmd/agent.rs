@@ -63,6 +63,8 @@ pub struct AgentArgs {
     /// Use only the interface with this local address for DDS (repeatable).
     #[arg(long, value_name = "ADDR")]
     dds_network: Vec<IpAddr>,
+    #[command(flatten)]
+    dds_security: super::dds::DdsSecurityArgs,
     /// No coordinator heard for this long: hold (default `[agent] coordinator_timeout_s`,
     /// else 1.5).
     #[arg(long, value_name = "S")]
@@ -204,6 +206,7 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
     );
     up_args.domain_id = args.domain_id;
     up_args.dds_network = args.dds_network;
+    up_args.dds_security = args.dds_security;
     up_args.agent = Some(AgentRole {
         first_sysid: args.first_sysid,
         config,

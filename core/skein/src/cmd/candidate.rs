@@ -32,6 +32,8 @@ pub struct CoordinatorArgs {
     /// Use only the interface with this local address for DDS (repeatable).
     #[arg(long, value_name = "ADDR")]
     dds_network: Vec<IpAddr>,
+    #[command(flatten)]
+    dds_security: super::dds::DdsSecurityArgs,
     /// Listen on a non-loopback address without any `[[http.tokens]]` (refused without
     /// this flag).
     #[arg(long)]
@@ -63,6 +65,7 @@ pub async fn coordinator(args: CoordinatorArgs) -> Result<ExitCode, String> {
     up_args.http = args.http;
     up_args.domain_id = args.domain_id;
     up_args.dds_network = args.dds_network;
+    up_args.dds_security = args.dds_security;
     up_args.insecure_no_auth = args.insecure_no_auth;
     up_args.candidate = Some(CandidateArgs {
         id,

@@ -11,6 +11,7 @@
 //! | `skein health` | the health check of a container or a monitor | [`health`] |
 //! | `skein token create` | an API token and its config lines | [`token`] |
 //! | `skein key create` | a MAVLink 2 signing key file | [`keys`] |
+//! | `skein dds keystore create`, `skein dds enclave create` | an SROS 2 keystore, a participant's enclave | [`dds`] |
 //! | `skein plugin new` | a payload plugin crate that builds | [`plugin_new`] |
 //!
 //! `skein sim` is `skein_sim::cli`; `skein plugin-host` is `skein_plugin_host`'s child
@@ -20,6 +21,7 @@
 pub mod agent;
 pub mod bench;
 pub mod candidate;
+pub mod dds;
 pub mod fault;
 pub mod health;
 pub mod keys;

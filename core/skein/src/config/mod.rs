@@ -242,6 +242,11 @@ pub struct DdsSection {
     /// The parent of the swarm frame `skein_swarm` on `/tf_static`, as an identity
     /// (`"map"`; as `--dds-tf-parent`); default `earth`, the swarm origin's ECEF place.
     pub tf_parent_frame: Option<String>,
+    /// DDS Security: the SROS 2 keystore whose enclave this participant presents (as
+    /// `--dds-keystore`; with `enclave`).
+    pub keystore: Option<std::path::PathBuf>,
+    /// DDS Security: the enclave presented (`"/skein/agent/a1"`, as `--dds-enclave`).
+    pub enclave: Option<String>,
 }
 
 /// `[agent]`: what `skein agent` does without a coordinator (`skein_dds::agent`), and

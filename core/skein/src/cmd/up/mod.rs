@@ -111,6 +111,8 @@ pub struct UpArgs {
     /// default `earth`, the swarm origin's place in ECEF (REP 105).
     #[arg(long, value_name = "FRAME", value_parser = parse_tf_frame)]
     pub(crate) dds_tf_parent: Option<String>,
+    #[command(flatten)]
+    pub(crate) dds_security: super::dds::DdsSecurityArgs,
     /// With --sim: intruders, non-cooperative aircraft the simulated cameras see.
     #[command(flatten)]
     intruders: skein_sim::intruders::IntruderArgs,
@@ -540,9 +542,11 @@ fn dds_config(
             || args.dds_commands
             || !args.dds_network.is_empty()
             || args.dds_tf_parent.is_some()
+            || args.dds_security.given()
         {
             return Err(
-                "--domain-id, --dds-commands, --dds-network and --dds-tf-parent go with --dds"
+                "--domain-id, --dds-commands, --dds-network, --dds-tf-parent, --dds-keystore \
+                 and --dds-enclave go with --dds"
                     .into(),
             );
         }
@@ -593,6 +597,7 @@ fn dds_config(
         accept_commands: args.dds_commands || file.dds.accept_commands,
         networks,
         tf_parent_frame,
+        security: args.dds_security.resolve(&file.dds)?,
     }))
 }
 

@@ -1,0 +1,130 @@
+//! DDS Security through the `skein` binary, on loopback (`--dds-network 127.0.0.1`, a
+//! domain of this test process's own): a keystore and enclaves made by `skein dds
+//! keystore|enclave create`; a coordinator and an agent presenting their enclaves
+//! (`--dds-keystore`, `--dds-enclave`) fly the agent's vehicle; an intruder coordinator
+//! without a certificate, of a higher priority on the same domain, is heard by neither:
+//! the enrolled coordinator stays active (an unsecured lease of higher priority would
+//! make it stand by, `tests/e2e_failover.rs`), the intruder sees no vehicle, and the
+//! vehicle obeys only the enrolled coordinator.
+
+mod support;
+
+use serde_json::json;
+use std::process::Command;
+use std::time::Duration;
+use support::distributed::{AgentOptions, agent_on, role, vehicle};
+use support::{Skein, eventually, skein_bin};
+
+/// A DDS domain (231 or 232). Every range is taken by another test, so this one may be
+/// shared: the enrolled participants hear no one else whatever the domain, and the
+/// checks on the intruder look for this test's vehicle only (sysid 77, `uav-77`).
+fn domain() -> String {
+    (232 - std::process::id() % 2).to_string()
+}
+
+const VEHICLE: &str = "uav-77";
+
+fn skein(args: &[&str]) -> String {
+    let out = Command::new(skein_bin()).args(args).output().unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "skein {args:?}: {text}");
+    text
+}
+
+fn coordinator(id: &str, priority: &str, d: &str, security: Option<(&str, &str)>) -> Skein {
+    let mut args = vec![
+        "--http",
+        "127.0.0.1:0",
+        "--id",
+        id,
+        "--priority",
+        priority,
+        "--domain-id",
+        d,
+        "--dds-network",
+        "127.0.0.1",
+    ];
+    if let Some((keystore, enclave)) = security {
+        args.extend_from_slice(&["--dds-keystore", keystore, "--dds-enclave", enclave]);
+    }
+    Skein::launch_in(None, "coordinator", &args)
+}
+
+#[test]
+fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let ks = dir.path().join("keystore");
+    let ks = ks.to_str().unwrap();
+    skein(&["dds", "keystore", "create", ks]);
+    let made = skein(&[
+        "dds",
+        "enclave",
+        "create",
+        ks,
+        "--enclave",
+        "/skein/coordinator/c1",
+        "--role",
+        "coordinator",
+    ]);
+    assert!(
+        made.contains("--dds-enclave /skein/coordinator/c1"),
+        "{made}"
+    );
+    skein(&[
+        "dds",
+        "enclave",
+        "create",
+        ks,
+        "--enclave",
+        "/skein/agent/a1",
+        "--role",
+        "agent",
+    ]);
+    let d = domain();
+
+    let c1 = coordinator("c1", "1", &d, Some((ks, "/skein/coordinator/c1")));
+    let o = AgentOptions {
+        dds_security: Some((ks.to_string(), "/skein/agent/a1".to_string())),
+        ..AgentOptions::default()
+    };
+    let _agent = agent_on(None, 77, &d, &o);
+    let intruder = coordinator("intruder", "9", &d, None);
+
+    // The enrolled coordinator sees the agent's vehicle and flies it.
+    c1.take_off(1, 8.0);
+    // The intruder runs (as a coordinator of its own) but is heard by no one: the
+    // enrolled coordinator never stands down for its higher priority, and it never
+    // reads the enrolled agent's vehicle.
+    eventually(
+        "the intruder elected",
+        Duration::from_secs(20),
+        || match role(&intruder).as_str() {
+            Some("active" | "standby") => Ok(()),
+            other => Err(format!("{other:?}")),
+        },
+    );
+    for _ in 0..10 {
+        assert_eq!(role(&c1), "active", "the enrolled coordinator stood down");
+        let seen = vehicle(&intruder, VEHICLE);
+        assert!(seen.is_null(), "the intruder read {VEHICLE}: {seen}");
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    // The vehicle obeys the enrolled coordinator.
+    let (status, body) = c1.post(
+        &format!("/api/v1/vehicles/{VEHICLE}/commands"),
+        json!({"command": "land"}),
+    );
+    assert_eq!(status, 202, "{body}");
+    eventually("landed", Duration::from_secs(60), || {
+        let v = vehicle(&c1, VEHICLE);
+        if v["state"] == "Landed" {
+            Ok(())
+        } else {
+            Err(format!("{}", v["state"]))
+        }
+    });
+}
