@@ -30,13 +30,17 @@ apt_install() {
 }
 
 # What the build itself needs: C and C++ compilers (the plugins' and OpenH264's build
-# scripts), and cmake and make (tests/peers/ros2/setup.sh, which would otherwise install
+# scripts), OpenSSL's headers, and cmake and make (tests/peers/ros2/setup.sh, which would otherwise install
 # them itself, beside this script's own apt-get).
 build_needs=()
 command -v cc >/dev/null 2>&1 || build_needs+=(gcc)
 command -v c++ >/dev/null 2>&1 || build_needs+=(g++)
 command -v cmake >/dev/null 2>&1 || build_needs+=(cmake)
 command -v make >/dev/null 2>&1 || build_needs+=(make)
+# DDS Security (RustDDS's `security`) links the system's OpenSSL 3: its headers, and
+# pkg-config to find them.
+[ -e /usr/include/openssl/ssl.h ] || build_needs+=(libssl-dev)
+command -v pkg-config >/dev/null 2>&1 || build_needs+=(pkg-config)
 [ ${#build_needs[@]} -eq 0 ] || apt_install "${build_needs[@]}"
 
 # Everything else the tests need (see the top of this file).

@@ -7,7 +7,7 @@
 #
 # Needs `rustup target add aarch64-unknown-linux-gnu`, Debian's gcc-aarch64-linux-gnu and,
 # for the camera plugin's OpenH264 (C++), g++-aarch64-linux-gnu (tests/run.sh installs
-# them). Builds only what the image holds (skein and the gimbal,
+# them); fetches Debian's arm64 OpenSSL 3 (libssl-dev, libssl3) once, for DDS Security. Builds only what the image holds (skein and the gimbal,
 # camera, detector, radio and example plugins, one cargo invocation so that they share
 # one build of their dependencies) and prints the directory that has them, for
 # `build-image.sh --arch arm64 DIR`. The binary needs glibc 2.35 or newer (Raspberry Pi
@@ -37,6 +37,24 @@ if ! command -v aarch64-linux-gnu-g++ >/dev/null 2>&1; then
   echo "cross-build.sh: no cross C++ compiler (OpenH264): apt-get install g++-aarch64-linux-gnu" >&2
   exit 1
 fi
+# DDS Security links OpenSSL 3 (openssl-sys): the arm64 headers and libraries of
+# Debian's libssl-dev and libssl3, unpacked once under ~/.cache/skein (the image's base
+# carries the same libssl3 at run time, make-base.sh).
+ssl_root=${XDG_CACHE_HOME:-$HOME/.cache}/skein/openssl-arm64
+ssl_include=$ssl_root/include
+if [ ! -e "$ssl_include/openssl/opensslconf.h" ]; then
+  # shellcheck source=deploy/docker/apt-foreign.sh
+  . "$repo/deploy/docker/apt-foreign.sh"
+  apt_foreign_init arm64
+  rm -rf "$ssl_root"
+  apt_foreign_unpack "$ssl_root/debs" libssl-dev:arm64 libssl3:arm64
+  # One include directory: the generic headers and the architecture's configuration.
+  mkdir -p "$ssl_include/openssl"
+  cp -r "$ssl_root/debs/usr/include/openssl/." "$ssl_root/debs/usr/include/aarch64-linux-gnu/openssl/." \
+    "$ssl_include/openssl/"
+fi
+export AARCH64_UNKNOWN_LINUX_GNU_OPENSSL_INCLUDE_DIR=$ssl_include
+export AARCH64_UNKNOWN_LINUX_GNU_OPENSSL_LIB_DIR=$ssl_root/debs/usr/lib/aarch64-linux-gnu
 # A program cargo runs (a test calling this script) has its own package's
 # CARGO_MANIFEST_DIR, CARGO_PKG_* ... in its environment; build scripts that track them
 # (ring's) would see another build than from a shell, and rebuild ring and everything on

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Makes the base image skein's image is built on, on a machine that has no registry (or
 # wants no pull): the C runtime the `skein` binary and its plugins link (glibc's loader,
-# libc, libm, the libdl/libpthread/librt stubs, libgcc_s, and libstdc++ for the camera
-# plugin's H.264 decoder, OpenH264, which is C++), /etc/passwd and /etc/group
+# libc, libm, the libdl/libpthread/librt stubs, libgcc_s, libstdc++ for the camera
+# plugin's H.264 decoder, OpenH264, which is C++, and OpenSSL 3's libssl and libcrypto for
+# DDS Security), /etc/passwd and /etc/group
 # with the `skein` user (uid 10001) and `dialout` (gid 20, the serial ports), and /tmp.
 # Nothing else: no shell, no package manager (skein needs none; the health check is
 # `skein health`).
@@ -11,11 +12,9 @@
 #
 # Where the files come from:
 #   - the machine's own architecture: the machine's own installed packages (libc6,
-#     libgcc-s1, libstdc++6), so the base holds the C library the binaries were linked against here;
-#   - another architecture (arm64 on an amd64 machine): the same three Debian packages of
-#     that architecture, downloaded with apt-get from the mirror this machine's apt sources
-#     already name (a private apt state in a temporary directory: the machine's own apt
-#     configuration and architectures are left alone).
+#     libgcc-s1, libstdc++6, libssl3), so the base holds the C library the binaries were linked against here;
+#   - another architecture (arm64 on an amd64 machine): the same four Debian packages of
+#     that architecture, downloaded with apt-get (apt-foreign.sh).
 #
 # The image is tagged `skein-base:bookworm-ARCH` (or --tag) and labelled with the libc6
 # version and the list of libraries it holds; an image with that tag and labels is reused (this script then takes a second),
@@ -46,36 +45,22 @@ host_arch=$(dpkg --print-architecture)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 root=$work/root
-debs=$work/debs
-mkdir -p "$root" "$debs"
+mkdir -p "$root"
 
 # The libc6 version the base holds: the installed one, or the mirror's candidate.
 if [ "$arch" = "$host_arch" ]; then
   libc_version=$(dpkg-query -W -f '${Version}' libc6)
 else
-  # Kept between runs, so that a later run only asks the mirror what changed.
-  apt_dir=${XDG_CACHE_HOME:-$HOME/.cache}/skein/apt-$arch
-  mkdir -p "$apt_dir/lists/partial" "$apt_dir/archives/partial"
-  : >"$apt_dir/status"
-  apt_opts=(
-    -o "Dir::State::Lists=$apt_dir/lists"
-    -o "Dir::State::status=$apt_dir/status"
-    -o "Dir::Cache=$apt_dir"
-    -o "Dir::Cache::archives=$apt_dir/archives"
-    -o "APT::Architecture=$arch"
-    -o "APT::Architectures::=$arch"
-    -o "Debug::NoLocking=1"
-    -o "APT::Sandbox::User=root"
-    -qq
-  )
-  echo "make-base.sh: reading the $arch package lists of this machine's apt sources" >&2
-  apt-get "${apt_opts[@]}" update
+  # shellcheck source=deploy/docker/apt-foreign.sh
+  . "$(dirname "$0")/apt-foreign.sh"
+  apt_foreign_init "$arch"
   libc_version=$(apt-cache "${apt_opts[@]}" show --no-all-versions "libc6:$arch" |
     sed -n 's/^Version: //p' | head -n1)
 fi
 [ -n "$libc_version" ] || { echo "make-base.sh: no libc6 for $arch" >&2; exit 1; }
 
-libs=("$loader" libc.so.6 libm.so.6 libdl.so.2 libpthread.so.0 librt.so.1 libgcc_s.so.1 libstdc++.so.6)
+libs=("$loader" libc.so.6 libm.so.6 libdl.so.2 libpthread.so.0 librt.so.1 libgcc_s.so.1 libstdc++.so.6
+  libssl.so.3 libcrypto.so.3)
 if [ "$force" = 0 ] &&
   [ "$(docker image inspect -f '{{index .Config.Labels "org.skein.libc6"}} {{index .Config.Labels "org.skein.libs"}}' "$tag" 2>/dev/null)" = "$libc_version ${libs[*]}" ]; then
   echo "$tag"
@@ -97,8 +82,8 @@ chmod 1777 "$root/tmp"
 if [ "$arch" = "$host_arch" ]; then
   from=""
 else
-  (cd "$debs" && apt-get "${apt_opts[@]}" download "libc6:$arch" "libgcc-s1:$arch" "libstdc++6:$arch")
-  for deb in "$debs"/*.deb; do dpkg-deb -x "$deb" "$work/unpacked"; done
+  apt_foreign_unpack "$work/unpacked" "libc6:$arch" "libgcc-s1:$arch" "libstdc++6:$arch" \
+    "libssl3:$arch"
   from=$work/unpacked
 fi
 for lib in "${libs[@]}"; do
@@ -108,7 +93,7 @@ for lib in "${libs[@]}"; do
   for dir in "$from/usr/lib/$triplet" "$from/lib/$triplet"; do
     [ -e "$dir/$lib" ] && { src=$dir/$lib; break; }
   done
-  [ -n "$src" ] || { echo "make-base.sh: no $lib in libc6/libgcc-s1/libstdc++6 ($arch)" >&2; exit 1; }
+  [ -n "$src" ] || { echo "make-base.sh: no $lib in libc6/libgcc-s1/libstdc++6/libssl3 ($arch)" >&2; exit 1; }
   cp -L "$src" "$root/usr/lib/$triplet/$lib"
 done
 
