@@ -6,8 +6,9 @@
 //! candidate is gone. The rule, applied at every [`Election::tick`]:
 //!
 //! 1. **Claim.** A standby becomes active only when no live lease claims the role, it
-//!    has listened for a whole lease timeout since it started (so it has heard an active
-//!    one if there is one), and it is the live candidate with the highest priority (equal
+//!    has listened for [`ElectionConfig::first_listen`] since it started (so it has heard
+//!    an active one if there is one: a lease timeout, or longer where the link needs time
+//!    before it delivers anything, as DDS Security's handshake does), and it is the live candidate with the highest priority (equal
 //!    priorities: the smaller id). It takes the epoch after the highest it has seen.
 //! 2. **No pre-emption.** A standby of higher priority that appears while another is
 //!    active does not claim: it waits. After it has been heard for
@@ -56,6 +57,9 @@ pub struct ElectionConfig {
     /// How long a higher-priority standby must have been heard before the active one
     /// hands it the role (default 5 s).
     pub handover_after: Duration,
+    /// How long a candidate listens after it starts before it may claim (default 1 s, the
+    /// lease timeout): at least as long as a new participant takes to hear the others.
+    pub first_listen: Duration,
 }
 
 impl Default for ElectionConfig {
@@ -64,6 +68,7 @@ impl Default for ElectionConfig {
             publish_period: Duration::from_millis(200),
             lease_timeout: Duration::from_secs(1),
             handover_after: Duration::from_secs(5),
+            first_listen: Duration::from_secs(1),
         }
     }
 }
@@ -237,7 +242,7 @@ impl Election {
         }
         self.me.epoch = max_epoch;
         if self.peers.values().any(|p| p.lease.active)
-            || now.saturating_duration_since(self.started) < timeout
+            || now.saturating_duration_since(self.started) < self.config.first_listen
             || self.peers.values().any(|p| outranks(&p.lease, &self.me))
         {
             return None;

@@ -10,6 +10,8 @@ struct Net {
     up: Vec<bool>,
     /// Candidates in different groups hear nothing of each other (a partition).
     group: Vec<u8>,
+    /// A candidate hears nothing before this (a link still authenticating).
+    deaf_until: Vec<Instant>,
 }
 
 impl Net {
@@ -32,6 +34,7 @@ impl Net {
                 .collect(),
             up: vec![true; priorities.len()],
             group: vec![0; priorities.len()],
+            deaf_until: vec![now; priorities.len()],
         }
     }
 
@@ -40,7 +43,12 @@ impl Net {
         let leases: Vec<_> = self.cands.iter().map(|c| c.lease().clone()).collect();
         for i in 0..self.cands.len() {
             for (j, l) in leases.iter().enumerate() {
-                if i != j && self.up[i] && self.up[j] && self.group[i] == self.group[j] {
+                if i != j
+                    && self.up[i]
+                    && self.up[j]
+                    && self.group[i] == self.group[j]
+                    && self.now >= self.deaf_until[i]
+                {
                     self.cands[i].heard(l.clone(), self.now);
                 }
             }
@@ -91,15 +99,15 @@ impl Net {
     }
 
     fn restart(&mut self, i: usize) {
+        self.restart_with(i, ElectionConfig::default(), Duration::ZERO);
+    }
+
+    /// Candidate `i` starts again with `config`, hearing nothing for `deaf`.
+    fn restart_with(&mut self, i: usize, config: ElectionConfig, deaf: Duration) {
         self.up[i] = true;
+        self.deaf_until[i] = self.now + deaf;
         let l = self.cands[i].lease().clone();
-        self.cands[i] = Election::new(
-            l.coordinator_id,
-            l.priority,
-            l.api_url,
-            ElectionConfig::default(),
-            self.now,
-        );
+        self.cands[i] = Election::new(l.coordinator_id, l.priority, l.api_url, config, self.now);
     }
 }
 
@@ -183,4 +191,23 @@ fn a_lone_candidate_claims_and_status_names_the_active_one() {
     let json = serde_json::to_value(net.cands[0].status(net.now)).unwrap();
     assert_eq!(json["role"], "active");
     assert_eq!(json["this"]["epoch"], 1);
+}
+
+#[test]
+fn a_candidate_that_hears_late_claims_nothing_while_it_listens_longer() {
+    let mut net = Net::new(&[2, 1]);
+    net.until(Duration::from_secs(2), |n| n.actives() == vec![0]);
+    net.up[0] = false;
+    net.until(Duration::from_secs(2), |n| n.actives() == vec![1]);
+    // c0 comes back deaf for 2.5 s (DDS Security's handshake on a slow link). With the
+    // lease timeout as its first listen it would claim a second active role; listening
+    // 5 s it hears c1 first and takes the role only by handover.
+    let slow = ElectionConfig {
+        first_listen: Duration::from_secs(5),
+        ..ElectionConfig::default()
+    };
+    net.restart_with(0, slow, Duration::from_millis(2500));
+    net.run(Duration::from_secs(4));
+    assert_eq!(net.actives(), vec![1]);
+    net.until(Duration::from_secs(10), |n| n.actives() == vec![0]);
 }
