@@ -15,6 +15,7 @@ use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use skein_swarm::clocks::ClockOffset;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
+use skein_swarm::link_security::LinkSecurityStatus;
 use std::collections::BTreeMap;
 
 /// The election as this candidate sees it, and its peers' clocks.
@@ -27,6 +28,10 @@ pub struct CoordinatorStatus {
     /// with, by id: their offset from this one's (theirs minus this, ms) and its
     /// uncertainty. Their stamps are converted with it before they are aged.
     pub clocks: BTreeMap<String, ClockOffset>,
+    /// The swarm link's DDS Security: this coordinator's enclave and, for each remote
+    /// vehicle, the agent its certificate proves; `null` when the link is not secured
+    /// (any host on the swarm's network can then speak on it).
+    pub dds_security: Option<LinkSecurityStatus>,
 }
 
 /// The coordinator election as this candidate sees it, and its peers' clocks (skein
@@ -42,6 +47,7 @@ pub(crate) async fn status(State(s): State<ApiState>) -> Result<Json<Coordinator
                 .as_ref()
                 .map(|c| c.snapshot(skein_swarm::protocol::wall_us()))
                 .unwrap_or_default(),
+            dds_security: s.link_security.as_ref().map(|l| l.snapshot()),
         })),
         None => Err(ApiError::not_found(
             "this skein is not a coordinator candidate (`skein up` runs alone; see \

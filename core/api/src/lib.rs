@@ -79,6 +79,8 @@ pub struct ApiState {
     recorder: Option<Arc<skein_record::Recorder>>,
     election: Option<tokio::sync::watch::Receiver<skein_swarm::election::ElectionStatus>>,
     clocks: Option<Arc<skein_swarm::clocks::PeerClocks>>,
+    /// Under DDS Security, who the swarm link proves is speaking (a candidate only).
+    link_security: Option<Arc<skein_swarm::link_security::LinkSecurity>>,
 }
 
 impl ApiState {
@@ -104,6 +106,7 @@ impl ApiState {
             recorder: None,
             election: None,
             clocks: None,
+            link_security: None,
         }
     }
 
@@ -134,6 +137,15 @@ impl ApiState {
     /// (`clocks`, see [`skein_swarm::clocks`]).
     pub fn with_clocks(mut self, clocks: Arc<skein_swarm::clocks::PeerClocks>) -> Self {
         self.clocks = Some(clocks);
+        self
+    }
+
+    /// Shows the swarm link's DDS Security in `GET /api/v1/coordinator` (`dds_security`).
+    pub fn with_link_security(
+        mut self,
+        record: Arc<skein_swarm::link_security::LinkSecurity>,
+    ) -> Self {
+        self.link_security = Some(record);
         self
     }
 

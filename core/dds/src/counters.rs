@@ -19,6 +19,9 @@ pub struct DdsCounters {
     /// An agent's targets and commands for a local vehicle dropped: not from the active
     /// coordinator, or of an old epoch.
     pub protocol_refused: AtomicU64,
+    /// Under DDS Security, reports, answers and events about a vehicle from another
+    /// enclave than the one that first reported it, dropped ([`crate::remote`]).
+    pub protocol_forged: AtomicU64,
 }
 
 impl DdsCounters {
@@ -28,7 +31,7 @@ impl DdsCounters {
     }
 
     /// Every counter with its `what` label, in the order of `/metrics`.
-    pub fn values(&self) -> [(&'static str, u64); 6] {
+    pub fn values(&self) -> [(&'static str, u64); 7] {
         let v = |c: &AtomicU64| c.load(Ordering::Relaxed);
         [
             ("published", v(&self.published)),
@@ -37,6 +40,7 @@ impl DdsCounters {
             ("malformed", v(&self.malformed)),
             ("protocol_obeyed", v(&self.protocol_obeyed)),
             ("protocol_refused", v(&self.protocol_refused)),
+            ("protocol_forged", v(&self.protocol_forged)),
         ]
     }
 }

@@ -36,6 +36,7 @@ use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
 use skein_model::supervision::ChildKind;
 use skein_swarm::clocks::PeerClocks;
 use skein_swarm::election::ElectionStatus;
+use skein_swarm::link_security::LinkSecurity;
 use skein_swarm::metrics::Metrics;
 use skein_swarm::{CoordinatorMsg, ServiceMsg, ServiceSpec, SwarmEvent};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -96,6 +97,8 @@ pub struct DdsRoles {
     rejoin: Option<DdsConfig>,
     /// The peers' clocks as the clock exchange estimates them (outlives participants).
     peer_clocks: Arc<PeerClocks>,
+    /// Under DDS Security, a candidate's record of who its remote vehicles' agents are.
+    link_security: Option<Arc<LinkSecurity>>,
 }
 
 /// The roles on a participant that may be replaced: this process's vehicles and their
@@ -192,12 +195,24 @@ impl DdsRoles {
         )?);
         let counters = Arc::new(DdsCounters::default());
         let peer_clocks = Arc::new(PeerClocks::default());
+        let link_security = match (&config.candidate, &config.security) {
+            (Some(_), Some(s)) => Some(Arc::new(LinkSecurity::new(s.enclave.clone()))),
+            _ => None,
+        };
         let candidate = match &config.candidate {
             Some(c) => Some(CandidateRoles {
                 election: Arc::new(ElectionLink::open(carrier.as_ref(), c.clone(), &counters)?),
-                remotes: Arc::new(
-                    Remotes::open(carrier.as_ref(), &counters)?.with_clocks(peer_clocks.clone()),
-                ),
+                remotes: Arc::new({
+                    let r = Remotes::open(carrier.as_ref(), &counters)?
+                        .with_clocks(peer_clocks.clone());
+                    match (&link_security, &config.security) {
+                        (Some(record), Some(s)) => r.with_security(
+                            record.clone(),
+                            crate::security::known_enclaves(&s.keystore),
+                        ),
+                        _ => r,
+                    }
+                }),
                 mirror: Arc::new(
                     Mirror::open(carrier.as_ref(), &counters)?.with_clocks(peer_clocks.clone()),
                 ),
@@ -220,7 +235,14 @@ impl DdsRoles {
             candidate,
             local: Mutex::new(Arc::new(local)),
             peer_clocks,
+            link_security,
         }))
+    }
+
+    /// Under DDS Security, a candidate's record of its remote vehicles' agents, as their
+    /// certificates prove them (`dds_security` in `GET /api/v1/coordinator`).
+    pub fn link_security(&self) -> Option<Arc<LinkSecurity>> {
+        self.link_security.clone()
     }
 
     /// The coordinator election's status, when this process is a candidate.

@@ -52,7 +52,7 @@ impl PoseProbe {
             let sub = carrier.reader::<SwarmMessage>(&topics::swarm_target())?;
             let arrivals = arrivals.clone();
             tasks.spawn(async move {
-                while let Ok(m) = sub.take_next().await {
+                while let Ok((m, _)) = sub.take_next().await {
                     let latency_s =
                         (Time::now().to_nanos() - m.header.stamp.to_nanos()) as f64 * 1e-9;
                     arrivals
@@ -66,7 +66,7 @@ impl PoseProbe {
             let sub = carrier.reader::<PoseStamped>(&topics::pose(id))?;
             let (id, arrivals) = (id.clone(), arrivals.clone());
             tasks.spawn(async move {
-                while let Ok(pose) = sub.take_next().await {
+                while let Ok((pose, _)) = sub.take_next().await {
                     if pose.header.frame_id != FRAME_ID {
                         continue;
                     }

@@ -14,8 +14,16 @@
 //! A vehicle whose agent falls silent is not removed: its last report ages, and the
 //! coordinator shows it `Lost` once that report is older than its silence timeout; the
 //! next report brings it back through the same channels (no second join).
+//!
+//! Under DDS Security each vehicle is bound to the identity (the enclave,
+//! [`WriterIdentity`]) that first reported it: reports, answers and events about it from
+//! any other enclave are dropped and counted (`protocol_forged`), so that one enrolled
+//! agent cannot speak for another's vehicles. Binding to the enclave rather than to the
+//! participant keeps a restarted agent (a new participant, the same enclave) its
+//! vehicles; binding to the first reporter rather than to a vehicle list in the
+//! permissions keeps enrolment to one certificate per companion computer.
 
-use crate::carrier::{Carrier, TopicReader, TopicWriter};
+use crate::carrier::{Carrier, Received, TopicReader, TopicWriter, WriterIdentity};
 use crate::counters::DdsCounters;
 use crate::envelope::{Envelope, ReportBody, body_or_drop};
 use crate::error::DdsError;
@@ -26,6 +34,7 @@ use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::SwarmEvent;
 use skein_swarm::clocks::PeerClocks;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
+use skein_swarm::link_security::{LinkSecurity, ProvenAgent};
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehiclePort, VehicleReport};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, PoisonError, Weak};
@@ -89,6 +98,11 @@ pub struct Remotes {
     events: TopicReader<SwarmMessage>,
     /// The agents' clocks: their reports' stamps are converted into this one's.
     clocks: Arc<PeerClocks>,
+    /// Under DDS Security: the identity each vehicle was first reported by.
+    owners: Mutex<BTreeMap<String, WriterIdentity>>,
+    /// Under DDS Security: the record the API shows, and the enclaves this process's
+    /// keystore names, by identity.
+    security: Option<(Arc<LinkSecurity>, BTreeMap<WriterIdentity, String>)>,
 }
 
 impl Remotes {
@@ -123,7 +137,66 @@ impl Remotes {
             counters: counters.clone(),
             vehicles: Mutex::new(BTreeMap::new()),
             clocks: Arc::default(),
+            owners: Mutex::new(BTreeMap::new()),
+            security: None,
         })
+    }
+
+    /// Records each vehicle's binding in `record` for the API, naming the enclaves of
+    /// `known` (identity → enclave name; [`crate::security::known_enclaves`]).
+    pub fn with_security(
+        mut self,
+        record: Arc<LinkSecurity>,
+        known: BTreeMap<WriterIdentity, String>,
+    ) -> Self {
+        self.security = Some((record, known));
+        self
+    }
+
+    /// Whether a `what` about `vehicle` written by `from` may be read: always without DDS
+    /// Security (`None`); under it, when `from` first reported the vehicle (a report binds
+    /// an unbound vehicle to its writer, `binds`). A sample from another identity is
+    /// counted (`protocol_forged`), logged and refused.
+    fn said_by_owner(
+        &self,
+        env: &Envelope,
+        from: Option<WriterIdentity>,
+        binds: bool,
+        what: &str,
+    ) -> bool {
+        let Some(from) = from else {
+            return true;
+        };
+        let vehicle = env.vehicle_id.as_str();
+        let mut owners = self.owners.lock().unwrap_or_else(PoisonError::into_inner);
+        let owner = match owners.get(vehicle) {
+            Some(o) => *o,
+            None if binds => {
+                owners.insert(vehicle.to_string(), from);
+                if let Some((record, known)) = &self.security {
+                    record.bound(
+                        vehicle,
+                        ProvenAgent {
+                            agent: env.sender_id.clone(),
+                            identity: from.to_string(),
+                            enclave: known.get(&from).cloned(),
+                        },
+                    );
+                }
+                from
+            }
+            None => return true,
+        };
+        if owner == from {
+            return true;
+        }
+        drop(owners);
+        DdsCounters::add(&self.counters.protocol_forged);
+        tracing::warn!(
+            "dds: a {what} about {vehicle} from enclave identity {from} was dropped: \
+             {vehicle} belongs to identity {owner}"
+        );
+        false
     }
 
     /// True for a vehicle of another process.
@@ -205,7 +278,11 @@ pub async fn run<C: RemoteContext>(
     // Aborted with this task.
     let _tasks = (AbortOnDrop(answers), AbortOnDrop(forwarded));
     loop {
-        let env = Envelope::from_msg(remotes.reports.next().await);
+        let (msg, from) = remotes.reports.next_from().await;
+        let env = Envelope::from_msg(msg);
+        if !remotes.said_by_owner(&env, from, true, "report") {
+            continue;
+        }
         let Some(body) = body_or_drop::<ReportBody>(&remotes.counters, &env, "report") else {
             continue;
         };
@@ -254,8 +331,10 @@ async fn forward<C, B: for<'de> serde::Deserialize<'de>>(
     deliver: impl Fn(&C, B),
 ) {
     loop {
-        let env = Envelope::from_msg(reader(&remotes).next().await);
+        let (msg, from): Received<SwarmMessage> = reader(&remotes).next_from().await;
+        let env = Envelope::from_msg(msg);
         if remotes.contains(&env.vehicle_id)
+            && remotes.said_by_owner(&env, from, false, what)
             && let Some(b) = body_or_drop::<B>(&remotes.counters, &env, what)
         {
             deliver(&ctx, b);

@@ -9,7 +9,7 @@ use skein_dds::carrier::{Carrier, Reader, Writer};
 use skein_dds::envelope::Envelope;
 use skein_dds::msgs::SwarmMessage;
 use skein_dds::security::keystore::{Validity, create_enclave, create_keystore};
-use skein_dds::security::{DdsSecurity, Role};
+use skein_dds::security::{DdsSecurity, Role, identity_of};
 use skein_dds::topics::{self, TopicSpec};
 use std::net::{IpAddr, Ipv4Addr};
 use std::path::Path;
@@ -166,6 +166,21 @@ fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
         0,
         "a foreign CA's agent was heard: {heard:?}"
     );
+    // Each sample names its writer's enclave, as the enclave's certificate proves it.
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    peers[0].writer.write(message("a1", 0)).unwrap();
+    let (m, from) = rt
+        .block_on(async {
+            tokio::time::timeout(Duration::from_secs(10), coordinator_reports.take_next()).await
+        })
+        .expect("a report")
+        .unwrap();
+    assert_eq!(m.sender_id, "a1");
+    assert_eq!(from, Some(identity_of("/skein/agent/a1").unwrap()));
+    assert_ne!(from, Some(identity_of("/skein/agent/a9").unwrap()));
 
     // Permissions by role, refused where the writer is made.
     let refused =

@@ -15,6 +15,7 @@
 //! - [`election`]: which coordinator candidate of a DDS domain is active (lease, failover).
 //! - [`clocks`]: this process's clock against its peers', so that stamps from another
 //!   host are aged right.
+//! - [`link_security`]: who the swarm link proves is speaking (DDS Security), for the API.
 //! - [`vehicle`]: the per-vehicle actor, its control loop and procedures.
 //! - [`formation`]: the formation engine's state between ticks.
 //! - [`payload`]: payload actors (children of their Vehicle), built-in payloads.
@@ -44,6 +45,7 @@ pub mod coordinator;
 pub mod election;
 pub mod events;
 pub mod formation;
+pub mod link_security;
 pub mod load;
 pub mod metrics;
 pub mod neighbours;

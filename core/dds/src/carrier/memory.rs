@@ -10,9 +10,10 @@
 //!   it was opened (`/skein/formation` for a late standby).
 //!
 //! It never loses a sample otherwise, and its writes never fail: reliability, timing and
-//! loss are DDS's business, tested end to end.
+//! loss are DDS's business, tested end to end. A writer made by [`MemoryBus::writer_as`]
+//! stamps its samples with a [`WriterIdentity`], as a secured DDS participant's are.
 
-use super::{Carrier, CarrierError, NextSample, Reader, Sample, Writer};
+use super::{Carrier, CarrierError, NextSample, Reader, Received, Sample, Writer, WriterIdentity};
 use crate::error::DdsError;
 use crate::topics::TopicSpec;
 use ros2_client::qos::{Durability, History};
@@ -36,18 +37,18 @@ struct MemoryTopic<M> {
 
 struct TopicState<M> {
     readers: Vec<Weak<Queue<M>>>,
-    last: VecDeque<M>,
+    last: VecDeque<Received<M>>,
 }
 
 /// One reader's samples not taken yet.
 struct Queue<M> {
     depth: usize,
-    samples: Mutex<VecDeque<M>>,
+    samples: Mutex<VecDeque<Received<M>>>,
     arrived: Notify,
 }
 
 impl<M> Queue<M> {
-    fn push(&self, sample: M) {
+    fn push(&self, sample: Received<M>) {
         let mut q = self.samples.lock().unwrap_or_else(PoisonError::into_inner);
         if q.len() == self.depth {
             q.pop_front();
@@ -57,7 +58,7 @@ impl<M> Queue<M> {
         self.arrived.notify_one();
     }
 
-    fn pop(&self) -> Option<M> {
+    fn pop(&self) -> Option<Received<M>> {
         self.samples
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
@@ -94,9 +95,30 @@ impl MemoryBus {
     }
 }
 
+impl MemoryBus {
+    /// A writer of `spec` whose samples say they come from `identity` (as a secured DDS
+    /// participant's do).
+    ///
+    /// # Errors
+    /// The topic carries another type.
+    pub fn writer_as<M: Sample>(
+        &self,
+        spec: &TopicSpec,
+        identity: WriterIdentity,
+    ) -> Result<Arc<dyn Writer<M>>, DdsError> {
+        Ok(Arc::new(MemoryWriter {
+            topic: self.topic::<M>(spec)?,
+            identity: Some(identity),
+        }))
+    }
+}
+
 impl Carrier for MemoryBus {
     fn writer<M: Sample>(&self, spec: &TopicSpec) -> Result<Arc<dyn Writer<M>>, DdsError> {
-        Ok(Arc::new(MemoryWriter(self.topic::<M>(spec)?)))
+        Ok(Arc::new(MemoryWriter {
+            topic: self.topic::<M>(spec)?,
+            identity: None,
+        }))
     }
 
     fn reader<M: Sample>(&self, spec: &TopicSpec) -> Result<Arc<dyn Reader<M>>, DdsError> {
@@ -115,22 +137,25 @@ impl Carrier for MemoryBus {
     }
 }
 
-/// A writer of the bus.
-struct MemoryWriter<M>(Arc<MemoryTopic<M>>);
+/// A writer of the bus, and the identity its samples carry.
+struct MemoryWriter<M> {
+    topic: Arc<MemoryTopic<M>>,
+    identity: Option<WriterIdentity>,
+}
 
 impl<M: Sample> Writer<M> for MemoryWriter<M> {
     fn write(&self, sample: M) -> Result<(), CarrierError> {
-        let topic = &self.0;
+        let topic = &self.topic;
         let mut state = topic.state.lock().unwrap_or_else(PoisonError::into_inner);
         state.readers.retain(|r| r.strong_count() > 0);
         for r in state.readers.iter().filter_map(Weak::upgrade) {
-            r.push(sample.clone());
+            r.push((sample.clone(), self.identity));
         }
         if topic.transient_local {
             if state.last.len() == topic.depth {
                 state.last.pop_front();
             }
-            state.last.push_back(sample);
+            state.last.push_back((sample, self.identity));
         }
         Ok(())
     }
@@ -141,7 +166,7 @@ struct MemoryReader<M>(Arc<Queue<M>>);
 
 impl<M: Sample> Reader<M> for MemoryReader<M> {
     fn try_take(&self) -> Result<Option<M>, CarrierError> {
-        Ok(self.0.pop())
+        Ok(self.0.pop().map(|(m, _)| m))
     }
 
     fn take_next(&self) -> NextSample<'_, M> {
@@ -195,7 +220,7 @@ mod tests {
         }
         for r in [&a, &b] {
             for e in 1..=3 {
-                assert_eq!(r.take_next().await.unwrap().epoch, e);
+                assert_eq!(r.take_next().await.unwrap().0.epoch, e);
             }
             assert_eq!(r.try_take().unwrap(), None);
         }

@@ -50,8 +50,28 @@ pub trait Writer<M>: Send + Sync {
     fn write(&self, sample: M) -> Result<(), CarrierError>;
 }
 
+/// Who wrote a sample, as DDS Security proved it: the first 6 bytes of the writer's
+/// participant GUID prefix, which DDS Security derives from the SHA-256 of the subject of
+/// the participant's identity certificate and checks at authentication (DDS Security 1.1,
+/// §9.3.1.1; RustDDS `guid_start_from_certificate`), so that one enclave always writes
+/// with the same identity, across restarts, and no other enclave can ([`crate::security::identity_of`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct WriterIdentity(pub [u8; 6]);
+
+impl std::fmt::Display for WriterIdentity {
+    /// 12 hex digits.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.iter().try_for_each(|b| write!(f, "{b:02x}"))
+    }
+}
+
+/// A sample and who wrote it: `None` on a participant without DDS Security, where any
+/// participant may claim any GUID.
+pub type Received<M> = (M, Option<WriterIdentity>);
+
 /// The next sample of a [`Reader`], when it comes.
-pub type NextSample<'a, M> = Pin<Box<dyn Future<Output = Result<M, CarrierError>> + Send + 'a>>;
+pub type NextSample<'a, M> =
+    Pin<Box<dyn Future<Output = Result<Received<M>, CarrierError>> + Send + 'a>>;
 
 /// Reads the samples of `M` on one topic: every writer's, its own process's too.
 pub trait Reader<M>: Send + Sync {
@@ -61,7 +81,7 @@ pub trait Reader<M>: Send + Sync {
     /// A sample could not be read (it is gone; the next call reads the next one).
     fn try_take(&self) -> Result<Option<M>, CarrierError>;
 
-    /// The oldest sample not taken yet, waiting for one.
+    /// The oldest sample not taken yet, and who wrote it, waiting for one.
     ///
     /// # Errors
     /// A sample could not be read (it is gone; the next call reads the next one).
@@ -105,6 +125,14 @@ impl<M: Sample> TopicWriter<M> {
             writer: carrier.writer(topic)?,
             counters: counters.clone(),
         })
+    }
+
+    /// A counted writer around `writer`, counting in `counters`.
+    pub fn from_writer(writer: Arc<dyn Writer<M>>, counters: &Arc<DdsCounters>) -> Self {
+        TopicWriter {
+            writer,
+            counters: counters.clone(),
+        }
     }
 
     /// Writes `sample`, counted as published or failed.
@@ -155,9 +183,14 @@ impl<M: Sample> TopicReader<M> {
 
     /// The next readable sample, waiting for it.
     pub async fn next(&self) -> M {
+        self.next_from().await.0
+    }
+
+    /// The next readable sample and who wrote it, waiting for it.
+    pub async fn next_from(&self) -> Received<M> {
         loop {
             match self.reader.take_next().await {
-                Ok(m) => return m,
+                Ok(r) => return r,
                 Err(e) => self.dropped(&e),
             }
         }

@@ -2,12 +2,14 @@
 //! through ros2-client; its writers are `Publisher`s and its readers `Subscription`s.
 //! Dropping it leaves the domain.
 
-use super::{Carrier, CarrierError, NextSample, Reader, Sample, Writer};
+use super::{Carrier, CarrierError, NextSample, Reader, Sample, Writer, WriterIdentity};
 use crate::error::{DdsError, err};
 use crate::security::DdsSecurity;
 use crate::topics::{self, TopicSpec};
 use ros2_client::dds::rustdds::{DomainParticipantBuilder, Topic};
-use ros2_client::{Context, Name, Node, NodeName, NodeOptions, Publisher, Subscription};
+use ros2_client::{
+    Context, MessageInfo, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
+};
 use std::collections::BTreeMap;
 use std::net::IpAddr;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -20,6 +22,8 @@ pub struct Ros2Carrier {
     /// Topics made so far, by ROS name: one DDS topic per name, however many readers and
     /// writers it has.
     topics: Mutex<BTreeMap<String, Topic>>,
+    /// Joined with DDS Security: samples name their writer's identity.
+    secured: bool,
 }
 
 impl Ros2Carrier {
@@ -66,6 +70,7 @@ impl Ros2Carrier {
             _context: context,
             node: Mutex::new(node),
             topics: Mutex::new(BTreeMap::new()),
+            secured: security.is_some(),
         })
     }
 
@@ -100,10 +105,31 @@ impl Carrier for Ros2Carrier {
 
     fn reader<M: Sample>(&self, spec: &TopicSpec) -> Result<Arc<dyn Reader<M>>, DdsError> {
         let (topic, mut node) = self.topic::<M>(spec)?;
-        let s: Subscription<M> = node
+        let subscription: Subscription<M> = node
             .create_subscription(&topic, None)
             .map_err(err("subscription"))?;
-        Ok(Arc::new(s))
+        Ok(Arc::new(Ros2Reader {
+            subscription,
+            secured: self.secured,
+        }))
+    }
+}
+
+/// A subscription, and whether its participant is secured (then its samples' writer GUIDs
+/// are authenticated: [`WriterIdentity`]).
+struct Ros2Reader<M: Sample> {
+    subscription: Subscription<M>,
+    secured: bool,
+}
+
+impl<M: Sample> Ros2Reader<M> {
+    fn identity(&self, info: &MessageInfo) -> Option<WriterIdentity> {
+        self.secured.then(|| {
+            let gid = info.publisher_gid().to_bytes16();
+            let mut id = [0; 6];
+            id.copy_from_slice(&gid[..6]);
+            WriterIdentity(id)
+        })
     }
 }
 
@@ -114,18 +140,20 @@ impl<M: Sample> Writer<M> for Publisher<M> {
     }
 }
 
-impl<M: Sample> Reader<M> for Subscription<M> {
+impl<M: Sample> Reader<M> for Ros2Reader<M> {
     fn try_take(&self) -> Result<Option<M>, CarrierError> {
-        self.take()
+        self.subscription
+            .take()
             .map(|s| s.map(|(m, _)| m))
             .map_err(|e| CarrierError(format!("{e:?}")))
     }
 
     fn take_next(&self) -> NextSample<'_, M> {
         Box::pin(async move {
-            self.async_take()
+            self.subscription
+                .async_take()
                 .await
-                .map(|(m, _)| m)
+                .map(|(m, info)| (m, self.identity(&info)))
                 .map_err(|e| CarrierError(format!("{e:?}")))
         })
     }

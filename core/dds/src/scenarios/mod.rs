@@ -366,6 +366,20 @@ impl<M: crate::carrier::Sample> Peer<M> {
             writer: TopicWriter::open(bus, topic, &Arc::new(DdsCounters::default())).unwrap(),
         }
     }
+
+    /// A writer of `topic` whose samples carry `identity`, as a secured participant's do.
+    pub(super) fn open_as(
+        bus: &MemoryBus,
+        topic: &TopicSpec,
+        identity: crate::carrier::WriterIdentity,
+    ) -> Self {
+        Peer {
+            writer: TopicWriter::from_writer(
+                bus.writer_as(topic, identity).unwrap(),
+                &Arc::new(DdsCounters::default()),
+            ),
+        }
+    }
 }
 
 /// Protocol time since `start`, seconds.

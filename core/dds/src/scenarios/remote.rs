@@ -3,6 +3,7 @@
 
 use super::{Call, Calls, Peer, Process, origin_a, origin_b, report, snapshot};
 use crate::agent::{self, Agent, AgentConfig};
+use crate::carrier::WriterIdentity;
 use crate::carrier::memory::MemoryBus;
 use crate::counters::DdsCounters;
 use crate::envelope::ReportBody;
@@ -239,4 +240,80 @@ async fn an_agents_vehicle_answers_and_events_reach_the_coordinator() {
     );
     let more = c_calls.within(Duration::from_secs(1), Some).await;
     assert!(more.is_none(), "{more:?}");
+}
+
+#[tokio::test(start_paused = true)]
+async fn under_dds_security_only_the_enclave_that_first_reported_a_vehicle_speaks_for_it() {
+    let bus = MemoryBus::new();
+    let (c, mut calls) = Process::new(Some(origin_a()));
+    let (counters, _role) = start_remotes(&bus, &c);
+    let (a1, a2) = (WriterIdentity([1; 6]), WriterIdentity([2; 6]));
+    let owner = Peer::open_as(&bus, &topics::swarm_report(), a1);
+    let forger = Peer::open_as(&bus, &topics::swarm_report(), a2);
+    let frame = NedFrame::new(origin_a());
+    let body = |p: Ned| ReportBody {
+        report: report(VehicleState::Hovering, p),
+        snapshot: snapshot("uav-1", VehicleState::Hovering, p, frame),
+    };
+    let p = Ned::new(5.0, 0.0, -10.0);
+    owner.send("uav-1", "agent-1", 0, origin_a(), &body(p));
+    let join = joined(&mut calls, Duration::from_millis(100))
+        .await
+        .expect("uav-1 joins");
+    let proxy = VehicleProxy::remote(join.port, join.snapshots, join.reports.clone());
+
+    // Another enrolled agent reports uav-1 somewhere else, then answers and emits for
+    // it: none of it reaches the coordinator.
+    forger.send(
+        "uav-1",
+        "agent-2",
+        0,
+        origin_a(),
+        &body(Ned::new(50.0, 0.0, -10.0)),
+    );
+    Peer::open_as(&bus, &topics::swarm_events(), a2).send(
+        "uav-1",
+        "agent-2",
+        0,
+        origin_a(),
+        &SwarmEvent::LinkLost { id: "uav-1".into() },
+    );
+    Peer::open_as(&bus, &topics::swarm_command_result(), a2).send(
+        "uav-1",
+        "agent-2",
+        0,
+        origin_a(),
+        &FromVehicle::CommandAck {
+            id: "uav-1".into(),
+            command_id: 3,
+            result: Ok(()),
+        },
+    );
+    let heard = calls.within(Duration::from_secs(1), Some).await;
+    assert!(heard.is_none(), "{heard:?}");
+    assert!((proxy.position().unwrap() - p).norm() < 0.01);
+    assert_eq!(counters.protocol_forged.load(Ordering::Relaxed), 3);
+
+    // The owner's next report and event are read as before; a vehicle first reported
+    // by the other agent is its own.
+    let q = Ned::new(6.0, 0.0, -10.0);
+    let mut reports = join.reports;
+    owner.send("uav-1", "agent-1", 0, origin_a(), &body(q));
+    changed(&mut reports).await;
+    assert!((proxy.position().unwrap() - q).norm() < 0.01);
+    forger.send(
+        "uav-2",
+        "agent-2",
+        0,
+        origin_a(),
+        &ReportBody {
+            report: report(VehicleState::Hovering, q),
+            snapshot: snapshot("uav-2", VehicleState::Hovering, q, frame),
+        },
+    );
+    let join2 = joined(&mut calls, Duration::from_millis(100))
+        .await
+        .expect("uav-2 joins");
+    assert_eq!(join2.agent, "agent-2");
+    assert_eq!(counters.protocol_forged.load(Ordering::Relaxed), 3);
 }

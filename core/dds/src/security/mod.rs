@@ -13,9 +13,18 @@
 pub mod keystore;
 pub mod policy;
 
+use crate::carrier::WriterIdentity;
 pub use policy::Role;
 use ros2_client::dds::rustdds::DomainParticipantSecurityConfigFiles;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+/// How long a secured coordinator candidate listens after it starts before it may claim
+/// the role ([`skein_swarm::election::ElectionConfig::first_listen`]; 1 s unsecured):
+/// a new participant hears nothing before DDS Security's handshake, key exchange and
+/// secure discovery are done, which took 1.8–2.5 s on loopback, and a restarted
+/// coordinator that claimed before hearing the active one made two on the test WLAN.
+pub const FIRST_LISTEN: std::time::Duration = std::time::Duration::from_secs(5);
 
 /// The files of one enclave every secured participant reads (ROS 2's default names).
 pub const ENCLAVE_FILES: [&str; 6] = [
@@ -116,6 +125,59 @@ impl DdsSecurity {
     pub(crate) fn config_files(&self) -> DomainParticipantSecurityConfigFiles {
         DomainParticipantSecurityConfigFiles::with_ros_default_names(&self.dir, String::new())
     }
+}
+
+/// The [`WriterIdentity`] a participant presenting enclave `name` (a certificate of
+/// subject `CN=<name>`, as [`keystore::create_enclave`] makes it) writes with under DDS
+/// Security: the subject's DER hashed with SHA-256, its first 64 bits shifted right by
+/// one with the top bit set, truncated to 48 (DDS Security 1.1 §9.3.1.1, as RustDDS
+/// computes it).
+///
+/// # Errors
+/// OpenSSL could not encode the name.
+pub fn identity_of(name: &str) -> Result<WriterIdentity, String> {
+    let mut b = openssl::x509::X509NameBuilder::new().map_err(|e| e.to_string())?;
+    b.append_entry_by_nid(openssl::nid::Nid::COMMONNAME, name)
+        .map_err(|e| e.to_string())?;
+    let der = b.build().to_der().map_err(|e| e.to_string())?;
+    let hash = openssl::sha::sha256(&der);
+    let mut first = [0; 8];
+    first.copy_from_slice(&hash[..8]);
+    let bits = (u64::from_be_bytes(first) >> 1) | (1 << 63);
+    let mut id = [0; 6];
+    id.copy_from_slice(&bits.to_be_bytes()[..6]);
+    Ok(WriterIdentity(id))
+}
+
+/// The enclaves of the keystore at `keystore` (every directory under `enclaves/` that
+/// holds a `cert.pem`), by the identity each writes with ([`identity_of`]): what names
+/// an agent's enclave in `GET /api/v1/coordinator`. A keystore that holds only this
+/// participant's enclave (as on an aircraft) names only that one.
+pub fn known_enclaves(keystore: &Path) -> BTreeMap<WriterIdentity, String> {
+    fn walk(dir: &Path, name: &str, out: &mut BTreeMap<WriterIdentity, String>) {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        if dir.join("cert.pem").is_file()
+            && let Ok(id) = identity_of(name)
+        {
+            out.insert(id, name.to_string());
+        }
+        for e in entries.flatten() {
+            if e.path().is_dir()
+                && let Some(token) = e.file_name().to_str()
+            {
+                walk(
+                    &e.path(),
+                    &format!("{}/{token}", name.trim_end_matches('/')),
+                    out,
+                );
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(&keystore.join("enclaves"), "/", &mut out);
+    out
 }
 
 /// Whether the X.509 certificate at `path` is valid now.

@@ -410,6 +410,10 @@ pub async fn up(args: UpArgs) -> Result<ExitCode, String> {
         Some((d, _)) => state.with_clocks(d.peer_clocks()),
         None => state,
     };
+    let state = match dds.as_ref().and_then(|(d, _)| d.link_security()) {
+        Some(record) => state.with_link_security(record),
+        None => state,
+    };
     let state = match tls {
         Some(t) => state.with_tls(t),
         None => state,
@@ -576,6 +580,14 @@ fn dds_config(
     } else {
         args.dds_network.clone()
     };
+    let security = args.dds_security.resolve(&file.dds)?;
+    let timing = skein_swarm::election::ElectionConfig {
+        first_listen: match security {
+            Some(_) => skein_dds::security::FIRST_LISTEN,
+            None => skein_swarm::election::ElectionConfig::default().first_listen,
+        },
+        ..Default::default()
+    };
     Ok(Some(skein_dds::DdsConfig {
         domain_id,
         node_name: match (&args.candidate, &args.agent) {
@@ -591,13 +603,13 @@ fn dds_config(
                 coordinator_id: c.id.clone(),
                 priority: c.priority,
                 api_url: super::candidate::advertised_url(api_scheme, api_local, &networks),
-                timing: Default::default(),
+                timing,
             }),
         publish_rate_hz,
         accept_commands: args.dds_commands || file.dds.accept_commands,
         networks,
         tf_parent_frame,
-        security: args.dds_security.resolve(&file.dds)?,
+        security,
     }))
 }
 
