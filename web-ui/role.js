@@ -3,7 +3,9 @@
 // second; in `skein up` (no role) nothing is shown and nothing polled. A
 // candidate shows its role in the top bar; a standby also shows a banner naming the
 // active coordinator, with a link to its dashboard, because its own API refuses every
-// command (409) until it becomes active.
+// command (409) until it becomes active. The badge also says whether the swarm's DDS
+// link is secured (DDS Security: `dds_security`), and its tooltip which enclave each
+// remote vehicle's agent proved.
 
 import * as api from './api.js';
 
@@ -15,9 +17,16 @@ export function initRole(badge, banner) {
     badge.hidden = false;
     badge.dataset.role = s.role;
     badge.dataset.epoch = String(me.epoch ?? '');
-    badge.textContent = s.role === 'active'
+    const sec = s.dds_security;
+    badge.dataset.dds = sec ? 'secured' : 'open';
+    badge.textContent = (s.role === 'active'
       ? `coordinator ${me.coordinator_id} · active · epoch ${me.epoch}`
-      : `coordinator ${me.coordinator_id} · standby`;
+      : `coordinator ${me.coordinator_id} · standby`)
+      + (sec ? ' · DDS secured' : ' · DDS open');
+    badge.title = sec
+      ? [`enclave ${sec.enclave}`].concat(Object.entries(sec.vehicles).map(([id, v]) =>
+        `${id}: ${v.agent}, enclave ${v.enclave ?? `unknown (identity ${v.identity})`}`)).join('\n')
+      : 'The swarm link is not secured: any host on its network can speak on it.';
     document.body.classList.toggle('standby', s.role !== 'active');
     if (s.role === 'active') {
       banner.hidden = true;

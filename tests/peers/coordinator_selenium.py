@@ -24,6 +24,7 @@ const b = document.querySelector('[data-testid="coordinator-role"]');
 const s = document.querySelector('[data-testid="standby-banner"]');
 const a = document.querySelector('[data-testid="coordinator-active-link"]');
 return {role: b.hidden ? null : b.dataset.role, badge: b.textContent, epoch: b.dataset.epoch,
+        dds: b.dataset.dds || null,
         banner: s.hidden ? null : s.textContent, active: s.dataset.active || null,
         link: a ? a.getAttribute('href') : null};
 """
@@ -35,6 +36,8 @@ def parse_args():
     p.add_argument("--active", required=True)
     p.add_argument("--active-id", required=True)
     p.add_argument("--timeout", type=float, default=30.0)
+    p.add_argument("--dds", default="open", choices=["open", "secured"],
+                   help="what the badge must say of the swarm link")
     add_browser_args(p)
     return p.parse_args()
 
@@ -65,8 +68,9 @@ def run(args, driver, summary):
 
     def active_shown(_):
         ui.last = driver.execute_script(ROLE_JS)
-        return ui.last["role"] == "active" and ui.last["banner"] is None
-    ui.wait("the active coordinator's role, no banner", active_shown)
+        return (ui.last["role"] == "active" and ui.last["banner"] is None
+                and ui.last["dds"] == args.dds and f"DDS {args.dds}" in ui.last["badge"])
+    ui.wait(f"the active coordinator's role, no banner, the DDS link {args.dds}", active_shown)
     summary["active"] = ui.last
     errors = severe(driver)
     if errors:
