@@ -22,17 +22,6 @@ fn domain(offset: u32) -> String {
     (100 + (std::process::id() % 20) * 4 + offset).to_string()
 }
 
-/// The value of `skein_dds_samples{what="..."}` in `/metrics`.
-fn dds_samples(skein: &Skein, what: &str) -> u64 {
-    let (_, _, body) = skein.get_bytes("/metrics");
-    let text = String::from_utf8_lossy(&body).to_string();
-    let needle = format!("skein_dds_samples{{what=\"{what}\"}} ");
-    text.lines()
-        .find_map(|l| l.strip_prefix(&needle))
-        .and_then(|v| v.trim().parse().ok())
-        .unwrap_or_else(|| panic!("no {needle} in /metrics:\n{text}"))
-}
-
 /// Runs `dds_peer.py` on domain `d` against `skein`'s API for `vehicle`, on loopback,
 /// with `extra` arguments; its one JSON line once it exits 0 (panics with its output
 /// otherwise).
@@ -114,17 +103,15 @@ fn a_cyclonedds_peer_reads_poses_and_commands_a_vehicle() {
         "{flown}"
     );
     assert_eq!(vehicle(&skein, other)["state"], "Landed");
-    assert_eq!(dds_samples(&skein, "commands"), 3);
+    assert_eq!(skein.dds_samples("commands"), 3);
     // The unknown command was malformed; the land was well-formed and refused.
-    assert_eq!(dds_samples(&skein, "malformed"), 1);
-    eventually(
-        "samples counted",
-        Duration::from_secs(5),
-        || match dds_samples(&skein, "published") {
+    assert_eq!(skein.dds_samples("malformed"), 1);
+    eventually("samples counted", Duration::from_secs(5), || {
+        match skein.dds_samples("published") {
             n if n > 20 => Ok(()),
             n => Err(format!("{n} published")),
-        },
-    );
+        }
+    });
     let (_, tree) = skein.get("/api/v1/supervision");
     assert!(tree.to_string().contains("coordinator/dds"), "{tree}");
 }
@@ -170,11 +157,11 @@ fn without_dds_commands_nothing_can_command_and_a_panicked_link_restarts() {
             n => Err(format!("{n} restarts")),
         },
     );
-    let before = dds_samples(&skein, "published");
+    let before = skein.dds_samples("published");
     eventually(
         "publishing after the restart",
         Duration::from_secs(10),
-        || match dds_samples(&skein, "published") {
+        || match skein.dds_samples("published") {
             n if n >= before + 10 => Ok(()),
             n => Err(format!("{n} published, {before} before")),
         },

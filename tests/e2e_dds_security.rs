@@ -5,15 +5,15 @@
 //! without a certificate, of a higher priority on the same domain, is heard by neither:
 //! the enrolled coordinator stays active (an unsecured lease of higher priority would
 //! make it stand by, `tests/e2e_failover.rs`), the intruder sees no vehicle, and the
-//! vehicle obeys only the enrolled coordinator.
+//! vehicle obeys only the enrolled coordinator, whose `GET /api/v1/coordinator` names the
+//! agent's enclave.
 
 mod support;
 
 use serde_json::json;
-use std::process::Command;
 use std::time::Duration;
-use support::distributed::{AgentOptions, agent_on, role, vehicle};
-use support::{Skein, eventually, skein_bin};
+use support::distributed::{AgentOptions, agent_on, keystore, role, vehicle};
+use support::{Skein, eventually};
 
 /// A DDS domain (231 or 232). Every range is taken by another test, so this one may be
 /// shared: the enrolled participants hear no one else whatever the domain, and the
@@ -23,17 +23,6 @@ fn domain() -> String {
 }
 
 const VEHICLE: &str = "uav-77";
-
-fn skein(args: &[&str]) -> String {
-    let out = Command::new(skein_bin()).args(args).output().unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(out.status.success(), "skein {args:?}: {text}");
-    text
-}
 
 fn coordinator(id: &str, priority: &str, d: &str, security: Option<(&str, &str)>) -> Skein {
     let mut args = vec![
@@ -57,33 +46,14 @@ fn coordinator(id: &str, priority: &str, d: &str, security: Option<(&str, &str)>
 #[test]
 fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
     let dir = tempfile::tempdir().unwrap();
-    let ks = dir.path().join("keystore");
-    let ks = ks.to_str().unwrap();
-    skein(&["dds", "keystore", "create", ks]);
-    let made = skein(&[
-        "dds",
-        "enclave",
-        "create",
-        ks,
-        "--enclave",
-        "/skein/coordinator/c1",
-        "--role",
-        "coordinator",
-    ]);
-    assert!(
-        made.contains("--dds-enclave /skein/coordinator/c1"),
-        "{made}"
+    let ks = keystore(
+        dir.path(),
+        &[
+            ("/skein/coordinator/c1", "coordinator"),
+            ("/skein/agent/a1", "agent"),
+        ],
     );
-    skein(&[
-        "dds",
-        "enclave",
-        "create",
-        ks,
-        "--enclave",
-        "/skein/agent/a1",
-        "--role",
-        "agent",
-    ]);
+    let ks = ks.as_str();
     let d = domain();
 
     let c1 = coordinator("c1", "1", &d, Some((ks, "/skein/coordinator/c1")));
@@ -94,7 +64,14 @@ fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
     let _agent = agent_on(None, 77, &d, &o);
     let intruder = coordinator("intruder", "9", &d, None);
 
-    // The enrolled coordinator sees the agent's vehicle and flies it.
+    // The enrolled coordinator claims the role (after listening 5 s, as a secured
+    // candidate does), sees the agent's vehicle and flies it.
+    eventually("c1 active", Duration::from_secs(30), || {
+        match role(&c1).as_str() {
+            Some("active") => Ok(()),
+            other => Err(format!("{other:?}")),
+        }
+    });
     c1.take_off(1, 8.0);
     // The intruder runs (as a coordinator of its own) but is heard by no one: the
     // enrolled coordinator never stands down for its higher priority, and it never
@@ -113,6 +90,18 @@ fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
         assert!(seen.is_null(), "the intruder read {VEHICLE}: {seen}");
         std::thread::sleep(Duration::from_millis(300));
     }
+    // The operator sees the link secured, and which enclave reported the vehicle.
+    let (_, status) = c1.get("/api/v1/coordinator");
+    let sec = &status["dds_security"];
+    assert_eq!(sec["enclave"], "/skein/coordinator/c1", "{status}");
+    assert_eq!(
+        sec["vehicles"][VEHICLE],
+        json!({"agent": "agent-77", "identity": sec["vehicles"][VEHICLE]["identity"],
+               "enclave": "/skein/agent/a1"}),
+        "{status}"
+    );
+    let (_, open) = intruder.get("/api/v1/coordinator");
+    assert!(open["dds_security"].is_null(), "{open}");
     // The vehicle obeys the enrolled coordinator.
     let (status, body) = c1.post(
         &format!("/api/v1/vehicles/{VEHICLE}/commands"),

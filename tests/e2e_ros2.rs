@@ -86,17 +86,6 @@ fn assert_values_match_the_api(r: &Value) {
     assert!(f(r, "worst_battery_error") < 0.02, "{r}");
 }
 
-/// The value of `skein_dds_samples{what="..."}` in `/metrics`.
-fn dds_samples(skein: &Skein, what: &str) -> u64 {
-    let (_, _, body) = skein.get_bytes("/metrics");
-    let text = String::from_utf8_lossy(&body).to_string();
-    let needle = format!("skein_dds_samples{{what=\"{what}\"}} ");
-    text.lines()
-        .find_map(|l| l.strip_prefix(&needle))
-        .and_then(|v| v.trim().parse().ok())
-        .unwrap_or_else(|| panic!("no {needle} in /metrics"))
-}
-
 fn up_on(d: &str, n: usize, extra: &[&str]) -> Skein {
     let mut args = vec!["--dds", "--domain-id", d, "--dds-network", "127.0.0.1"];
     args.extend_from_slice(extra);
@@ -212,7 +201,7 @@ fn rclpy_nodes_on_fast_dds_read_every_topic_of_a_swarm_they_cannot_command() {
     assert_values_match_the_api(&k);
     // Without --dds-commands: no command reader, and nothing moved.
     assert_eq!(r["command_readers"], 0, "{r}");
-    assert_eq!(dds_samples(&skein, "commands"), 0);
+    assert_eq!(skein.dds_samples("commands"), 0);
     for v in skein.vehicles() {
         assert_eq!(v["state"], "Landed", "{v}");
     }
@@ -273,8 +262,8 @@ fn an_rclpy_node_flies_a_vehicle_through_skein_msgs_commands() {
     });
     assert_eq!(skein.get("/api/v1/vehicles/uav-2").1["state"], "Landed");
     // Six commands taken, the unknown one malformed.
-    assert_eq!(dds_samples(&skein, "commands"), 6);
-    assert_eq!(dds_samples(&skein, "malformed"), 1);
+    assert_eq!(skein.dds_samples("commands"), 6);
+    assert_eq!(skein.dds_samples("malformed"), 1);
 }
 
 #[test]

@@ -86,27 +86,68 @@ pub fn agent_on(host: Option<&Host>, sysid: u8, d: &str, o: &AgentOptions) -> Sk
 }
 
 /// A coordinator candidate on a host of a LAN, its API on the host's address (no tokens
-/// on this private LAN: `--insecure-no-auth`).
-pub fn candidate_on(h: &Host, id: &str, priority: &str, d: &str) -> Skein {
+/// on this private LAN: `--insecure-no-auth`); with `security` (keystore, enclave), DDS
+/// Security with that enclave.
+pub fn candidate_on(
+    h: &Host,
+    id: &str,
+    priority: &str,
+    d: &str,
+    security: Option<(&str, &str)>,
+) -> Skein {
     let http = format!("{}:0", h.addr);
     let network = h.addr.to_string();
-    Skein::launch_in(
-        Some(&h.ns),
-        "coordinator",
-        &[
-            "--http",
-            &http,
-            "--id",
-            id,
-            "--priority",
-            priority,
-            "--domain-id",
-            d,
-            "--dds-network",
-            &network,
-            "--insecure-no-auth",
-        ],
-    )
+    let mut args = vec![
+        "--http",
+        &http,
+        "--id",
+        id,
+        "--priority",
+        priority,
+        "--domain-id",
+        d,
+        "--dds-network",
+        &network,
+        "--insecure-no-auth",
+    ];
+    if let Some((keystore, enclave)) = security {
+        args.extend_from_slice(&["--dds-keystore", keystore, "--dds-enclave", enclave]);
+    }
+    Skein::launch_in(Some(&h.ns), "coordinator", &args)
+}
+
+/// A keystore (`skein dds keystore create`) in `dir`, with the enclave of each of
+/// `enclaves` (name, role) made by `skein dds enclave create`; returns its path.
+pub fn keystore(dir: &std::path::Path, enclaves: &[(&str, &str)]) -> String {
+    let ks = dir.join("keystore").to_string_lossy().into_owned();
+    let run = |args: &[&str]| {
+        let out = std::process::Command::new(super::skein_bin())
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "skein {args:?}: {}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    run(&["dds", "keystore", "create", &ks]);
+    for (name, role) in enclaves {
+        let made = run(&[
+            "dds",
+            "enclave",
+            "create",
+            &ks,
+            "--enclave",
+            name,
+            "--role",
+            role,
+        ]);
+        assert!(made.contains(&format!("--dds-enclave {name}")), "{made}");
+    }
+    ks
 }
 
 /// A candidate's role (`"active"`, `"standby"`) from `GET /api/v1/coordinator`.

@@ -374,6 +374,18 @@ impl Api {
             .unwrap_or_else(|| panic!("{path}: no restart count"))
     }
 
+    /// The value of `skein_dds_samples{what="<what>"}` in `/metrics` (panics naming it
+    /// when it is not there).
+    pub fn dds_samples(&self, what: &str) -> u64 {
+        let (_, _, body) = self.get_bytes("/metrics");
+        let text = String::from_utf8_lossy(&body).to_string();
+        let needle = format!("skein_dds_samples{{what=\"{what}\"}} ");
+        text.lines()
+            .find_map(|l| l.strip_prefix(&needle))
+            .and_then(|v| v.trim().parse().ok())
+            .unwrap_or_else(|| panic!("no {needle} in /metrics:\n{text}"))
+    }
+
     /// `GET path` → (status, content type, the body as it arrives): streamed bodies
     /// (MJPEG), read within the agent's 20 s.
     pub fn get_stream(&self, path: &str) -> (u16, String, impl std::io::Read + use<>) {
