@@ -2,7 +2,7 @@
 //! amd64 machine: skein and its plugins cross-compiled by `deploy/docker/cross-build.sh`
 //! (aarch64-unknown-linux-gnu, Debian's cross gcc; the test profile, in `target/arm64`),
 //! the image built by `build-image.sh --arch arm64` on the arm64 base `make-base.sh` makes
-//! from Debian's arm64 packages (kept for the next run), under 60 MB, labelled arm64.
+//! from Debian's arm64 packages (kept for the next run), under 75 MB, labelled arm64.
 //! Its files are then run under qemu-user (Debian's `qemu-aarch64`, the image's own
 //! loader and libraries by `-L`):
 //!
@@ -60,7 +60,9 @@ fn rootfs() -> &'static Rootfs {
             &[],
         );
         assert_eq!(image.architecture(), "arm64");
-        assert!(image.size < 60_000_000, "the image is {} bytes", image.size);
+        // 69.6 MB since DDS Security (OpenSSL 3's arm64 libraries and RustDDS's security
+        // code in skein and the camera plugin, 2026-11-25); under 60 MB before.
+        assert!(image.size < 75_000_000, "the image is {} bytes", image.size);
         // The image's files as a directory (then the image goes: `image` drops).
         let root = support::plugins::scratch("arm64-rootfs");
         let id = docker(&["create", "--platform", "linux/arm64", &image.tag]);
