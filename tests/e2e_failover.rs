@@ -14,12 +14,14 @@
 //! a bridge the test makes (DDS discovery by plain multicast, as on a WLAN): cutting the
 //! active one's link for 3 s partitions them, the standby claims the next epoch, and
 //! when the link is back the older epoch steps down, so exactly one stays active; the
-//! higher priority then gets the role back by handover.
+//! higher priority then gets the role back by handover. The same again with DDS Security
+//! enforced, each candidate presenting its own enclave.
 
 mod support;
 
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
+use support::distributed::keystore;
 use support::netns::Lan;
 use support::{EventLog, Skein, eventually, run_peer};
 
@@ -30,7 +32,7 @@ fn domain() -> String {
 }
 
 fn candidate(id: &str, priority: u32, d: &str, recordings: &std::path::Path) -> Skein {
-    candidate_on(None, id, priority, d, recordings)
+    candidate_on(None, id, priority, d, recordings, None)
 }
 
 /// A candidate on loopback (`host` `None`), or on a host of a [`Lan`], its API on the
@@ -41,6 +43,7 @@ fn candidate_on(
     priority: u32,
     d: &str,
     recordings: &std::path::Path,
+    security: Option<(&str, &str)>,
 ) -> Skein {
     let config = recordings.join(format!("{id}.toml"));
     std::fs::write(
@@ -69,6 +72,9 @@ fn candidate_on(
     ];
     if host.is_some() {
         args.push("--insecure-no-auth");
+    }
+    if let Some((keystore, enclave)) = security {
+        args.extend_from_slice(&["--dds-keystore", keystore, "--dds-enclave", enclave]);
     }
     Skein::launch_in(host.map(|h| h.ns.as_str()), "coordinator", &args)
 }
@@ -215,11 +221,48 @@ fn the_standby_takes_over_within_two_seconds_and_a_returning_one_only_by_handove
 /// SIGKILL: the candidate vanishes without a last lease, as a crashed host would.
 #[test]
 fn a_partition_elects_one_per_side_and_healing_leaves_exactly_one() {
-    let lan = Lan::new('f', 2);
+    partition_heals('f', None);
+}
+
+/// The same two hosts, each candidate presenting its own DDS Security enclave (made by
+/// `skein dds keystore|enclave create`): the election, the partition and the healing go
+/// as without it.
+#[test]
+fn under_dds_security_a_partition_heals_to_exactly_one() {
+    let dir = support::plugins::scratch("failover-keystore");
+    let ks = keystore(
+        &dir,
+        &[
+            ("/skein/coordinator/gcs_a", "coordinator"),
+            ("/skein/coordinator/gcs_b", "coordinator"),
+        ],
+    );
+    partition_heals('g', Some(&ks));
+}
+
+/// Two candidates, each a host of a LAN (tag `tag`), with enclaves of `keystore` when
+/// given: elected, partitioned, healed (see the module docs).
+fn partition_heals(tag: char, keystore: Option<&str>) {
+    let lan = Lan::new(tag, 2);
     let d = "7";
-    let dir = support::plugins::scratch("failover-lan");
-    let a = candidate_on(Some(&lan.hosts[0]), "gcs-a", 2, d, &dir);
-    let b = candidate_on(Some(&lan.hosts[1]), "gcs-b", 1, d, &dir);
+    let dir = support::plugins::scratch(&format!("failover-lan-{tag}"));
+    let security = |enclave: &'static str| keystore.map(|k| (k, enclave));
+    let a = candidate_on(
+        Some(&lan.hosts[0]),
+        "gcs-a",
+        2,
+        d,
+        &dir,
+        security("/skein/coordinator/gcs_a"),
+    );
+    let b = candidate_on(
+        Some(&lan.hosts[1]),
+        "gcs-b",
+        1,
+        d,
+        &dir,
+        security("/skein/coordinator/gcs_b"),
+    );
     // Discovery across the bridge, then the election.
     settled(&a, &b, "gcs-a", Duration::from_secs(30));
 

@@ -1,8 +1,7 @@
 //! A distributed swarm flying through what a WLAN does to it: two coordinator candidates
 //! (priorities 2 and 1) and three agents with one simulated vehicle each, every one a host
 //! of its own (a network namespace) on a WLAN in user space (`tests/peers/wlan_relay.py`:
-//! per-link delay, loss, bursts, cuts), every one presenting its own DDS Security enclave
-//! (`skein dds keystore|enclave create`: authenticated, signed, encrypted, by role). One agent's clock runs 300 ms fast. Flown only
+//! per-link delay, loss, bursts, cuts). One agent's clock runs 300 ms fast. Flown only
 //! through the active coordinator's API: a wedge behind a virtual leader orbiting at 5 m/s.
 //!
 //! - **Clean**: the wedge holds its slots (RMS under 0.3 m) and the fast-clock agent's
@@ -31,7 +30,7 @@ use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 use support::distributed::{
-    AgentOptions, agent_on, candidate_on, keystore, mean, quantile, role, wait_roles,
+    AgentOptions, agent_on, candidate_on, mean, quantile, role, wait_roles,
 };
 use support::formation::{reference_speed, wedge};
 use support::netns::Lan;
@@ -103,8 +102,6 @@ struct Swarm {
     lan: Lan,
     gcs: [Option<Skein>; 2],
     agents: Vec<Skein>,
-    /// The DDS Security keystore every participant presents an enclave of.
-    keystore: String,
 }
 
 impl Swarm {
@@ -155,14 +152,12 @@ impl Swarm {
     fn start_gcs(&mut self, i: usize) {
         let (id, priority) = [("gcs-a", "2"), ("gcs-b", "1")][i];
         let host = [GCS_A, GCS_B][i];
-        let enclave = format!("/skein/coordinator/{}", id.replace('-', "_"));
-        let security = Some((self.keystore.as_str(), enclave.as_str()));
         self.gcs[i] = Some(candidate_on(
             &self.lan.hosts[host],
             id,
             priority,
             DOMAIN,
-            security,
+            None,
         ));
     }
 }
@@ -213,24 +208,11 @@ fn holds(a: &Skein) -> usize {
 fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
     let _one = support::one_at_a_time();
     let lan = Lan::wlan('w', 5);
-    // DDS Security enforced on every participant.
-    let dir = tempfile::tempdir().unwrap();
-    let keystore = keystore(
-        dir.path(),
-        &[
-            ("/skein/coordinator/gcs_a", "coordinator"),
-            ("/skein/coordinator/gcs_b", "coordinator"),
-            ("/skein/agent/agent_1", "agent"),
-            ("/skein/agent/agent_2", "agent"),
-            ("/skein/agent/agent_3", "agent"),
-        ],
-    );
     let agents: Vec<Skein> = (1..=3u8)
         .map(|k| {
             let o = AgentOptions {
                 ride_through_s: RIDE_THROUGH_S,
                 clock_skew_ms: (k == 3).then_some(SKEW_MS),
-                dds_security: Some((keystore.clone(), format!("/skein/agent/agent_{k}"))),
                 ..AgentOptions::default()
             };
             agent_on(Some(&lan.hosts[1 + usize::from(k)]), k, DOMAIN, &o)
@@ -240,7 +222,6 @@ fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
         lan,
         gcs: [None, None],
         agents,
-        keystore,
     };
     swarm.start_gcs(0);
     swarm.start_gcs(1);

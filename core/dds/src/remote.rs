@@ -280,12 +280,13 @@ pub async fn run<C: RemoteContext>(
     loop {
         let (msg, from) = remotes.reports.next_from().await;
         let env = Envelope::from_msg(msg);
-        if !remotes.said_by_owner(&env, from, true, "report") {
-            continue;
-        }
+        // Read first: an unreadable report binds no vehicle.
         let Some(body) = body_or_drop::<ReportBody>(&remotes.counters, &env, "report") else {
             continue;
         };
+        if !remotes.said_by_owner(&env, from, true, "report") {
+            continue;
+        }
         // A coordinator without vehicles of its own anchors at the first agent's origin.
         let reframe = into_frame(frame.as_ref(), env.origin);
         let mut report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));
