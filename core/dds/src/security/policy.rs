@@ -39,24 +39,14 @@ impl Role {
     }
 
     /// DDS topic patterns the role may publish on.
-    pub fn publishes(self) -> &'static [&'static str] {
-        match self {
+    pub fn publishes(self) -> Vec<&'static str> {
+        let own: &[&str] = match self {
             Role::Agent => &[
                 "rt/skein/tracks",
                 "rt/skein/swarm/report",
                 "rt/skein/swarm/events",
                 "rt/skein/swarm/command_result",
                 "rt/skein/swarm/clock",
-                "rt/skein/*/pose",
-                "rt/skein/*/navsat",
-                "rt/skein/*/battery",
-                "rt/skein/*/state",
-                "rt/skein/*/command_result",
-                "rt/tf",
-                "rt/tf_static",
-                "rt/parameter_events",
-                "rt/rosout",
-                "ros_discovery_info",
             ],
             Role::Coordinator => &[
                 "rt/skein/coordinator",
@@ -65,43 +55,44 @@ impl Role {
                 "rt/skein/swarm/target",
                 "rt/skein/swarm/command",
                 "rt/skein/swarm/clock",
-                "rt/skein/*/pose",
-                "rt/skein/*/navsat",
-                "rt/skein/*/battery",
-                "rt/skein/*/state",
-                "rt/skein/*/command_result",
-                "rt/tf",
-                "rt/tf_static",
-                "rt/parameter_events",
-                "rt/rosout",
-                "ros_discovery_info",
             ],
-            Role::Viewer => &["rt/parameter_events", "rt/rosout", "ros_discovery_info"],
-        }
+            Role::Viewer => &[],
+        };
+        let vehicles: &[&str] = match self {
+            Role::Agent | Role::Coordinator => VEHICLE_TOPICS,
+            Role::Viewer => &[],
+        };
+        [own, vehicles, ROS_GRAPH].concat()
     }
 
     /// DDS topic patterns the role may subscribe to.
-    pub fn subscribes(self) -> &'static [&'static str] {
-        match self {
+    pub fn subscribes(self) -> Vec<&'static str> {
+        let own: &[&str] = match self {
             Role::Agent => &[
                 "rt/skein/coordinator",
                 "rt/skein/formation",
                 "rt/skein/swarm/*",
                 "rt/skein/*/command",
-                "rt/parameter_events",
-                "rt/rosout",
-                "ros_discovery_info",
             ],
-            Role::Coordinator | Role::Viewer => &[
-                "rt/skein/*",
-                "rt/tf*",
-                "rt/parameter_events",
-                "rt/rosout",
-                "ros_discovery_info",
-            ],
-        }
+            Role::Coordinator | Role::Viewer => &["rt/skein/*", "rt/tf*"],
+        };
+        [own, ROS_GRAPH].concat()
     }
 }
+
+/// The topics of the vehicles a process runs (`skein_dds::vehicles`, `skein_dds::tf`).
+const VEHICLE_TOPICS: &[&str] = &[
+    "rt/skein/*/pose",
+    "rt/skein/*/navsat",
+    "rt/skein/*/battery",
+    "rt/skein/*/state",
+    "rt/skein/*/command_result",
+    "rt/tf",
+    "rt/tf_static",
+];
+
+/// The topics every ROS 2 context opens, whatever the role.
+const ROS_GRAPH: &[&str] = &["rt/parameter_events", "rt/rosout", "ros_discovery_info"];
 
 impl std::str::FromStr for Role {
     type Err = String;
@@ -198,8 +189,8 @@ pub fn permissions_xml(subject: &str, role: Role, not_before: &str, not_after: &
 "#,
         grant = xml_text(&format!("skein {role}")),
         subject = xml_text(subject),
-        publish = topics(role.publishes()),
-        subscribe = topics(role.subscribes()),
+        publish = topics(&role.publishes()),
+        subscribe = topics(&role.subscribes()),
     )
 }
 
