@@ -125,8 +125,9 @@ pub fn create_enclave(
 
     let key = new_key()?;
     let subject = format!("CN={name}");
-    let cert = certificate(name, &key, Some((&id_key, &id_cert)), validity)?;
-    let (not_before, not_after) = validity.range_utc();
+    let dates = validity.dates();
+    let cert = certificate(name, &key, Some((&id_key, &id_cert)), dates)?;
+    let (not_before, not_after) = xml_dates(dates);
     let permissions = policy::permissions_xml(&subject, role, &not_before, &not_after);
 
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -152,27 +153,30 @@ impl Validity {
         }
     }
 
-    /// Start and end as the permissions document writes them (UTC, `%FT%T`).
-    fn range_utc(self) -> (String, String) {
+    /// Its start and end, from one reading of the clock.
+    fn dates(self) -> Dates {
         let now = chrono::Utc::now();
-        let at = |d: i64| {
-            (now + chrono::Duration::days(d))
-                .format("%FT%T")
-                .to_string()
-        };
+        let at = |d: i64| now + chrono::Duration::days(d);
         (at(-i64::from(self.from_days_ago)), at(self.days))
     }
-
-    fn asn1(self) -> Result<(Asn1Time, Asn1Time), String> {
-        let now = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_err(|e| format!("clock before 1970: {e}"))?
-            .as_secs();
-        let now = i64::try_from(now).map_err(|e| format!("clock: {e}"))?;
-        let at = |d: i64| Asn1Time::from_unix(now + d * 86_400).map_err(ssl("validity"));
-        Ok((at(-i64::from(self.from_days_ago))?, at(self.days)?))
-    }
 }
+
+/// `dates` as the permissions document writes them (UTC, `%FT%T`).
+fn xml_dates((from, to): Dates) -> (String, String) {
+    let f = |t: chrono::DateTime<chrono::Utc>| t.format("%FT%T").to_string();
+    (f(from), f(to))
+}
+
+/// `dates` as a certificate's validity.
+fn asn1_dates((from, to): Dates) -> Result<(Asn1Time, Asn1Time), String> {
+    let f = |t: chrono::DateTime<chrono::Utc>| {
+        Asn1Time::from_unix(t.timestamp()).map_err(ssl("validity"))
+    };
+    Ok((f(from)?, f(to)?))
+}
+
+/// A validity's start and end (UTC).
+type Dates = (chrono::DateTime<chrono::Utc>, chrono::DateTime<chrono::Utc>);
 
 /// A new EC P-256 key.
 fn new_key() -> Result<PKey<Private>, String> {
@@ -184,7 +188,7 @@ fn new_key() -> Result<PKey<Private>, String> {
 /// A new self-signed CA named `CN=<cn>`.
 fn new_ca(cn: &str, validity: Validity) -> Result<(PKey<Private>, X509), String> {
     let key = new_key()?;
-    let cert = certificate(cn, &key, None, validity)?;
+    let cert = certificate(cn, &key, None, validity.dates())?;
     Ok((key, cert))
 }
 
@@ -194,7 +198,7 @@ fn certificate(
     cn: &str,
     key: &PKey<Private>,
     issuer: Option<(&PKey<Private>, &X509)>,
-    validity: Validity,
+    dates: Dates,
 ) -> Result<X509, String> {
     let mut name = X509NameBuilder::new().map_err(ssl("name"))?;
     name.append_entry_by_nid(Nid::COMMONNAME, cn)
@@ -210,7 +214,7 @@ fn certificate(
     b.set_serial_number(&serial).map_err(ssl("serial"))?;
     b.set_subject_name(&name).map_err(ssl("subject"))?;
     b.set_pubkey(key).map_err(ssl("public key"))?;
-    let (not_before, not_after) = validity.asn1()?;
+    let (not_before, not_after) = asn1_dates(dates)?;
     b.set_not_before(&not_before).map_err(ssl("not before"))?;
     b.set_not_after(&not_after).map_err(ssl("not after"))?;
     let (sign_key, issuer_name) = match issuer {
