@@ -52,7 +52,7 @@ struct Peer {
 /// Every `peers` writes on its topic each 50 ms until `done(heard)` holds for what
 /// `reader` heard (its senders), or `limit` passes; returns what it heard.
 fn exchange(
-    peers: &[Peer],
+    peers: &[&Peer],
     reader: &Arc<dyn Reader<SwarmMessage>>,
     limit: Duration,
     done: impl Fn(&[String]) -> bool,
@@ -69,6 +69,28 @@ fn exchange(
         drain(reader, &mut heard);
     }
     heard
+}
+
+/// `enrolled` and `outsider` both write until `reader` has heard 20 samples of
+/// `enrolled`'s, then for one more second; asserts that it heard none of `outsider`'s.
+fn heard_only_enrolled(enrolled: &Peer, outsider: &Peer, reader: &Arc<dyn Reader<SwarmMessage>>) {
+    let peers = [enrolled, outsider];
+    let heard = exchange(&peers, reader, Duration::from_secs(30), |h| {
+        count(h, enrolled.name) >= 20
+    });
+    assert!(
+        count(&heard, enrolled.name) >= 20,
+        "{} was heard: {heard:?}",
+        enrolled.name
+    );
+    let more = exchange(&peers, reader, Duration::from_secs(1), |_| false);
+    let heard = [heard, more].concat();
+    assert_eq!(
+        count(&heard, outsider.name),
+        0,
+        "{} was heard: {heard:?}",
+        outsider.name
+    );
 }
 
 fn count(heard: &[String], who: &str) -> usize {
@@ -109,30 +131,16 @@ fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
     let target = topics::swarm_target();
     let agent_targets = a.reader::<SwarmMessage>(&target).unwrap();
     let intruder_targets = x.reader::<SwarmMessage>(&target).unwrap();
-    let peers = [
-        Peer {
+    heard_only_enrolled(
+        &Peer {
             name: "c1",
             writer: c.writer(&target).unwrap(),
         },
-        Peer {
+        &Peer {
             name: "intruder",
             writer: x.writer(&target).unwrap(),
         },
-    ];
-    let heard = exchange(&peers, &agent_targets, Duration::from_secs(30), |h| {
-        count(h, "c1") >= 20
-    });
-    assert!(
-        count(&heard, "c1") >= 20,
-        "the agent heard the coordinator: {heard:?}"
-    );
-    // A further second of both writing, then the tally.
-    let more = exchange(&peers, &agent_targets, Duration::from_secs(1), |_| false);
-    let heard = [heard, more].concat();
-    assert_eq!(
-        count(&heard, "intruder"),
-        0,
-        "the agent obeyed no intruder: {heard:?}"
+        &agent_targets,
     );
     let mut read_by_intruder = Vec::new();
     drain(&intruder_targets, &mut read_by_intruder);
@@ -144,34 +152,24 @@ fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
     // Reports: the enrolled agent's reach the coordinator; a foreign-CA agent's do not.
     let report = topics::swarm_report();
     let coordinator_reports = c.reader::<SwarmMessage>(&report).unwrap();
-    let peers = [
-        Peer {
-            name: "a1",
-            writer: a.writer(&report).unwrap(),
-        },
-        Peer {
+    let agent_reports = Peer {
+        name: "a1",
+        writer: a.writer(&report).unwrap(),
+    };
+    heard_only_enrolled(
+        &agent_reports,
+        &Peer {
             name: "f9",
             writer: f.writer(&report).unwrap(),
         },
-    ];
-    let heard = exchange(&peers, &coordinator_reports, Duration::from_secs(30), |h| {
-        count(h, "a1") >= 20
-    });
-    assert!(
-        count(&heard, "a1") >= 20,
-        "the coordinator heard the agent: {heard:?}"
-    );
-    assert_eq!(
-        count(&heard, "f9"),
-        0,
-        "a foreign CA's agent was heard: {heard:?}"
+        &coordinator_reports,
     );
     // Each sample names its writer's enclave, as the enclave's certificate proves it.
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .unwrap();
-    peers[0].writer.write(message("a1", 0)).unwrap();
+    agent_reports.writer.write(message("a1", 0)).unwrap();
     let (m, from) = rt
         .block_on(async {
             tokio::time::timeout(Duration::from_secs(10), coordinator_reports.take_next()).await
