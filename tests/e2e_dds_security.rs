@@ -12,7 +12,7 @@ mod support;
 
 use serde_json::json;
 use std::time::Duration;
-use support::distributed::{AgentOptions, agent_on, keystore, role, vehicle};
+use support::distributed::{AgentOptions, agent_on, candidate_on, keystore, role, vehicle};
 use support::{Skein, eventually};
 
 /// A DDS domain (231 or 232). Every range is taken by another test, so this one may be
@@ -25,22 +25,7 @@ fn domain() -> String {
 const VEHICLE: &str = "uav-77";
 
 fn coordinator(id: &str, priority: &str, d: &str, security: Option<(&str, &str)>) -> Skein {
-    let mut args = vec![
-        "--http",
-        "127.0.0.1:0",
-        "--id",
-        id,
-        "--priority",
-        priority,
-        "--domain-id",
-        d,
-        "--dds-network",
-        "127.0.0.1",
-    ];
-    if let Some((keystore, enclave)) = security {
-        args.extend_from_slice(&["--dds-keystore", keystore, "--dds-enclave", enclave]);
-    }
-    Skein::launch_in(None, "coordinator", &args)
+    candidate_on(None, id, priority, d, security, &[])
 }
 
 #[test]

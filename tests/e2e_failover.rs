@@ -21,7 +21,7 @@ mod support;
 
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
-use support::distributed::keystore;
+use support::distributed::{self, keystore};
 use support::netns::Lan;
 use support::{EventLog, Skein, eventually, run_peer};
 
@@ -35,8 +35,8 @@ fn candidate(id: &str, priority: u32, d: &str, recordings: &std::path::Path) -> 
     candidate_on(None, id, priority, d, recordings, None)
 }
 
-/// A candidate on loopback (`host` `None`), or on a host of a [`Lan`], its API on the
-/// host's LAN address (no tokens on this private LAN: `--insecure-no-auth`).
+/// A candidate on loopback (`host` `None`), or on a host of a [`Lan`]
+/// ([`distributed::candidate_on`]), recording into `recordings`.
 fn candidate_on(
     host: Option<&support::netns::Host>,
     id: &str,
@@ -51,32 +51,14 @@ fn candidate_on(
         format!("[recording]\ndir = \"{}\"\n", recordings.display()),
     )
     .unwrap();
-    let p = priority.to_string();
-    let (http, network) = match host {
-        Some(h) => (format!("{}:0", h.addr), h.addr.to_string()),
-        None => ("127.0.0.1:0".to_string(), "127.0.0.1".to_string()),
-    };
-    let mut args = vec![
-        "--http",
-        &http,
-        "--id",
+    distributed::candidate_on(
+        host,
         id,
-        "--priority",
-        &p,
-        "--domain-id",
+        &priority.to_string(),
         d,
-        "--dds-network",
-        &network,
-        "--config",
-        config.to_str().unwrap(),
-    ];
-    if host.is_some() {
-        args.push("--insecure-no-auth");
-    }
-    if let Some((keystore, enclave)) = security {
-        args.extend_from_slice(&["--dds-keystore", keystore, "--dds-enclave", enclave]);
-    }
-    Skein::launch_in(host.map(|h| h.ns.as_str()), "coordinator", &args)
+        security,
+        &["--config", config.to_str().unwrap()],
+    )
 }
 
 fn election(s: &Skein) -> Value {

@@ -153,11 +153,12 @@ impl Swarm {
         let (id, priority) = [("gcs-a", "2"), ("gcs-b", "1")][i];
         let host = [GCS_A, GCS_B][i];
         self.gcs[i] = Some(candidate_on(
-            &self.lan.hosts[host],
+            Some(&self.lan.hosts[host]),
             id,
             priority,
             DOMAIN,
             None,
+            &[],
         ));
     }
 }

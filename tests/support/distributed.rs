@@ -79,24 +79,29 @@ pub fn agent_on(host: Option<&Host>, sysid: u8, d: &str, o: &AgentOptions) -> Sk
     if let Some(ms) = &skew {
         args.extend_from_slice(&["--test-clock-skew-ms", ms]);
     }
-    if let Some((keystore, enclave)) = &o.dds_security {
-        args.extend_from_slice(&["--dds-keystore", keystore, "--dds-enclave", enclave]);
-    }
+    args.extend(security_args(
+        o.dds_security
+            .as_ref()
+            .map(|(k, e)| (k.as_str(), e.as_str())),
+    ));
     Skein::launch_in(host.map(|h| h.ns.as_str()), "agent", &args)
 }
 
-/// A coordinator candidate on a host of a LAN, its API on the host's address (no tokens
-/// on this private LAN: `--insecure-no-auth`); with `security` (keystore, enclave), DDS
-/// Security with that enclave.
+/// A coordinator candidate on loopback (`host` `None`) or on a host of a LAN, its API
+/// on the host's address (no tokens on this private LAN: `--insecure-no-auth`); with
+/// `security` (keystore, enclave), DDS Security with that enclave; `extra` arguments after.
 pub fn candidate_on(
-    h: &Host,
+    host: Option<&Host>,
     id: &str,
     priority: &str,
     d: &str,
     security: Option<(&str, &str)>,
+    extra: &[&str],
 ) -> Skein {
-    let http = format!("{}:0", h.addr);
-    let network = h.addr.to_string();
+    let (http, network) = match host {
+        Some(h) => (format!("{}:0", h.addr), h.addr.to_string()),
+        None => ("127.0.0.1:0".to_string(), "127.0.0.1".to_string()),
+    };
     let mut args = vec![
         "--http",
         &http,
@@ -108,12 +113,20 @@ pub fn candidate_on(
         d,
         "--dds-network",
         &network,
-        "--insecure-no-auth",
     ];
-    if let Some((keystore, enclave)) = security {
-        args.extend_from_slice(&["--dds-keystore", keystore, "--dds-enclave", enclave]);
+    if host.is_some() {
+        args.push("--insecure-no-auth");
     }
-    Skein::launch_in(Some(&h.ns), "coordinator", &args)
+    args.extend(security_args(security));
+    args.extend_from_slice(extra);
+    Skein::launch_in(host.map(|h| h.ns.as_str()), "coordinator", &args)
+}
+
+/// `--dds-keystore K --dds-enclave E` for `security` (K, E), nothing for `None`.
+fn security_args<'a>(security: Option<(&'a str, &'a str)>) -> Vec<&'a str> {
+    security.map_or_else(Vec::new, |(keystore, enclave)| {
+        vec!["--dds-keystore", keystore, "--dds-enclave", enclave]
+    })
 }
 
 /// A keystore (`skein dds keystore create`) in `dir`, with the enclave of each of
