@@ -6,7 +6,7 @@
 //! the enrolled coordinator stays active (an unsecured lease of higher priority would
 //! make it stand by, `tests/e2e_failover.rs`), the intruder sees no vehicle, and the
 //! vehicle obeys only the enrolled coordinator, whose `GET /api/v1/coordinator` names the
-//! agent's enclave.
+//! agent's enclave and whose `/metrics` count the intruder refused.
 
 mod support;
 
@@ -87,6 +87,21 @@ fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
     );
     let (_, open) = intruder.get("/api/v1/coordinator");
     assert!(open["dds_security"].is_null(), "{open}");
+    // The refusals are counted: the intruder, a participant without DDS Security, by the
+    // enrolled coordinator (none of the enrolled participants is refused by another).
+    let unauthenticated = "skein_dds_security_refusals{reason=\"unauthenticated\"}";
+    eventually(
+        "the intruder counted",
+        Duration::from_secs(10),
+        || match c1.metric(unauthenticated) {
+            0 => Err("0".into()),
+            _ => Ok(()),
+        },
+    );
+    for reason in ["identity", "handshake", "permissions", "access_control"] {
+        let series = format!("skein_dds_security_refusals{{reason=\"{reason}\"}}");
+        assert_eq!(c1.metric(&series), 0, "{series}");
+    }
     // The vehicle obeys the enrolled coordinator.
     let (status, body) = c1.post(
         &format!("/api/v1/vehicles/{VEHICLE}/commands"),
@@ -101,4 +116,22 @@ fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
             Err(format!("{}", v["state"]))
         }
     });
+}
+
+/// The shipped companion presets secure the swarm's link: `skein agent` on them does not
+/// start without this computer's enclave, and says which and how to make it.
+#[test]
+fn the_shipped_companion_configs_do_not_join_the_swarm_without_their_enclave() {
+    for preset in ["companion.toml", "observation-rtsp.toml"] {
+        let config = support::workspace().join("deploy/config").join(preset);
+        let mut p = support::Process::start(&["agent", "--config", config.to_str().unwrap()]);
+        let code = p.wait_exit(Duration::from_secs(30));
+        assert!(code.is_some_and(|c| c != 0), "{preset}: exit {code:?}");
+        let err = p.stderr_text();
+        assert!(
+            err.contains("enclave /skein/agent/uav_1 of keystore /etc/skein/dds")
+                && err.contains("skein dds enclave create"),
+            "{preset}: {err}"
+        );
+    }
 }

@@ -377,9 +377,16 @@ impl Api {
     /// The value of `skein_dds_samples{what="<what>"}` in `/metrics` (panics naming it
     /// when it is not there).
     pub fn dds_samples(&self, what: &str) -> u64 {
+        self.metric(&format!("skein_dds_samples{{what=\"{what}\"}}"))
+    }
+
+    /// The value of the integer series `series` (a name with its labels, as `/metrics`
+    /// writes it: `skein_dds_security_refusals{reason="identity"}`) in `/metrics` (panics
+    /// naming it when it is not there).
+    pub fn metric(&self, series: &str) -> u64 {
         let (_, _, body) = self.get_bytes("/metrics");
         let text = String::from_utf8_lossy(&body).to_string();
-        let needle = format!("skein_dds_samples{{what=\"{what}\"}} ");
+        let needle = format!("{series} ");
         text.lines()
             .find_map(|l| l.strip_prefix(&needle))
             .and_then(|v| v.trim().parse().ok())

@@ -75,12 +75,20 @@ impl SwarmAdapter {
         let _ = self.coordinator.cast(CoordinatorMsg::Distributed(msg));
     }
 
-    /// Copies `counters` into `/metrics` (`skein_dds_samples{what=...}`).
+    /// Copies `counters` into `/metrics` (`skein_dds_samples{what=...}`), and this
+    /// process's DDS Security refusals (`skein_dds_security_refusals{reason=...}`, every
+    /// reason, zeros too).
     pub fn export_counters(&self, counters: &DdsCounters) {
         for (what, n) in counters.values() {
             self.metrics
                 .dds_samples
                 .get_or_create(&Metrics::label("what", what))
+                .set(n as i64);
+        }
+        for (reason, n) in crate::security::refusals::counts() {
+            self.metrics
+                .dds_security_refusals
+                .get_or_create(&Metrics::label("reason", reason.name()))
                 .set(n as i64);
         }
     }

@@ -1,14 +1,15 @@
 //! DDS Security on real RustDDS participants over loopback: enclaves made by
 //! `skein_dds::security::keystore` let a coordinator and an agent talk; a participant
 //! without a certificate, or with one from another keystore's CA, neither reaches them
-//! nor reads them; an expired enclave does not join; a role's permissions refuse a
-//! writer its role does not grant.
+//! nor reads them, and each is counted as refused; a viewer reads; an expired enclave does
+//! not join; a role's permissions refuse a writer its role does not grant.
 
 use skein_dds::carrier::ros2::Ros2Carrier;
 use skein_dds::carrier::{Carrier, Reader, Writer};
 use skein_dds::envelope::Envelope;
 use skein_dds::msgs::SwarmMessage;
 use skein_dds::security::keystore::{Validity, create_enclave, create_keystore};
+use skein_dds::security::refusals::{self, Reason};
 use skein_dds::security::{DdsSecurity, Role, identity_of};
 use skein_dds::topics::{self, TopicSpec};
 use std::net::{IpAddr, Ipv4Addr};
@@ -97,6 +98,27 @@ fn count(heard: &[String], who: &str) -> usize {
     heard.iter().filter(|s| *s == who).count()
 }
 
+/// This process's refusals for `reason` (see `skein_dds::security::refusals`).
+fn refusals_of(reason: Reason) -> u64 {
+    refusals::counts()
+        .iter()
+        .find(|(r, _)| *r == reason)
+        .map_or(0, |(_, n)| *n)
+}
+
+/// Waits (10 s at most) until DDS Security has refused something for one of `reasons`.
+fn assert_refused(reasons: &[Reason], who: &str) {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while reasons.iter().all(|r| refusals_of(*r) == 0) {
+        assert!(
+            Instant::now() < deadline,
+            "{who} was not counted as refused for {reasons:?}: {:?}",
+            refusals::counts()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
 #[test]
 fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
     let dir = tempfile::tempdir().unwrap();
@@ -130,6 +152,7 @@ fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
     // intruder reads none of the coordinator's.
     let target = topics::swarm_target();
     let agent_targets = a.reader::<SwarmMessage>(&target).unwrap();
+    let viewer_targets = v.reader::<SwarmMessage>(&target).unwrap();
     let intruder_targets = x.reader::<SwarmMessage>(&target).unwrap();
     heard_only_enrolled(
         &Peer {
@@ -148,6 +171,15 @@ fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
         !read_by_intruder.contains(&"c1".to_string()),
         "the intruder read the coordinator's targets: {read_by_intruder:?}"
     );
+    // Refused, and counted as such: a participant without DDS Security.
+    assert_refused(&[Reason::Unauthenticated], "the intruder");
+    // The viewer reads what the coordinator writes.
+    let mut read_by_viewer = Vec::new();
+    drain(&viewer_targets, &mut read_by_viewer);
+    assert!(
+        read_by_viewer.contains(&"c1".to_string()),
+        "the viewer read no target: {read_by_viewer:?}"
+    );
 
     // Reports: the enrolled agent's reach the coordinator; a foreign-CA agent's do not.
     let report = topics::swarm_report();
@@ -164,6 +196,9 @@ fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
         },
         &coordinator_reports,
     );
+    // Its certificate does not verify against the swarm's identity CA (nor the swarm's
+    // against its own): the handshake is refused.
+    assert_refused(&[Reason::Handshake], "the foreign CA's agent");
     // Each sample names its writer's enclave, as the enclave's certificate proves it.
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()

@@ -48,6 +48,10 @@ pub struct Metrics {
     /// DDS link samples since the start (`what` label: published, publish_errors,
     /// commands, malformed), set by the DDS link.
     pub dds_samples: Family<Labels, Gauge>,
+    /// What DDS Security refused since the start (`reason` label: unauthenticated,
+    /// identity, handshake, permissions, access_control, undecodable; see
+    /// `skein_dds::security::refusals`), set by the DDS link.
+    pub dds_security_refusals: Family<Labels, Gauge>,
     /// Tracks by status (`status` label: tentative, confirmed, lost).
     tracks: Family<Labels, Gauge>,
     /// Tracker totals since the start (`what` label: bearings, bearings_excluded_members,
@@ -102,6 +106,15 @@ impl Metrics {
             "DDS link samples since the start: published, failed writes, commands taken, \
              malformed samples dropped",
             dds_samples.clone(),
+        );
+        let dds_security_refusals = Family::<Labels, Gauge>::default();
+        registry.register(
+            "dds_security_refusals",
+            "What DDS Security refused since the start, by reason: participants without a \
+             certificate (unauthenticated), from another CA (identity), failed handshakes, \
+             invalid or expired permissions, endpoints the permissions do not grant \
+             (access_control), secured messages that failed to decrypt (undecodable)",
+            dds_security_refusals.clone(),
         );
         let tracker_totals = Family::<Labels, Gauge>::default();
         let load = Family::<Labels, Gauge<f64, AtomicU64>>::default();
@@ -223,6 +236,7 @@ impl Metrics {
             gcs_forward_frames,
             payload_threads_abandoned,
             dds_samples,
+            dds_security_refusals,
             tracks,
             tracker_totals,
             load,

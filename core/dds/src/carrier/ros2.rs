@@ -48,6 +48,7 @@ impl Ros2Carrier {
             participant = participant.with_only_networks(networks.iter().copied());
         }
         if let Some(s) = security {
+            crate::security::refusals::install();
             participant = participant.builtin_security(s.config_files());
         }
         let participant = participant.build().map_err(|e| match security {

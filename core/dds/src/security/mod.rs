@@ -12,6 +12,7 @@
 
 pub mod keystore;
 pub mod policy;
+pub mod refusals;
 
 use crate::carrier::WriterIdentity;
 pub use policy::Role;
@@ -62,9 +63,10 @@ impl DdsSecurity {
             if !dir.join(f).is_file() {
                 return Err(format!(
                     "DDS Security: enclave {enclave} of keystore {} has no {f} \
-                     (make it with `skein dds enclave create {} --enclave {enclave} --role ROLE`)",
+                     (make it with `skein dds enclave create KEYSTORE --enclave {enclave} \
+                     --role ROLE` where the keystore is, and copy its directory to {})",
                     keystore.display(),
-                    keystore.display()
+                    dir.display()
                 ));
             }
         }
