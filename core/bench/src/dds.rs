@@ -109,9 +109,14 @@ pub async fn dds(args: DdsBenchArgs) -> Result<Value, String> {
     );
     let up = start(&args, Some(domain))?;
     let ids: Vec<String> = (1..=args.vehicles).map(|i| format!("uav-{i}")).collect();
-    let probe =
-        skein_dds::probe::PoseProbe::start(domain, &[IpAddr::V4(Ipv4Addr::LOCALHOST)], &ids, false)
-            .map_err(|e| e.to_string())?;
+    let probe = skein_dds::probe::PoseProbe::start(
+        domain,
+        &[IpAddr::V4(Ipv4Addr::LOCALHOST)],
+        &ids,
+        false,
+        None,
+    )
+    .map_err(|e| e.to_string())?;
     // Discovery first: measure from the first arrival of every vehicle's pose on.
     let deadline = std::time::Instant::now() + Duration::from_secs(30);
     let mut heard = std::collections::BTreeSet::new();

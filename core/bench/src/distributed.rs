@@ -10,16 +10,23 @@
 //!    target from the coordinator's write to its arrival at a subscriber in this process
 //!    (a RustDDS participant reading `/skein/swarm/target` as an agent does; its header
 //!    stamp against the same host's clock);
-//! 3. prints one JSON object: `vehicles`, `seconds`, `single_process` and `distributed`
-//!    (`rms_slot_error_m` mean and max; CPU in cores, simulators included, per vehicle),
-//!    `target_latency_ms` (`p50`, `p99`, `max`, `samples`), and
-//!    `rms_difference_m` (distributed mean minus single-process mean).
+//! 3. the same flight again under DDS Security, on a domain of its own: a keystore made
+//!    for the run (`skein_dds::security::keystore`), the coordinator, each agent and the
+//!    probe presenting an enclave of their role (`coordinator`, `agent`, `viewer`);
+//! 4. prints one JSON object: `vehicles`, `seconds`, `single_process` (`rms_slot_error_m`
+//!    mean and max; CPU in cores, simulators included, per vehicle), `distributed` and
+//!    `distributed_secured` side by side (each: `rms_slot_error_m`,
+//!    `agent_cpu_cores_per_vehicle`, `coordinator_cpu_cores`, `target_latency_ms` with
+//!    `p50`, `p99`, `max`, `samples`), `rms_difference_m` (open distributed mean minus
+//!    single-process mean) and `secured_over_open` (the ratios of agent CPU,
+//!    coordinator CPU and target latency p50).
 
 use crate::dds::{DdsBenchArgs, percentile};
 use crate::procfs::cpu_seconds;
 use crate::up_process::UpProcess;
 use serde_json::{Value, json};
 use std::net::{IpAddr, Ipv4Addr};
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 /// Takes `c`'s `n` vehicles off and flies them in a line north at 5 m/s; returns once the
@@ -78,6 +85,19 @@ fn wait(c: &UpProcess, what: &str, ok: impl Fn(&Value) -> bool) -> Result<(), St
     }
 }
 
+/// Polls `GET /api/v1/coordinator` until `c` is the active coordinator (30 s at most: a
+/// secured candidate listens 5 s before it claims).
+fn active(c: &UpProcess) -> Result<(), String> {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while c.get("/api/v1/coordinator")?["role"] != "active" {
+        if Instant::now() > deadline {
+            return Err("the coordinator was not elected within 30 s".into());
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    Ok(())
+}
+
 /// The RMS slot error every 100 ms for `seconds`, and the CPU seconds of `pids` per
 /// second meanwhile, each.
 fn sample(c: &UpProcess, seconds: f64, pids: &[u32]) -> Result<(Vec<f64>, Vec<f64>), String> {
@@ -106,11 +126,155 @@ fn stats(rms: &[f64]) -> Value {
     })
 }
 
+/// What one distributed flight measured.
+struct Flight {
+    rms: Vec<f64>,
+    agents_cpu_per_vehicle: f64,
+    coordinator_cpu: f64,
+    latencies_ms: Vec<f64>,
+}
+
+impl Flight {
+    fn json(&self) -> Value {
+        json!({
+            "rms_slot_error_m": stats(&self.rms),
+            "agent_cpu_cores_per_vehicle": self.agents_cpu_per_vehicle,
+            "coordinator_cpu_cores": self.coordinator_cpu,
+            "target_latency_ms": {
+                "p50": percentile(&self.latencies_ms, 0.5),
+                "p99": percentile(&self.latencies_ms, 0.99),
+                "max": self.latencies_ms.last(),
+                "samples": self.latencies_ms.len(),
+            },
+        })
+    }
+}
+
+/// The enclaves of a secured flight: the coordinator's, agent `k`'s (1-based) and the
+/// probe's.
+const COORDINATOR_ENCLAVE: &str = "/skein/coordinator/bench";
+const PROBE_ENCLAVE: &str = "/skein/viewer/probe";
+fn agent_enclave(k: usize) -> String {
+    format!("/skein/agent/a{k}")
+}
+
+/// A keystore in `dir` with the enclaves of a flight of `n` agents (30 days).
+fn keystore(dir: &std::path::Path, n: usize) -> Result<PathBuf, String> {
+    use skein_dds::security::Role;
+    use skein_dds::security::keystore::{Validity, create_enclave, create_keystore};
+    let ks = dir.join("keystore");
+    create_keystore(&ks, Validity::days(30))?;
+    create_enclave(
+        &ks,
+        COORDINATOR_ENCLAVE,
+        Role::Coordinator,
+        Validity::days(30),
+    )?;
+    create_enclave(&ks, PROBE_ENCLAVE, Role::Viewer, Validity::days(30))?;
+    for k in 1..=n {
+        create_enclave(&ks, &agent_enclave(k), Role::Agent, Validity::days(30))?;
+    }
+    Ok(ks)
+}
+
+/// A coordinator and `n` agents on `domain` (with `keystore`, each presenting its
+/// enclave), flown as [`fly`] does; samples as [`sample`] does, and the targets'
+/// latency to a probe (a viewer with `keystore`).
+fn flight(n: usize, domain: &str, seconds: f64, keystore: Option<&Path>) -> Result<Flight, String> {
+    let ks = keystore.map(|k| k.to_string_lossy().into_owned());
+    let security = |enclave: &str| -> Vec<String> {
+        ks.iter()
+            .flat_map(|k| {
+                [
+                    "--dds-keystore".into(),
+                    k.clone(),
+                    "--dds-enclave".into(),
+                    enclave.into(),
+                ]
+            })
+            .collect()
+    };
+    let with = |base: &[&str], extra: &[String]| -> Vec<String> {
+        base.iter()
+            .map(|s| s.to_string())
+            .chain(extra.iter().cloned())
+            .collect()
+    };
+    let args = with(
+        &[
+            "--id",
+            "bench",
+            "--domain-id",
+            domain,
+            "--dds-network",
+            "127.0.0.1",
+        ],
+        &security(COORDINATOR_ENCLAVE),
+    );
+    let coordinator = UpProcess::start_role(
+        &["coordinator", "--http", "127.0.0.1:0"],
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+    )?;
+    let agents = (1..=n)
+        .map(|k| {
+            let first = k.to_string();
+            let args = with(
+                &[
+                    "--sim",
+                    "1",
+                    "--first-sysid",
+                    &first,
+                    "--sim-model",
+                    "generic",
+                    "--sim-base-port",
+                    "0",
+                    "--domain-id",
+                    domain,
+                    "--dds-network",
+                    "127.0.0.1",
+                ],
+                &security(&agent_enclave(k)),
+            );
+            UpProcess::start_role(
+                &["agent"],
+                &args.iter().map(String::as_str).collect::<Vec<_>>(),
+            )
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let probe_security = keystore
+        .map(|k| skein_dds::security::DdsSecurity::new(k, PROBE_ENCLAVE))
+        .transpose()?;
+    let probe = skein_dds::probe::PoseProbe::start(
+        domain.parse().map_err(|_| "domain")?,
+        &[IpAddr::V4(Ipv4Addr::LOCALHOST)],
+        &[],
+        true,
+        probe_security.as_ref(),
+    )
+    .map_err(|e| e.to_string())?;
+    let mut pids: Vec<u32> = agents.iter().map(UpProcess::pid).collect();
+    pids.push(coordinator.pid());
+    let (rms, cpu) = tokio::task::block_in_place(|| {
+        active(&coordinator)?;
+        fly(&coordinator, n)?;
+        probe.take();
+        sample(&coordinator, seconds, &pids)
+    })?;
+    let mut latencies_ms: Vec<f64> = probe.take().iter().map(|(_, l)| l * 1e3).collect();
+    latencies_ms.sort_by(f64::total_cmp);
+    Ok(Flight {
+        rms,
+        agents_cpu_per_vehicle: cpu[..n].iter().sum::<f64>() / n as f64,
+        coordinator_cpu: cpu[n],
+        latencies_ms,
+    })
+}
+
 /// Runs the benchmark (see the module docs).
 ///
 /// # Errors
-/// A process that does not start, a flight that does not happen, the probe's participant,
-/// or no `/proc`.
+/// A process that does not start, a flight that does not happen, the keystore, the
+/// probe's participant, or no `/proc`.
 pub async fn distributed(args: &DdsBenchArgs) -> Result<Value, String> {
     let n = args.vehicles;
     if n < 2 {
@@ -134,60 +298,18 @@ pub async fn distributed(args: &DdsBenchArgs) -> Result<Value, String> {
     };
     let domain = args
         .domain_id
-        .unwrap_or(150 + (std::process::id() % 50) as u16)
-        .to_string();
+        .unwrap_or(150 + (std::process::id() % 50) as u16);
     eprintln!("bench dds --distributed: a coordinator and {n} agents on domain {domain}");
-    let coordinator = UpProcess::start_role(
-        &["coordinator", "--http", "127.0.0.1:0"],
-        &[
-            "--id",
-            "bench",
-            "--domain-id",
-            &domain,
-            "--dds-network",
-            "127.0.0.1",
-        ],
-    )?;
-    let agents = (1..=n)
-        .map(|k| {
-            let first = k.to_string();
-            UpProcess::start_role(
-                &["agent"],
-                &[
-                    "--sim",
-                    "1",
-                    "--first-sysid",
-                    &first,
-                    "--sim-model",
-                    "generic",
-                    "--sim-base-port",
-                    "0",
-                    "--domain-id",
-                    &domain,
-                    "--dds-network",
-                    "127.0.0.1",
-                ],
-            )
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let probe = skein_dds::probe::PoseProbe::start(
-        domain.parse().map_err(|_| "domain")?,
-        &[IpAddr::V4(Ipv4Addr::LOCALHOST)],
-        &[],
-        true,
-    )
-    .map_err(|e| e.to_string())?;
-    let mut pids: Vec<u32> = agents.iter().map(UpProcess::pid).collect();
-    pids.push(coordinator.pid());
-    let (dist_rms, cpu) = tokio::task::block_in_place(|| {
-        fly(&coordinator, n)?;
-        probe.take();
-        sample(&coordinator, args.seconds, &pids)
-    })?;
-    let mut latencies: Vec<f64> = probe.take().iter().map(|(_, l)| l * 1e3).collect();
-    latencies.sort_by(f64::total_cmp);
-    let agents_cpu: f64 = cpu[..n].iter().sum();
+    let open = flight(n, &domain.to_string(), args.seconds, None)?;
+    // The secured flight on a domain of its own: the open one's participants may still
+    // be announced there for a while.
+    let secured_domain = if domain < 232 { domain + 1 } else { domain - 1 };
+    eprintln!("bench dds --distributed: the same under DDS Security, on domain {secured_domain}");
+    let dir = tempfile::tempdir().map_err(|e| format!("a keystore directory: {e}"))?;
+    let ks = keystore(dir.path(), n)?;
+    let secured = flight(n, &secured_domain.to_string(), args.seconds, Some(&ks))?;
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
     Ok(json!({
         "bench": "dds-distributed",
         "vehicles": n,
@@ -198,17 +320,15 @@ pub async fn distributed(args: &DdsBenchArgs) -> Result<Value, String> {
             "cpu_cores": single_cpu[0],
             "cpu_cores_per_vehicle": single_cpu[0] / n as f64,
         },
-        "distributed": {
-            "rms_slot_error_m": stats(&dist_rms),
-            "agent_cpu_cores_per_vehicle": agents_cpu / n as f64,
-            "coordinator_cpu_cores": cpu[n],
+        "distributed": open.json(),
+        "distributed_secured": secured.json(),
+        "rms_difference_m": mean(&open.rms) - mean(&single_rms),
+        "secured_over_open": {
+            "agent_cpu": ratio(secured.agents_cpu_per_vehicle, open.agents_cpu_per_vehicle),
+            "coordinator_cpu": ratio(secured.coordinator_cpu, open.coordinator_cpu),
+            "target_latency_p50": percentile(&secured.latencies_ms, 0.5)
+                .zip(percentile(&open.latencies_ms, 0.5))
+                .map(|(s, o)| ratio(s, o)),
         },
-        "target_latency_ms": {
-            "p50": percentile(&latencies, 0.5),
-            "p99": percentile(&latencies, 0.99),
-            "max": latencies.last(),
-            "samples": latencies.len(),
-        },
-        "rms_difference_m": mean(&dist_rms) - mean(&single_rms),
     }))
 }

@@ -8,6 +8,7 @@
 use crate::carrier::Carrier;
 use crate::carrier::ros2::Ros2Carrier;
 use crate::msgs::{PoseStamped, SwarmMessage};
+use crate::security::DdsSecurity;
 use crate::topics;
 use crate::{DdsError, FRAME_ID};
 use ros2_client::builtin_interfaces::Time;
@@ -30,7 +31,8 @@ pub struct PoseProbe {
 impl PoseProbe {
     /// Joins `domain_id` (on `networks` only, when not empty) and subscribes to the poses
     /// of `vehicles` (ids as the API names them), and with `targets` to the slot targets
-    /// of every vehicle, with the QoS they are published with.
+    /// of every vehicle, with the QoS they are published with; presents `security`'s
+    /// enclave when given (a viewer's reads both).
     ///
     /// # Errors
     /// The participant, node or a subscription could not be created.
@@ -39,12 +41,13 @@ impl PoseProbe {
         networks: &[IpAddr],
         vehicles: &[String],
         targets: bool,
+        security: Option<&DdsSecurity>,
     ) -> Result<Self, DdsError> {
         let carrier = Ros2Carrier::join(
             domain_id,
             networks,
             &format!("skein_probe_{}", std::process::id()),
-            None,
+            security,
         )?;
         let arrivals: Arc<Mutex<Vec<Arrival>>> = Arc::new(Mutex::new(Vec::new()));
         let mut tasks = JoinSet::new();
