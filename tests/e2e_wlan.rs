@@ -1,7 +1,9 @@
 //! A distributed swarm flying through what a WLAN does to it: two coordinator candidates
 //! (priorities 2 and 1) and three agents with one simulated vehicle each, every one a host
 //! of its own (a network namespace) on a WLAN in user space (`tests/peers/wlan_relay.py`:
-//! per-link delay, loss, bursts, cuts). One agent's clock runs 300 ms fast. Flown only
+//! per-link delay, loss, bursts, cuts), every one presenting its own DDS Security enclave
+//! (`skein dds keystore|enclave create`: authenticated, signed, encrypted, by role; the
+//! test runs alone, `tests/lanes.sh`). One agent's clock runs 300 ms fast. Flown only
 //! through the active coordinator's API: a wedge behind a virtual leader orbiting at 5 m/s.
 //!
 //! - **Clean**: the wedge holds its slots (RMS under 0.3 m) and the fast-clock agent's
@@ -30,7 +32,7 @@ use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 use support::distributed::{
-    AgentOptions, agent_on, candidate_on, mean, quantile, role, wait_roles,
+    AgentOptions, agent_on, candidate_on, keystore, mean, quantile, role, wait_roles,
 };
 use support::formation::{reference_speed, wedge};
 use support::netns::Lan;
@@ -102,6 +104,8 @@ struct Swarm {
     lan: Lan,
     gcs: [Option<Skein>; 2],
     agents: Vec<Skein>,
+    /// The DDS Security keystore every participant presents an enclave of.
+    keystore: String,
 }
 
 impl Swarm {
@@ -152,12 +156,13 @@ impl Swarm {
     fn start_gcs(&mut self, i: usize) {
         let (id, priority) = [("gcs-a", "2"), ("gcs-b", "1")][i];
         let host = [GCS_A, GCS_B][i];
+        let enclave = format!("/skein/coordinator/{}", id.replace('-', "_"));
         self.gcs[i] = Some(candidate_on(
             Some(&self.lan.hosts[host]),
             id,
             priority,
             DOMAIN,
-            None,
+            Some((self.keystore.as_str(), enclave.as_str())),
             &[],
         ));
     }
@@ -209,11 +214,24 @@ fn holds(a: &Skein) -> usize {
 fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
     let _one = support::one_at_a_time();
     let lan = Lan::wlan('w', 5);
+    // DDS Security enforced on every participant.
+    let dir = tempfile::tempdir().unwrap();
+    let keystore = keystore(
+        dir.path(),
+        &[
+            ("/skein/coordinator/gcs_a", "coordinator"),
+            ("/skein/coordinator/gcs_b", "coordinator"),
+            ("/skein/agent/agent_1", "agent"),
+            ("/skein/agent/agent_2", "agent"),
+            ("/skein/agent/agent_3", "agent"),
+        ],
+    );
     let agents: Vec<Skein> = (1..=3u8)
         .map(|k| {
             let o = AgentOptions {
                 ride_through_s: RIDE_THROUGH_S,
                 clock_skew_ms: (k == 3).then_some(SKEW_MS),
+                dds_security: Some((keystore.clone(), format!("/skein/agent/agent_{k}"))),
                 ..AgentOptions::default()
             };
             agent_on(Some(&lan.hosts[1 + usize::from(k)]), k, DOMAIN, &o)
@@ -223,6 +241,7 @@ fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
         lan,
         gcs: [None, None],
         agents,
+        keystore,
     };
     swarm.start_gcs(0);
     swarm.start_gcs(1);
@@ -274,6 +293,23 @@ fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
     let (_, status) = swarm
         .active(Duration::from_secs(5))
         .get("/api/v1/coordinator");
+    // Secured: each vehicle is bound to its own agent's enclave, and no enrolled
+    // participant was refused by another.
+    for k in 1..=3 {
+        assert_eq!(
+            status["dds_security"]["vehicles"][format!("uav-{k}")]["enclave"],
+            format!("/skein/agent/agent_{k}"),
+            "{status}"
+        );
+    }
+    for reason in ["identity", "handshake", "permissions", "access_control"] {
+        let series = format!("skein_dds_security_refusals{{reason=\"{reason}\"}}");
+        assert_eq!(
+            swarm.active(Duration::from_secs(5)).metric(&series),
+            0,
+            "{series}"
+        );
+    }
     let clock = &status["clocks"]["agent-3"];
     let offset = clock["offset_ms"].as_f64().unwrap_or(f64::NAN);
     let uncertainty = clock["uncertainty_ms"].as_f64().unwrap_or(f64::NAN);
