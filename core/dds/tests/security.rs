@@ -1,5 +1,6 @@
 //! DDS Security on real RustDDS participants over loopback: enclaves made by
-//! `skein_dds::security::keystore` let a coordinator and an agent talk; a participant
+//! `skein_dds::security::keystore` let a coordinator and an agent talk (targets, swarm
+//! commands, reports; a lease from an unenrolled coordinator: `tests/e2e_dds_security.rs`); a participant
 //! without a certificate, or with one from another keystore's CA, neither reaches them
 //! nor reads them, and each is counted as refused; a viewer reads; an expired enclave does
 //! not join; a role's permissions refuse a writer its role does not grant.
@@ -170,6 +171,20 @@ fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
     assert!(
         !read_by_intruder.contains(&"c1".to_string()),
         "the intruder read the coordinator's targets: {read_by_intruder:?}"
+    );
+    // Swarm commands likewise: the coordinator's reach the agent, the intruder's never.
+    let command = topics::swarm_command();
+    let agent_commands = a.reader::<SwarmMessage>(&command).unwrap();
+    heard_only_enrolled(
+        &Peer {
+            name: "c1",
+            writer: c.writer(&command).unwrap(),
+        },
+        &Peer {
+            name: "intruder",
+            writer: x.writer(&command).unwrap(),
+        },
+        &agent_commands,
     );
     // Refused, and counted as such: a participant without DDS Security.
     assert_refused(&[Reason::Unauthenticated], "the intruder");
