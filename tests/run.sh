@@ -93,10 +93,14 @@ fi
 mkdir -p target
 prepare_log=target/prepare.log
 started=$(date +%s)
-prepare >"$prepare_log" 2>&1 &
+{
+  prepare
+  echo "tests/run.sh: installs done in $(($(date +%s) - started)) s"
+} >"$prepare_log" 2>&1 &
 pid_prepare=$!
 build_rc=0
 cargo test --workspace --locked --no-run || build_rc=$?
+echo "tests/run.sh: build done in $(($(date +%s) - started)) s" >&2
 prepare_rc=0
 wait "$pid_prepare" || prepare_rc=$?
 cat "$prepare_log" >&2
