@@ -224,12 +224,14 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
 }
 
 /// `skein bench dds --distributed`, small: two vehicles in one process, then two agents
-/// and a coordinator, 3 s each. Every field present, targets heard with a latency, and
-/// both flew the line (timing is for the benchmark itself).
+/// and a coordinator, open and then under DDS Security, 3 s each. Every field present,
+/// targets heard with a latency in both, and all three flew the line (timing is for the
+/// benchmark itself).
 #[test]
 fn bench_dds_distributed_compares_agents_with_one_process() {
     let _one = support::one_at_a_time();
-    let d = domain(2);
+    // The secured flight takes the next domain, domain(2).
+    let d = domain(1);
     let report = bench_report(
         &[
             "dds",
@@ -244,7 +246,7 @@ fn bench_dds_distributed_compares_agents_with_one_process() {
         "bench",
         Duration::from_secs(400),
     );
-    for mode in ["single_process", "distributed"] {
+    for mode in ["single_process", "distributed", "distributed_secured"] {
         let rms = &report[mode]["rms_slot_error_m"];
         assert!(rms["samples"].as_u64().unwrap() >= 10, "{report}");
         assert!(
@@ -252,19 +254,27 @@ fn bench_dds_distributed_compares_agents_with_one_process() {
             "{mode} did not fly the line: {report}"
         );
     }
-    assert!(
-        report["distributed"]["agent_cpu_cores_per_vehicle"].is_number(),
-        "{report}"
-    );
-    assert!(
-        report["distributed"]["coordinator_cpu_cores"].is_number(),
-        "{report}"
-    );
+    for mode in ["distributed", "distributed_secured"] {
+        let flight = &report[mode];
+        assert!(
+            flight["agent_cpu_cores_per_vehicle"].is_number(),
+            "{report}"
+        );
+        assert!(flight["coordinator_cpu_cores"].is_number(), "{report}");
+        let lat = &flight["target_latency_ms"];
+        assert!(lat["samples"].as_u64().unwrap() > 0, "{mode}: {report}");
+        assert!(
+            lat["p50"].as_f64().unwrap() <= lat["max"].as_f64().unwrap(),
+            "{report}"
+        );
+    }
     assert!(report["rms_difference_m"].is_number(), "{report}");
-    let lat = &report["target_latency_ms"];
-    assert!(lat["samples"].as_u64().unwrap() > 0, "{report}");
-    assert!(
-        lat["p50"].as_f64().unwrap() <= lat["max"].as_f64().unwrap(),
-        "{report}"
-    );
+    for ratio in ["agent_cpu", "coordinator_cpu", "target_latency_p50"] {
+        assert!(
+            report["secured_over_open"][ratio]
+                .as_f64()
+                .is_some_and(|r| r > 0.0),
+            "{ratio}: {report}"
+        );
+    }
 }

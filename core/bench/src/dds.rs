@@ -32,7 +32,8 @@ pub struct DdsBenchArgs {
     /// Seconds measured in each run.
     #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
-    /// DDS domain of the run with DDS (default: one derived from this process id, 150–199).
+    /// DDS domain of the run with DDS (default: one derived from this process id, 150–199);
+    /// with `--distributed`, the secured flight takes the next one (the previous for 232).
     #[arg(long, value_parser = skein_dds::parse_domain_id)]
     pub domain_id: Option<u16>,
     /// Instead: the distributed roles, `--vehicles` agents of one vehicle each and a
