@@ -31,11 +31,18 @@ pub struct Envelope {
     pub sender_id: String,
     /// The sender's epoch (coordinator to agent).
     pub epoch: u64,
-    /// The sender's swarm origin, `None` when it had none.
+    /// The sender's swarm origin, `None` when it had none (all three fields NaN).
     pub origin: Option<GeoPoint>,
     /// The body, JSON.
     pub body: String,
+    /// The origin's fields when they are no WGS-84 point (see [`Envelope::from_msg`]):
+    /// [`Envelope::body`] then refuses the sample.
+    bad_origin: Option<[f64; 3]>,
 }
+
+/// The altitudes an origin may have, metres above mean sea level: the Dead Sea shore to
+/// well above any multicopter's ceiling.
+const ORIGIN_ALT_M: std::ops::RangeInclusive<f64> = -1_000.0..=100_000.0;
 
 impl Envelope {
     /// Wraps `body` from `sender_id` about `vehicle_id`; `origin` is the sender's frame.
@@ -65,26 +72,41 @@ impl Envelope {
         })
     }
 
-    /// Unwraps a sample.
+    /// Unwraps a sample. Its origin is `None` when all three fields are NaN (the sender
+    /// has no frame yet), a point when they are one (latitude within ±90°, longitude
+    /// within ±180°, altitude within −1 km to 100 km); anything else (a lone NaN, an
+    /// infinity, a latitude of 500°) would turn every position of the body into nonsense
+    /// or NaN in the receiver's frame, so [`Envelope::body`] refuses such a sample.
     pub fn from_msg(m: SwarmMessage) -> Envelope {
-        let origin = [m.origin_lat_deg, m.origin_lon_deg, m.origin_alt_m]
-            .iter()
-            .all(|v| v.is_finite())
-            .then(|| GeoPoint::new(m.origin_lat_deg, m.origin_lon_deg, m.origin_alt_m));
+        let raw = [m.origin_lat_deg, m.origin_lon_deg, m.origin_alt_m];
+        let [lat, lon, alt] = raw;
+        let point = lat.abs() <= 90.0 && lon.abs() <= 180.0 && ORIGIN_ALT_M.contains(&alt);
+        let (origin, bad_origin) = match (raw.iter().all(|v| v.is_nan()), point) {
+            (true, _) => (None, None),
+            (false, true) => (Some(GeoPoint::new(lat, lon, alt)), None),
+            (false, false) => (None, Some(raw)),
+        };
         Envelope {
             vehicle_id: m.vehicle_id,
             sender_id: m.sender_id,
             epoch: m.epoch,
             origin,
             body: m.body,
+            bad_origin,
         }
     }
 
     /// The body as `B`.
     ///
     /// # Errors
-    /// It is not a `B` (the sample is counted as malformed and dropped).
+    /// It is not a `B`, or the sample's origin is no point (see [`Envelope::from_msg`]);
+    /// the sample is then counted as malformed and dropped.
     pub fn body<B: for<'de> Deserialize<'de>>(&self) -> Result<B, serde_json::Error> {
+        if let Some([lat, lon, alt]) = self.bad_origin {
+            return Err(serde::de::Error::custom(format!(
+                "origin ({lat}°, {lon}°, {alt} m) is not a WGS-84 point"
+            )));
+        }
         serde_json::from_str(&self.body)
     }
 }
@@ -135,5 +157,37 @@ mod tests {
         let m = Envelope::message("uav-1", "agent-a", 0, None, &1).unwrap();
         assert!(m.origin_lat_deg.is_nan());
         assert_eq!(Envelope::from_msg(m).origin, None);
+    }
+
+    #[test]
+    fn an_origin_that_is_no_point_makes_the_sample_malformed() {
+        let good = Envelope::message("uav-1", "agent-a", 0, None, &1).unwrap();
+        for origin in [
+            [1e300, 8.0, 400.0],
+            [47.0, 181.0, 400.0],
+            [-90.5, 8.0, 400.0],
+            [47.0, 8.0, f64::INFINITY],
+            [47.0, 8.0, 2e5],
+            [f64::NAN, 8.0, 400.0],
+        ] {
+            let mut m = good.clone();
+            [m.origin_lat_deg, m.origin_lon_deg, m.origin_alt_m] = origin;
+            let e = Envelope::from_msg(m);
+            assert_eq!(e.origin, None, "{origin:?}");
+            let counters = DdsCounters::default();
+            assert_eq!(
+                body_or_drop::<i32>(&counters, &e, "report"),
+                None,
+                "{origin:?}"
+            );
+            assert_eq!(counters.values()[3], ("malformed", 1), "{origin:?}");
+            let why = e.body::<i32>().unwrap_err().to_string();
+            assert!(why.contains("is not a WGS-84 point"), "{why}");
+        }
+        let mut m = good;
+        [m.origin_lat_deg, m.origin_lon_deg, m.origin_alt_m] = [-90.0, 180.0, -400.0];
+        let e = Envelope::from_msg(m);
+        assert_eq!(e.origin, Some(GeoPoint::new(-90.0, 180.0, -400.0)));
+        assert_eq!(e.body::<i32>().unwrap(), 1);
     }
 }
