@@ -12,14 +12,17 @@ mod support;
 
 use serde_json::json;
 use std::time::Duration;
-use support::distributed::{AgentOptions, agent_on, candidate_on, keystore, role, vehicle};
+use support::distributed::{
+    AgentOptions, agent_on, candidate_on, cyclone_intruder, keystore, role, vehicle,
+};
 use support::{Skein, eventually};
 
-/// A DDS domain (231 or 232). Every range is taken by another test, so this one may be
-/// shared: the enrolled participants hear no one else whatever the domain, and the
-/// checks on the intruder look for this test's vehicle only (sysid 77, `uav-77`).
+/// The DDS domain: 232, which no other loopback test takes (0-97 and 100-231 are
+/// theirs; `deploy_compose`'s swarm may use 232 too, but on its containers' bridge, and
+/// every participant here is on loopback only). The checks on the intruders look for this
+/// test's vehicle (sysid 77, `uav-77`) all the same.
 fn domain() -> String {
-    (232 - std::process::id() % 2).to_string()
+    "232".to_string()
 }
 
 const VEHICLE: &str = "uav-77";
@@ -102,6 +105,34 @@ fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
         let series = format!("skein_dds_security_refusals{{reason=\"{reason}\"}}");
         assert_eq!(c1.metric(&series), 0, "{series}");
     }
+    // A CycloneDDS participant without a certificate outbids the coordinator's lease and,
+    // as that rogue coordinator, tells the vehicle to land (the same intruder lands it in
+    // an open swarm: `e2e_distributed.rs`). Nobody hears it and it hears nobody: its
+    // writers match no reader, it reads no pose, the vehicle hovers on under c1, and c1
+    // counts one more unauthenticated participant.
+    // (The unenrolled skein coordinator goes first: it would read the forged leases.)
+    drop(intruder);
+    let refused_before = c1.metric(unauthenticated);
+    let seen = cyclone_intruder(&d, VEHICLE, &c1, 6.0);
+    assert!(
+        seen["published"]["command"].as_u64() > Some(10),
+        "the intruder wrote: {seen}"
+    );
+    assert_eq!(seen["matched"]["command"], 0, "{seen}");
+    assert_eq!(seen["matched"]["lease"], 0, "{seen}");
+    assert_eq!(seen["read"]["pose"], 0, "{seen}");
+    assert_eq!(role(&c1), "active", "c1 stood down for the forged lease");
+    assert_eq!(vehicle(&c1, VEHICLE)["state"], "Hovering", "{seen}");
+    eventually(
+        "the CycloneDDS intruder counted",
+        Duration::from_secs(10),
+        || {
+            let n = c1.metric(unauthenticated);
+            (n > refused_before)
+                .then_some(())
+                .ok_or_else(|| format!("{n}, {refused_before} before it"))
+        },
+    );
     // The vehicle obeys the enrolled coordinator.
     let (status, body) = c1.post(
         &format!("/api/v1/vehicles/{VEHICLE}/commands"),
@@ -134,4 +165,29 @@ fn the_shipped_companion_configs_do_not_join_the_swarm_without_their_enclave() {
             "{preset}: {err}"
         );
     }
+}
+
+/// CycloneDDS could read the secured swarm with a viewer enclave only if its build carries
+/// DDS Security's plugins (`libdds_security_auth`, `_ac`, `_crypto`); the `cyclonedds`
+/// wheel of the tests' venv (PyPI, `tests/peers/requirements.txt`) has none, so no such
+/// read exists here. This says so, and fails the day the wheel has them: a viewer-enclave
+/// read by CycloneDDS then belongs in this file.
+#[test]
+fn the_cyclonedds_wheel_has_no_security_plugins_for_a_viewer_enclave() {
+    let listing = "import cyclonedds, pathlib\n\
+                   d = pathlib.Path(cyclonedds.__file__).parent\n\
+                   libs = list(d.rglob('*.so*')) + list(d.parent.glob('cyclonedds.libs/*.so*'))\n\
+                   print(' '.join(sorted(p.name for p in libs)))";
+    let (code, out, err) = support::run_python(&["-c", listing], Duration::from_secs(30));
+    assert_eq!(code, Some(0), "{out}\n{err}");
+    assert!(
+        out.contains("libddsc"),
+        "no CycloneDDS library found: {out}"
+    );
+    assert!(
+        !out.contains("dds_security"),
+        "the cyclonedds wheel now carries DDS Security's plugins ({out}): add a \
+         CycloneDDS reader with a viewer enclave to this file"
+    );
+    eprintln!("the cyclonedds wheel's libraries, none of them DDS Security's: {out}");
 }

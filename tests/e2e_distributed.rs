@@ -29,7 +29,7 @@ mod support;
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
 use support::bench::bench_report;
-use support::distributed::{AgentOptions, agent_on, role};
+use support::distributed::{AgentOptions, agent_on, cyclone_intruder, role};
 use support::formation::{cruise, wedge_north};
 use support::{EventLog, Skein, assert_no_failsafe_and_no_gap, eventually, summary};
 
@@ -221,6 +221,48 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
         json!({"formation_mean_rms_m": mean_rms, "formation_worst_rms_m": worst_rms,
                "min_separation_m": min_sep, "after_the_coordinator_died": times})
     );
+}
+
+/// Without DDS Security the domain is an open door (what `e2e_dds_security.rs` closes): a
+/// CycloneDDS participant (`tests/peers/dds_intruder.py`) outbids the coordinator's lease
+/// and, as that rogue coordinator, tells a vehicle to land: the agent obeys at once (long
+/// before its coordinator-lost action could land it), and the intruder reads the
+/// vehicle's poses and the swarm's reports.
+#[test]
+fn without_dds_security_a_rogue_participant_lands_a_vehicle() {
+    let _one = support::one_at_a_time();
+    let d = domain(0);
+    let coordinator = Skein::coordinator(&[
+        "--id",
+        "ground",
+        "--domain-id",
+        &d,
+        "--dds-network",
+        "127.0.0.1",
+    ]);
+    let agent = agent(1, &d);
+    eventually(
+        "the coordinator active",
+        Duration::from_secs(20),
+        || match role(&coordinator).as_str() {
+            Some("active") => Ok(()),
+            other => Err(format!("{other:?}")),
+        },
+    );
+    coordinator.take_off(1, 8.0);
+    let seen = cyclone_intruder(&d, "uav-1", &coordinator, 6.0);
+    assert!(seen["matched"]["command"].as_u64() > Some(0), "{seen}");
+    assert!(seen["read"]["pose"].as_u64() > Some(0), "{seen}");
+    assert!(seen["read"]["report"].as_u64() > Some(0), "{seen}");
+    // Landing 1 s after the intruder ended at the latest: the agent's own lost-action
+    // would land it only TIMEOUT_S + LOST_ACTION_S (5.5 s) after its last lease.
+    eventually("uav-1 landing", Duration::from_secs(1), || {
+        let v = own_vehicle(&agent);
+        match v["state"].as_str() {
+            Some("Landing" | "Landed") => Ok(()),
+            other => Err(format!("{other:?}")),
+        }
+    });
 }
 
 /// `skein bench dds --distributed`, small: two vehicles in one process, then two agents

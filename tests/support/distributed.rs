@@ -207,3 +207,35 @@ pub fn quantile(v: &[f64], p: f64) -> f64 {
 pub fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
+
+/// Runs `tests/peers/dds_intruder.py` on loopback on domain `d` for `seconds`: a
+/// CycloneDDS participant without DDS Security that forges a coordinator lease outbidding
+/// `coordinator`'s epoch and, as that rogue coordinator, tells `vehicle` to land, while
+/// reading the vehicle's poses and the swarm's reports. Returns what it printed
+/// (`published`, `matched`, `read`, each per topic); panics if it did not run.
+pub fn cyclone_intruder(d: &str, vehicle: &str, coordinator: &Skein, seconds: f64) -> Value {
+    let (_, status) = coordinator.get("/api/v1/coordinator");
+    let epoch = status["this"]["epoch"]
+        .as_u64()
+        .unwrap_or_else(|| panic!("no epoch: {status}"))
+        .to_string();
+    let seconds = seconds.to_string();
+    let (code, out, err) = super::run_peer(
+        "dds_intruder.py",
+        &[
+            "--domain",
+            d,
+            "--vehicle",
+            vehicle,
+            "--epoch",
+            &epoch,
+            "--seconds",
+            &seconds,
+            "--loopback",
+        ],
+        Duration::from_secs(60),
+    );
+    assert_eq!(code, Some(0), "dds_intruder.py: {out}\n{err}");
+    serde_json::from_str(out.lines().last().unwrap_or_default())
+        .unwrap_or_else(|e| panic!("dds_intruder.py printed {out:?}: {e}\n{err}"))
+}
