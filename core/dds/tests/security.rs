@@ -2,13 +2,14 @@
 //! `skein_dds::security::keystore` let a coordinator and an agent talk (targets, swarm
 //! commands, reports; a lease from an unenrolled coordinator: `tests/e2e_dds_security.rs`); a participant
 //! without a certificate, or with one from another keystore's CA, neither reaches them
-//! nor reads them, and each is counted as refused; a viewer reads; an expired enclave does
+//! nor reads them, and each is counted as refused; a viewer reads targets and poses; an expired enclave does
 //! not join; a role's permissions refuse a writer its role does not grant.
 
+use ros2_client::builtin_interfaces::Time;
 use skein_dds::carrier::ros2::Ros2Carrier;
 use skein_dds::carrier::{Carrier, Reader, Writer};
 use skein_dds::envelope::Envelope;
-use skein_dds::msgs::SwarmMessage;
+use skein_dds::msgs::{Header, Point, Pose, PoseStamped, Quaternion, SwarmMessage};
 use skein_dds::security::keystore::{Validity, create_enclave, create_keystore};
 use skein_dds::security::refusals::{self, Reason};
 use skein_dds::security::{DdsSecurity, Role, identity_of};
@@ -33,6 +34,29 @@ fn enclave(keystore: &Path, name: &str, role: Role, validity: Validity) -> DdsSe
 fn join(name: &str, security: Option<&DdsSecurity>) -> Ros2Carrier {
     Ros2Carrier::join(domain(), &LOOPBACK, name, security)
         .unwrap_or_else(|e| panic!("{name} joins: {e}"))
+}
+
+/// A pose 10 m up, level.
+fn a_pose() -> PoseStamped {
+    PoseStamped {
+        header: Header {
+            stamp: Time::ZERO,
+            frame_id: skein_dds::FRAME_ID.into(),
+        },
+        pose: Pose {
+            position: Point {
+                x: 1.0,
+                y: 2.0,
+                z: 10.0,
+            },
+            orientation: Quaternion {
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+                w: 1.0,
+            },
+        },
+    }
 }
 
 fn message(sender: &str, n: u64) -> SwarmMessage {
@@ -155,11 +179,15 @@ fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
     let agent_targets = a.reader::<SwarmMessage>(&target).unwrap();
     let viewer_targets = v.reader::<SwarmMessage>(&target).unwrap();
     let intruder_targets = x.reader::<SwarmMessage>(&target).unwrap();
+    // One writer each for the whole test: RustDDS 0.15 did not always match a writer
+    // made anew on a topic after one was dropped (the viewer heard none of a second
+    // coordinator writer's targets in 30 s, in two runs of three).
+    let c_targets = Peer {
+        name: "c1",
+        writer: c.writer(&target).unwrap(),
+    };
     heard_only_enrolled(
-        &Peer {
-            name: "c1",
-            writer: c.writer(&target).unwrap(),
-        },
+        &c_targets,
         &Peer {
             name: "intruder",
             writer: x.writer(&target).unwrap(),
@@ -172,6 +200,36 @@ fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
         !read_by_intruder.contains(&"c1".to_string()),
         "the intruder read the coordinator's targets: {read_by_intruder:?}"
     );
+    // Refused, and counted as such: a participant without DDS Security.
+    assert_refused(&[Reason::Unauthenticated], "the intruder");
+    // The viewer reads what the coordinator writes (its own handshakes may end later
+    // than the agent's: the coordinator writes on until it hears, 30 s at most).
+    let read_by_viewer = exchange(
+        &[&c_targets],
+        &viewer_targets,
+        Duration::from_secs(30),
+        |h| count(h, "c1") > 0,
+    );
+    assert!(
+        count(&read_by_viewer, "c1") > 0,
+        "the viewer read no target: {read_by_viewer:?} (refusals {:?})",
+        refusals::counts()
+    );
+    // And an agent's vehicle's poses.
+    let pose = topics::pose("uav-1");
+    let viewer_poses = v.reader::<PoseStamped>(&pose).unwrap();
+    let agent_poses = a.writer::<PoseStamped>(&pose).unwrap();
+    let start = Instant::now();
+    let mut poses = 0;
+    while poses == 0 && start.elapsed() < Duration::from_secs(30) {
+        agent_poses.write(a_pose()).unwrap();
+        std::thread::sleep(Duration::from_millis(50));
+        while let Ok(Some(p)) = viewer_poses.try_take() {
+            assert_eq!(p, a_pose());
+            poses += 1;
+        }
+    }
+    assert!(poses > 0, "the viewer read no pose in 30 s");
     // Swarm commands likewise: the coordinator's reach the agent, the intruder's never.
     let command = topics::swarm_command();
     let agent_commands = a.reader::<SwarmMessage>(&command).unwrap();
@@ -185,15 +243,6 @@ fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
             writer: x.writer(&command).unwrap(),
         },
         &agent_commands,
-    );
-    // Refused, and counted as such: a participant without DDS Security.
-    assert_refused(&[Reason::Unauthenticated], "the intruder");
-    // The viewer reads what the coordinator writes.
-    let mut read_by_viewer = Vec::new();
-    drain(&viewer_targets, &mut read_by_viewer);
-    assert!(
-        read_by_viewer.contains(&"c1".to_string()),
-        "the viewer read no target: {read_by_viewer:?}"
     );
 
     // Reports: the enrolled agent's reach the coordinator; a foreign-CA agent's do not.
