@@ -30,11 +30,11 @@
 use crate::carrier::{Carrier, TopicReader, TopicWriter};
 use crate::clock;
 use crate::counters::DdsCounters;
-use crate::envelope::{Envelope, ReportBody, body_or_drop};
+use crate::envelope::{Envelope, ReportBody, body_or_drop, reframed_or_drop};
 use crate::error::DdsError;
 use crate::lease;
 use crate::msgs::{CoordinatorLease, SwarmMessage};
-use crate::reframe::{FrameSource, Reframe, SwarmFrame, into_frame, reframed};
+use crate::reframe::{FrameSource, Reframe, SwarmFrame, into_frame};
 use crate::ride::Riding;
 use crate::topics;
 use skein_model::fsm::VehicleState;
@@ -358,11 +358,21 @@ async fn formation(agent: &Agent, ctx: &impl AgentContext, frame: &dyn SwarmFram
             continue;
         };
         let reframe = into_frame(frame, env.origin);
-        let mirror = mirror.map(|m| {
-            let mut m = reframed(m, reframe.as_ref(), |r, x| r.mirror(x));
-            m.stamp_us = agent.clocks.to_local_us(&env.sender_id, m.stamp_us);
-            m
-        });
+        let mirror = match mirror {
+            Some(m) => {
+                let c = &agent.counters;
+                let Some(mut m) =
+                    reframed_or_drop(c, &env, "formation", m, reframe.as_ref(), |r, x| {
+                        r.mirror(x)
+                    })
+                else {
+                    continue;
+                };
+                m.stamp_us = agent.clocks.to_local_us(&env.sender_id, m.stamp_us);
+                Some(m)
+            }
+            None => None,
+        };
         let Some(fence) = ctx.geofence().await else {
             continue;
         };
@@ -508,7 +518,12 @@ async fn obey(
             continue;
         }
         let reframe = into_frame(frame, env.origin);
-        let mut msg = reframed(msg, reframe.as_ref(), |r, m| r.to_vehicle(m));
+        let c = &agent.counters;
+        let Some(mut msg) = reframed_or_drop(c, &env, "message", msg, reframe.as_ref(), |r, m| {
+            r.to_vehicle(m)
+        }) else {
+            continue;
+        };
         if let ToVehicle::Slot {
             target: Some(target),
         } = &mut msg
@@ -543,7 +558,14 @@ async fn neighbours(agent: &Agent, ctx: &impl AgentContext, frame: &dyn SwarmFra
             continue;
         };
         let reframe = Reframe::new(env.origin, own);
-        let mut report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));
+        let c = &agent.counters;
+        let Some(mut report) =
+            reframed_or_drop(c, &env, "report", body.report, reframe.as_ref(), |r, x| {
+                r.report(x)
+            })
+        else {
+            continue;
+        };
         report.stamp_us = agent.clocks.to_local_us(&env.sender_id, report.stamp_us);
         agent.riding().on_neighbour(&env.vehicle_id, report);
         ctx.neighbour(env.vehicle_id, report);

@@ -7,6 +7,7 @@
 
 use crate::counters::DdsCounters;
 use crate::msgs::{Header, SwarmMessage};
+use crate::reframe::{Positions, Reframe, reframed};
 use ros2_client::builtin_interfaces::Time;
 use serde::{Deserialize, Serialize};
 use skein_model::geo::{GeoPoint, NedFrame};
@@ -132,6 +133,30 @@ pub(crate) fn body_or_drop<B: for<'de> Deserialize<'de>>(
     }
 }
 
+/// `value` (a body of `env`) converted by `reframe` ([`reframed`]); one with a position
+/// that is no point in this frame is counted as malformed in `counters`, logged naming
+/// `what` and the vehicle, and dropped (`None`).
+pub(crate) fn reframed_or_drop<T: Positions>(
+    counters: &DdsCounters,
+    env: &Envelope,
+    what: &str,
+    value: T,
+    reframe: Option<&Reframe>,
+    f: impl Fn(&Reframe, T) -> T,
+) -> Option<T> {
+    let v = reframed(value, reframe, f);
+    if v.is_none() {
+        DdsCounters::add(&counters.malformed);
+        tracing::warn!(
+            "dds: a {what} of {} from `{}` was dropped: a position is no point in this \
+             process's frame",
+            env.vehicle_id,
+            env.sender_id
+        );
+    }
+    v
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -157,6 +182,16 @@ mod tests {
         let m = Envelope::message("uav-1", "agent-a", 0, None, &1).unwrap();
         assert!(m.origin_lat_deg.is_nan());
         assert_eq!(Envelope::from_msg(m).origin, None);
+    }
+
+    #[test]
+    fn a_sample_decodes_from_its_cdr_and_a_cut_one_does_not() {
+        let frame = NedFrame::new(GeoPoint::new(47.0, 8.0, 400.0));
+        let m = Envelope::message("uav-1", "c1", 7, Some(frame), &"body").unwrap();
+        let bytes = crate::msgs::to_cdr(&m).unwrap();
+        assert_eq!(crate::msgs::from_cdr::<SwarmMessage>(&bytes), Ok(m));
+        let cut = crate::msgs::from_cdr::<SwarmMessage>(&bytes[..bytes.len() - 3]);
+        assert!(cut.is_err(), "{cut:?}");
     }
 
     #[test]

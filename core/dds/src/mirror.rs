@@ -11,10 +11,10 @@
 
 use crate::carrier::{Carrier, TopicReader, TopicWriter};
 use crate::counters::DdsCounters;
-use crate::envelope::{Envelope, body_or_drop};
+use crate::envelope::{Envelope, body_or_drop, reframed_or_drop};
 use crate::error::DdsError;
 use crate::msgs::SwarmMessage;
-use crate::reframe::{FrameSource, into_frame, reframed};
+use crate::reframe::{FrameSource, into_frame};
 use crate::topics;
 use skein_swarm::clocks::PeerClocks;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
@@ -106,12 +106,21 @@ pub async fn run<C: MirrorContext>(
                 continue;
             };
             let reframe = into_frame(frame.as_ref(), env.origin);
-            let clocks = &mirror.clocks;
-            let formation = formation.map(|m| {
-                let mut m = reframed(m, reframe.as_ref(), |r, x| r.mirror(x));
-                m.stamp_us = clocks.to_local_us(&env.sender_id, m.stamp_us);
-                m
-            });
+            let formation = match formation {
+                Some(m) => {
+                    let c = &mirror.counters;
+                    let Some(mut m) =
+                        reframed_or_drop(c, &env, "formation", m, reframe.as_ref(), |r, x| {
+                            r.mirror(x)
+                        })
+                    else {
+                        continue;
+                    };
+                    m.stamp_us = mirror.clocks.to_local_us(&env.sender_id, m.stamp_us);
+                    Some(m)
+                }
+                None => None,
+            };
             heard = Some(Heard {
                 from: env.sender_id,
                 epoch: env.epoch,

@@ -18,8 +18,11 @@
 
 use ros2_client::MessageTypeName;
 use ros2_client::builtin_interfaces::Time;
-use ros2_client::dds::rustdds::CDRSerializerAdapter;
-use ros2_client::dds::rustdds::no_key::SerializerAdapter;
+use ros2_client::dds::rustdds::no_key::{DeserializerAdapter, SerializerAdapter};
+use ros2_client::dds::rustdds::{
+    CDRDeserializerAdapter, CDRSerializerAdapter, RepresentationIdentifier,
+};
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 /// `m` as DDS puts it on the wire: CDR, little-endian (XCDR1), without the 4-byte
@@ -31,6 +34,20 @@ pub fn to_cdr<M: Serialize>(m: &M) -> Result<Vec<u8>, String> {
     <CDRSerializerAdapter<M> as SerializerAdapter<M>>::to_bytes(m)
         .map(|b| b.to_vec())
         .map_err(|e| e.to_string())
+}
+
+/// A sample's payload (CDR, little-endian, without the encapsulation header) as an `M`,
+/// decoded as RustDDS decodes every sample for skein's readers (`CDRDeserializerAdapter`,
+/// the adapter ros2-client's subscriptions read with). The inverse of [`to_cdr`].
+///
+/// # Errors
+/// The bytes are no `M` (too short, a string that is not UTF-8 or not terminated, …).
+pub fn from_cdr<M: DeserializeOwned>(bytes: &[u8]) -> Result<M, String> {
+    <CDRDeserializerAdapter<M> as DeserializerAdapter<M>>::from_bytes(
+        bytes,
+        RepresentationIdentifier::CDR_LE,
+    )
+    .map_err(|e| e.to_string())
 }
 
 /// A ROS message type with its `package/Type` name.

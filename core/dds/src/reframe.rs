@@ -149,12 +149,71 @@ pub fn into_frame(frame: &dyn SwarmFrame, origin: Option<GeoPoint>) -> Option<Re
     Reframe::new(origin, frame)
 }
 
-/// Applies `reframe` when there is one.
-pub fn reframed<T>(value: T, reframe: Option<&Reframe>, f: impl Fn(&Reframe, T) -> T) -> T {
-    match reframe {
+/// What a conversion between frames must leave finite: every position of a received
+/// body.
+pub trait Positions {
+    /// Whether every position is finite.
+    fn positions_finite(&self) -> bool;
+}
+
+fn finite(p: &Ned) -> bool {
+    p.north_m.is_finite() && p.east_m.is_finite() && p.down_m.is_finite()
+}
+
+impl Positions for VehicleReport {
+    fn positions_finite(&self) -> bool {
+        self.position.iter().chain(&self.target).all(finite)
+    }
+}
+
+impl Positions for VehicleSnapshot {
+    fn positions_finite(&self) -> bool {
+        let geo = |p: &Position| p.lat_deg.is_finite() && p.lon_deg.is_finite();
+        self.position.iter().chain(&self.home).all(geo)
+            && self.formation.as_ref().is_none_or(|f| finite(&f.target))
+    }
+}
+
+impl Positions for FormationMirror {
+    fn positions_finite(&self) -> bool {
+        finite(&self.reference.position)
+            && match &self.reference.motion {
+                LeaderMotion::Hold => true,
+                LeaderMotion::GoTo { target, .. } => finite(target),
+                LeaderMotion::Waypoints { points, .. } => points.iter().all(finite),
+                LeaderMotion::Orbit { centre, .. } => finite(centre),
+            }
+    }
+}
+
+impl Positions for ToVehicle {
+    fn positions_finite(&self) -> bool {
+        match self {
+            ToVehicle::Slot {
+                target: Some(target),
+            } => finite(&target.position) && finite(&target.goal),
+            ToVehicle::Command {
+                command: skein_swarm::Command::GoTo(goto),
+                ..
+            } => finite(&goto.target()),
+            _ => true,
+        }
+    }
+}
+
+/// Applies `reframe` when there is one. `None` when a position is not finite after it: a
+/// body's positions are finite (JSON has no NaN), but one absurdly far from its origin
+/// (1e300 m north) is no point in another frame; the caller drops such a sample.
+pub fn reframed<T: Positions>(
+    value: T,
+    reframe: Option<&Reframe>,
+    f: impl Fn(&Reframe, T) -> T,
+) -> Option<T> {
+    let value = match reframe {
         Some(r) => f(r, value),
         None => value,
-    }
+    };
+    value.positions_finite().then_some(value)
 }
 
 #[cfg(test)]
@@ -203,5 +262,19 @@ mod tests {
         r.state = VehicleState::Hovering;
         r.position = Some(p);
         assert!((ab.report(r).position.unwrap() - q).norm() < 1e-9);
+    }
+
+    #[test]
+    fn a_position_that_is_no_point_in_the_other_frame_is_refused() {
+        let a = NedFrame::new(GeoPoint::new(47.397742, 8.545594, 488.0));
+        let b = NedFrame::new(a.to_geo(Ned::new(30.0, 10.0, 0.0)));
+        let ab = Reframe::new(Some(a.origin), b);
+        let mut r = VehicleReport::disconnected();
+        r.position = Some(Ned::new(1e300, 0.0, -10.0));
+        // The same frame: nothing to convert, the vehicle's own checks see it.
+        assert!(reframed(r, None, |r, x| r.report(x)).is_some());
+        assert!(reframed(r, ab.as_ref(), |r, x| r.report(x)).is_none());
+        r.position = Some(Ned::new(5.0, 0.0, -10.0));
+        assert!(reframed(r, ab.as_ref(), |r, x| r.report(x)).is_some());
     }
 }

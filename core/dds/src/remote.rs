@@ -25,10 +25,10 @@
 
 use crate::carrier::{Carrier, Received, TopicReader, TopicWriter, WriterIdentity};
 use crate::counters::DdsCounters;
-use crate::envelope::{Envelope, ReportBody, body_or_drop};
+use crate::envelope::{Envelope, ReportBody, body_or_drop, reframed_or_drop};
 use crate::error::DdsError;
 use crate::msgs::SwarmMessage;
-use crate::reframe::{FrameSource, SwarmFrame, into_frame, reframed};
+use crate::reframe::{FrameSource, SwarmFrame, into_frame};
 use crate::topics;
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::SwarmEvent;
@@ -289,9 +289,23 @@ pub async fn run<C: RemoteContext>(
         }
         // A coordinator without vehicles of its own anchors at the first agent's origin.
         let reframe = into_frame(frame.as_ref(), env.origin);
-        let mut report = reframed(body.report, reframe.as_ref(), |r, x| r.report(x));
+        let c = &remotes.counters;
+        let (Some(mut report), Some(snapshot)) = (
+            reframed_or_drop(c, &env, "report", body.report, reframe.as_ref(), |r, x| {
+                r.report(x)
+            }),
+            reframed_or_drop(
+                c,
+                &env,
+                "report",
+                body.snapshot,
+                reframe.as_ref(),
+                |r, x| r.snapshot(x),
+            ),
+        ) else {
+            continue;
+        };
         report.stamp_us = remotes.clocks.to_local_us(&env.sender_id, report.stamp_us);
-        let snapshot = reframed(body.snapshot, reframe.as_ref(), |r, x| r.snapshot(x));
         let mut map = remotes
             .vehicles
             .lock()
