@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Fuzz smoke run: every cargo-fuzz target of fuzz/ for SKEIN_FUZZ_SECONDS (default 60) s,
-# the targets side by side (one per core),
+# Fuzz smoke run: every cargo-fuzz target of fuzz/ for SKEIN_FUZZ_SECONDS (default 45) s,
+# the targets side by side (one per core; five targets on two cores are three rounds: 45 s
+# each keeps the run near the two 60 s rounds of four),
 # starting from its committed corpus (fuzz/corpus/<target>/, copied to a scratch directory
 # so the run leaves the tree clean). A crash fails the run and leaves the input in
 # fuzz/artifacts/<target>/. Installs cargo-fuzz if missing, idempotently.
-#   tests/fuzz.sh                      # all targets, 60 s each
+#   tests/fuzz.sh                      # all targets, 45 s each
 #   SKEIN_FUZZ_SECONDS=3600 tests/fuzz.sh mavlink_ingress   # one long run
 #   tests/fuzz.sh --build-only         # install and build, run nothing (tests/lanes.sh
 #                                      # does this beside the tests, at idle priority)
@@ -24,7 +25,7 @@ if ! cargo fuzz --version >/dev/null 2>&1; then
 fi
 # cargo fuzz instruments with -Z flags; this machine has the stable toolchain only.
 export RUSTC_BOOTSTRAP=1
-seconds="${SKEIN_FUZZ_SECONDS:-60}"
+seconds="${SKEIN_FUZZ_SECONDS:-45}"
 cd fuzz
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then

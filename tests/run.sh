@@ -6,7 +6,7 @@
 #     by ROS 2's generators with Debian's cmake (tests/peers/ros2/setup.sh)
 #   - Debian's chromium and chromium-driver for the dashboard test
 #   - Debian's openssl for the HTTPS test's certificate
-#   - cargo-fuzz, for the fuzz smoke run (tests/fuzz.sh: each target 60 s) after the tests
+#   - cargo-fuzz, for the fuzz smoke run (tests/fuzz.sh: each target 45 s) after the tests
 #   - Debian's ffmpeg, the RTSP/H.264 camera of e2e_video (tests/peers/rtsp_server.py)
 #   - for the deployment tests (deploy_*): Debian's gcc-aarch64-linux-gnu (the arm64 cross
 #     linker), g++-aarch64-linux-gnu (OpenH264's C++) and qemu-user (runs the arm64 image's files), systemd (systemd-analyze),
