@@ -44,7 +44,6 @@ use skein_swarm::SwarmEvent;
 use skein_swarm::clocks::PeerClocks;
 use skein_swarm::election::ElectionConfig;
 use skein_swarm::election::observer::{Observer, Refusal};
-use skein_swarm::formation::FormationMirror;
 use skein_swarm::protocol::{Command, FromVehicle, ToVehicle, VehicleReport, wall_us};
 use std::collections::BTreeSet;
 use std::future::Future;
@@ -353,25 +352,9 @@ async fn formation(agent: &Agent, ctx: &impl AgentContext, frame: &dyn SwarmFram
             continue; // a standby's, or an old epoch's
         }
         let Some(mirror) =
-            body_or_drop::<Option<FormationMirror>>(&agent.counters, &env, "formation")
+            crate::mirror::received_mirror(&agent.counters, &agent.clocks, frame, &env)
         else {
             continue;
-        };
-        let reframe = into_frame(frame, env.origin);
-        let mirror = match mirror {
-            Some(m) => {
-                let c = &agent.counters;
-                let Some(mut m) =
-                    reframed_or_drop(c, &env, "formation", m, reframe.as_ref(), |r, x| {
-                        r.mirror(x)
-                    })
-                else {
-                    continue;
-                };
-                m.stamp_us = agent.clocks.to_local_us(&env.sender_id, m.stamp_us);
-                Some(m)
-            }
-            None => None,
         };
         let Some(fence) = ctx.geofence().await else {
             continue;

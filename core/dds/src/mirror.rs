@@ -14,7 +14,7 @@ use crate::counters::DdsCounters;
 use crate::envelope::{Envelope, body_or_drop, reframed_or_drop};
 use crate::error::DdsError;
 use crate::msgs::SwarmMessage;
-use crate::reframe::{FrameSource, into_frame};
+use crate::reframe::{FrameSource, SwarmFrame, into_frame};
 use crate::topics;
 use skein_swarm::clocks::PeerClocks;
 use skein_swarm::election::{CoordinatorRole, ElectionStatus};
@@ -101,25 +101,9 @@ pub async fn run<C: MirrorContext>(
                 continue;
             }
             let Some(formation) =
-                body_or_drop::<Option<FormationMirror>>(&mirror.counters, &env, "formation")
+                received_mirror(&mirror.counters, &mirror.clocks, frame.as_ref(), &env)
             else {
                 continue;
-            };
-            let reframe = into_frame(frame.as_ref(), env.origin);
-            let formation = match formation {
-                Some(m) => {
-                    let c = &mirror.counters;
-                    let Some(mut m) =
-                        reframed_or_drop(c, &env, "formation", m, reframe.as_ref(), |r, x| {
-                            r.mirror(x)
-                        })
-                    else {
-                        continue;
-                    };
-                    m.stamp_us = mirror.clocks.to_local_us(&env.sender_id, m.stamp_us);
-                    Some(m)
-                }
-                None => None,
             };
             heard = Some(Heard {
                 from: env.sender_id,
@@ -147,4 +131,26 @@ pub async fn run<C: MirrorContext>(
             let _ = mirror.writer.publish(m);
         }
     }
+}
+
+/// The formation mirror `env` carries (`None`: no formation), in this process's `frame`
+/// (anchored at the sender's origin if it was not yet) and its stamp in this process's
+/// clock; `None` when the sample is dropped: its body is no mirror, or a position is no
+/// point in this frame (counted as malformed). The standby's and the agent's reading.
+pub(crate) fn received_mirror(
+    counters: &DdsCounters,
+    clocks: &PeerClocks,
+    frame: &dyn SwarmFrame,
+    env: &Envelope,
+) -> Option<Option<FormationMirror>> {
+    let formation = body_or_drop::<Option<FormationMirror>>(counters, env, "formation")?;
+    let reframe = into_frame(frame, env.origin);
+    let Some(m) = formation else {
+        return Some(None);
+    };
+    let mut m = reframed_or_drop(counters, env, "formation", m, reframe.as_ref(), |r, x| {
+        r.mirror(x)
+    })?;
+    m.stamp_us = clocks.to_local_us(&env.sender_id, m.stamp_us);
+    Some(Some(m))
 }
