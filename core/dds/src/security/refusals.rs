@@ -81,14 +81,20 @@ impl Reason {
         }
     }
 
+    /// Whether RustDDS's records of `target` may say a refusal (its secure discovery and
+    /// its message receiver): the only ones [`Reason::of`] reads, and formats.
+    pub fn may_say(target: &str) -> bool {
+        target.starts_with(SECURE_DISCOVERY) || target.starts_with(MESSAGE_RECEIVER)
+    }
+
     /// The refusal a RustDDS `log` record of `target` says, if it says one.
     pub fn of(target: &str, text: &str) -> Option<Reason> {
-        if target.starts_with("rustdds::rtps::message_receiver") {
+        if target.starts_with(MESSAGE_RECEIVER) {
             return text
                 .contains("decoding failed")
                 .then_some(Reason::Undecodable);
         }
-        if !target.starts_with("rustdds::discovery::secure_discovery") {
+        if !target.starts_with(SECURE_DISCOVERY) {
             return None;
         }
         PHRASES
@@ -101,6 +107,10 @@ impl Reason {
         Reason::ALL.iter().position(|r| *r == self).unwrap_or(0)
     }
 }
+
+/// The `log` targets of RustDDS's secure discovery and message receiver.
+const SECURE_DISCOVERY: &str = "rustdds::discovery::secure_discovery";
+const MESSAGE_RECEIVER: &str = "rustdds::rtps::message_receiver";
 
 /// RustDDS 0.15.1's secure discovery phrases, and the refusal each says (first match).
 const PHRASES: [(&str, Reason); 11] = [
@@ -172,9 +182,11 @@ struct Listener;
 
 impl log::Log for Listener {
     fn enabled(&self, metadata: &log::Metadata<'_>) -> bool {
-        metadata.level() <= log::Level::Info && metadata.target().starts_with("rustdds::")
+        metadata.level() <= log::Level::Info && Reason::may_say(metadata.target())
     }
 
+    /// Formats only the records of the two targets that may say a refusal: every other
+    /// record (RustDDS's per-message ones included) costs a level and a prefix check.
     fn log(&self, record: &log::Record<'_>) {
         if !self.enabled(record.metadata()) {
             return;
