@@ -57,6 +57,20 @@ fn agent(sysid: u8, d: &str) -> Skein {
     agent_on(None, sysid, d, &o)
 }
 
+/// The coordinator `ground` (priority 2) on domain `d`, over loopback.
+fn ground(d: &str) -> Skein {
+    Skein::coordinator(&[
+        "--id",
+        "ground",
+        "--priority",
+        "2",
+        "--domain-id",
+        d,
+        "--dds-network",
+        "127.0.0.1",
+    ])
+}
+
 /// The one vehicle of an agent, from its own API.
 fn own_vehicle(a: &Skein) -> Value {
     let (code, v) = a.get("/api/v1/vehicles");
@@ -78,16 +92,7 @@ fn north_east(v: &Value) -> (f64, f64) {
 fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
     let _one = support::one_at_a_time();
     let d = domain(0);
-    let mut coordinator = Skein::coordinator(&[
-        "--id",
-        "ground",
-        "--priority",
-        "2",
-        "--domain-id",
-        &d,
-        "--dds-network",
-        "127.0.0.1",
-    ]);
+    let mut coordinator = ground(&d);
     let agents: Vec<Skein> = (1..=3).map(|sysid| agent(sysid, &d)).collect();
     eventually("the coordinator active", Duration::from_secs(20), || {
         let r = role(&coordinator);
@@ -232,14 +237,7 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
 fn without_dds_security_a_rogue_participant_lands_a_vehicle() {
     let _one = support::one_at_a_time();
     let d = domain(0);
-    let coordinator = Skein::coordinator(&[
-        "--id",
-        "ground",
-        "--domain-id",
-        &d,
-        "--dds-network",
-        "127.0.0.1",
-    ]);
+    let coordinator = ground(&d);
     let agent = agent(1, &d);
     eventually(
         "the coordinator active",
