@@ -49,7 +49,7 @@ pub struct Metrics {
     /// commands, malformed), set by the DDS link.
     pub dds_samples: Family<Labels, Gauge>,
     /// What DDS Security refused since the start (`reason` label: unauthenticated,
-    /// identity, handshake, permissions, access_control, undecodable; see
+    /// identity, handshake, permissions, access_control, undecodable, replay; see
     /// `skein_dds::security::refusals`), set by the DDS link.
     pub dds_security_refusals: Family<Labels, Gauge>,
     /// Tracks by status (`status` label: tentative, confirmed, lost).
@@ -113,7 +113,8 @@ impl Metrics {
             "What DDS Security refused since the start, by reason: participants without a \
              certificate (unauthenticated), from another CA (identity), failed handshakes, \
              invalid or expired permissions, endpoints the permissions do not grant \
-             (access_control), secured messages that failed to decrypt (undecodable)",
+             (access_control), secured messages that failed to authenticate or decrypt \
+             (undecodable), samples of authentic messages RTPS had already delivered (replay)",
             dds_security_refusals.clone(),
         );
         let tracker_totals = Family::<Labels, Gauge>::default();

@@ -13,6 +13,7 @@
 pub mod keystore;
 pub mod policy;
 pub mod refusals;
+pub mod repeats;
 
 use crate::carrier::WriterIdentity;
 pub use policy::Role;
