@@ -6,16 +6,22 @@
 //! the enrolled coordinator stays active (an unsecured lease of higher priority would
 //! make it stand by, `tests/e2e_failover.rs`), the intruder sees no vehicle, and the
 //! vehicle obeys only the enrolled coordinator, whose `GET /api/v1/coordinator` names the
-//! agent's enclave and whose `/metrics` count the intruder refused.
+//! agent's enclave and whose `/metrics` count the intruder refused. An on-path attacker
+//! that sends the swarm's own secured messages again, verbatim or altered, is not obeyed
+//! either, and both are counted.
 
 mod support;
 
 use serde_json::json;
+use std::sync::Mutex;
 use std::time::Duration;
 use support::distributed::{
-    AgentOptions, agent_on, candidate_on, cyclone_intruder, keystore, role, vehicle,
+    AgentOptions, OnPath, agent_on, candidate_on, cyclone_intruder, keystore, role, vehicle,
 };
 use support::{Skein, eventually};
+
+/// The tests of this file share their domain: one at a time.
+static DOMAIN: Mutex<()> = Mutex::new(());
 
 /// The DDS domain: 232, which no other loopback test takes (0-97 and 100-231 are
 /// theirs; `deploy_compose`'s swarm may use 232 too, but on its containers' bridge, and
@@ -33,6 +39,9 @@ fn coordinator(id: &str, priority: &str, d: &str, security: Option<(&str, &str)>
 
 #[test]
 fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
+    let _domain = DOMAIN
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let dir = tempfile::tempdir().unwrap();
     let ks = keystore(
         dir.path(),
@@ -147,6 +156,108 @@ fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
             Err(format!("{}", v["state"]))
         }
     });
+}
+
+/// `skein_dds_security_refusals{reason="<reason>"}` of `s`.
+fn refusals(s: &Skein, reason: &str) -> u64 {
+    s.metric(&format!(
+        "skein_dds_security_refusals{{reason=\"{reason}\"}}"
+    ))
+}
+
+/// An on-path attacker records the enrolled swarm's secured messages while the vehicle
+/// takes off and lands, then sends them all again: verbatim (replays, the takeoff among
+/// them) and with one byte altered (forgeries, which DDS Security's message MAC covers).
+/// The landed vehicle stays landed and disarmed; the coordinator and the agent count every
+/// forgery as undecodable and the replayed samples as replays, and refuse nothing else.
+#[test]
+fn replayed_and_forged_messages_are_counted_and_never_obeyed() {
+    let _domain = DOMAIN
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = tempfile::tempdir().unwrap();
+    let ks = keystore(
+        dir.path(),
+        &[
+            ("/skein/coordinator/c1", "coordinator"),
+            ("/skein/agent/a1", "agent"),
+        ],
+    );
+    let ks = ks.as_str();
+    let d = domain();
+    let c1 = coordinator("c1", "1", &d, Some((ks, "/skein/coordinator/c1")));
+    let o = AgentOptions {
+        dds_security: Some((ks.to_string(), "/skein/agent/a1".to_string())),
+        ..AgentOptions::default()
+    };
+    let agent = agent_on(None, 77, &d, &o);
+    eventually("c1 active", Duration::from_secs(30), || {
+        match role(&c1).as_str() {
+            Some("active") => Ok(()),
+            other => Err(format!("{other:?}")),
+        }
+    });
+
+    let onpath = OnPath::start(&d);
+    c1.take_off(1, 3.0);
+    let (status, body) = c1.post(
+        &format!("/api/v1/vehicles/{VEHICLE}/commands"),
+        json!({"command": "land"}),
+    );
+    assert_eq!(status, 202, "{body}");
+    let landed = || {
+        let v = vehicle(&c1, VEHICLE);
+        if v["state"] == "Landed" && v["armed"] == false {
+            Ok(())
+        } else {
+            Err(format!("{} armed {}", v["state"], v["armed"]))
+        }
+    };
+    eventually("landed", Duration::from_secs(60), landed);
+    let processes = [("c1", &c1), ("the agent", &agent)];
+    let count = |reason: &str| -> u64 { processes.iter().map(|(_, s)| refusals(s, reason)).sum() };
+    let (undecodable, replays) = (count("undecodable"), count("replay"));
+
+    let sent = onpath.replay_and_forge();
+    let forged = sent["forged"].as_u64().unwrap_or(0);
+    assert!(forged > 100, "the attacker recorded little: {sent}");
+    // Every forgery reaches one of the two and fails its message MAC there (the attacker
+    // paces its sends, so the kernel drops none on loopback).
+    eventually("the forgeries counted", Duration::from_secs(10), || {
+        let n = count("undecodable") - undecodable;
+        (n >= forged)
+            .then_some(())
+            .ok_or_else(|| format!("{n} of {forged} counted; sent {sent}"))
+    });
+    eventually("the replays counted", Duration::from_secs(10), || {
+        let n = count("replay") - replays;
+        (n > 0)
+            .then_some(())
+            .ok_or_else(|| format!("{n}; sent {sent}"))
+    });
+    eprintln!(
+        "replayed {} datagrams: {} samples counted as replays; {forged} forged: {} counted",
+        sent["replayed"],
+        count("replay") - replays,
+        count("undecodable") - undecodable
+    );
+    // The replayed takeoff (and everything else) is not obeyed.
+    for _ in 0..10 {
+        landed().unwrap_or_else(|e| panic!("after the replay: {e}"));
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    assert_eq!(role(&c1), "active", "c1 stood down");
+    for (name, s) in processes {
+        for reason in [
+            "unauthenticated",
+            "identity",
+            "handshake",
+            "permissions",
+            "access_control",
+        ] {
+            assert_eq!(refusals(s, reason), 0, "{name}: {reason}");
+        }
+    }
 }
 
 /// The shipped companion presets secure the swarm's link: `skein agent` on them does not

@@ -3,7 +3,7 @@
 //! [`Lan`](super::netns::Lan), and what the tests read of them.
 
 use super::netns::Host;
-use super::{Skein, eventually};
+use super::{Process, Skein, eventually};
 use serde_json::Value;
 use std::time::Duration;
 
@@ -206,6 +206,45 @@ pub fn quantile(v: &[f64], p: f64) -> f64 {
 /// The mean of `v` (NaN when empty).
 pub fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
+}
+
+/// An on-path attacker on loopback (`tests/peers/dds_onpath.py`: a raw packet socket,
+/// so root; no DDS library, no key): it records domain `d`'s secured RTPS datagrams
+/// from [`OnPath::start`] until [`OnPath::replay_and_forge`].
+pub struct OnPath(Process);
+
+impl OnPath {
+    /// Starts recording; returns once it records.
+    pub fn start(d: &str) -> OnPath {
+        let script = super::workspace().join("tests/peers/dds_onpath.py");
+        let python = super::python();
+        let mut p = Process::start_command(
+            &[
+                python.to_str().expect("UTF-8 path"),
+                script.to_str().expect("UTF-8 path"),
+                "--domain",
+                d,
+            ],
+            &[],
+        );
+        p.wait_line("recording", Duration::from_secs(30));
+        OnPath(p)
+    }
+
+    /// Stops recording and sends every recorded datagram again where it went, verbatim
+    /// (replays), then each with one protected byte flipped (forgeries). Returns what it
+    /// printed: `recorded`, `replayed`, `forged` (datagrams) and `to_ports`.
+    pub fn replay_and_forge(mut self) -> Value {
+        let pid = self.0.pid().to_string();
+        let status = std::process::Command::new("kill")
+            .args(["-USR1", &pid])
+            .status()
+            .expect("kill");
+        assert!(status.success(), "kill -USR1 {pid}");
+        let line = self.0.wait_line("\"recorded\"", Duration::from_secs(60));
+        serde_json::from_str(&line)
+            .unwrap_or_else(|e| panic!("dds_onpath.py printed {line:?}: {e}"))
+    }
 }
 
 /// Runs `tests/peers/dds_intruder.py` on loopback on domain `d` for `seconds`: a
