@@ -37,28 +37,33 @@ fn coordinator(id: &str, priority: &str, d: &str, security: Option<(&str, &str)>
     candidate_on(None, id, priority, d, security, &[])
 }
 
+/// A keystore in `dir` with the enclaves `/skein/coordinator/c1` and `/skein/agent/a1`,
+/// and on domain `d` the coordinator `c1` (priority 1) and the agent of `uav-77`, each
+/// presenting its enclave.
+fn enrolled(dir: &std::path::Path, d: &str) -> (Skein, Skein) {
+    let ks = keystore(
+        dir,
+        &[
+            ("/skein/coordinator/c1", "coordinator"),
+            ("/skein/agent/a1", "agent"),
+        ],
+    );
+    let c1 = coordinator("c1", "1", d, Some((&ks, "/skein/coordinator/c1")));
+    let o = AgentOptions {
+        dds_security: Some((ks.clone(), "/skein/agent/a1".to_string())),
+        ..AgentOptions::default()
+    };
+    (c1, agent_on(None, 77, d, &o))
+}
+
 #[test]
 fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
     let _domain = DOMAIN
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     let dir = tempfile::tempdir().unwrap();
-    let ks = keystore(
-        dir.path(),
-        &[
-            ("/skein/coordinator/c1", "coordinator"),
-            ("/skein/agent/a1", "agent"),
-        ],
-    );
-    let ks = ks.as_str();
     let d = domain();
-
-    let c1 = coordinator("c1", "1", &d, Some((ks, "/skein/coordinator/c1")));
-    let o = AgentOptions {
-        dds_security: Some((ks.to_string(), "/skein/agent/a1".to_string())),
-        ..AgentOptions::default()
-    };
-    let _agent = agent_on(None, 77, &d, &o);
+    let (c1, _agent) = enrolled(dir.path(), &d);
     let intruder = coordinator("intruder", "9", &d, None);
 
     // The enrolled coordinator claims the role (after listening 5 s, as a secured
@@ -176,21 +181,8 @@ fn replayed_and_forged_messages_are_counted_and_never_obeyed() {
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     let dir = tempfile::tempdir().unwrap();
-    let ks = keystore(
-        dir.path(),
-        &[
-            ("/skein/coordinator/c1", "coordinator"),
-            ("/skein/agent/a1", "agent"),
-        ],
-    );
-    let ks = ks.as_str();
     let d = domain();
-    let c1 = coordinator("c1", "1", &d, Some((ks, "/skein/coordinator/c1")));
-    let o = AgentOptions {
-        dds_security: Some((ks.to_string(), "/skein/agent/a1".to_string())),
-        ..AgentOptions::default()
-    };
-    let agent = agent_on(None, 77, &d, &o);
+    let (c1, agent) = enrolled(dir.path(), &d);
     eventually("c1 active", Duration::from_secs(30), || {
         match role(&c1).as_str() {
             Some("active") => Ok(()),
