@@ -14,11 +14,12 @@ not from the address):
 - a replay: the datagram as recorded;
 - a forgery: the datagram with one byte of its protected content flipped (the last
   byte before its SRTPS_POSTFIX submessage), which DDS Security's message MAC covers.
-Replays go first, all of them, then the forgeries, a hundred datagrams a millisecond (a
+Replays go first, all of them, then the forgeries, ten datagrams a millisecond at most (a
 burst of thousands at once would overflow the receivers' socket buffers).
 
-Prints `recording` once it records, then one JSON line: `recorded`, `replayed`, `forged` (datagrams), `to_ports` (the
-destination ports, with how many went to each). Exits 0; the caller judges the effect.
+Prints `recording` once it records, then one JSON line: `recorded`, `replayed`,
+`forged` (datagrams), `to_ports` (the destination ports, with how many went to each).
+Exits 0; the caller judges the effect.
 """
 
 import argparse
@@ -128,7 +129,7 @@ def main():
         nonlocal sent
         out.sendto(msg, (dst, port))
         sent += 1
-        if sent % 100 == 0:
+        if sent % 10 == 0:
             time.sleep(0.001)
 
     for dst, port, msg in recorded:
