@@ -13,15 +13,12 @@
 mod support;
 
 use serde_json::json;
-use std::sync::Mutex;
+use std::sync::MutexGuard;
 use std::time::Duration;
 use support::distributed::{
     AgentOptions, OnPath, agent_on, candidate_on, cyclone_intruder, keystore, role, vehicle,
 };
-use support::{Skein, eventually};
-
-/// The tests of this file share their domain: one at a time.
-static DOMAIN: Mutex<()> = Mutex::new(());
+use support::{Skein, eventually, steady_for};
 
 /// The DDS domain: 232, which no other loopback test takes (0-97 and 100-231 are
 /// theirs; `deploy_compose`'s swarm may use 232 too, but on its containers' bridge, and
@@ -37,43 +34,65 @@ fn coordinator(id: &str, priority: &str, d: &str, security: Option<(&str, &str)>
     candidate_on(None, id, priority, d, security, &[])
 }
 
-/// A keystore in `dir` with the enclaves `/skein/coordinator/c1` and `/skein/agent/a1`,
-/// and on domain `d` the coordinator `c1` (priority 1) and the agent of `uav-77`, each
-/// presenting its enclave.
-fn enrolled(dir: &std::path::Path, d: &str) -> (Skein, Skein) {
-    let ks = keystore(
-        dir,
-        &[
-            ("/skein/coordinator/c1", "coordinator"),
-            ("/skein/agent/a1", "agent"),
-        ],
-    );
-    let c1 = coordinator("c1", "1", d, Some((&ks, "/skein/coordinator/c1")));
-    let o = AgentOptions {
-        dds_security: Some((ks.clone(), "/skein/agent/a1".to_string())),
-        ..AgentOptions::default()
-    };
-    (c1, agent_on(None, 77, d, &o))
+/// The enrolled pair of a test: a keystore with the enclaves `/skein/coordinator/c1` and
+/// `/skein/agent/a1`, and on [`domain`] the coordinator `c1` (priority 1) and the agent of
+/// `uav-77`, each presenting its enclave. The tests of this file share the domain, so a
+/// pair holds [`support::one_at_a_time`]'s guard until it is dropped (its processes
+/// first).
+struct Enrolled {
+    c1: Skein,
+    agent: Skein,
+    d: String,
+    _dir: tempfile::TempDir,
+    _one_at_a_time: MutexGuard<'static, ()>,
+}
+
+impl Enrolled {
+    fn start() -> Enrolled {
+        let one_at_a_time = support::one_at_a_time();
+        let dir = tempfile::tempdir().unwrap();
+        let d = domain();
+        let ks = keystore(
+            dir.path(),
+            &[
+                ("/skein/coordinator/c1", "coordinator"),
+                ("/skein/agent/a1", "agent"),
+            ],
+        );
+        let c1 = coordinator("c1", "1", &d, Some((&ks, "/skein/coordinator/c1")));
+        let o = AgentOptions {
+            dds_security: Some((ks, "/skein/agent/a1".to_string())),
+            ..AgentOptions::default()
+        };
+        Enrolled {
+            c1,
+            agent: agent_on(None, 77, &d, &o),
+            d,
+            _dir: dir,
+            _one_at_a_time: one_at_a_time,
+        }
+    }
+
+    /// Waits until `c1` claims the role (after listening 5 s, as a secured candidate
+    /// does).
+    fn c1_active(&self) {
+        eventually("c1 active", Duration::from_secs(30), || {
+            match role(&self.c1).as_str() {
+                Some("active") => Ok(()),
+                other => Err(format!("{other:?}")),
+            }
+        });
+    }
 }
 
 #[test]
 fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
-    let _domain = DOMAIN
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = tempfile::tempdir().unwrap();
-    let d = domain();
-    let (c1, _agent) = enrolled(dir.path(), &d);
-    let intruder = coordinator("intruder", "9", &d, None);
+    let pair = Enrolled::start();
+    let (c1, d) = (&pair.c1, pair.d.as_str());
+    let intruder = coordinator("intruder", "9", d, None);
 
-    // The enrolled coordinator claims the role (after listening 5 s, as a secured
-    // candidate does), sees the agent's vehicle and flies it.
-    eventually("c1 active", Duration::from_secs(30), || {
-        match role(&c1).as_str() {
-            Some("active") => Ok(()),
-            other => Err(format!("{other:?}")),
-        }
-    });
+    // The enrolled coordinator claims the role, sees the agent's vehicle and flies it.
+    pair.c1_active();
     c1.take_off(1, 8.0);
     // The intruder runs (as a coordinator of its own) but is heard by no one: the
     // enrolled coordinator never stands down for its higher priority, and it never
@@ -87,7 +106,7 @@ fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
         },
     );
     for _ in 0..10 {
-        assert_eq!(role(&c1), "active", "the enrolled coordinator stood down");
+        assert_eq!(role(c1), "active", "the enrolled coordinator stood down");
         let seen = vehicle(&intruder, VEHICLE);
         assert!(seen.is_null(), "the intruder read {VEHICLE}: {seen}");
         std::thread::sleep(Duration::from_millis(300));
@@ -127,7 +146,7 @@ fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
     // (The unenrolled skein coordinator goes first: it would read the forged leases.)
     drop(intruder);
     let refused_before = c1.metric(unauthenticated);
-    let seen = cyclone_intruder(&d, VEHICLE, &c1, 6.0);
+    let seen = cyclone_intruder(d, VEHICLE, c1, 6.0);
     assert!(
         seen["published"]["command"].as_u64() > Some(10),
         "the intruder wrote: {seen}"
@@ -135,8 +154,8 @@ fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
     assert_eq!(seen["matched"]["command"], 0, "{seen}");
     assert_eq!(seen["matched"]["lease"], 0, "{seen}");
     assert_eq!(seen["read"]["pose"], 0, "{seen}");
-    assert_eq!(role(&c1), "active", "c1 stood down for the forged lease");
-    assert_eq!(vehicle(&c1, VEHICLE)["state"], "Hovering", "{seen}");
+    assert_eq!(role(c1), "active", "c1 stood down for the forged lease");
+    assert_eq!(vehicle(c1, VEHICLE)["state"], "Hovering", "{seen}");
     eventually(
         "the CycloneDDS intruder counted",
         Duration::from_secs(10),
@@ -154,7 +173,7 @@ fn enrolled_participants_fly_and_an_unenrolled_coordinator_is_heard_by_none() {
     );
     assert_eq!(status, 202, "{body}");
     eventually("landed", Duration::from_secs(60), || {
-        let v = vehicle(&c1, VEHICLE);
+        let v = vehicle(c1, VEHICLE);
         if v["state"] == "Landed" {
             Ok(())
         } else {
@@ -177,20 +196,11 @@ fn refusals(s: &Skein, reason: &str) -> u64 {
 /// forgery as undecodable and the replayed samples as replays, and refuse nothing else.
 #[test]
 fn replayed_and_forged_messages_are_counted_and_never_obeyed() {
-    let _domain = DOMAIN
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = tempfile::tempdir().unwrap();
-    let d = domain();
-    let (c1, agent) = enrolled(dir.path(), &d);
-    eventually("c1 active", Duration::from_secs(30), || {
-        match role(&c1).as_str() {
-            Some("active") => Ok(()),
-            other => Err(format!("{other:?}")),
-        }
-    });
+    let pair = Enrolled::start();
+    let (c1, agent) = (&pair.c1, &pair.agent);
+    pair.c1_active();
 
-    let onpath = OnPath::start(&d);
+    let onpath = OnPath::start(&pair.d);
     c1.take_off(1, 3.0);
     let (status, body) = c1.post(
         &format!("/api/v1/vehicles/{VEHICLE}/commands"),
@@ -198,7 +208,7 @@ fn replayed_and_forged_messages_are_counted_and_never_obeyed() {
     );
     assert_eq!(status, 202, "{body}");
     let landed = || {
-        let v = vehicle(&c1, VEHICLE);
+        let v = vehicle(c1, VEHICLE);
         if v["state"] == "Landed" && v["armed"] == false {
             Ok(())
         } else {
@@ -206,7 +216,7 @@ fn replayed_and_forged_messages_are_counted_and_never_obeyed() {
         }
     };
     eventually("landed", Duration::from_secs(60), landed);
-    let processes = [("c1", &c1), ("the agent", &agent)];
+    let processes = [("c1", c1), ("the agent", agent)];
     let count = |reason: &str| -> u64 { processes.iter().map(|(_, s)| refusals(s, reason)).sum() };
     let (undecodable, replays) = (count("undecodable"), count("replay"));
 
@@ -233,12 +243,15 @@ fn replayed_and_forged_messages_are_counted_and_never_obeyed() {
         count("replay") - replays,
         count("undecodable") - undecodable
     );
-    // The replayed takeoff (and everything else) is not obeyed.
-    for _ in 0..10 {
-        landed().unwrap_or_else(|e| panic!("after the replay: {e}"));
-        std::thread::sleep(Duration::from_millis(300));
-    }
-    assert_eq!(role(&c1), "active", "c1 stood down");
+    // The replayed takeoff (and everything else) is not obeyed: landed at every poll for
+    // 3 s (the first poll that is not ends the test at its deadline).
+    steady_for(
+        "landed after the replay",
+        Duration::from_secs(3),
+        Duration::from_secs(3),
+        landed,
+    );
+    assert_eq!(role(c1), "active", "c1 stood down");
     for (name, s) in processes {
         for reason in [
             "unauthenticated",

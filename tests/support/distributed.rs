@@ -235,12 +235,7 @@ impl OnPath {
     /// (replays), then each with one protected byte flipped (forgeries). Returns what it
     /// printed: `recorded`, `replayed`, `forged` (datagrams) and `to_ports`.
     pub fn replay_and_forge(mut self) -> Value {
-        let pid = self.0.pid().to_string();
-        let status = std::process::Command::new("kill")
-            .args(["-USR1", &pid])
-            .status()
-            .expect("kill");
-        assert!(status.success(), "kill -USR1 {pid}");
+        self.0.signal("USR1");
         let line = self.0.wait_line("\"recorded\"", Duration::from_secs(60));
         serde_json::from_str(&line)
             .unwrap_or_else(|e| panic!("dds_onpath.py printed {line:?}: {e}"))

@@ -266,11 +266,7 @@ impl Skein {
     /// Kills the process with SIGKILL (no goodbye: no last lease, no clean shutdown) and
     /// waits for it to exit.
     pub fn kill_hard(&mut self) {
-        let status = std::process::Command::new("kill")
-            .args(["-KILL", &self.process.pid().to_string()])
-            .status()
-            .expect("kill");
-        assert!(status.success());
+        self.process.signal("KILL");
         let _ = self.process.wait_exit(Duration::from_secs(10));
     }
 
