@@ -13,7 +13,8 @@
 //! it was before. The message receiver and the readers say what this counts at `trace`,
 //! so a secured process's `log` level is `trace`; a record of another target costs a
 //! level and a prefix check, one of these three is formatted on the stack, cut at
-//! 512 bytes (no measurable CPU at one vehicle per agent, debug build).
+//! 512 bytes, and a reader's record about anything but a DATA (a heartbeat, a gap) is
+//! cut at its first bytes (no measurable CPU at one vehicle per agent, debug build).
 //!
 //! The phrases are RustDDS 0.15.1's (`Cargo.lock` pins it): `core/dds/tests/security.rs`
 //! checks that a participant without a certificate and one with a foreign CA's are
@@ -165,6 +166,8 @@ const RECEIVER_PHRASES: [&str; 3] = [
 /// whose sequence number it had already taken (dropped).
 const HANDLING_DATA: &str = "handle_data_msg from ";
 const ALREADY_TAKEN: &str = "handle_data_msg already have this seq";
+/// What both begin with.
+const DATA_RECORDS: &str = "handle_data_msg ";
 
 /// RustDDS 0.15.1's secure discovery phrases, and the refusal each says (first match).
 const PHRASES: [(&str, Reason); 11] = [
@@ -256,11 +259,21 @@ impl log::Log for Listener {
         if !Reason::may_say(target, record.level()) {
             return;
         }
-        let mut text = Capped::default();
-        // An `Err` only says the text was cut at `Capped::LEN`.
+        let reader = target.starts_with(READER);
+        // A reader says a record for every submessage it handles (heartbeats, gaps,
+        // acknacks …): only those about a DATA are read, and the others' formatting stops
+        // at their first bytes.
+        let mut text = Capped {
+            expect: if reader { DATA_RECORDS } else { "" },
+            ..Capped::default()
+        };
+        // An `Err` only says the text was cut: at `Capped::LEN`, or where it left `expect`.
         let _ = fmt::write(&mut text, *record.args());
+        if text.diverged {
+            return;
+        }
         let text = text.as_str();
-        if target.starts_with(READER) {
+        if reader {
             if let Some(reason) = reader_record(text, Instant::now()) {
                 refused(
                     reason,
@@ -307,10 +320,15 @@ fn reader_record(text: &str, now: Instant) -> Option<Reason> {
     (copy == Duplicate::Replay).then_some(Reason::Replay)
 }
 
-/// A record's text, cut at [`Capped::LEN`] bytes (on a character boundary).
+/// A record's text, cut at [`Capped::LEN`] bytes (on a character boundary), or as soon
+/// as it leaves the prefix it must begin with.
 struct Capped {
     bytes: [u8; Capped::LEN],
     len: usize,
+    /// What the text must begin with (`""`: anything).
+    expect: &'static str,
+    /// Set when the text did not begin with `expect`: formatting stopped there.
+    diverged: bool,
 }
 
 impl Capped {
@@ -328,12 +346,15 @@ impl Default for Capped {
         Capped {
             bytes: [0; Capped::LEN],
             len: 0,
+            expect: "",
+            diverged: false,
         }
     }
 }
 
 impl fmt::Write for Capped {
-    /// Takes what fits; `Err` once full, which ends the formatting.
+    /// Takes what fits; `Err` once full, or once the text left `expect`, which ends the
+    /// formatting.
     fn write_str(&mut self, s: &str) -> fmt::Result {
         let room = Capped::LEN - self.len;
         let mut n = s.len().min(room);
@@ -342,6 +363,11 @@ impl fmt::Write for Capped {
         }
         self.bytes[self.len..self.len + n].copy_from_slice(&s.as_bytes()[..n]);
         self.len += n;
+        let checked = self.len.min(self.expect.len());
+        if self.bytes[..checked] != self.expect.as_bytes()[..checked] {
+            self.diverged = true;
+            return Err(fmt::Error);
+        }
         if n < s.len() { Err(fmt::Error) } else { Ok(()) }
     }
 }
@@ -532,6 +558,23 @@ mod tests {
         let mut c = Capped::default();
         assert!(fmt::write(&mut c, format_args!("short {}", 1)).is_ok());
         assert_eq!(c.as_str(), "short 1");
+    }
+
+    #[test]
+    fn a_capped_text_stops_where_it_leaves_its_prefix() {
+        let expecting = || Capped {
+            expect: DATA_RECORDS,
+            ..Capped::default()
+        };
+        let mut c = expecting();
+        let heartbeat = format_args!("handle_heartbeat_msg {}", "x".repeat(400));
+        assert!(fmt::write(&mut c, heartbeat).is_err());
+        assert!(c.diverged);
+        assert!(c.len < 30, "formatting went on to {} bytes", c.len);
+        let mut c = expecting();
+        assert!(fmt::write(&mut c, format_args!("{}", taken(4))).is_ok());
+        assert!(!c.diverged);
+        assert_eq!(c.as_str(), taken(4));
     }
 
     #[test]

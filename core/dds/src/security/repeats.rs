@@ -37,16 +37,21 @@ pub struct Repeats {
     /// Per writer (its GUID as RustDDS prints it), when each recent sequence number was
     /// first taken.
     writers: HashMap<String, BTreeMap<i64, Instant>>,
-    /// The DATA being handled (writer, sequence number, when): taken unless the reader's
-    /// next record says it already had it.
-    pending: Option<(String, i64, Instant)>,
+    /// The DATA being handled (sequence number, when), of [`Repeats::pending_writer`]:
+    /// taken unless the reader's next record says it already had it.
+    pending: Option<(i64, Instant)>,
+    /// Its writer: one buffer, rewritten for every DATA (nothing allocated per sample
+    /// but a new writer's entry).
+    pending_writer: String,
 }
 
 impl Repeats {
     /// A reader handles DATA `seq` of `writer` at `now` (a user topic's).
     pub fn data(&mut self, writer: &str, seq: i64, now: Instant) {
         self.settle();
-        self.pending = Some((writer.to_string(), seq, now));
+        self.pending_writer.clear();
+        self.pending_writer.push_str(writer);
+        self.pending = Some((seq, now));
     }
 
     /// A reader handles a DATA this ledger does not follow (a discovery topic's): the one
@@ -58,11 +63,14 @@ impl Repeats {
     /// The reader dropped DATA `seq` as already taken, at `now`: what it was, if it is the
     /// DATA [`Repeats::data`] announced.
     pub fn already_taken(&mut self, seq: i64, now: Instant) -> Option<Duplicate> {
-        let (writer, pending_seq, _) = self.pending.take()?;
+        let (pending_seq, _) = self.pending.take()?;
         if pending_seq != seq {
             return None;
         }
-        let first = self.writers.get(&writer).and_then(|w| w.get(&seq));
+        let first = self
+            .writers
+            .get(self.pending_writer.as_str())
+            .and_then(|w| w.get(&seq));
         Some(match first {
             Some(t) if now.duration_since(*t) < REPAIR_WINDOW => Duplicate::Repeat,
             _ => Duplicate::Replay,
@@ -72,10 +80,16 @@ impl Repeats {
     /// The pending DATA was taken: remember when (its first copy), and forget what is
     /// older than the window.
     fn settle(&mut self) {
-        let Some((writer, seq, at)) = self.pending.take() else {
+        let Some((seq, at)) = self.pending.take() else {
             return;
         };
-        let taken = self.writers.entry(writer).or_default();
+        let writer = self.pending_writer.as_str();
+        if !self.writers.contains_key(writer) {
+            self.writers.insert(writer.to_string(), BTreeMap::new());
+        }
+        let Some(taken) = self.writers.get_mut(writer) else {
+            return;
+        };
         taken.entry(seq).or_insert(at);
         // Most samples come in order: the oldest first. A repaired one out of order stays
         // until the oldest are gone, at most a window more.
