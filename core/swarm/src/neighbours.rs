@@ -9,20 +9,21 @@
 //! own, and the list of slots changes only when a vehicle joins.
 //!
 //! Readers ask for the others near a point ([`Neighbourhood`], an
-//! [`ObstacleSource`]): every place is put in a spatial index (an R*-tree, `rstar`) once
-//! per refresh period (the control period) by whichever vehicle first needs it, and
-//! shared by all, so that a control step costs O(log n) in the size of the swarm instead
-//! of O(n). The index is at most one period old, as the slots themselves are (every
+//! [`ObstacleSource`]): every place is put in a spatial index (a uniform grid of
+//! horizontal cells, `grid.rs`) once per refresh period (the control period) by whichever
+//! vehicle first needs it, and shared by all, so that a control step costs O(log n) in the
+//! size of the swarm instead of O(n). The index is at most one period old, as the slots themselves are (every
 //! vehicle writes its own once per control tick).
 
-use rstar::primitives::GeomWithData;
-use rstar::{AABB, RTree};
+use grid::Grid;
 use skein_model::geo::Ned;
 use skein_model::safety::{Obstacle, ObstacleSource};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::sync::watch;
+
+mod grid;
 
 /// The places one vehicle takes up, swarm frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -140,8 +141,6 @@ struct Place {
     planned: bool,
 }
 
-type Indexed = GeomWithData<[f64; 3], u32>;
-
 /// Every place at one moment, indexed.
 #[derive(Debug)]
 struct Snapshot {
@@ -151,8 +150,8 @@ struct Snapshot {
     /// In list order: by vehicle id, measured position before setpoint.
     places: Vec<Place>,
     /// Places of vehicles not flying a slot, and of those that do.
-    free: RTree<Indexed>,
-    planned: RTree<Indexed>,
+    free: Grid,
+    planned: Grid,
     /// Fastest place of `free`, and of all, m/s.
     free_speed_m_s: f64,
     all_speed_m_s: f64,
@@ -177,28 +176,29 @@ impl Snapshot {
                 });
             }
         }
-        let (mut free, mut planned) = (Vec::new(), Vec::new());
         let (mut free_speed_m_s, mut all_speed_m_s) = (0.0f64, 0.0f64);
-        for (k, p) in places.iter().enumerate() {
-            let g = GeomWithData::new(
-                [p.position.north_m, p.position.east_m, p.position.down_m],
-                k as u32,
-            );
+        for p in &places {
             let speed = p.velocity.norm();
             all_speed_m_s = all_speed_m_s.max(speed);
-            if p.planned {
-                planned.push(g);
-            } else {
+            if !p.planned {
                 free_speed_m_s = free_speed_m_s.max(speed);
-                free.push(g);
             }
         }
+        let indexed = |planned: bool| {
+            let places = &places;
+            Grid::build(
+                (0..places.len() as u32)
+                    .filter(move |&k| places[k as usize].planned == planned)
+                    .map(move |k| (places[k as usize].position, k)),
+            )
+        };
+        let (free, planned) = (indexed(false), indexed(true));
         Snapshot {
             built: Instant::now(),
             list,
             places,
-            free: RTree::bulk_load(free),
-            planned: RTree::bulk_load(planned),
+            free,
+            planned,
             free_speed_m_s,
             all_speed_m_s,
         }
@@ -336,28 +336,6 @@ impl Neighbourhood<'_> {
     }
 }
 
-fn within(tree: &RTree<Indexed>, center: Ned, radius_m: f64, found: &mut Vec<u32>) {
-    if radius_m.is_infinite() {
-        found.extend(tree.iter().map(|g| g.data));
-        return;
-    }
-    let c = [center.north_m, center.east_m, center.down_m];
-    let r = radius_m;
-    let envelope = AABB::from_corners(
-        [c[0] - r, c[1] - r, c[2] - r],
-        [c[0] + r, c[1] + r, c[2] + r],
-    );
-    found.extend(
-        tree.locate_in_envelope(&envelope)
-            .filter(|g| {
-                let p = g.geom();
-                let (dn, de, dd) = (p[0] - c[0], p[1] - c[1], p[2] - c[2]);
-                dn * dn + de * de + dd * dd <= r * r
-            })
-            .map(|g| g.data),
-    );
-}
-
 impl ObstacleSource for Neighbourhood<'_> {
     fn near(&self, center: Ned, radius_m: f64, planned_radius_m: f64, out: &mut Vec<Obstacle>) {
         out.clear();
@@ -365,13 +343,13 @@ impl ObstacleSource for Neighbourhood<'_> {
         let found = &mut cache.found;
         found.clear();
         let s = &self.snapshot;
-        within(&s.free, center, radius_m, found);
+        s.free.within(center, radius_m, found);
         let planned_r = if self.planned {
             planned_radius_m
         } else {
             radius_m
         };
-        within(&s.planned, center, planned_r, found);
+        s.planned.within(center, planned_r, found);
         // The list's order, as the whole list would give them.
         found.sort_unstable();
         out.extend(
