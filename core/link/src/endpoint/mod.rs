@@ -359,7 +359,12 @@ impl Endpoint {
 
     /// When a valid frame from `sysid` last arrived.
     pub fn last_seen(&self, sysid: u8) -> Option<Instant> {
-        let ns = self.known_peer(sysid)?.last_seen_ns.load(Ordering::Acquire);
+        self.seen(&*self.known_peer(sysid)?)
+    }
+
+    /// When a valid frame from `peer` (a record of this endpoint) last arrived.
+    pub(crate) fn seen(&self, peer: &Peer) -> Option<Instant> {
+        let ns = peer.last_seen_ns.load(Ordering::Acquire);
         (ns != 0).then(|| self.opened + Duration::from_nanos(ns - 1))
     }
 

@@ -2,7 +2,7 @@
 //! endpoint route, the latest telemetry, the setpoint stream, liveness, the connect-time
 //! setup and the vehicle's side of the fence.
 
-use crate::endpoint::Endpoint;
+use crate::endpoint::{Endpoint, Peer};
 use crate::fence_sync::{FenceLink, FencePlans};
 use crate::setpoint::SetpointStream;
 use crate::setup::LinkSetup;
@@ -22,6 +22,9 @@ pub struct VehicleLink {
     /// The autopilot's component id (1 for PX4).
     pub compid: u8,
     pub(super) telemetry: RwLock<Telemetry>,
+    /// The endpoint's record of `sysid` (kept for the endpoint's life), so that asking
+    /// how long the vehicle has been silent looks nothing up.
+    peer: Arc<Peer>,
     stream: SetpointStream,
     pub(super) lost: AtomicBool,
     pub(super) setup: LinkSetup,
@@ -48,11 +51,13 @@ impl VehicleLink {
         setup: LinkSetup,
     ) -> Arc<Self> {
         let stream = SetpointStream::start(endpoint.clone(), sysid, compid, stream_rate_hz);
+        let peer = endpoint.peer(sysid);
         Arc::new(VehicleLink {
             endpoint,
             sysid,
             compid,
             telemetry: RwLock::new(Telemetry::default()),
+            peer,
             stream,
             lost: AtomicBool::new(false),
             setup,
@@ -103,6 +108,13 @@ impl VehicleLink {
 
     /// Time since the last valid message from the vehicle.
     pub fn silence(&self) -> Option<Duration> {
-        self.endpoint.last_seen(self.sysid).map(|t| t.elapsed())
+        self.silence_at(Instant::now())
+    }
+
+    /// Time from the last valid message from the vehicle to `now`.
+    pub fn silence_at(&self, now: Instant) -> Option<Duration> {
+        self.endpoint
+            .seen(&self.peer)
+            .map(|t| now.saturating_duration_since(t))
     }
 }

@@ -133,14 +133,14 @@ impl VehicleCore {
             self.shared.publish_report(None);
             return;
         };
-        let current = self.shared.position(&frame);
-        let local_frame = self.shared.link.with_telemetry(|t| t.local_frame());
+        let fix = self.shared.fix(&frame, now);
+        let (current, local_frame) = (fix.position, fix.local_frame);
         let stream = self.shared.link.stream();
         let mut mem = self.shared.memory();
         let state = mem.state;
         // Where this vehicle is, for the others' separation (the setpoint is added below
         // when skein steers it; a Lost vehicle stays where it was last seen).
-        let measured = current.map(|p| (p, self.shared.velocity().unwrap_or(Ned::ZERO)));
+        let measured = fix.measured();
         // A member flying its slot (the leader vehicle included) is on the formation's
         // transition plan.
         let planned = state == VehicleState::InFormation && mem.slot.is_some();
@@ -251,10 +251,12 @@ impl VehicleCore {
             }
         }
         let slot = mem.slot;
+        let left = (mem.state, mem.target);
         drop(mem);
         self.position.set(measured, steered, planned);
         let publish_every = (self.config().control_rate_hz / 10.0).round().max(1.0) as u64;
-        self.shared.publish_measured(measured);
+        self.shared
+            .publish_measured(measured, fix.heading_rad, left, now);
         if ticks.is_multiple_of(publish_every) {
             self.watch_fence(measured.map(|(p, _)| p), state);
             // The API's snapshot is optional work: a fifth of its rate while short of CPU.

@@ -19,6 +19,7 @@ use skein_model::vehicle::{
 };
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError, RwLock};
+use std::time::Instant;
 use tokio::sync::watch;
 
 /// A vehicle's payload slots by slot name.
@@ -65,6 +66,27 @@ pub struct VehicleShared {
     report: watch::Sender<VehicleReport>,
     /// The maps swarm frame → local frame and back, worked out when either frame changes.
     transforms: Mutex<Option<Transforms>>,
+}
+
+/// What one control step reads of the telemetry (see [`VehicleShared::fix`]).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Fix {
+    /// The vehicle's local NED frame (its EKF origin), once known.
+    pub(super) local_frame: Option<NedFrame>,
+    /// Swarm-frame NED position, metres, moved on by its velocity for the sample's age.
+    pub(super) position: Option<Ned>,
+    /// Velocity, NED m/s.
+    pub(super) velocity: Option<Ned>,
+    /// Heading, radians clockwise from north (`ATTITUDE.yaw`; 0 before the first).
+    pub(super) heading_rad: f64,
+}
+
+impl Fix {
+    /// Position and velocity (zero when unknown), when the position is known.
+    pub(super) fn measured(&self) -> Option<(Ned, Ned)> {
+        self.position
+            .map(|p| (p, self.velocity.unwrap_or(Ned::ZERO)))
+    }
 }
 
 /// The maps between the swarm frame and a vehicle's local frame.
@@ -206,6 +228,11 @@ impl VehicleShared {
     }
 
     /// The published reports (the in-process carrier of what the formation engine needs).
+    ///
+    /// Read them with `borrow()`: the control step replaces the report every period
+    /// without marking it changed, so `changed()` never fires. Nobody waits for a report
+    /// (the formation and the DDS link read them on their own clocks), and waking nobody
+    /// cost a watch channel's eight notifier locks per vehicle and period.
     pub fn subscribe_reports(&self) -> watch::Receiver<VehicleReport> {
         self.report.subscribe()
     }
@@ -213,30 +240,42 @@ impl VehicleShared {
     /// Publishes a [`VehicleReport`] from the telemetry and the FSM memory, positions in
     /// the swarm `frame` (none without a frame).
     pub fn publish_report(&self, frame: Option<NedFrame>) {
-        let measured = frame
-            .and_then(|f| self.position(&f))
-            .map(|p| (p, self.velocity().unwrap_or(Ned::ZERO)));
-        self.publish_measured(measured);
+        let now = Instant::now();
+        let fix = frame.map(|f| self.fix(&f, now));
+        let measured = fix.and_then(|f| f.measured());
+        let memory = {
+            let mem = self.memory();
+            (mem.state, mem.target)
+        };
+        let heading_rad = fix.map_or_else(|| self.heading_rad(), |f| f.heading_rad);
+        self.publish_measured(measured, heading_rad, memory, now);
     }
 
-    /// Publishes a [`VehicleReport`] with the position and velocity the control loop has
-    /// just measured (swarm frame), so they are not read from the telemetry twice.
-    pub(super) fn publish_measured(&self, measured: Option<(Ned, Ned)>) {
-        let (state, target) = {
-            let mem = self.memory();
-            (mem.state, mem.target.map(|t| t.position()))
-        };
+    /// Publishes a [`VehicleReport`] from what the control step has just measured
+    /// (`fix`, swarm frame) and the FSM `state` and `target` it left, so that nothing is
+    /// read twice.
+    pub(super) fn publish_measured(
+        &self,
+        measured: Option<(Ned, Ned)>,
+        heading_rad: f64,
+        (state, target): (VehicleState, Option<Target>),
+        now: Instant,
+    ) {
         let report = VehicleReport {
             state,
             position: measured.map(|(p, _)| p),
             velocity: measured.map_or(Ned::ZERO, |(_, v)| v),
-            heading_rad: self.heading_rad(),
-            link_silence_s: self.link.silence().map(|s| s.as_secs_f64()),
-            target,
+            heading_rad,
+            link_silence_s: self.link.silence_at(now).map(|s| s.as_secs_f64()),
+            target: target.map(|t| t.position()),
             stamp_us: wall_us(),
             ride_through_s: None,
         };
-        self.report.send_replace(report);
+        // Replaced in place without waking anyone: see `subscribe_reports`.
+        self.report.send_if_modified(|r| {
+            *r = report;
+            false
+        });
     }
 
     /// The FSM state.
@@ -269,16 +308,40 @@ impl VehicleShared {
     /// (at most 200 ms: PX4 streams it at 10–30 Hz, and a vehicle at 5 m/s covers 17 cm
     /// between two samples).
     pub fn position(&self, swarm: &NedFrame) -> Option<Ned> {
-        let (local, frame, received, global) = self
-            .link
-            .with_telemetry(|t| (t.local, t.local_frame(), t.local_received, t.global));
-        match (local, frame) {
+        self.fix(swarm, Instant::now()).position
+    }
+
+    /// What a control step needs of the telemetry at `now`, read in one look under its
+    /// lock: the vehicle's local frame, and its position ([`VehicleShared::position`],
+    /// swarm frame), velocity ([`VehicleShared::velocity`]) and heading
+    /// ([`VehicleShared::heading_rad`]).
+    pub(super) fn fix(&self, swarm: &NedFrame, now: Instant) -> Fix {
+        let (local, local_frame, received, global, heading_rad) = self.link.with_telemetry(|t| {
+            (
+                t.local,
+                t.local_frame(),
+                t.local_received,
+                t.global,
+                t.attitude.map(|a| a.yaw_rad),
+            )
+        });
+        let position = match (local, local_frame) {
             (Some(l), Some(frame)) => {
-                let age = received.map_or(0.0, |at| at.elapsed().as_secs_f64().min(0.2));
+                let age = received.map_or(0.0, |at| {
+                    now.saturating_duration_since(at).as_secs_f64().min(0.2)
+                });
                 let to_swarm = self.transforms(swarm, &frame).to_swarm;
                 Some(to_swarm.apply(l.position + l.velocity_m_s * age))
             }
             _ => global.map(|g| swarm.to_ned(&g.geo)),
+        };
+        Fix {
+            local_frame,
+            position,
+            velocity: local
+                .map(|l| l.velocity_m_s)
+                .or(global.map(|g| g.velocity_m_s)),
+            heading_rad: heading_rad.unwrap_or(0.0),
         }
     }
 
