@@ -118,12 +118,13 @@ impl NeighbourBoard {
         slot
     }
 
-    /// A reader of every slot, present and future.
-    pub fn reader(&self) -> Neighbours {
+    /// Vehicle `id`'s reader of every other slot, present and future.
+    pub fn reader(&self, id: &str) -> Neighbours {
         Neighbours {
             list: self.list.subscribe(),
             index: self.index.clone(),
-            own: Arc::default(),
+            id: id.to_string(),
+            own: Mutex::default(),
         }
     }
 }
@@ -218,13 +219,15 @@ impl SharedIndex {
     /// The snapshot to read: the current one, rebuilt first when it is older than the
     /// refresh period or the list changed (by this caller, unless another one already
     /// rebuilds).
-    fn snapshot(&self, list: &Arc<[Entry]>) -> Arc<Snapshot> {
+    fn snapshot(&self, list: &Arc<[Entry]>, now: Instant) -> Arc<Snapshot> {
         let current = self
             .current
             .lock()
             .unwrap_or_else(|p| p.into_inner())
             .clone();
-        let fresh = |s: &Snapshot| Arc::ptr_eq(&s.list, list) && s.built.elapsed() < self.refresh;
+        let fresh = |s: &Snapshot| {
+            Arc::ptr_eq(&s.list, list) && now.saturating_duration_since(s.built) < self.refresh
+        };
         match current {
             Some(s) if fresh(&s) => s,
             stale => {
@@ -257,45 +260,60 @@ impl SharedIndex {
 }
 
 /// A vehicle's reader of the others' places.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct Neighbours {
     list: watch::Receiver<Arc<[Entry]>>,
     index: Arc<SharedIndex>,
-    /// What one reader keeps between control steps: its own place in the list it last
-    /// read, and the scratch list of places found.
-    own: Arc<Mutex<ReaderCache>>,
+    /// The vehicle that reads.
+    id: String,
+    /// What the reader keeps between control steps: its own place in the list it last
+    /// read, and the scratch list of places found (held inline, next to the rest of the
+    /// vehicle's state, not in an allocation of its own that each step would miss).
+    own: Mutex<ReaderCache>,
+}
+
+impl Clone for Neighbours {
+    /// The same vehicle's reader, with a cache of its own.
+    fn clone(&self) -> Self {
+        Neighbours {
+            list: self.list.clone(),
+            index: self.index.clone(),
+            id: self.id.clone(),
+            own: Mutex::default(),
+        }
+    }
 }
 
 /// See [`Neighbours::own`].
 #[derive(Debug, Default)]
 struct ReaderCache {
-    /// The list, the id looked up in it and where that id is in it.
-    position: Option<(Arc<[Entry]>, String, Option<u32>)>,
+    /// The list and where the reader's vehicle is in it.
+    position: Option<(Arc<[Entry]>, Option<u32>)>,
     found: Vec<u32>,
 }
 
 impl Neighbours {
-    /// The others as vehicle `id` sees them, for one control step: an [`ObstacleSource`]
-    /// over every vehicle except `id`. Separation is kept from both places of each:
-    /// setpoints against setpoints is what skein controls, positions cover vehicles it
-    /// does not steer and controllers that lag. With `planned` (vehicle `id` flies a
-    /// slot), the other members are [`Obstacle::planned`]: the formation's transition
-    /// plan keeps them apart.
-    pub fn around(&self, id: &str, planned: bool) -> Neighbourhood<'_> {
+    /// The others as the reader's vehicle sees them, for one control step at `now`: an
+    /// [`ObstacleSource`] over every vehicle but itself. Separation is kept from both
+    /// places of each: setpoints against setpoints is what skein controls, positions cover
+    /// vehicles it does not steer and controllers that lag. With `planned` (the vehicle
+    /// flies a slot), the other members are [`Obstacle::planned`]: the formation's
+    /// transition plan keeps them apart.
+    pub fn around(&self, planned: bool, now: Instant) -> Neighbourhood<'_> {
         let list = self.list.borrow().clone();
-        let snapshot = self.index.snapshot(&list);
+        let snapshot = self.index.snapshot(&list, now);
         let mut cache = self.own.lock().unwrap_or_else(|p| p.into_inner());
         // Looked up again only when the list changed (a vehicle joined): the ids are
         // strings apart in memory, a search per step would cost a cache miss per probe.
         let own = match &cache.position {
-            Some((l, i, own)) if Arc::ptr_eq(l, &snapshot.list) && i == id => *own,
+            Some((l, own)) if Arc::ptr_eq(l, &snapshot.list) => *own,
             _ => {
                 let own = snapshot
                     .list
-                    .binary_search_by(|(other, _)| other.as_str().cmp(id))
+                    .binary_search_by(|(other, _)| other.as_str().cmp(&self.id))
                     .ok()
                     .map(|i| i as u32);
-                cache.position = Some((snapshot.list.clone(), id.to_string(), own));
+                cache.position = Some((snapshot.list.clone(), own));
                 own
             }
         };
@@ -307,10 +325,10 @@ impl Neighbours {
         }
     }
 
-    /// Every point the others occupy, as [`Neighbours::around`] gives them, whatever the
-    /// distance; `out` is cleared first.
-    pub fn others(&self, id: &str, planned: bool, out: &mut Vec<Obstacle>) {
-        self.around(id, planned)
+    /// Every point the others occupy, as [`Neighbours::around`] gives them now, whatever
+    /// the distance; `out` is cleared first.
+    pub fn others(&self, planned: bool, out: &mut Vec<Obstacle>) {
+        self.around(planned, Instant::now())
             .near(Ned::ZERO, f64::INFINITY, f64::INFINITY, out);
     }
 }
@@ -388,20 +406,20 @@ mod tests {
     fn a_vehicle_sees_every_other_place_but_its_own() {
         let mut board = live_board();
         let (a, b) = (board.slot("uav-1"), board.slot("uav-2"));
-        let reader = board.reader();
+        let (reader_1, reader_2) = (board.reader("uav-1"), board.reader("uav-2"));
         a.set(at(0.0), at(1.0), true);
         b.set(at(5.0), None, false);
         let mut out = Vec::new();
-        reader.others("uav-1", true, &mut out);
+        reader_1.others(true, &mut out);
         assert_eq!(out.len(), 1);
         assert_eq!(out[0].position.north_m, 5.0);
         // Not steered: it does not avoid, so it is not reciprocal; not a member.
         assert!(!out[0].reciprocal && !out[0].planned);
-        reader.others("uav-2", true, &mut out);
+        reader_2.others(true, &mut out);
         assert_eq!(out.len(), 2, "measured position and setpoint");
         assert!(out.iter().all(|o| o.reciprocal));
         // Planned only when both fly the formation's plan.
-        reader.others("uav-2", false, &mut out);
+        reader_2.others(false, &mut out);
         assert!(out.iter().all(|o| !o.planned));
     }
 
@@ -409,13 +427,13 @@ mod tests {
     fn a_vehicle_with_no_place_leaves_the_others_checks() {
         let mut board = live_board();
         let a = board.slot("uav-1");
-        let reader = board.reader();
+        let reader = board.reader("uav-2");
         a.set(at(0.0), None, false);
         let mut out = Vec::new();
-        reader.others("uav-2", false, &mut out);
+        reader.others(false, &mut out);
         assert_eq!(out.len(), 1);
         a.set(None, None, false);
-        reader.others("uav-2", false, &mut out);
+        reader.others(false, &mut out);
         assert!(out.is_empty());
         assert_eq!(a.get(), None);
     }
@@ -423,11 +441,11 @@ mod tests {
     #[test]
     fn a_vehicle_that_joins_later_is_seen_by_earlier_readers_and_keeps_its_slot() {
         let mut board = live_board();
-        let reader = board.reader();
+        let reader = board.reader("uav-1");
         let late = board.slot("uav-9");
         late.set(at(3.0), None, false);
         let mut out = Vec::new();
-        reader.others("uav-1", false, &mut out);
+        reader.others(false, &mut out);
         assert_eq!(out.len(), 1);
         // A restarted vehicle gets the same slot back, with what it published.
         assert_eq!(board.slot("uav-9").get(), late.get());
@@ -437,19 +455,19 @@ mod tests {
     fn the_index_is_built_once_a_period_and_again_when_a_vehicle_joins() {
         let mut board = NeighbourBoard::new(Duration::from_secs(3600));
         let a = board.slot("uav-1");
-        let reader = board.reader();
+        let reader = board.reader("uav-2");
         a.set(at(0.0), None, false);
         let mut out = Vec::new();
-        reader.others("uav-2", false, &mut out);
+        reader.others(false, &mut out);
         assert_eq!(out[0].position.north_m, 0.0);
         // Within the period every reader shares the snapshot: a move shows next period.
         a.set(at(7.0), None, false);
-        board.reader().others("uav-2", false, &mut out);
+        board.reader("uav-2").others(false, &mut out);
         assert_eq!(out[0].position.north_m, 0.0);
         // A vehicle joining makes a new list: the index is built again at once.
         let b = board.slot("uav-3");
         b.set(at(20.0), None, false);
-        reader.others("uav-2", false, &mut out);
+        reader.others(false, &mut out);
         let norths: Vec<f64> = out.iter().map(|o| o.position.north_m).collect();
         assert_eq!(norths, vec![7.0, 20.0]);
     }
@@ -466,10 +484,10 @@ mod tests {
             let sp = (i % 3 == 0).then(|| (Ned::new(4.0 * i as f64, 1.0, -10.0), Ned::ZERO));
             s.set(p, sp, i % 2 == 0);
         }
-        let reader = board.reader();
+        let reader = board.reader("uav-10");
         let mut all = Vec::new();
-        reader.others("uav-10", true, &mut all);
-        let around = reader.around("uav-10", true);
+        reader.others(true, &mut all);
+        let around = reader.around(true, Instant::now());
         let center = Ned::new(40.0, 0.0, -10.0);
         let mut near = Vec::new();
         around.near(center, 9.0, 2.0, &mut near);

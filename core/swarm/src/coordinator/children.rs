@@ -85,7 +85,7 @@ impl CoordinatorState {
                         shared: local.shared.clone(),
                         context: self.context.clone(),
                         fleet: self.fleet.reader(),
-                        neighbours: self.neighbours.reader(),
+                        neighbours: self.neighbours.reader(id),
                         position: self.neighbours.slot(id),
                         events: self.events.clone(),
                         uplink: uplink_to(myself.clone()),

@@ -154,7 +154,7 @@ impl VehicleCore {
                 if let (Some(target), Some(local), Some(cur)) = (mem.target, local_frame, current) {
                     let to_local = self.shared.transforms(&frame, &local).to_local;
                     let (tp, tv) = target.now(now);
-                    let others = self.neighbours.around(&self.shared.id, planned);
+                    let others = self.neighbours.around(planned, now);
                     let yaw = mem.yaw_rad;
                     let limits = self.shared.model.limits;
                     let config = &self.context.config;
