@@ -196,19 +196,15 @@ async fn run(
                 }
             }
         }
-        let members: Vec<MemberPose> = fleet
-            .snapshots()
-            .into_iter()
-            .filter_map(|s| {
-                let p = s.position?;
-                let v = s.velocity;
-                Some(MemberPose {
-                    id: s.id,
-                    position: Vector3::new(p.north_m, p.east_m, p.down_m),
-                    velocity: Vector3::new(v.north_m_s, v.east_m_s, v.down_m_s),
-                })
+        let members: Vec<MemberPose> = fleet.map_snapshots(|s| {
+            let p = s.position.as_ref()?;
+            let v = &s.velocity;
+            Some(MemberPose {
+                id: s.id.clone(),
+                position: Vector3::new(p.north_m, p.east_m, p.down_m),
+                velocity: Vector3::new(v.north_m_s, v.east_m_s, v.down_m_s),
             })
-            .collect();
+        });
         let now = now_us();
         for e in tracker.step(now, bearings, &members) {
             let _ = events.send(to_swarm_event(e));

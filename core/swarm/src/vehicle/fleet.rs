@@ -64,6 +64,16 @@ impl Fleet {
         self.members().values().map(|v| v.snapshot()).collect()
     }
 
+    /// What `f` takes of every vehicle's latest snapshot, by id, the `None`s left out:
+    /// read in place, so that nothing but what `f` keeps is copied (a snapshot holds a
+    /// dozen strings; the tracker wants three vectors of each).
+    pub fn map_snapshots<T>(&self, mut f: impl FnMut(&VehicleSnapshot) -> Option<T>) -> Vec<T> {
+        self.members()
+            .values()
+            .filter_map(|v| v.with_snapshot(&mut f))
+            .collect()
+    }
+
     /// The last published state of every payload of `kind` (e.g. `"detector"`), as
     /// `(vehicle id, slot, state)`, by vehicle then slot; payloads that published nothing
     /// yet are left out.

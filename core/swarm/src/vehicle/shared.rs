@@ -222,6 +222,12 @@ impl VehicleShared {
         self.snapshot.borrow().clone()
     }
 
+    /// `f` of the latest published snapshot, read in place (the channel's lock is held
+    /// meanwhile: `f` must be quick).
+    pub fn with_snapshot<R>(&self, f: impl FnOnce(&VehicleSnapshot) -> R) -> R {
+        f(&self.snapshot.borrow())
+    }
+
     /// The published snapshots (the in-process carrier of the vehicle's state topic).
     pub fn subscribe_snapshots(&self) -> watch::Receiver<VehicleSnapshot> {
         self.snapshot.subscribe()
