@@ -57,6 +57,9 @@ pub struct VehicleShared {
     pub link: Arc<VehicleLink>,
     /// True for a vehicle of the in-process simulator.
     pub simulated: bool,
+    /// Its endpoint's address as the snapshot shows it (written once: formatting it for
+    /// every snapshot was 4 % of the control steps' CPU at 100 vehicles).
+    connection: String,
     /// The payload slots (its model's, plus those attached at run time), with what each
     /// published; read with [`VehicleShared::payloads`] (copy-on-write: readers get a
     /// consistent map without holding the lock).
@@ -121,10 +124,11 @@ impl VehicleShared {
                 .map(|p| (p.slot.clone(), PayloadShared::new(p.clone())))
                 .collect(),
         ));
+        let connection = link.endpoint.address().to_string();
         let snapshot = VehicleSnapshot {
             id: id.clone(),
             sysid: link.sysid,
-            connection: link.endpoint.address().to_string(),
+            connection: connection.clone(),
             model: model.name.clone(),
             state: VehicleState::Disconnected,
             armed: false,
@@ -148,6 +152,7 @@ impl VehicleShared {
             model,
             link,
             simulated,
+            connection,
             payloads,
             memory: Mutex::new(Memory {
                 state: VehicleState::Disconnected,
@@ -407,7 +412,7 @@ impl VehicleShared {
             VehicleSnapshot {
                 id: self.id.clone(),
                 sysid: link.sysid,
-                connection: link.endpoint.address().to_string(),
+                connection: self.connection.clone(),
                 model: self.model.name.clone(),
                 state,
                 armed: t.heartbeat.is_some_and(|h| h.armed),
