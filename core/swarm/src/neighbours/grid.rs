@@ -96,19 +96,16 @@ impl Grid {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
 
     /// A query finds exactly what measuring every place finds: places scattered over
     /// cells of both signs, on cell borders, at other altitudes, with small, large, zero,
     /// negative and infinite radii, and centres far outside the swarm.
     #[test]
     fn a_query_finds_exactly_the_places_within_its_radius() {
-        let mut seed = 11u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = SmallRng::seed_from_u64(11);
+        let mut next = || rng.random::<f64>();
         let mut points: Vec<Ned> = (0..400)
             .map(|_| {
                 Ned::new(

@@ -79,18 +79,15 @@ fn closest_pair_m(points: &[Ned]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
 
     /// The sweep finds what comparing every pair finds, on scattered swarms and on
     /// degenerate ones (a line along east, where every point shares its north).
     #[test]
     fn the_sweep_finds_the_pairwise_minimum() {
-        let mut seed = 7u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = SmallRng::seed_from_u64(7);
+        let mut next = || rng.random::<f64>();
         for n in [0usize, 1, 2, 3, 10, 200] {
             let points: Vec<Ned> = (0..n)
                 .map(|_| Ned::new(next() * 300.0, next() * 300.0, -10.0 - next() * 5.0))
