@@ -272,18 +272,6 @@ pub struct Neighbours {
     own: Mutex<ReaderCache>,
 }
 
-impl Clone for Neighbours {
-    /// The same vehicle's reader, with a cache of its own.
-    fn clone(&self) -> Self {
-        Neighbours {
-            list: self.list.clone(),
-            index: self.index.clone(),
-            id: self.id.clone(),
-            own: Mutex::default(),
-        }
-    }
-}
-
 /// See [`Neighbours::own`].
 #[derive(Debug, Default)]
 struct ReaderCache {

@@ -87,9 +87,7 @@ impl Repeats {
         if !self.writers.contains_key(writer) {
             self.writers.insert(writer.to_string(), BTreeMap::new());
         }
-        let Some(taken) = self.writers.get_mut(writer) else {
-            return;
-        };
+        let taken = self.writers.get_mut(writer).expect("inserted above");
         taken.entry(seq).or_insert(at);
         // Most samples come in order: the oldest first. A repaired one out of order stays
         // until the oldest are gone, at most a window more.

@@ -9,6 +9,7 @@ use crate::config::VehicleModel;
 use crate::payload::PayloadShared;
 use crate::protocol::{SlotTarget, VehicleReport, wall_us};
 use crate::supervision::{self, ChildKey, Supervision};
+use skein_link::Telemetry;
 use skein_link::VehicleLink;
 use skein_model::fsm::{self, VehicleState};
 use skein_model::geo::{FrameTransform, Ned, NedFrame, wrap_deg_360};
@@ -262,9 +263,9 @@ impl VehicleShared {
         self.publish_measured(measured, heading_rad, memory, now);
     }
 
-    /// Publishes a [`VehicleReport`] from what the control step has just measured
-    /// (`fix`, swarm frame) and the FSM `state` and `target` it left, so that nothing is
-    /// read twice.
+    /// Publishes a [`VehicleReport`] from what the control step has just read at `now`
+    /// (`measured` position and velocity, swarm frame, and `heading_rad`) and the FSM
+    /// `state` and `target` it left, so that nothing is read twice.
     pub(super) fn publish_measured(
         &self,
         measured: Option<(Ned, Ned)>,
@@ -327,15 +328,17 @@ impl VehicleShared {
     /// swarm frame), velocity ([`VehicleShared::velocity`]) and heading
     /// ([`VehicleShared::heading_rad`]).
     pub(super) fn fix(&self, swarm: &NedFrame, now: Instant) -> Fix {
-        let (local, local_frame, received, global, heading_rad) = self.link.with_telemetry(|t| {
-            (
-                t.local,
-                t.local_frame(),
-                t.local_received,
-                t.global,
-                t.attitude.map(|a| a.yaw_rad),
-            )
-        });
+        let (local, local_frame, received, global, velocity, heading_rad) =
+            self.link.with_telemetry(|t| {
+                (
+                    t.local,
+                    t.local_frame(),
+                    t.local_received,
+                    t.global,
+                    velocity_of(t),
+                    heading_of(t),
+                )
+            });
         let position = match (local, local_frame) {
             (Some(l), Some(frame)) => {
                 let age = received.map_or(0.0, |at| {
@@ -349,18 +352,14 @@ impl VehicleShared {
         Fix {
             local_frame,
             position,
-            velocity: local
-                .map(|l| l.velocity_m_s)
-                .or(global.map(|g| g.velocity_m_s)),
-            heading_rad: heading_rad.unwrap_or(0.0),
+            velocity,
+            heading_rad,
         }
     }
 
     /// Heading, radians clockwise from north (`ATTITUDE.yaw`).
     pub fn heading_rad(&self) -> f64 {
-        self.link
-            .with_telemetry(|t| t.attitude.map(|a| a.yaw_rad))
-            .unwrap_or(0.0)
+        self.link.with_telemetry(heading_of)
     }
 
     /// Publishes a fresh snapshot from the telemetry, the FSM state, the formation slot
@@ -404,11 +403,7 @@ impl VehicleShared {
                 target: s.goal,
                 error_m: current.map_or(f64::NAN, |c| (c - s.goal).norm()),
             });
-            let vel = t
-                .local
-                .map(|l| l.velocity_m_s)
-                .or(t.global.map(|g| g.velocity_m_s))
-                .unwrap_or(Ned::ZERO);
+            let vel = velocity_of(t).unwrap_or(Ned::ZERO);
             VehicleSnapshot {
                 id: self.id.clone(),
                 sysid: link.sysid,
@@ -469,12 +464,20 @@ impl VehicleShared {
 
     /// Current velocity, NED m/s.
     pub fn velocity(&self) -> Option<Ned> {
-        self.link.with_telemetry(|t| {
-            t.local
-                .map(|l| l.velocity_m_s)
-                .or(t.global.map(|g| g.velocity_m_s))
-        })
+        self.link.with_telemetry(velocity_of)
     }
+}
+
+/// Velocity, NED m/s: `LOCAL_POSITION_NED`'s, else `GLOBAL_POSITION_INT`'s.
+fn velocity_of(t: &Telemetry) -> Option<Ned> {
+    t.local
+        .map(|l| l.velocity_m_s)
+        .or(t.global.map(|g| g.velocity_m_s))
+}
+
+/// Heading, radians clockwise from north (`ATTITUDE.yaw`; 0 before the first).
+fn heading_of(t: &Telemetry) -> f64 {
+    t.attitude.map_or(0.0, |a| a.yaw_rad)
 }
 
 /// One payload as the vehicle snapshot lists it: `slot`, `kind`, `requested_plugin` (the
