@@ -2,7 +2,8 @@
 //! DDS implementation: CycloneDDS's Python binding (`tests/peers/dds_peer.py`), with type
 //! definitions written from the `.msg` files and the ROS 2 standard messages alone.
 //!
-//! Last, `skein bench dds` small (its report's shape; never its timing).
+//! Besides: `skein bench dds` small (its report's shape; never its timing), and a link
+//! held to loopback beside interfaces that come and go.
 //!
 //! Both sides are kept on loopback (`--dds-network 127.0.0.1`; the peer's
 //! `CYCLONEDDS_URI` names 127.0.0.1 with unicast discovery), each test on its own
@@ -14,7 +15,8 @@ use serde_json::Value;
 use std::time::Duration;
 use support::bench::bench_report;
 use support::counter_uas::{OBSERVERS, build_plugins, up_with_intruder_pass_and};
-use support::{Skein, eventually, run_peer};
+use support::netns::Namespace;
+use support::{Process, Skein, eventually, run_peer};
 
 /// A DDS domain of this test process's own (`offset`, 0 to 3, tells the tests apart):
 /// 100–179, apart from the other targets' (`e2e_ros2` has 180–218).
@@ -228,5 +230,68 @@ fn bench_dds_reports_cpu_and_pose_latency() {
     assert!(
         lat["p50"].as_f64().unwrap() <= lat["max"].as_f64().unwrap(),
         "{report}"
+    );
+}
+
+/// A link held to loopback (`--dds-network 127.0.0.1`) uses no other interface, so one
+/// created or removed on the same computer (a Docker bridge, a VPN, another test's
+/// network plumbing) costs it no rejoin of the domain, and so no lost sample; a link on
+/// every interface joins again after each change. Both run in a network namespace of the
+/// test's own, where the test adds and removes a pair of interfaces, one with an address.
+#[test]
+fn held_to_loopback_the_link_ignores_other_interfaces_coming_and_going() {
+    let ns = Namespace::new('d');
+    let d = domain(0);
+    let start = |extra: &[&str]| {
+        let mut args = vec![
+            "up",
+            "--http",
+            "127.0.0.1:0",
+            "--sim",
+            "1",
+            "--sim-base-port",
+            "0",
+            "--dds",
+            "--domain-id",
+            &d,
+        ];
+        args.extend_from_slice(extra);
+        let mut p = Process::start_in(Some(&ns.name), &args);
+        p.wait_line("dashboard at", Duration::from_secs(60));
+        p
+    };
+    let held = start(&["--dds-network", "127.0.0.1"]);
+    let every = start(&[]);
+    let rejoined = |p: &Process, n: usize| {
+        let joined = p.stderr_text().matches("joined the domain again").count();
+        if joined >= n {
+            Ok(())
+        } else {
+            Err(format!("{joined} rejoins:\n{}", p.stderr_text()))
+        }
+    };
+    // A veth pair inside the namespace (this kernel has no dummy interfaces).
+    ns.ip(&[
+        "link", "add", "skd0", "type", "veth", "peer", "name", "skd1",
+    ]);
+    ns.ip(&["addr", "add", "10.251.0.1/24", "dev", "skd0"]);
+    ns.ip(&["link", "set", "skd0", "up"]);
+    ns.ip(&["link", "set", "skd1", "up"]);
+    eventually(
+        "a rejoin for the new interface",
+        Duration::from_secs(30),
+        || rejoined(&every, 1),
+    );
+    ns.ip(&["link", "del", "skd0"]);
+    eventually(
+        "a rejoin for the removed interface",
+        Duration::from_secs(30),
+        || rejoined(&every, 2),
+    );
+    // The held link polls the interfaces as often: it has looked at both changes.
+    let text = held.stderr_text();
+    assert!(
+        !text.contains("network interfaces changed"),
+        "the link held to loopback joined again:\n{text}"
     );
 }

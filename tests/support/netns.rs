@@ -43,6 +43,39 @@ pub struct Lan {
     relay: Option<Relay>,
 }
 
+/// A network namespace of this test process's own with only its loopback (up), for a
+/// process that must not see this namespace's interfaces, nor change them for the
+/// others; removed on drop.
+pub struct Namespace {
+    /// Its name (`skein-<pid>-<tag>-ns`).
+    pub name: String,
+}
+
+impl Namespace {
+    /// Creates `skein-<pid>-<tag>-ns` with its loopback up.
+    pub fn new(tag: char) -> Namespace {
+        remove_stale();
+        let name = format!("skein-{}-{tag}-ns", std::process::id());
+        ip(&["netns", "add", &name]);
+        let ns = Namespace { name };
+        ns.ip(&["link", "set", "lo", "up"]);
+        ns
+    }
+
+    /// `ip <args>` inside it.
+    pub fn ip(&self, args: &[&str]) {
+        ip_in(&self.name, args);
+    }
+}
+
+impl Drop for Namespace {
+    fn drop(&mut self) {
+        let _ = Command::new("ip")
+            .args(["netns", "del", &self.name])
+            .status();
+    }
+}
+
 /// The user-space WLAN switch: its process and its control socket.
 struct Relay {
     child: Child,

@@ -9,8 +9,14 @@
 //!
 //! An interface that only goes down and up (a WLAN out of range, a cable pulled) keeps
 //! its index and its multicast memberships: nothing changes here.
+//!
+//! A participant held to some local addresses (`--dds-network`, RustDDS
+//! `with_only_networks`) uses only the interfaces that carry them: [`current_on`] lists
+//! only those, so another interface that comes or goes on the same computer (a Docker
+//! bridge, a VPN, a test's network namespace plumbing) costs it no rejoin.
 
 use std::collections::BTreeSet;
+use std::net::IpAddr;
 
 /// The interfaces as (name, index), from `/sys/class/net` (sysfs shows the network
 /// namespace it was mounted in: a container's own, or `ip netns exec`'s).
@@ -28,6 +34,36 @@ pub fn current() -> Interfaces {
             let index = std::fs::read_to_string(e.path().join("ifindex")).ok()?;
             Some((name, index.trim().parse().ok()?))
         })
+        .collect()
+}
+
+/// The interfaces, of [`current`], that carry one of the local addresses `networks`
+/// (every interface when `networks` is empty): the ones a participant created with
+/// `with_only_networks(networks)` uses. An address no interface carries adds nothing;
+/// when the addresses cannot be read (`getifaddrs` fails), every interface is listed, as
+/// for no restriction.
+pub fn current_on(networks: &[IpAddr]) -> Interfaces {
+    let all = current();
+    if networks.is_empty() {
+        return all;
+    }
+    let Ok(addresses) = nix::ifaddrs::getifaddrs() else {
+        return all;
+    };
+    let carriers: BTreeSet<String> = addresses
+        .filter(|a| {
+            a.address.as_ref().is_some_and(|s| {
+                let ip = s
+                    .as_sockaddr_in()
+                    .map(|v4| IpAddr::V4(v4.ip()))
+                    .or_else(|| s.as_sockaddr_in6().map(|v6| IpAddr::V6(v6.ip())));
+                ip.is_some_and(|ip| networks.contains(&ip))
+            })
+        })
+        .map(|a| a.interface_name)
+        .collect();
+    all.into_iter()
+        .filter(|(name, _)| carriers.contains(name))
         .collect()
 }
 
@@ -60,6 +96,19 @@ mod tests {
     #[test]
     fn the_loopback_interface_is_listed() {
         assert!(current().iter().any(|(n, _)| n == "lo"), "{:?}", current());
+    }
+
+    #[test]
+    fn held_to_loopback_only_the_loopback_interface_counts() {
+        let lo = current_on(&[IpAddr::from([127, 0, 0, 1])]);
+        assert_eq!(
+            lo.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>(),
+            ["lo"],
+            "{lo:?}"
+        );
+        // No interface carries a documentation address: nothing to watch.
+        assert!(current_on(&[IpAddr::from([192, 0, 2, 77])]).is_empty());
+        assert_eq!(current_on(&[]), current());
     }
 
     #[test]

@@ -15,7 +15,8 @@
 //! starts and aborts them when it stops.
 //!
 //! A participant does not outlive a network interface ([`crate::interfaces`]): when one
-//! is removed or created, a process that is no candidate (an agent, `skein up --dds`)
+//! it uses (one that carries a `--dds-network` address, or any without them) is removed
+//! or created, a process that is no candidate (an agent, `skein up --dds`)
 //! joins the domain again on a new participant and opens its roles there (their state
 //! starts again: an agent's vehicles hold until it hears a coordinator again). A
 //! candidate keeps its participant, for its election's sake, and says so in the log.
@@ -95,6 +96,9 @@ pub struct DdsRoles {
     local: Mutex<Arc<LocalRoles>>,
     /// What a new participant needs (not for a candidate, whose roles stay on the first).
     rejoin: Option<DdsConfig>,
+    /// The local addresses the participant is held to (empty: every interface): only
+    /// their interfaces are watched ([`interfaces::current_on`]).
+    networks: Vec<std::net::IpAddr>,
     /// The peers' clocks as the clock exchange estimates them (outlives participants).
     peer_clocks: Arc<PeerClocks>,
     /// Under DDS Security, a candidate's record of who its remote vehicles' agents are.
@@ -231,6 +235,7 @@ impl DdsRoles {
             publish_period: Duration::from_secs_f64(1.0 / config.publish_rate_hz.clamp(0.1, 100.0)),
             counters,
             swarm: Arc::new(SwarmAdapter::new(coordinator, metrics, events)),
+            networks: config.networks.clone(),
             rejoin: candidate.is_none().then_some(config),
             candidate,
             local: Mutex::new(Arc::new(local)),
@@ -302,7 +307,7 @@ impl DdsRoles {
     /// Runs the local roles on the current participant, and on a new one after a change
     /// of the network interfaces (see the module docs).
     async fn run_local(self: Arc<Self>) {
-        let mut seen = interfaces::current();
+        let mut seen = interfaces::current_on(&self.networks);
         loop {
             let local = self
                 .local
@@ -313,14 +318,14 @@ impl DdsRoles {
             local.spawn(&mut tasks, &self.swarm);
             let now = loop {
                 tokio::time::sleep(INTERFACE_POLL).await;
-                let first = interfaces::current();
+                let first = interfaces::current_on(&self.networks);
                 if first == seen {
                     continue;
                 }
                 // Acted on once it holds (`interfaces::settled`): rejoining the domain
                 // costs the agent its coordinator's samples for a moment.
                 tokio::time::sleep(INTERFACE_CONFIRM).await;
-                let now = interfaces::current();
+                let now = interfaces::current_on(&self.networks);
                 if let Some(what) = interfaces::settled(&seen, &first, &now) {
                     if self.rejoin.is_some() {
                         tracing::warn!(
