@@ -13,7 +13,11 @@
 //! promptly even when every core is busy, and it asks for a higher priority than the
 //! process's other threads ([`crate::priority`]). Sending never blocks: the socket is
 //! non-blocking, and the thread never waits for a lock another thread may hold (a starved
-//! process can be descheduled anywhere).
+//! process can be descheduled anywhere). That includes the allocator's: glibc's malloc
+//! locks an arena that several threads share, and a starved thread descheduled inside
+//! `malloc` keeps that lock for as long as it waits for its CPU, so once its streams run
+//! the thread allocates nothing (its buffers keep their capacity from tick to tick; a
+//! unit test counts its allocations).
 //!
 //! All streams of one rate share one clock on that thread: every quarter period it sends
 //! the setpoints of a quarter of the streams. A thousand vehicles at 50 Hz cost 200 timer
@@ -260,6 +264,13 @@ impl SetpointStream {
     /// more than 2 Hz; 20–50 Hz is usual). Nothing is sent until [`SetpointStream::set`]
     /// gives a setpoint.
     pub fn start(endpoint: Arc<Endpoint>, sysid: u8, compid: u8, rate_hz: f64) -> Self {
+        let stream = SetpointStream::idle(endpoint, sysid, compid, rate_hz);
+        clock_of(rate_hz).join(&stream.stream);
+        stream
+    }
+
+    /// The stream, on no clock yet.
+    fn idle(endpoint: Arc<Endpoint>, sysid: u8, compid: u8, rate_hz: f64) -> Self {
         let now = Instant::now();
         let stream = Arc::new(Stream {
             peer: endpoint.peer(sysid),
@@ -275,7 +286,6 @@ impl SetpointStream {
             since_us: AtomicU64::new(0),
             counters: Counters::default(),
         });
-        clock_of(rate_hz).join(&stream);
         SetpointStream { stream, rate_hz }
     }
 
@@ -352,64 +362,80 @@ impl Clock {
         // burst of the whole swarm that its receivers must take in at once.
         let mut ticker = tokio::time::interval(period / SLICES as u32);
         ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-        let mut slices: [Vec<Entry>; SLICES] = Default::default();
-        // The frames of one tick, grouped by endpoint before they are sent.
-        let mut batch: Vec<(Arc<Stream>, Outgoing)> = Vec::new();
-        let mut tick: usize = 0;
+        let mut state = Ticks::default();
         loop {
             ticker.tick().await;
-            tick = tick.wrapping_add(1);
-            // New streams join without making the senders wait for a round of sends.
-            if let Ok(mut joining) = self.joining.try_lock() {
-                for weak in joining.drain(..) {
-                    let Some(stream) = weak.upgrade() else {
-                        continue; // dropped before it was ever sent
-                    };
-                    let smallest = slices
-                        .iter_mut()
-                        .min_by_key(|s| s.len())
-                        .expect("SLICES > 0");
-                    // Next to the streams of its endpoint, so that a tick's frames come
-                    // out grouped by endpoint without sorting them.
-                    let at = smallest
-                        .iter()
-                        .rposition(|e| {
-                            e.stream
-                                .upgrade()
-                                .is_some_and(|s| Arc::ptr_eq(&s.endpoint, &stream.endpoint))
-                        })
-                        .map_or(smallest.len(), |i| i + 1);
-                    smallest.insert(
-                        at,
-                        Entry {
-                            stream: weak,
-                            last: None,
-                        },
-                    );
-                }
-            }
-            let now = Instant::now();
-            slices[tick % SLICES].retain_mut(|e| {
-                let Some(stream) = e.stream.upgrade() else {
-                    return false; // its owner dropped it
-                };
-                let current = match stream.current.try_lock() {
-                    Ok(c) => Some(*c),
-                    Err(std::sync::TryLockError::Poisoned(p)) => Some(*p.into_inner()),
-                    // The owner is writing it right now: send what was sent last.
-                    Err(std::sync::TryLockError::WouldBlock) => e.last,
-                };
-                if let Some(c) = current {
-                    e.last = Some(c);
-                    if let Some(out) = stream.prepare(c, now) {
-                        batch.push((stream, out));
-                    }
-                }
-                true
-            });
-            send_batch(&mut batch, now);
+            self.tick(&mut state);
         }
     }
+
+    /// One sub-period: takes in the streams that joined, then sends the next slice's
+    /// setpoints. Allocates nothing once every buffer in `state` has grown to its size (a
+    /// thread descheduled inside the allocator could hold its lock: see the module
+    /// docs), but when a stream joins or its last owner is gone.
+    fn tick(&self, state: &mut Ticks) {
+        state.tick = state.tick.wrapping_add(1);
+        let slices = &mut state.slices;
+        // New streams join without making the senders wait for a round of sends.
+        if let Ok(mut joining) = self.joining.try_lock() {
+            for weak in joining.drain(..) {
+                let Some(stream) = weak.upgrade() else {
+                    continue; // dropped before it was ever sent
+                };
+                let smallest = slices
+                    .iter_mut()
+                    .min_by_key(|s| s.len())
+                    .expect("SLICES > 0");
+                // Next to the streams of its endpoint, so that a tick's frames come out
+                // grouped by endpoint without sorting them.
+                let at = smallest
+                    .iter()
+                    .rposition(|e| {
+                        e.stream
+                            .upgrade()
+                            .is_some_and(|s| Arc::ptr_eq(&s.endpoint, &stream.endpoint))
+                    })
+                    .map_or(smallest.len(), |i| i + 1);
+                smallest.insert(
+                    at,
+                    Entry {
+                        stream: weak,
+                        last: None,
+                    },
+                );
+            }
+        }
+        let now = Instant::now();
+        let batch = &mut state.batch;
+        slices[state.tick % SLICES].retain_mut(|e| {
+            let Some(stream) = e.stream.upgrade() else {
+                return false; // its owner dropped it
+            };
+            let current = match stream.current.try_lock() {
+                Ok(c) => Some(*c),
+                Err(std::sync::TryLockError::Poisoned(p)) => Some(*p.into_inner()),
+                // The owner is writing it right now: send what was sent last.
+                Err(std::sync::TryLockError::WouldBlock) => e.last,
+            };
+            if let Some(c) = current {
+                e.last = Some(c);
+                if let Some(out) = stream.prepare(c, now) {
+                    batch.push((stream, out));
+                }
+            }
+            true
+        });
+        send_batch(batch, now);
+    }
+}
+
+/// What a [`Clock`] keeps from one tick to the next: its streams in slices, the frames of
+/// a tick (grouped by endpoint before they are sent; the capacity is kept), the tick count.
+#[derive(Default)]
+struct Ticks {
+    slices: [Vec<Entry>; SLICES],
+    batch: Vec<(Arc<Stream>, Outgoing)>,
+    tick: usize,
 }
 
 /// Hands the frames of one tick to their endpoints, each run of frames of one endpoint
@@ -474,6 +500,59 @@ fn stream_runtime() -> &'static Runtime {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::{ConnectionAddress, Identity};
+
+    /// Datagrams waiting on `sock` (non-blocking), taken.
+    fn drain(sock: &std::net::UdpSocket) -> usize {
+        let mut buf = [0u8; 512];
+        std::iter::from_fn(|| sock.recv(&mut buf).ok()).count()
+    }
+
+    /// The clock's tick allocates nothing once its streams run (see the module docs),
+    /// whether a stream has an endpoint of its own (one `sendto`) or shares one with
+    /// others (one `sendmmsg`). The ticks run on this thread, under a counting allocator.
+    #[tokio::test]
+    async fn a_running_tick_allocates_nothing() {
+        let px4 = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        px4.set_nonblocking(true).unwrap();
+        let to = ConnectionAddress::UdpOut(px4.local_addr().unwrap());
+        let clock = Clock {
+            joining: Mutex::new(Vec::new()),
+        };
+        let mut streams = Vec::new();
+        for sysid in 1..=4 {
+            let own = Endpoint::open(to.clone(), Identity::default())
+                .await
+                .unwrap();
+            streams.push(SetpointStream::idle(own, sysid, 1, 50.0));
+        }
+        let shared = Endpoint::open(to, Identity::default()).await.unwrap();
+        for sysid in 11..=22 {
+            streams.push(SetpointStream::idle(shared.clone(), sysid, 1, 50.0));
+        }
+        let setpoint = LocalSetpoint::position(Ned::new(0.0, 0.0, -10.0), 0.0);
+        for s in &streams {
+            clock.join(&s.stream);
+            s.set(Some(setpoint));
+        }
+        // Two rounds grow every buffer to its size.
+        let mut state = Ticks::default();
+        for _ in 0..2 * SLICES {
+            clock.tick(&mut state);
+        }
+        assert_eq!(drain(&px4), 2 * streams.len());
+        let rounds = 10;
+        let info = allocation_counter::measure(|| {
+            for _ in 0..rounds * SLICES {
+                clock.tick(&mut state);
+            }
+        });
+        assert_eq!(drain(&px4), rounds * streams.len());
+        assert_eq!(info.count_total, 0, "{info:?}");
+        for s in &streams {
+            assert_eq!(s.counts().send_errors, 0);
+        }
+    }
 
     #[test]
     fn hold_drops_feed_forward() {

@@ -52,8 +52,26 @@ pub(crate) struct Outgoing {
     frame: EncodedFrame,
 }
 
-/// Most datagrams in one `sendmmsg` call (Linux's `UIO_MAXIOV`).
-const MAX_BATCH: usize = 1024;
+/// Most datagrams in one `sendmmsg` call: the call's arrays live on the stack (some
+/// 9 KiB), and a shared port's slice of a tick is some 60 vehicles (250 to a port).
+const MAX_BATCH: usize = 64;
+
+thread_local! {
+    /// The message headers of `sendmmsg`, made once per thread that sends batches (the
+    /// setpoint thread) and reused by every call.
+    static SEND_HEADERS: std::cell::RefCell<MultiHeaders<SockaddrStorage>> =
+        std::cell::RefCell::new(MultiHeaders::preallocate(MAX_BATCH, None));
+}
+
+/// Why [`Endpoint::write_counted`] could not send (described only by [`Endpoint::write`]).
+enum WriteError {
+    /// The socket refused the datagram.
+    Io(std::io::Error),
+    /// The byte stream's writer is gone.
+    Closed,
+    /// A UDP endpoint with no destination for the frame.
+    NoDestination,
+}
 
 impl Endpoint {
     /// Send-path counters.
@@ -149,6 +167,16 @@ impl Endpoint {
     }
 
     fn write(&self, dest: Option<SocketAddr>, bytes: &[u8]) -> Result<(), SendError> {
+        self.write_counted(dest, bytes).map_err(|e| match e {
+            WriteError::Io(e) => SendError::Io(e.to_string()),
+            WriteError::Closed => SendError::Io("stream closed".into()),
+            WriteError::NoDestination => SendError::Io("no destination".into()),
+        })
+    }
+
+    /// [`Endpoint::write`] without describing the error (nothing allocated on a UDP
+    /// endpoint, even when the socket refuses: the setpoint thread's path).
+    fn write_counted(&self, dest: Option<SocketAddr>, bytes: &[u8]) -> Result<(), WriteError> {
         let result = match (&self.transport, dest) {
             // Straight to the kernel: the socket is non-blocking, so a full buffer is an
             // error at once, as it would be through the runtime; this way a send made
@@ -157,11 +185,11 @@ impl Endpoint {
             (Transport::Udp { socket, .. }, Some(dest)) => socket2::SockRef::from(&**socket)
                 .send_to(bytes, &dest.into())
                 .map(|_| ())
-                .map_err(|e| SendError::Io(e.to_string())),
-            (Transport::Stream { tx }, _) => tx
-                .send(bytes.to_vec())
-                .map_err(|_| SendError::Io("stream closed".into())),
-            (Transport::Udp { .. }, None) => Err(SendError::Io("no destination".into())),
+                .map_err(WriteError::Io),
+            (Transport::Stream { tx }, _) => {
+                tx.send(bytes.to_vec()).map_err(|_| WriteError::Closed)
+            }
+            (Transport::Udp { .. }, None) => Err(WriteError::NoDestination),
         };
         match &result {
             Ok(()) => self.frames_sent.fetch_add(1, Ordering::Relaxed),
@@ -181,41 +209,49 @@ impl Endpoint {
         mut done: impl FnMut(&T, bool),
     ) {
         let socket = match &self.transport {
-            // One frame gains nothing from a batch: one `sendto`, nothing allocated.
+            // One frame gains nothing from a batch: one `sendto`.
             Transport::Udp { socket, .. } if items.len() > 1 => socket,
             _ => {
                 for item in items {
                     let out = frame(item);
-                    done(item, self.write(out.dest, out.frame.as_bytes()).is_ok());
+                    done(
+                        item,
+                        self.write_counted(out.dest, out.frame.as_bytes()).is_ok(),
+                    );
                 }
                 return;
             }
         };
-        let addrs: Vec<Option<SockaddrStorage>> = items
-            .iter()
-            .map(|i| frame(i).dest.map(SockaddrStorage::from))
-            .collect();
+        // The call's arrays on the stack and its headers kept by the thread: nothing
+        // allocated (see `crate::setpoint`).
+        let mut addrs: [Option<SockaddrStorage>; MAX_BATCH] = [None; MAX_BATCH];
         let mut at = 0;
         while at < items.len() {
             let end = items.len().min(at + MAX_BATCH);
-            let slices: Vec<[IoSlice<'_>; 1]> = items[at..end]
-                .iter()
-                .map(|i| [IoSlice::new(frame(i).frame.as_bytes())])
-                .collect();
-            let mut headers = MultiHeaders::<SockaddrStorage>::preallocate(end - at, None);
+            let chunk = &items[at..end];
+            for (a, i) in addrs.iter_mut().zip(chunk) {
+                *a = frame(i).dest.map(SockaddrStorage::from);
+            }
+            let iov: [[IoSlice<'_>; 1]; MAX_BATCH] = std::array::from_fn(|k| {
+                [IoSlice::new(
+                    chunk.get(k).map_or(&[][..], |i| frame(i).frame.as_bytes()),
+                )]
+            });
             // How many left before the first one the socket refused (an error on the
             // first frame is the call's error).
-            let taken = sendmmsg(
-                socket.as_raw_fd(),
-                &mut headers,
-                &slices,
-                &addrs[at..end],
-                [],
-                MsgFlags::MSG_DONTWAIT,
-            )
-            .map_or(0, |sent| sent.count());
+            let taken = SEND_HEADERS.with_borrow_mut(|headers| {
+                sendmmsg(
+                    socket.as_raw_fd(),
+                    headers,
+                    &iov[..chunk.len()],
+                    &addrs[..chunk.len()],
+                    [],
+                    MsgFlags::MSG_DONTWAIT,
+                )
+                .map_or(0, |sent| sent.count())
+            });
             self.frames_sent.fetch_add(taken as u64, Ordering::Relaxed);
-            for item in &items[at..at + taken] {
+            for item in &chunk[..taken] {
                 done(item, true);
             }
             at += taken;
