@@ -15,7 +15,7 @@ use serde_json::{Value, json};
 use std::time::{Duration, Instant};
 use support::cpu::{Starvation, cpu_seconds, pin, renice};
 use support::{
-    Process, Skein, assert_no_failsafe_and_no_gap, eventually, free_udp_range, one_at_a_time,
+    Process, Skein, assert_no_failsafe_and_no_gap_in, eventually, free_udp_range, one_at_a_time,
     sim_stats, steady_for,
 };
 
@@ -223,7 +223,13 @@ fn starved_of_cpu_skein_sheds_work_kills_nothing_and_recovers_every_slot() {
         cpu_seconds(sim.pid())
     );
     // The simulator, the independent judge: no failsafe, no gap of 100 ms.
-    let worst_gap = assert_no_failsafe_and_no_gap(&stats);
+    let worst_gap = assert_no_failsafe_and_no_gap_in(
+        &stats,
+        &format!(
+            "skein's largest pause as sent {skein_gap} ms; starved by {how}, needing \
+             {need:.3} of a CPU, worst lag {worst_lag_ms} ms; load {load}"
+        ),
+    );
     eprintln!(
         "needing {need:.3} of a CPU, starved {STARVED:?} by {how}: worst lag {worst_lag_ms} \
          ms, worst setpoint gap {worst_gap} ms, load {load}"

@@ -85,6 +85,10 @@ export SKEIN_PYTHON="$PWD/.venv/bin/python"
 # The plugin tests build the plugin libraries with this run's package selection, so that
 # shared dependencies are not compiled a second time with other features.
 export SKEIN_PLUGIN_TEST_SELECTION=workspace
+# A failing test's panic is its message and its file and line, without the 40 lines of a
+# backtrace that pushed the message out of CI's excerpt of the log (once, all of it);
+# SKEIN_TEST_BACKTRACE=1 gives them back.
+export RUST_BACKTRACE="${SKEIN_TEST_BACKTRACE:-0}"
 if [ $# -gt 0 ]; then
   # A partial run (the caller's filters): as cargo runs it, once everything is in place.
   prepare

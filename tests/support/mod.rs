@@ -41,8 +41,8 @@ pub use process::Process;
 pub use python::{python, run_peer, run_python, run_python_in};
 #[allow(unused_imports)]
 pub use sim_stats::{
-    assert_no_failsafe_and_no_gap, sim_stats, truth_min_separation, truth_min_separation_across,
-    try_sim_stats,
+    assert_no_failsafe_and_no_gap, assert_no_failsafe_and_no_gap_in, sim_stats,
+    truth_min_separation, truth_min_separation_across, try_sim_stats,
 };
 #[allow(unused_imports)]
 pub use skein::{Api, Skein, summary};

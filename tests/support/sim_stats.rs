@@ -33,16 +33,25 @@ pub fn try_sim_stats(addr: &str, command: &str) -> Option<Value> {
 /// gap in OFFBOARD reached 100 ms since the simulator's last reset (stats socket at
 /// `stats_addr`); returns the worst gap, ms.
 pub fn assert_no_failsafe_and_no_gap(stats_addr: &str) -> f64 {
+    assert_no_failsafe_and_no_gap_in(stats_addr, "")
+}
+
+/// [`assert_no_failsafe_and_no_gap`], with `context` (what the test knows of skein's side)
+/// in the failure message.
+pub fn assert_no_failsafe_and_no_gap_in(stats_addr: &str, context: &str) -> f64 {
     let stats = sim_stats(stats_addr, "stats");
     let mut worst = 0.0f64;
     for v in stats["vehicles"].as_array().unwrap() {
         let sysid = &v["sysid"];
         assert_eq!(
             v["offboard_loss_failsafes"], 0,
-            "sysid {sysid} failed safe: {v}"
+            "sysid {sysid} failed safe ({context}): {v}"
         );
         let gap = v["setpoint_max_gap_offboard_ms"].as_f64().unwrap();
-        assert!(gap < 100.0, "sysid {sysid}: setpoint gap {gap} ms");
+        assert!(
+            gap < 100.0,
+            "sysid {sysid}: setpoint gap {gap} ms ({context}): {v}"
+        );
         worst = worst.max(gap);
     }
     worst

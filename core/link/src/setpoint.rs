@@ -510,12 +510,38 @@ mod tests {
 
     /// The clock's tick allocates nothing once its streams run (see the module docs),
     /// whether a stream has an endpoint of its own (one `sendto`) or shares one with
-    /// others (one `sendmmsg`). The ticks run on this thread, under a counting allocator.
+    /// others (one `sendmmsg`), to a fixed remote (`udpout`) or to where each vehicle was
+    /// heard from (`udpin`). The ticks run on this thread, under a counting allocator.
     #[tokio::test]
     async fn a_running_tick_allocates_nothing() {
         let px4 = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-        px4.set_nonblocking(true).unwrap();
         let to = ConnectionAddress::UdpOut(px4.local_addr().unwrap());
+        // Vehicles 31–34 heard by a `udpin` endpoint, from the same socket.
+        let heard = Endpoint::open(
+            ConnectionAddress::UdpIn("127.0.0.1:0".parse().unwrap()),
+            Identity::default(),
+        )
+        .await
+        .unwrap();
+        let heartbeat = MavMessage::HEARTBEAT(skein_mavlink::dialect::HEARTBEAT_DATA {
+            custom_mode: 0,
+            mavtype: skein_mavlink::dialect::MavType::MAV_TYPE_QUADROTOR,
+            autopilot: skein_mavlink::dialect::MavAutopilot::MAV_AUTOPILOT_PX4,
+            base_mode: skein_mavlink::dialect::MavModeFlag::empty(),
+            system_status: skein_mavlink::dialect::MavState::MAV_STATE_STANDBY,
+            mavlink_version: 3,
+        });
+        let heard_at = heard.local_addr().unwrap();
+        for sysid in 31..=34 {
+            let hb = skein_mavlink::encode_frame(sysid, 1, 0, &heartbeat, None);
+            px4.send_to(hb.as_bytes(), heard_at).unwrap();
+        }
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while (31..=34).any(|s| heard.peer_addr(s).is_none()) {
+            assert!(Instant::now() < deadline, "the heartbeats were not heard");
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+        px4.set_nonblocking(true).unwrap();
         let clock = Clock {
             joining: Mutex::new(Vec::new()),
         };
@@ -529,6 +555,9 @@ mod tests {
         let shared = Endpoint::open(to, Identity::default()).await.unwrap();
         for sysid in 11..=22 {
             streams.push(SetpointStream::idle(shared.clone(), sysid, 1, 50.0));
+        }
+        for sysid in 31..=34 {
+            streams.push(SetpointStream::idle(heard.clone(), sysid, 1, 50.0));
         }
         let setpoint = LocalSetpoint::position(Ned::new(0.0, 0.0, -10.0), 0.0);
         for s in &streams {

@@ -16,6 +16,7 @@
 //! signed and replayed frames are counted ([`Endpoint::signing_counts`]) and dropped.
 
 use crate::address::ConnectionAddress;
+use arc_swap::ArcSwapOption;
 use signing::SigningTable;
 use skein_mavlink::dialect::{MavAutopilot, MavType};
 use skein_mavlink::signing::PX4_UNSIGNED_OK;
@@ -89,8 +90,10 @@ pub type SentTap = Arc<dyn Fn(u8, &MavMessage) + Send + Sync>;
 /// a CPU quota), and a send must never wait for it.
 #[derive(Default)]
 pub(crate) struct Peer {
-    /// Where its datagrams come from (`udpin`), written only when it changes.
-    addr: Mutex<Option<SocketAddr>>,
+    /// Where its datagrams come from (`udpin`), written only when it changes; read
+    /// without a lock (the setpoint thread reads it for every setpoint, and a reader
+    /// never waits for a descheduled writer).
+    addr: ArcSwapOption<SocketAddr>,
     /// A fingerprint of `addr`, so the receive path compares without the lock.
     addr_key: AtomicU64,
     handler: Mutex<Option<FrameHandler>>,
@@ -102,7 +105,7 @@ pub(crate) struct Peer {
 
 impl Peer {
     fn addr(&self) -> Option<SocketAddr> {
-        *self.addr.lock().unwrap_or_else(PoisonError::into_inner)
+        self.addr.load().as_deref().copied()
     }
 
     fn handler(&self) -> Option<FrameHandler> {
@@ -116,14 +119,14 @@ impl Peer {
         *self.handler.lock().unwrap_or_else(PoisonError::into_inner) = handler;
     }
 
-    /// Records `from` as its address (locks only when it changed).
+    /// Records `from` as its address (stored only when it changed).
     fn heard_from(&self, from: SocketAddr) {
         use std::hash::{Hash, Hasher};
         let mut h = std::collections::hash_map::DefaultHasher::new();
         from.hash(&mut h);
         let key = h.finish() | 1; // never 0, the key of "no address"
         if self.addr_key.load(Ordering::Acquire) != key {
-            *self.addr.lock().unwrap_or_else(PoisonError::into_inner) = Some(from);
+            self.addr.store(Some(Arc::new(from)));
             self.addr_key.store(key, Ordering::Release);
         }
     }
@@ -156,7 +159,7 @@ pub struct Endpoint {
     discovery: RwLock<Option<DiscoveryHandler>>,
     signing: RwLock<SigningTable>,
     tap: RwLock<Option<FrameTap>>,
-    sent_tap: RwLock<Option<SentTap>>,
+    sent_tap: ArcSwapOption<SentTap>,
     decode_stats: Arc<DecodeStats>,
     frames_sent: AtomicU64,
     send_errors: AtomicU64,
@@ -263,7 +266,7 @@ impl Endpoint {
             discovery: RwLock::new(None),
             signing: RwLock::new(SigningTable::default()),
             tap: RwLock::new(None),
-            sent_tap: RwLock::new(None),
+            sent_tap: ArcSwapOption::empty(),
             decode_stats: Arc::new(DecodeStats::default()),
             frames_sent: AtomicU64::new(0),
             send_errors: AtomicU64::new(0),
@@ -307,7 +310,7 @@ impl Endpoint {
     /// Installs (or removes) the tap that sees every message sent with
     /// [`Endpoint::send`] (and [`Endpoint::broadcast`]), whether or not it could be sent.
     pub fn set_sent_tap(&self, tap: Option<SentTap>) {
-        *self.sent_tap.write().expect("sent tap lock") = tap;
+        self.sent_tap.store(tap.map(Arc::new));
     }
 
     /// The system ids heard on this endpoint.

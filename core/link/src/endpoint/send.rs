@@ -131,7 +131,7 @@ impl Endpoint {
         sysid: u8,
         msg: &MavMessage,
     ) -> Result<Outgoing, SendError> {
-        if let Some(tap) = self.sent_tap.read().expect("sent tap lock").as_ref() {
+        if let Some(tap) = self.sent_tap.load().as_deref() {
             tap(sysid, msg);
         }
         let dest = self.dest(peer, sysid)?;
