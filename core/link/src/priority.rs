@@ -85,6 +85,15 @@ pub fn set_current_thread_realtime() -> Result<i32, String> {
     Ok(params.sched_priority)
 }
 
+/// Raises the calling thread (a byte-stream endpoint's writer, which carries the
+/// setpoints of its vehicles: `crate::endpoint::stream`) as the setpoint thread is (when
+/// it may not, neither may the setpoint thread, and the health endpoint says so).
+pub(crate) fn raise_writer_thread() {
+    if set_current_thread_realtime().is_err() && set_current_thread_nice(SETPOINT_NICE).is_err() {
+        tracing::debug!("a byte-stream writer thread runs at normal priority");
+    }
+}
+
 /// Raises the calling thread (the setpoint thread, at its start) as the module docs say
 /// and records the outcome for [`setpoint_priority`].
 pub(crate) fn raise_setpoint_thread() {

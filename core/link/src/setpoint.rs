@@ -7,7 +7,9 @@
 //! never opens a gap. Actors only replace the setpoint.
 //!
 //! Every stream is sent from one thread of its own (`skein-setpoints`, a tokio runtime
-//! with one worker), not from the process's worker threads: a handler that keeps a worker
+//! with one worker), not from the process's worker threads (on a byte stream, `tcpout:`
+//! or `serial:`, it hands the frame to the endpoint's writer thread, which is not one of
+//! them either: `crate::endpoint::stream`): a handler that keeps a worker
 //! busy (a plugin call, a large JSON body, a debug build's image processing) or a starved
 //! worker queue cannot delay a setpoint. The thread mostly sleeps, so the kernel wakes it
 //! promptly even when every core is busy, and it asks for a higher priority than the
@@ -511,7 +513,8 @@ mod tests {
     /// The clock's tick allocates nothing once its streams run (see the module docs),
     /// whether a stream has an endpoint of its own (one `sendto`) or shares one with
     /// others (one `sendmmsg`), to a fixed remote (`udpout`) or to where each vehicle was
-    /// heard from (`udpin`). The ticks run on this thread, under a counting allocator.
+    /// heard from (`udpin`), or is on a serial port (the frame queued for the endpoint's
+    /// writer thread). The ticks run on this thread, under a counting allocator.
     #[tokio::test]
     async fn a_running_tick_allocates_nothing() {
         let px4 = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -564,6 +567,15 @@ mod tests {
             clock.join(&s.stream);
             s.set(Some(setpoint));
         }
+        // And one on a serial port (a pseudo-terminal): its frames are queued for the
+        // endpoint's writer thread.
+        let pty = nix::pty::openpty(None, None).unwrap();
+        let tty = nix::unistd::ttyname(&pty.slave).unwrap();
+        let serial = format!("serial:{}:57600", tty.display()).parse().unwrap();
+        let serial = Endpoint::open(serial, Identity::default()).await.unwrap();
+        let on_serial = SetpointStream::idle(serial, 41, 1, 50.0);
+        clock.join(&on_serial.stream);
+        on_serial.set(Some(setpoint));
         // Two rounds grow every buffer to its size.
         let mut state = Ticks::default();
         for _ in 0..2 * SLICES {
@@ -578,9 +590,11 @@ mod tests {
         });
         assert_eq!(drain(&px4), rounds * streams.len());
         assert_eq!(info.count_total, 0, "{info:?}");
-        for s in &streams {
+        for s in streams.iter().chain([&on_serial]) {
             assert_eq!(s.counts().send_errors, 0);
         }
+        assert_eq!(on_serial.counts().sent, 12);
+        drop(pty);
     }
 
     #[test]

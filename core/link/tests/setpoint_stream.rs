@@ -1,8 +1,8 @@
 //! The offboard setpoint stream keeps its rate while every worker thread of the process's
 //! runtime is blocked: PX4 fails safe after `COM_OF_LOSS_T` (1 s) without a setpoint, and
 //! skein promises no gap over 100 ms, whatever a handler (a plugin call, a large body)
-//! does to the workers. Real UDP: the stream sends to a socket that plays PX4 and stamps
-//! every datagram as it arrives.
+//! does to the workers. Real UDP (the stream sends to a socket that plays PX4 and stamps
+//! every datagram as it arrives) and a real serial port (a pseudo-terminal pair).
 
 mod common;
 
@@ -55,6 +55,39 @@ async fn the_stream_keeps_its_rate_while_every_worker_is_blocked() {
     let endpoint = Endpoint::open(ConnectionAddress::UdpOut(addr), Identity::default())
         .await
         .unwrap();
+    keeps_its_rate_while_every_worker_is_blocked(endpoint, &arrivals).await;
+}
+
+/// The same to a vehicle on a serial port (a pseudo-terminal pair; a Pixhawk's TELEM2 on
+/// a companion computer's UART): the frames leave from the byte-stream endpoint's writer
+/// thread, not from a task on the blocked workers.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_serial_stream_keeps_its_rate_while_every_worker_is_blocked() {
+    let pty = nix::pty::openpty(None, None).unwrap();
+    let path = nix::unistd::ttyname(&pty.slave).unwrap();
+    let conn: ConnectionAddress = format!("serial:{}:57600", path.display()).parse().unwrap();
+    let endpoint = Endpoint::open(conn, Identity::default()).await.unwrap();
+    // The flight controller's side: a read returns what the writer wrote since the last.
+    let arrivals = Arc::new(Mutex::new(Vec::new()));
+    let a = arrivals.clone();
+    let master = pty.master;
+    std::thread::spawn(move || {
+        let mut buf = [0u8; 4096];
+        // Ends when the slave side is closed (EIO) once the test is over.
+        while nix::unistd::read(&master, &mut buf).is_ok_and(|n| n > 0) {
+            a.lock().unwrap().push(Instant::now());
+        }
+    });
+    keeps_its_rate_while_every_worker_is_blocked(endpoint, &arrivals).await;
+    drop(pty.slave);
+}
+
+/// Streams a setpoint through `endpoint` at 50 Hz, blocks both workers of the runtime for
+/// [`BLOCKED`], and checks the largest gap between `arrivals` in that window.
+async fn keeps_its_rate_while_every_worker_is_blocked(
+    endpoint: Arc<Endpoint>,
+    arrivals: &Mutex<Vec<Instant>>,
+) {
     let stream = SetpointStream::start(endpoint, 1, 1, 50.0);
     stream.set(Some(LocalSetpoint::position(
         Ned::new(0.0, 0.0, -10.0),
@@ -82,7 +115,7 @@ async fn the_stream_keeps_its_rate_while_every_worker_is_blocked() {
     }
     let t1 = Instant::now();
     assert!(t1 - t0 >= BLOCKED, "the workers were not blocked");
-    // The next datagram after the blocked window closes the last gap in it.
+    // The next arrival after the blocked window closes the last gap in it.
     let deadline = Instant::now() + Duration::from_secs(10);
     while arrivals.lock().unwrap().last().is_none_or(|t| *t <= t1) {
         assert!(Instant::now() < deadline, "the stream stopped");

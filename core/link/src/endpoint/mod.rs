@@ -27,13 +27,12 @@ use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError, RwLock, Weak};
 use std::time::{Duration, Instant};
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpStream, UdpSocket};
-use tokio::sync::mpsc;
+use tokio::net::UdpSocket;
 use tokio::task::JoinHandle;
 
 mod send;
 mod signing;
+mod stream;
 pub(crate) use send::Outgoing;
 pub use send::{SendCounts, SendError};
 pub use signing::SigningSpec;
@@ -138,9 +137,8 @@ enum Transport {
         /// Remote address for `udpout`; `None` for `udpin` (reply to each sender).
         remote: Option<SocketAddr>,
     },
-    Stream {
-        tx: mpsc::UnboundedSender<Vec<u8>>,
-    },
+    /// `tcpout:`, `serial:`: frames go to the writer thread ([`stream`]).
+    Stream { tx: stream::StreamTx },
 }
 
 /// A MAVLink endpoint (see module docs). Shared as `Arc<Endpoint>`; the receive task holds
@@ -225,29 +223,16 @@ impl Endpoint {
                 )
             }
             ConnectionAddress::TcpOut(remote) => {
-                let (tx, rx) = mpsc::unbounded_channel();
-                (
-                    Transport::Stream { tx },
-                    None,
-                    Reader::Stream(Connector::Tcp(*remote), rx),
-                )
+                let (tx, session) = stream::start(stream::Connector::Tcp(*remote))?;
+                (Transport::Stream { tx }, None, Reader::Stream(session))
             }
             ConnectionAddress::Serial { device, baud } => {
-                // Open once now so a wrong path or baud is an error at start, not a
-                // silent retry loop.
-                drop(open_serial(device, *baud)?);
-                let (tx, rx) = mpsc::unbounded_channel();
-                (
-                    Transport::Stream { tx },
-                    None,
-                    Reader::Stream(
-                        Connector::Serial {
-                            device: device.clone(),
-                            baud: *baud,
-                        },
-                        rx,
-                    ),
-                )
+                stream::check_serial(device, *baud)?;
+                let (tx, session) = stream::start(stream::Connector::Serial {
+                    device: device.clone(),
+                    baud: *baud,
+                })?;
+                (Transport::Stream { tx }, None, Reader::Stream(session))
             }
         };
         // Show the port actually bound (`udpin:127.0.0.1:0` becomes `…:41234`).
@@ -276,7 +261,7 @@ impl Endpoint {
         let weak = Arc::downgrade(&endpoint);
         let task = match reader {
             Reader::Udp(socket) => tokio::spawn(udp_reader(weak, socket)),
-            Reader::Stream(connector, rx) => tokio::spawn(stream_session(weak, connector, rx)),
+            Reader::Stream(session) => session.spawn(weak),
         };
         endpoint.tasks.lock().expect("tasks lock").push(task);
         Ok(endpoint)
@@ -446,37 +431,7 @@ impl Endpoint {
 
 enum Reader {
     Udp(Arc<UdpSocket>),
-    Stream(Connector, mpsc::UnboundedReceiver<Vec<u8>>),
-}
-
-/// How a byte-stream transport (re)opens.
-#[derive(Debug, Clone)]
-enum Connector {
-    Tcp(SocketAddr),
-    Serial { device: String, baud: u32 },
-}
-
-trait ByteStream: tokio::io::AsyncRead + tokio::io::AsyncWrite + Send + Unpin {}
-impl<T: tokio::io::AsyncRead + tokio::io::AsyncWrite + Send + Unpin> ByteStream for T {}
-
-fn open_serial(device: &str, baud: u32) -> io::Result<tokio_serial::SerialStream> {
-    use tokio_serial::SerialPortBuilderExt;
-    tokio_serial::new(device, baud)
-        .open_native_async()
-        .map_err(|e| io::Error::other(format!("serial:{device}:{baud}: {e}")))
-}
-
-impl Connector {
-    async fn open(&self) -> io::Result<Box<dyn ByteStream>> {
-        match self {
-            Connector::Tcp(remote) => {
-                let s = TcpStream::connect(remote).await?;
-                let _ = s.set_nodelay(true);
-                Ok(Box::new(s))
-            }
-            Connector::Serial { device, baud } => Ok(Box::new(open_serial(device, *baud)?)),
-        }
-    }
+    Stream(stream::Session),
 }
 
 async fn udp_reader(endpoint: Weak<Endpoint>, socket: Arc<UdpSocket>) {
@@ -497,59 +452,5 @@ async fn udp_reader(endpoint: Weak<Endpoint>, socket: Arc<UdpSocket>) {
         };
         let Some(ep) = endpoint.upgrade() else { return };
         ep.ingest(&mut decoder, &buf[..n], Some(from));
-    }
-}
-
-/// TCP or serial: (re)open with capped backoff, decode what arrives, write what is sent.
-/// Frames sent while the stream is down are dropped (setpoints are repeated anyway;
-/// commands are resent by the command protocol).
-async fn stream_session(
-    endpoint: Weak<Endpoint>,
-    connector: Connector,
-    mut outgoing: mpsc::UnboundedReceiver<Vec<u8>>,
-) {
-    let mut backoff = std::time::Duration::from_millis(100);
-    loop {
-        let stream = match connector.open().await {
-            Ok(s) => s,
-            Err(e) => {
-                tracing::debug!("{connector:?}: open failed: {e}; retrying in {backoff:?}");
-                let deadline = tokio::time::Instant::now() + backoff;
-                // Drain what is sent meanwhile so the queue cannot grow without bound.
-                loop {
-                    tokio::select! {
-                        _ = tokio::time::sleep_until(deadline) => break,
-                        out = outgoing.recv() => if out.is_none() { return },
-                    }
-                }
-                backoff = (backoff * 2).min(std::time::Duration::from_secs(5));
-                if endpoint.strong_count() == 0 {
-                    return;
-                }
-                continue;
-            }
-        };
-        backoff = std::time::Duration::from_millis(100);
-        let (mut rd, mut wr) = tokio::io::split(stream);
-        let Some(stats) = endpoint.upgrade().map(|e| e.decode_stats.clone()) else {
-            return;
-        };
-        let mut decoder = Decoder::new(stats);
-        let mut buf = vec![0u8; 8192];
-        loop {
-            tokio::select! {
-                r = rd.read(&mut buf) => {
-                    let n = match r { Ok(0) | Err(_) => break, Ok(n) => n };
-                    let Some(ep) = endpoint.upgrade() else { return };
-                    decoder.push(&buf[..n]);
-                    while decoder.next_frame_raw(|f, raw| ep.deliver(f, raw, None)).is_some() {}
-                }
-                out = outgoing.recv() => {
-                    let Some(bytes) = out else { return };
-                    if wr.write_all(&bytes).await.is_err() { break; }
-                }
-            }
-        }
-        tracing::info!("{connector:?}: stream closed, reopening");
     }
 }

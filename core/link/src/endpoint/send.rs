@@ -6,9 +6,10 @@
 //! mavlink-router do). Never blocks: a datagram the socket cannot take right now is
 //! dropped and counted.
 
-use super::{Endpoint, Peer, Transport};
+use super::{Endpoint, Peer, Transport, stream};
 use nix::sys::socket::{MsgFlags, MultiHeaders, SockaddrStorage, sendmmsg};
 use skein_mavlink::{EncodedFrame, Frame, MavMessage};
+use std::io;
 use std::io::IoSlice;
 use std::net::SocketAddr;
 use std::os::fd::AsRawFd;
@@ -78,7 +79,12 @@ impl Endpoint {
     pub fn send_counts(&self) -> SendCounts {
         SendCounts {
             frames_sent: self.frames_sent.load(Ordering::Relaxed),
-            send_errors: self.send_errors.load(Ordering::Relaxed),
+            // A byte stream's writer thread drops what it could not write.
+            send_errors: self.send_errors.load(Ordering::Relaxed)
+                + match &self.transport {
+                    Transport::Stream { tx } => tx.dropped(),
+                    Transport::Udp { .. } => 0,
+                },
             no_route: self.no_route.load(Ordering::Relaxed),
         }
     }
@@ -186,9 +192,11 @@ impl Endpoint {
                 .send_to(bytes, &dest.into())
                 .map(|_| ())
                 .map_err(WriteError::Io),
-            (Transport::Stream { tx }, _) => {
-                tx.send(bytes.to_vec()).map_err(|_| WriteError::Closed)
-            }
+            (Transport::Stream { tx }, _) => tx.try_send(bytes).map_err(|r| match r {
+                stream::Refused::Full => WriteError::Io(io::ErrorKind::WouldBlock.into()),
+                stream::Refused::TooLong => WriteError::Io(io::ErrorKind::InvalidInput.into()),
+                stream::Refused::Closed => WriteError::Closed,
+            }),
             (Transport::Udp { .. }, None) => Err(WriteError::NoDestination),
         };
         match &result {
