@@ -87,14 +87,27 @@ impl Process {
         }
     }
 
-    /// Waits for a stdout line containing `needle` and returns it.
+    /// Waits for a stdout line containing `needle` and returns it. Fails at `timeout`, or
+    /// a moment after the process exited (a child of it may keep its stdout open, so the
+    /// end of the pipe does not tell).
     pub fn wait_line(&mut self, needle: &str, timeout: Duration) -> String {
-        let deadline = Instant::now() + timeout;
+        let mut deadline = Instant::now() + timeout;
+        let mut exited = false;
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
-            match self.lines.recv_timeout(left) {
+            match self
+                .lines
+                .recv_timeout(left.min(Duration::from_millis(250)))
+            {
                 Ok(l) if l.contains(needle) => return l,
                 Ok(_) => continue,
+                Err(mpsc::RecvTimeoutError::Timeout) if !left.is_zero() => {
+                    if !exited && self.child.try_wait().is_ok_and(|s| s.is_some()) {
+                        // What it wrote before it exited is still read for a moment.
+                        exited = true;
+                        deadline = deadline.min(Instant::now() + Duration::from_secs(2));
+                    }
+                }
                 Err(_) => panic!(
                     "no stdout line with `{needle}` within {timeout:?}; exit: {:?}\nstderr:\n{}",
                     self.child.try_wait(),
