@@ -172,6 +172,10 @@ pub async fn run<C: Carrier, X: VehiclesContext>(vehicles: Arc<Vehicles<C>>, ctx
     let mut tick = tokio::time::interval(period);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut n: u64 = 0;
+    // Rounds published: the battery goes out on every tenth of them, so that it keeps
+    // its tenth of the rate while rounds are shed (counted in all rounds, the one kept
+    // round in five never fell on a battery round: no battery at all while shedding).
+    let mut published: u64 = 0;
     let mut serving: BTreeSet<String> = BTreeSet::new();
     // Vehicles whose topics could not be made: logged once each.
     let mut refused: BTreeSet<String> = BTreeSet::new();
@@ -185,6 +189,8 @@ pub async fn run<C: Carrier, X: VehiclesContext>(vehicles: Arc<Vehicles<C>>, ctx
         let Some(list) = ctx.vehicles().await else {
             continue;
         };
+        published += 1;
+        let battery = published % 10 == 1;
         for v in list.iter().filter(|v| !(vehicles.elsewhere)(&v.id)) {
             let topics = match vehicles.topics(&v.id) {
                 Ok(t) => t,
@@ -206,7 +212,7 @@ pub async fn run<C: Carrier, X: VehiclesContext>(vehicles: Arc<Vehicles<C>>, ctx
                     results.clone(),
                 ));
             }
-            publish_vehicle(&topics, v, n % 10 == 1);
+            publish_vehicle(&topics, v, battery);
         }
         if n.is_multiple_of(2)
             && let Some(views) = ctx.tracks().await
@@ -268,5 +274,69 @@ async fn obey(
             reason: String::new(),
         },
         Err(reason) => refused(reason),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::carrier::memory::MemoryBus;
+    use skein_model::geo::{GeoPoint, Ned, NedFrame};
+    use skein_model::vehicle::Battery;
+
+    /// A process short of CPU: one publishing round in five goes ahead, the ones
+    /// `skein_swarm::load` keeps while shedding.
+    struct Shedding(VehicleSnapshot);
+
+    impl VehiclesContext for Shedding {
+        async fn vehicles(&self) -> Option<Vec<VehicleSnapshot>> {
+            Some(vec![self.0.clone()])
+        }
+
+        async fn tracks(&self) -> Option<Vec<TrackView>> {
+            None
+        }
+
+        async fn command(&self, _: String, _: OperatorCommand) -> Result<u64, String> {
+            Err("no commands here".into())
+        }
+
+        async fn keep_round(&self, round: u64) -> bool {
+            round.is_multiple_of(5)
+        }
+    }
+
+    /// While shedding, the battery keeps its tenth of the published rounds: 10 Hz shed to
+    /// 2 Hz gives the battery 0.2 Hz. (Counted in all rounds, the kept fifth never fell on
+    /// a battery round, and a ROS 2 node saw no battery at all while skein was short of CPU.)
+    #[tokio::test(start_paused = true)]
+    async fn the_battery_keeps_its_tenth_of_the_rounds_while_shedding() {
+        let bus = MemoryBus::new();
+        let counters = Arc::new(DdsCounters::default());
+        let vehicles =
+            Vehicles::open(bus.clone(), &counters, 10.0, false, Box::new(|_| false)).unwrap();
+        let frame = NedFrame::new(GeoPoint::new(47.397742, 8.545594, 488.0));
+        let mut uav = VehicleSnapshot::hovering_at("uav-1", 1, &frame, Ned::new(0.0, 0.0, -5.0));
+        uav.battery = Some(Battery {
+            percent: 80.0,
+            voltage_v: 15.8,
+        });
+        let read = |spec: &topics::TopicSpec| {
+            TopicReader::<msgs::BatteryState>::open(bus.as_ref(), spec, &counters, "sample")
+                .unwrap()
+        };
+        let battery = read(&topics::battery("uav-1"));
+        let task = tokio::spawn(run(Arc::new(vehicles), Arc::new(Shedding(uav))));
+        // 100 s of rounds at 10 Hz: 200 published, 20 of them with the battery.
+        let mut batteries = 0;
+        for _ in 0..1000 {
+            tokio::time::sleep(Duration::from_millis(100)).await;
+            batteries += std::iter::from_fn(|| battery.try_next()).count();
+        }
+        task.abort();
+        assert!(
+            (19..=21).contains(&batteries),
+            "{batteries} battery samples"
+        );
     }
 }
