@@ -85,37 +85,43 @@ pub fn set_current_thread_realtime() -> Result<i32, String> {
     Ok(params.sched_priority)
 }
 
-/// Raises the calling thread (a byte-stream endpoint's writer, which carries the
-/// setpoints of its vehicles: `crate::endpoint::stream`) as the setpoint thread is (when
-/// it may not, neither may the setpoint thread, and the health endpoint says so).
-pub(crate) fn raise_writer_thread() {
-    if set_current_thread_realtime().is_err() && set_current_thread_nice(SETPOINT_NICE).is_err() {
-        tracing::debug!("a byte-stream writer thread runs at normal priority");
-    }
-}
-
-/// Raises the calling thread (the setpoint thread, at its start) as the module docs say
-/// and records the outcome for [`setpoint_priority`].
-pub(crate) fn raise_setpoint_thread() {
-    let outcome = match set_current_thread_realtime() {
+/// Raises the calling thread as the module docs say: real-time, else nice
+/// [`SETPOINT_NICE`], else neither (with the OS's refusals).
+fn raise_current_thread() -> Priority {
+    match set_current_thread_realtime() {
         Ok(priority) => Priority::Realtime { priority },
         Err(rt) => match set_current_thread_nice(SETPOINT_NICE) {
             Ok(()) => Priority::Nice {
                 nice: SETPOINT_NICE,
                 realtime_refused: rt,
             },
-            Err(e) => {
-                tracing::warn!(
-                    "the setpoint thread runs at normal priority ({rt}; {e}): under CPU \
-                     shortage its setpoints wait like any other work; give skein \
-                     CAP_SYS_NICE (or LimitRTPRIO=1 / LimitNICE=-10)"
-                );
-                Priority::Refused {
-                    reason: format!("{rt}; {e}"),
-                }
-            }
+            Err(e) => Priority::Refused {
+                reason: format!("{rt}; {e}"),
+            },
         },
-    };
+    }
+}
+
+/// Raises the calling thread (a byte-stream endpoint's writer, which carries the
+/// setpoints of its vehicles: `crate::endpoint::stream`) as the setpoint thread is (when
+/// it may not, neither may the setpoint thread, and the health endpoint says so).
+pub(crate) fn raise_writer_thread() {
+    if let Priority::Refused { reason } = raise_current_thread() {
+        tracing::debug!("a byte-stream writer thread runs at normal priority ({reason})");
+    }
+}
+
+/// Raises the calling thread (the setpoint thread, at its start) as the module docs say
+/// and records the outcome for [`setpoint_priority`].
+pub(crate) fn raise_setpoint_thread() {
+    let outcome = raise_current_thread();
+    if let Priority::Refused { reason } = &outcome {
+        tracing::warn!(
+            "the setpoint thread runs at normal priority ({reason}): under CPU shortage its \
+             setpoints wait like any other work; give skein CAP_SYS_NICE (or \
+             LimitRTPRIO=1 / LimitNICE=-10)"
+        );
+    }
     let _ = SETPOINT.set(outcome);
 }
 

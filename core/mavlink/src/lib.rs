@@ -23,6 +23,9 @@ pub mod signing;
 /// Per-message constants (`ID`, `EXTRA_CRC`) of the dialect's message structs.
 pub use command::{CommandPosition, CommandTarget, command_int, command_long};
 pub use mavlink::MessageData;
+/// The largest MAVLink frame, bytes: v2 with a full payload and a signature (10 header +
+/// 255 payload + 2 CRC + 13 signature).
+pub use mavlink::consts::MAX_FRAME_SIZE;
 pub use mavlink::dialects::common as dialect;
 pub use mavlink::dialects::common::MavMessage;
 use mavlink::{MAVLinkV2MessageRaw, MavHeader, Message, calculate_crc};

@@ -9,7 +9,7 @@
 //! pause the setpoint thread exists to prevent, and PX4 fails safe after `COM_OF_LOSS_T`.
 //! So the writer thread asks for the setpoint thread's priority ([`crate::priority`]),
 //! takes frames from a bounded queue that allocates nothing (each frame is copied into a
-//! slot of [`MAX_FRAME`] bytes; a full queue refuses the frame, as a full socket buffer
+//! slot of [`MAX_FRAME_SIZE`] bytes; a full queue refuses the frame, as a full socket buffer
 //! would), and writes each to a duplicate of the connection's descriptor, which the
 //! session hands over on every (re)connection. A frame sent while the stream is down waits
 //! [`RECONNECTING`] for it to come back; one that cannot leave then, or within
@@ -17,7 +17,7 @@
 //! commands are resent by the command protocol).
 
 use super::Endpoint;
-use skein_mavlink::Decoder;
+use skein_mavlink::{Decoder, MAX_FRAME_SIZE};
 use std::io::{self, Write};
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -28,10 +28,6 @@ use tokio::io::{AsyncRead, AsyncReadExt};
 use tokio::net::TcpStream;
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
-
-/// The largest MAVLink frame: v2 with a full payload and a signature (10 header + 255
-/// payload + 2 CRC + 13 signature bytes).
-pub(crate) const MAX_FRAME: usize = 280;
 
 /// Frames the writer may have queued: over a second of setpoints to a few vehicles.
 const QUEUE: usize = 128;
@@ -65,7 +61,12 @@ fn open_serial(device: &str, baud: u32) -> io::Result<serialport::TTYPort> {
     serialport::new(device, baud)
         .timeout(WRITE_TIMEOUT)
         .open_native()
-        .map_err(|e| io::Error::other(format!("serial:{device}:{baud}: {e}")))
+        .map_err(|e| serial_error(device, baud, e))
+}
+
+/// A serial port's error, naming `serial:DEVICE:BAUD`.
+fn serial_error(device: &str, baud: u32, e: impl std::fmt::Display) -> io::Error {
+    io::Error::other(format!("serial:{device}:{baud}: {e}"))
 }
 
 impl Connector {
@@ -84,9 +85,9 @@ impl Connector {
                 let port = open_serial(device, *baud)?;
                 let writer = port
                     .try_clone_native()
-                    .map_err(|e| io::Error::other(format!("serial:{device}: {e}")))?;
+                    .map_err(|e| serial_error(device, *baud, e))?;
                 let reader = tokio_serial::SerialStream::try_from(port)
-                    .map_err(|e| io::Error::other(format!("serial:{device}: {e}")))?;
+                    .map_err(|e| serial_error(device, *baud, e))?;
                 Ok((Box::new(reader), Sink::Serial(writer)))
             }
         }
@@ -138,7 +139,7 @@ impl Sink {
 /// One queued frame.
 struct Slot {
     len: usize,
-    bytes: [u8; MAX_FRAME],
+    bytes: [u8; MAX_FRAME_SIZE],
 }
 
 /// Why [`StreamTx::try_send`] refused a frame.
@@ -164,12 +165,12 @@ pub(crate) struct StreamTx {
 impl StreamTx {
     /// Queues `bytes` (one frame) for the writer thread. Never blocks, never allocates.
     pub(crate) fn try_send(&self, bytes: &[u8]) -> Result<(), Refused> {
-        if bytes.len() > MAX_FRAME {
+        if bytes.len() > MAX_FRAME_SIZE {
             return Err(Refused::TooLong);
         }
         let mut slot = Slot {
             len: bytes.len(),
-            bytes: [0; MAX_FRAME],
+            bytes: [0; MAX_FRAME_SIZE],
         };
         slot.bytes[..bytes.len()].copy_from_slice(bytes);
         self.frames.try_send(slot).map_err(|e| match e {
