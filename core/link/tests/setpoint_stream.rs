@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{eventually, heartbeat};
+use common::{eventually, heartbeat, serial_endpoint};
 use skein_link::{ConnectionAddress, Endpoint, Identity, LocalSetpoint, SetpointStream};
 use skein_mavlink::dialect::MavAutopilot;
 use skein_mavlink::{DecodeStats, Decoder, MavMessage};
@@ -63,14 +63,10 @@ async fn the_stream_keeps_its_rate_while_every_worker_is_blocked() {
 /// thread, not from a task on the blocked workers.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_serial_stream_keeps_its_rate_while_every_worker_is_blocked() {
-    let pty = nix::pty::openpty(None, None).unwrap();
-    let path = nix::unistd::ttyname(&pty.slave).unwrap();
-    let conn: ConnectionAddress = format!("serial:{}:57600", path.display()).parse().unwrap();
-    let endpoint = Endpoint::open(conn, Identity::default()).await.unwrap();
+    let (endpoint, master, slave) = serial_endpoint().await;
     // The flight controller's side: a read returns what the writer wrote since the last.
     let arrivals = Arc::new(Mutex::new(Vec::new()));
     let a = arrivals.clone();
-    let master = pty.master;
     std::thread::spawn(move || {
         let mut buf = [0u8; 4096];
         // Ends when the slave side is closed (EIO) once the test is over.
@@ -79,7 +75,7 @@ async fn a_serial_stream_keeps_its_rate_while_every_worker_is_blocked() {
         }
     });
     keeps_its_rate_while_every_worker_is_blocked(endpoint, &arrivals).await;
-    drop(pty.slave);
+    drop(slave);
 }
 
 /// Streams a setpoint through `endpoint` at 50 Hz, blocks both workers of the runtime for

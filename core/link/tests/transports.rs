@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{eventually, heartbeat};
+use common::{eventually, heartbeat, serial_endpoint};
 use skein_link::endpoint::SendError;
 use skein_link::{ConnectionAddress, Endpoint, Identity};
 use skein_mavlink::dialect::*;
@@ -88,15 +88,11 @@ async fn tcpout_discovers_carries_frames_and_reconnects() {
 
 #[tokio::test]
 async fn serial_over_a_pseudo_terminal() {
-    let pty = nix::pty::openpty(None, None).unwrap();
-    let path = nix::unistd::ttyname(&pty.slave).unwrap();
-    let conn: ConnectionAddress = format!("serial:{}:57600", path.display()).parse().unwrap();
-    let ep = Endpoint::open(conn, Identity::default()).await.unwrap();
+    let (ep, master, slave) = serial_endpoint().await;
     let found = Arc::new(Mutex::new(Vec::new()));
     let f = found.clone();
     ep.set_discovery(Arc::new(move |d| f.lock().unwrap().push(d.sysid)));
     // The test plays the flight controller on the pty's master side.
-    let master = pty.master;
     let frame = Encoder::new(3, 1).encode(&heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4));
     let written = nix::unistd::write(&master, frame.as_bytes()).unwrap();
     assert_eq!(written, frame.as_bytes().len());
@@ -117,7 +113,7 @@ async fn serial_over_a_pseudo_terminal() {
         .unwrap();
     assert_eq!((got[0].sysid, got[0].compid), (255, 190));
     assert_eq!(ep.decode_counts().errors(), 0);
-    drop((pty.slave, master));
+    drop((slave, master));
 }
 
 #[tokio::test]

@@ -1,9 +1,13 @@
-//! What the link's integration tests share: polling a condition with a deadline, and the
-//! HEARTBEAT a vehicle (or a ground station) sends.
+//! What the link's integration tests share: polling a condition with a deadline, the
+//! HEARTBEAT a vehicle (or a ground station) sends, and a serial endpoint on a
+//! pseudo-terminal.
 #![allow(dead_code)]
 
+use skein_link::{ConnectionAddress, Endpoint, Identity};
 use skein_mavlink::MavMessage;
 use skein_mavlink::dialect::*;
+use std::os::fd::OwnedFd;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Polls `f` every 10 ms until it gives a value; panics naming `what` after `timeout`.
@@ -32,4 +36,15 @@ pub fn heartbeat(autopilot: MavAutopilot) -> MavMessage {
         system_status: MavState::MAV_STATE_STANDBY,
         mavlink_version: 3,
     })
+}
+
+/// A `serial:` endpoint (57600 baud) on the slave side of a new pseudo-terminal pair, and
+/// the pair's master side, where the test plays the flight controller; and the slave's
+/// descriptor, to close when the test is done (the master's reads then end).
+pub async fn serial_endpoint() -> (Arc<Endpoint>, OwnedFd, OwnedFd) {
+    let pty = nix::pty::openpty(None, None).unwrap();
+    let path = nix::unistd::ttyname(&pty.slave).unwrap();
+    let conn: ConnectionAddress = format!("serial:{}:57600", path.display()).parse().unwrap();
+    let endpoint = Endpoint::open(conn, Identity::default()).await.unwrap();
+    (endpoint, pty.master, pty.slave)
 }
