@@ -244,7 +244,6 @@ fn held_to_loopback_the_link_ignores_other_interfaces_coming_and_going() {
     let d = domain(0);
     let start = |extra: &[&str]| {
         let mut args = vec![
-            "up",
             "--http",
             "127.0.0.1:0",
             "--sim",
@@ -256,9 +255,7 @@ fn held_to_loopback_the_link_ignores_other_interfaces_coming_and_going() {
             &d,
         ];
         args.extend_from_slice(extra);
-        let mut p = Process::start_in(Some(&ns.name), &args);
-        p.wait_line("dashboard at", Duration::from_secs(60));
-        p
+        Skein::launch_in(Some(&ns.name), "up", &args).process
     };
     let held = start(&["--dds-network", "127.0.0.1"]);
     let every = start(&[]);
