@@ -25,14 +25,8 @@ async fn a_running_tick_allocates_nothing() {
     )
     .await
     .unwrap();
-    let heartbeat = MavMessage::HEARTBEAT(skein_mavlink::dialect::HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: skein_mavlink::dialect::MavType::MAV_TYPE_QUADROTOR,
-        autopilot: skein_mavlink::dialect::MavAutopilot::MAV_AUTOPILOT_PX4,
-        base_mode: skein_mavlink::dialect::MavModeFlag::empty(),
-        system_status: skein_mavlink::dialect::MavState::MAV_STATE_STANDBY,
-        mavlink_version: 3,
-    });
+    // Any frame gives the endpoint its sender's address.
+    let heartbeat = MavMessage::HEARTBEAT(skein_mavlink::dialect::HEARTBEAT_DATA::default());
     let heard_at = heard.local_addr().unwrap();
     for sysid in 31..=34 {
         let hb = skein_mavlink::encode_frame(sysid, 1, 0, &heartbeat, None);
