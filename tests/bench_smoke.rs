@@ -45,9 +45,17 @@ fn bench_swarm_reports_every_field_with_all_vehicles_offboard_and_the_pymavlink_
         "cpu_ms_per_vehicle_second",
         "peak_rss_kib_per_vehicle",
         "cpu_ratio_to_peer",
+        "setpoint_thread_ratio_to_peer",
     ] {
         assert!(report.get(key).is_some(), "{key} missing: {report}");
     }
+    // The setpoint thread is one of the threads whose CPU is reported, and it worked.
+    assert!(
+        report["coordinator_threads_cpu_s"]["skein-setpoints"]
+            .as_f64()
+            .is_some_and(|s| s > 0.0),
+        "{report}"
+    );
     // The plain pymavlink loop flew the same swarm against its own simulator.
     let peer = &report["peer"];
     assert_eq!(peer["peer"], "pymavlink", "{report}");

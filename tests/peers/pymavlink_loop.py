@@ -140,8 +140,12 @@ def main():
             }), flush=True)
             return 0
         if phase in ("waiting", "climbing") and time.monotonic() > deadline:
+            unheard = [i for i, v in enumerate(vehicles) if not v.sysid]
+            unplaced = [i for i, v in enumerate(vehicles) if v.sysid and not v.position]
             print(json.dumps({"error": f"not all {a.vehicles} vehicles hovering in "
-                                       f"{a.timeout} s (phase {phase})"}), flush=True)
+                                       f"{a.timeout} s (phase {phase}; no HEARTBEAT from "
+                                       f"vehicles {unheard[:10]}, no LOCAL_POSITION_NED "
+                                       f"from {unplaced[:10]})"}), flush=True)
             return 1
         next_tick += period
         pause = next_tick - time.monotonic()

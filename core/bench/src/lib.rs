@@ -36,6 +36,9 @@
 //!    consecutive setpoints of a vehicle, as received by the simulator, longer than
 //!    1.25 × the period, over all intervals), `interval_ms` (`p50`, `p99`, `p999`, `max`,
 //!    `mean`), `coordinator_cpu_s` (user + system CPU of this process over the window),
+//!    `coordinator_threads_cpu_s` (the same by thread name: `skein-setpoints` is the
+//!    setpoint thread, which does little but hand datagrams to the kernel, `tokio-rt-worker`
+//!    the runtime's workers: control, telemetry, everything else),
 //!    `coordinator_peak_rss_mb` (`VmHWM`), `sim_cpu_s` (the simulator process's user +
 //!    system CPU over the window), `offboard_loss_failsafes`, `all_offboard` (every
 //!    simulated vehicle in OFFBOARD at the end of the window), and a few diagnostics.
@@ -61,7 +64,9 @@
 //! With `--peer pymavlink` the same swarm is then flown by a plain pymavlink loop
 //! (`tests/peers/pymavlink_loop.py`) against a fresh simulator, in the same run: its
 //! figures are under `peer`, and `cpu_ratio_to_peer` is skein's CPU per vehicle-second
-//! over the loop's.
+//! over the loop's. `setpoint_thread_ratio_to_peer` is skein's setpoint thread alone over
+//! the loop's whole CPU: mostly the kernel's cost of the setpoint datagrams, which the loop
+//! sends as well, so no change to the rest of skein takes `cpu_ratio_to_peer` below it.
 
 #![warn(missing_docs)]
 
@@ -86,7 +91,7 @@ pub use dds::{DdsBenchArgs, dds};
 pub use exe::skein_exe;
 pub use formation::{FormationBenchArgs, formation};
 pub use plugins::{BenchConfig, bench_plugins, plugins};
-pub use procfs::{cpu_seconds, host_busy_seconds, peak_rss_mb};
+pub use procfs::{cpu_seconds, host_busy_seconds, peak_rss_mb, thread_cpu_seconds};
 pub use restart::{RestartBenchArgs, restart};
 pub use swarm::swarm;
 pub use tracking::{TrackingBenchArgs, tracking};

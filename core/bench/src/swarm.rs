@@ -97,6 +97,13 @@ pub async fn swarm(args: SwarmBenchArgs) -> Result<Value, String> {
             (Some(a), Some(b)) if b > 0.0 => json!(round(a / b, 3)),
             _ => Value::Null,
         };
+        // The setpoint thread is mostly the kernel sending the datagrams the loop sends
+        // too: the part of the ratio no change to the rest of skein can remove.
+        let setpoints = report["coordinator_threads_cpu_s"]["skein-setpoints"].as_f64();
+        report["setpoint_thread_ratio_to_peer"] = match (setpoints, peer["cpu_s"].as_f64()) {
+            (Some(a), Some(b)) if b > 0.0 => json!(round(a / b, 3)),
+            _ => Value::Null,
+        };
         report["peer"] = peer;
     }
     Ok(report)
@@ -121,6 +128,7 @@ async fn measure(
     let sent0 = skein_setpoints_sent(swarm).await?;
     let errors0 = skein_send_errors(swarm);
     let cpu0 = cpu_seconds(None);
+    let threads0 = thread_cpu_seconds(None);
     let sim_cpu0 = sim.pid.and_then(|p| cpu_seconds(Some(p)));
     let host0 = host_busy_seconds();
     sim.ask("reset").await?;
@@ -136,6 +144,7 @@ async fn measure(
     let sent1 = skein_setpoints_sent(swarm).await?;
     let errors1 = skein_send_errors(swarm);
     let cpu1 = cpu_seconds(None);
+    let threads1 = thread_cpu_seconds(None);
     let sim_cpu1 = sim.pid.and_then(|p| cpu_seconds(Some(p)));
     let host1 = host_busy_seconds();
     // CPU the rest of the host used meanwhile: other work competing for the cores makes
@@ -183,6 +192,13 @@ async fn measure(
             "mean": round(f64_at(iv, &["mean_ms"]), 3),
         },
         "coordinator_cpu_s": cpu(cpu0, cpu1),
+        "coordinator_threads_cpu_s": threads1
+            .iter()
+            .map(|(name, s1)| {
+                let used = s1 - threads0.get(name).copied().unwrap_or(0.0);
+                (name.clone(), json!(round(used, 3)))
+            })
+            .collect::<serde_json::Map<_, _>>(),
         "cpu_ms_per_vehicle_second": match (cpu0, cpu1) {
             (Some(a), Some(b)) => json!(round((b - a) * 1e3 / (n as f64 * window_s), 3)),
             _ => Value::Null,
