@@ -7,7 +7,11 @@
 mod common;
 
 use common::{eventually, heartbeat, serial_endpoint};
-use skein_link::{ConnectionAddress, Endpoint, Identity, LocalSetpoint, SetpointStream};
+use ractor::Actor;
+use skein_link::{
+    ConnectionAddress, Endpoint, Identity, LinkSetup, LocalSetpoint, Px4Link, Px4LinkArgs,
+    SetpointStream, VehicleLink,
+};
 use skein_mavlink::dialect::MavAutopilot;
 use skein_mavlink::{DecodeStats, Decoder, MavMessage};
 use skein_model::geo::Ned;
@@ -227,4 +231,62 @@ async fn streams_sharing_a_port_each_reach_their_own_vehicle() {
     let counts = endpoint.send_counts();
     assert!(counts.no_route > 0, "{counts:?}");
     assert_eq!(counts.send_errors, 0, "{counts:?}");
+}
+
+/// A vehicle's stream lives as long as its link, and no longer: once its link actor has
+/// stopped and the swarm has let go of the link, the stream stops. A stopped controller
+/// must not go on streaming its last setpoint to the vehicle, unsupervised, for the life
+/// of the process (PX4 then fails safe after `COM_OF_LOSS_T`, which is the point). The
+/// endpoint's route, which the link actor registers and which outlives the actor, must
+/// not keep the link alive: it did, and a stopped swarm streamed on.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_link_let_go_of_stops_its_stream() {
+    let px4 = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let addr = px4.local_addr().unwrap();
+    let arrivals = stamp_arrivals(px4);
+    let endpoint = Endpoint::open(ConnectionAddress::UdpOut(addr), Identity::default())
+        .await
+        .unwrap();
+    let link = VehicleLink::new(endpoint.clone(), 1, 1, 50.0, LinkSetup::default());
+    let (actor, running) = Actor::spawn(
+        None,
+        Px4Link,
+        Px4LinkArgs {
+            link: link.clone(),
+            events: Arc::new(|_| {}),
+            components: None,
+        },
+    )
+    .await
+    .unwrap();
+    link.stream().set(Some(LocalSetpoint::position(
+        Ned::new(0.0, 0.0, -10.0),
+        0.0,
+    )));
+    eventually(
+        "10 setpoints at the vehicle",
+        Duration::from_secs(10),
+        || (arrivals.lock().unwrap().len() >= 10).then_some(()),
+    )
+    .await;
+
+    let gone = Arc::downgrade(&link);
+    actor.stop(None);
+    running.await.unwrap();
+    drop(link);
+    drop(endpoint);
+    eventually("the link dropped", Duration::from_secs(5), || {
+        gone.upgrade().is_none().then_some(())
+    })
+    .await;
+    // Nothing more arrives: ten periods of silence, while a live stream sends every 20 ms.
+    eventually(
+        "the vehicle no longer hears setpoints",
+        Duration::from_secs(5),
+        || {
+            let last = *arrivals.lock().unwrap().last().expect("arrivals");
+            (last.elapsed() > Duration::from_millis(200)).then_some(())
+        },
+    )
+    .await;
 }

@@ -476,7 +476,7 @@ impl Actor for Px4Link {
     ) -> Result<Self::State, ActorProcessingErr> {
         args.link.endpoint.route(
             args.link.sysid,
-            route::handler(args.link.clone(), args.components.clone(), myself.clone()),
+            route::handler(&args.link, args.components.clone(), myself.clone()),
         );
         myself.send_interval(HEARTBEAT_PERIOD, || Px4LinkMsg::Tick);
         missions::watch_plans(&args.link, &myself);

@@ -11,13 +11,25 @@ use std::sync::Arc;
 
 /// The route of one vehicle (see the module docs): `link` is its shared state,
 /// `components` where its component traffic goes, `actor` its link actor.
+///
+/// The route holds `link` weakly. The endpoint keeps a route for its whole life and the
+/// link holds the endpoint, so a strong reference here would keep both alive, and with
+/// them the setpoint stream, after everything else had let go: a stopped swarm went on
+/// streaming its last setpoints to every vehicle, unsupervised, for the life of the
+/// process. The vehicle's state holds the link while its actors restart, so a restart
+/// does not drop it.
 pub(super) fn handler(
-    link: Arc<VehicleLink>,
+    link: &Arc<VehicleLink>,
     components: Option<FrameSink>,
     actor: ActorRef<Px4LinkMsg>,
 ) -> FrameHandler {
+    let compid = link.compid;
+    let link = Arc::downgrade(link);
     Arc::new(move |f| {
-        if applies_on_route(&f, link.compid) {
+        let Some(link) = link.upgrade() else {
+            return; // the vehicle is gone: nobody to tell
+        };
+        if applies_on_route(&f, compid) {
             // Position, attitude and the boot clock change nothing but the telemetry:
             // applied here, on the receive task, they cost no actor message (they are most
             // of the traffic of a large swarm).

@@ -126,3 +126,70 @@ impl Swarm {
         let _ = self.handle.await;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use skein_link::ConnectionAddress;
+    use skein_mavlink::dialect::*;
+    use skein_mavlink::{Encoder, MavMessage};
+    use std::time::{Duration, Instant};
+
+    /// A stopped swarm lets go of everything its vehicles held: their setpoint streams
+    /// stop and their endpoints' ports are free again. Each vehicle's payload sink lives
+    /// in its endpoint's route, which the vehicle's link keeps; a sink holding the
+    /// vehicle strongly made a cycle, and a stopped swarm went on streaming its last
+    /// setpoints, unsupervised, from ports nobody could bind again.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_stopped_swarm_frees_its_vehicles_and_their_ports() {
+        let local: std::net::SocketAddr = "127.0.0.1:0".parse().unwrap();
+        let swarm = Swarm::start(
+            SwarmConfig::default(),
+            SwarmServices::default(),
+            Identity::default(),
+            vec![EndpointSpec {
+                connection: ConnectionAddress::UdpIn(local),
+                vehicles: Vec::new(),
+                simulated: false,
+            }],
+        )
+        .await
+        .expect("swarm starts");
+        let port = swarm.endpoints[0].local_addr().expect("udp endpoint");
+        // A PX4 that announces itself until the coordinator has made its vehicle.
+        let px4 = std::net::UdpSocket::bind(local).unwrap();
+        let mut enc = Encoder::new(1, 1);
+        let heartbeat = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode: 0,
+            mavtype: MavType::MAV_TYPE_QUADROTOR,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+            base_mode: MavModeFlag::empty(),
+            system_status: MavState::MAV_STATE_STANDBY,
+            mavlink_version: 3,
+        });
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            px4.send_to(enc.encode(&heartbeat).as_bytes(), port)
+                .unwrap();
+            let listed = swarm
+                .coordinator
+                .call(CoordinatorMsg::ListVehicles, Some(Duration::from_secs(5)))
+                .await;
+            if matches!(listed, Ok(ractor::rpc::CallResult::Success(v)) if v.len() == 1) {
+                break;
+            }
+            assert!(Instant::now() < deadline, "the vehicle never joined");
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+
+        swarm.stop().await;
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while let Err(e) = std::net::UdpSocket::bind(port) {
+            assert!(
+                Instant::now() < deadline,
+                "{port} still bound 5 s after the swarm stopped: {e}"
+            );
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+}

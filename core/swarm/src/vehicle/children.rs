@@ -236,13 +236,17 @@ async fn spawn_link(
 ) -> Result<ActorRef<Px4LinkMsg>, ActorProcessingErr> {
     let me = myself.clone();
     // Payloads may be attached at run time: the sink is always there, and forwards
-    // nothing while the vehicle has no payload.
+    // nothing while the vehicle has no payload. It holds the vehicle weakly: the sink
+    // lives in the endpoint's route, which the vehicle's link keeps alive, so a strong
+    // reference would keep the vehicle (and its setpoint stream) alive for ever.
     let components: Option<skein_link::px4link::FrameSink> = {
         let me = myself.clone();
         let autopilot = shared.link.compid;
-        let vehicle = shared.clone();
+        let vehicle = Arc::downgrade(shared);
         Some(Arc::new(move |f: &skein_mavlink::Frame| {
-            if (f.compid != autopilot || for_payloads(&f.msg)) && vehicle.has_payloads() {
+            if (f.compid != autopilot || for_payloads(&f.msg))
+                && vehicle.upgrade().is_some_and(|v| v.has_payloads())
+            {
                 let _ = me.cast(VehicleMsg::Component(Box::new(f.clone())));
             }
         }))
