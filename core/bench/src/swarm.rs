@@ -52,6 +52,14 @@ fn probe_report(mut intervals: Vec<f64>, late_threshold_ms: f64) -> Value {
     })
 }
 
+/// `a / b` to three decimals; `null` when either is missing or `b` is not positive.
+fn ratio(a: Option<f64>, b: Option<f64>) -> Value {
+    match (a, b) {
+        (Some(a), Some(b)) if b > 0.0 => json!(round(a / b, 3)),
+        _ => Value::Null,
+    }
+}
+
 /// `skein bench swarm` (see module docs); returns the report.
 pub async fn swarm(args: SwarmBenchArgs) -> Result<Value, String> {
     let n = args.vehicles;
@@ -93,17 +101,11 @@ pub async fn swarm(args: SwarmBenchArgs) -> Result<Value, String> {
         let peer = crate::peer::pymavlink(&args, args.peer_script.clone()).await?;
         let ours = report["cpu_ms_per_vehicle_second"].as_f64();
         let theirs = peer["cpu_ms_per_vehicle_second"].as_f64();
-        report["cpu_ratio_to_peer"] = match (ours, theirs) {
-            (Some(a), Some(b)) if b > 0.0 => json!(round(a / b, 3)),
-            _ => Value::Null,
-        };
+        report["cpu_ratio_to_peer"] = ratio(ours, theirs);
         // The setpoint thread is mostly the kernel sending the datagrams the loop sends
         // too: the part of the ratio no change to the rest of skein can remove.
         let setpoints = report["coordinator_threads_cpu_s"]["skein-setpoints"].as_f64();
-        report["setpoint_thread_ratio_to_peer"] = match (setpoints, peer["cpu_s"].as_f64()) {
-            (Some(a), Some(b)) if b > 0.0 => json!(round(a / b, 3)),
-            _ => Value::Null,
-        };
+        report["setpoint_thread_ratio_to_peer"] = ratio(setpoints, peer["cpu_s"].as_f64());
         report["peer"] = peer;
     }
     Ok(report)

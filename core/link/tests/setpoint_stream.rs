@@ -42,6 +42,18 @@ fn stamp_arrivals(sock: UdpSocket) -> Arc<Mutex<Vec<Instant>>> {
     arrivals
 }
 
+/// A `udpout` endpoint to a socket that plays PX4, and the receive times of every datagram
+/// that reaches it ([`stamp_arrivals`]).
+async fn endpoint_to_a_stamping_vehicle() -> (Arc<Endpoint>, Arc<Mutex<Vec<Instant>>>) {
+    let px4 = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let addr = px4.local_addr().unwrap();
+    let arrivals = stamp_arrivals(px4);
+    let endpoint = Endpoint::open(ConnectionAddress::UdpOut(addr), Identity::default())
+        .await
+        .unwrap();
+    (endpoint, arrivals)
+}
+
 fn largest_gap(times: &[Instant], from: Instant, to: Instant) -> Duration {
     times
         .windows(2)
@@ -53,12 +65,7 @@ fn largest_gap(times: &[Instant], from: Instant, to: Instant) -> Duration {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_stream_keeps_its_rate_while_every_worker_is_blocked() {
-    let px4 = UdpSocket::bind("127.0.0.1:0").unwrap();
-    let addr = px4.local_addr().unwrap();
-    let arrivals = stamp_arrivals(px4);
-    let endpoint = Endpoint::open(ConnectionAddress::UdpOut(addr), Identity::default())
-        .await
-        .unwrap();
+    let (endpoint, arrivals) = endpoint_to_a_stamping_vehicle().await;
     keeps_its_rate_while_every_worker_is_blocked(endpoint, &arrivals).await;
 }
 
@@ -241,12 +248,7 @@ async fn streams_sharing_a_port_each_reach_their_own_vehicle() {
 /// not keep the link alive: it did, and a stopped swarm streamed on.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_link_let_go_of_stops_its_stream() {
-    let px4 = UdpSocket::bind("127.0.0.1:0").unwrap();
-    let addr = px4.local_addr().unwrap();
-    let arrivals = stamp_arrivals(px4);
-    let endpoint = Endpoint::open(ConnectionAddress::UdpOut(addr), Identity::default())
-        .await
-        .unwrap();
+    let (endpoint, arrivals) = endpoint_to_a_stamping_vehicle().await;
     let link = VehicleLink::new(endpoint.clone(), 1, 1, 50.0, LinkSetup::default());
     let (actor, running) = Actor::spawn(
         None,

@@ -131,7 +131,7 @@ impl Swarm {
 mod tests {
     use super::*;
     use skein_link::ConnectionAddress;
-    use skein_mavlink::dialect::*;
+    use skein_mavlink::dialect::{HEARTBEAT_DATA, MavAutopilot, MavType};
     use skein_mavlink::{Encoder, MavMessage};
     use std::time::{Duration, Instant};
 
@@ -160,12 +160,9 @@ mod tests {
         let px4 = std::net::UdpSocket::bind(local).unwrap();
         let mut enc = Encoder::new(1, 1);
         let heartbeat = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            custom_mode: 0,
             mavtype: MavType::MAV_TYPE_QUADROTOR,
             autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
-            base_mode: MavModeFlag::empty(),
-            system_status: MavState::MAV_STATE_STANDBY,
-            mavlink_version: 3,
+            ..Default::default()
         });
         let deadline = Instant::now() + Duration::from_secs(10);
         loop {
