@@ -6,10 +6,11 @@
 //!
 //! - the ROS graph lists skein's node and every topic with its type; a subscriber with
 //!   ROS 2's default QoS (as RViz's displays) reads pose, navsat, battery, state and
-//!   tracks at the README's rates, and so does one with `qos_profile_sensor_data`; the
-//!   values match skein's HTTP API; `/tf` has one frame per vehicle on its pose, and
-//!   `/tf_static` anchors the swarm frame at the swarm origin; without `--dds-commands`
-//!   nothing reads commands and the vehicles stay on the ground;
+//!   tracks at the rates docs/ros2.md names, and so does one with
+//!   `qos_profile_sensor_data`; the values match skein's HTTP API; `/tf` has one frame
+//!   per vehicle on its pose, and `/tf_static` anchors the swarm frame at the swarm
+//!   origin; without `--dds-commands` nothing reads commands and the vehicles stay on the
+//!   ground;
 //! - with `--dds-commands` a node flies a vehicle through `skein_msgs/Command`: refusals
 //!   name their reason; arm, takeoff to 8 m, goto and land are obeyed; `/tf` looked up at
 //!   a pose's stamp is the pose; `--dds-tf-parent map` makes `/tf_static` the identity
@@ -51,7 +52,7 @@ fn rate_range(hz: f64, shed: bool) -> std::ops::RangeInclusive<f64> {
     0.7 * low..=1.3 * hz
 }
 
-/// Every rate of a `read` report that the README names: pose (for a default-QoS and a
+/// Every rate of a `read` report that docs/ros2.md names: pose (for a default-QoS and a
 /// sensor-data subscriber), navsat and state at the publish rate (10 Hz), battery at a
 /// tenth of it, for each of `vehicles` (ROS names); `standard_only`: no state; `shed`:
 /// the publisher shed rounds meanwhile.
@@ -134,8 +135,8 @@ fn rclpy_nodes_on_fast_dds_read_every_topic_of_a_swarm_they_cannot_command() {
         "ros2_peer read ({:.1} s): {r}",
         started.elapsed().as_secs_f64()
     );
-    // The rates the README names, for the default-QoS subscriber and the sensor-data one
-    // alike; /tf at the publish rate, tracks at half of it.
+    // The rates docs/ros2.md names, for the default-QoS subscriber and the sensor-data
+    // one alike; /tf at the publish rate, tracks at half of it.
     let shed = dds_shed(&skein) > shed_before;
     assert_vehicle_rates(&r, &["uav_1", "uav_2", "uav_3"], false, shed);
     for (topic, want) in [("/skein/tracks", 5.0), ("/tf", 10.0)] {
@@ -270,7 +271,7 @@ fn an_rclpy_node_flies_a_vehicle_through_skein_msgs_commands() {
 fn an_rclpy_node_sees_every_agent_s_vehicles_of_a_distributed_swarm() {
     let d = domain(2);
     // Every process anchors its swarm frame at the same origin, so that `skein_swarm` is
-    // one frame on the domain (README: a distributed swarm on ROS 2).
+    // one frame on the domain (docs/ros2.md: a distributed swarm on ROS 2).
     let dir = std::env::temp_dir().join(format!("skein-e2e-ros2-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let config = dir.join("origin.toml");

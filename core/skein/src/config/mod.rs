@@ -53,7 +53,7 @@
 //! payloads = [{ slot = "gimbal", kind = "gimbal" }, { slot = "camera", kind = "camera" }]
 //! limits = { max_speed_m_s = 8.0, max_climb_m_s = 3.0, max_descent_m_s = 1.5, max_accel_m_s2 = 3.0 }
 //!
-//! [map]                        # the map under the plan view (see README, "A map")
+//! [map]                        # the map under the plan view (docs/map-and-fence.md)
 //! tiles = "field.mbtiles"      # an MBTiles file or a z/x/y folder; --map-tiles overrides
 //! # online_url = "https://tile.example.org/{z}/{x}/{y}.png"  # opt in, the browser fetches
 //! # online_attribution = "© …"  # what the online tiles must credit
