@@ -141,21 +141,22 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
 /// `skein up`'s options at their defaults, then this role's (the API on a free loopback
 /// port unless `--http` names one).
 fn up_args(args: AgentArgs) -> Result<UpArgs, String> {
-    let mut up_args = UpArgs::defaults()?;
+    let http = args
+        .http
+        .unwrap_or(SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0));
+    let mut up_args = UpArgs::for_role(
+        args.config,
+        Some(http),
+        args.domain_id,
+        args.dds_network,
+        args.dds_security,
+    )?;
     up_args.sim = args.sim;
     up_args.sim_base_port = args.sim_base_port;
     up_args.sim_seed = args.sim_seed;
     up_args.sim_model = args.sim_model;
     up_args.sim_stats = args.sim_stats;
-    up_args.config = args.config;
     up_args.plugin_dir = args.plugin_dir;
-    up_args.http = Some(
-        args.http
-            .unwrap_or(SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0)),
-    );
-    up_args.domain_id = args.domain_id;
-    up_args.dds_network = args.dds_network;
-    up_args.dds_security = args.dds_security;
     Ok(up_args)
 }
 

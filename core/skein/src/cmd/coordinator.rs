@@ -54,12 +54,13 @@ pub async fn coordinator(args: CoordinatorArgs) -> Result<ExitCode, String> {
         None => format!("{}-{}", hostname(), std::process::id()),
     };
     // `skein up`'s options at their defaults, then this role's.
-    let mut up_args = UpArgs::defaults()?;
-    up_args.config = args.config;
-    up_args.http = args.http;
-    up_args.domain_id = args.domain_id;
-    up_args.dds_network = args.dds_network;
-    up_args.dds_security = args.dds_security;
+    let mut up_args = UpArgs::for_role(
+        args.config,
+        args.http,
+        args.domain_id,
+        args.dds_network,
+        args.dds_security,
+    )?;
     up_args.insecure_no_auth = args.insecure_no_auth;
     let candidate = Candidate {
         id,

@@ -104,6 +104,27 @@ impl UpArgs {
         UpArgs::from_arg_matches(&matches).map_err(|e| e.to_string())
     }
 
+    /// `skein up`'s options at their defaults, then the ones every role has flags for: the
+    /// config file, the API's address, the DDS domain, networks and security.
+    ///
+    /// # Errors
+    /// As [`UpArgs::defaults`].
+    pub(crate) fn for_role(
+        config: Option<PathBuf>,
+        http: Option<SocketAddr>,
+        domain_id: Option<u16>,
+        dds_network: Vec<IpAddr>,
+        dds_security: crate::cmd::dds::DdsSecurityArgs,
+    ) -> Result<UpArgs, String> {
+        let mut args = UpArgs::defaults()?;
+        args.config = config;
+        args.http = http;
+        args.domain_id = domain_id;
+        args.dds_network = dds_network;
+        args.dds_security = dds_security;
+        Ok(args)
+    }
+
     /// The configuration file `--config` names, or the defaults without one.
     ///
     /// # Errors
