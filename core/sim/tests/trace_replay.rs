@@ -314,66 +314,41 @@ fn metrics() -> Vec<Metric> {
     all
 }
 
+/// The 10 m step north: (rise time, overshoot, steady-state error).
+fn north_step(t: &Trace) -> (f64, f64, f64) {
+    step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0)
+}
+
+/// The 5 m step up (to 15 m), the same figures.
+fn up_step(t: &Trace) -> (f64, f64, f64) {
+    step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5)
+}
+
+/// The 5 m step back down (to 10 m), the same figures.
+fn down_step(t: &Trace) -> (f64, f64, f64) {
+    step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5)
+}
+
 /// The position steps: rise time, overshoot and steady-state error, north, up and down.
 fn step_response_metrics() -> Vec<Metric> {
+    use Tol::{Abs, Rel};
+    let (n, u) = ("step_north_10m", "step_up_5m");
     vec![
-        metric("step_north_10m", "t90", "s", Tol::Rel(0.15), false, |t| {
-            step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).0
+        metric(n, "t90", "s", Rel(0.15), false, |t| north_step(t).0),
+        metric(n, "overshoot", "m", Abs(0.3), false, |t| north_step(t).1),
+        metric(n, "steady-state", "m", Abs(0.15), false, |t| {
+            north_step(t).2
         }),
-        metric(
-            "step_north_10m",
-            "overshoot",
-            "m",
-            Tol::Abs(0.3),
-            false,
-            |t| step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).1,
-        ),
-        metric(
-            "step_north_10m",
-            "steady-state",
-            "m",
-            Tol::Abs(0.15),
-            false,
-            |t| step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).2,
-        ),
-        metric("step_up_5m", "t90 up", "s", Tol::Rel(0.15), false, |t| {
-            step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).0
+        metric(u, "t90 up", "s", Rel(0.15), false, |t| up_step(t).0),
+        metric(u, "overshoot up", "m", Abs(0.3), false, |t| up_step(t).1),
+        metric(u, "steady-state up", "m", Abs(0.15), true, |t| up_step(t).2),
+        metric(u, "t90 down", "s", Rel(0.15), true, |t| down_step(t).0),
+        metric(u, "overshoot down", "m", Abs(0.3), false, |t| {
+            down_step(t).1
         }),
-        metric(
-            "step_up_5m",
-            "overshoot up",
-            "m",
-            Tol::Abs(0.3),
-            false,
-            |t| step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).1,
-        ),
-        metric(
-            "step_up_5m",
-            "steady-state up",
-            "m",
-            Tol::Abs(0.15),
-            true,
-            |t| step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).2,
-        ),
-        metric("step_up_5m", "t90 down", "s", Tol::Rel(0.15), true, |t| {
-            step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).0
+        metric(u, "steady-state down", "m", Abs(0.15), true, |t| {
+            down_step(t).2
         }),
-        metric(
-            "step_up_5m",
-            "overshoot down",
-            "m",
-            Tol::Abs(0.3),
-            false,
-            |t| step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).1,
-        ),
-        metric(
-            "step_up_5m",
-            "steady-state down",
-            "m",
-            Tol::Abs(0.15),
-            true,
-            |t| step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).2,
-        ),
     ]
 }
 
