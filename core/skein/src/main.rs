@@ -28,7 +28,7 @@
 //!   to over a Unix socket (see `skein_plugin_host`).
 //!
 //! Each command is a module of [`cmd`] (the table there maps roles to files); `up`,
-//! `coordinator` and `agent` are one composition of parts in three roles ([`role`]); [`config`]
+//! `coordinator` and `agent` are one composition of parts in three roles ([`compose`]); [`config`]
 //! reads the config file, [`process`] holds what every long-running command shares
 //! (signals, the exit status of a failed coordinator, the process watchdog), [`service`]
 //! talks to systemd (readiness, watchdog), [`shutdown`] is what an agent does with its
@@ -36,9 +36,9 @@
 #![warn(missing_docs)]
 
 mod cmd;
+mod compose;
 mod config;
 mod process;
-mod role;
 mod service;
 mod shutdown;
 mod sim_control;

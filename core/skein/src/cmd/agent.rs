@@ -13,11 +13,11 @@
 //! them in PX4 Hold or RTL: `--shutdown-action`, `[agent] shutdown_action`), then exits 0
 //! (see [`crate::shutdown`]).
 //!
-//! The composition of [`crate::role`] in its [`Role::Agent`] role: `skein up`'s options at
+//! The composition of [`crate::compose`] in its [`Role::Agent`] role: `skein up`'s options at
 //! their defaults, then this command's.
 
+use crate::compose::{AgentRole, Role, UpArgs, hostname, run};
 use crate::config::ConfigFile;
-use crate::role::{AgentRole, Role, UpArgs, hostname, run};
 use crate::shutdown::{ShutdownAction, ShutdownPlan};
 use clap::Args;
 use skein_dds::agent::{AgentConfig, LostAction};

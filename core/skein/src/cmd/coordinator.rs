@@ -4,10 +4,10 @@
 //! candidate of highest priority is active; a standby's API answers reads and refuses
 //! writes with a 409 naming the active one.
 //!
-//! The composition of [`crate::role`] in its [`Role::Coordinator`] role: `skein up`'s
+//! The composition of [`crate::compose`] in its [`Role::Coordinator`] role: `skein up`'s
 //! options at their defaults, then this command's.
 
-use crate::role::{Candidate, Role, UpArgs, hostname, run};
+use crate::compose::{Candidate, Role, UpArgs, hostname, run};
 use clap::Args;
 use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;

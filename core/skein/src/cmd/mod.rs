@@ -14,7 +14,7 @@
 //! | `skein dds keystore create`, `skein dds enclave create` | an SROS 2 keystore, a participant's enclave | [`dds`] |
 //! | `skein plugin new` | a payload plugin crate that builds | [`plugin_new`] |
 //!
-//! `up`, `coordinator` and `agent` are one composition in three roles ([`crate::role`]):
+//! `up`, `coordinator` and `agent` are one composition in three roles ([`crate::compose`]):
 //! each turns its flags into a role and its options; none imports another.
 //!
 //! `skein sim` is `skein_sim::cli`; `skein plugin-host` is `skein_plugin_host`'s child

@@ -1,11 +1,11 @@
 //! `skein up`: the single-process swarm (coordinator, local vehicles, the simulator,
 //! plugins, the API and dashboard, and with `--dds` the ROS 2 topics): the composition
-//! of [`crate::role`] in its [`Role::Up`] role, every option a flag ([`UpArgs`]).
+//! of [`crate::compose`] in its [`Role::Up`] role, every option a flag ([`UpArgs`]).
 
-use crate::role::{Role, run};
+use crate::compose::{Role, run};
 use std::process::ExitCode;
 
-pub(crate) use crate::role::UpArgs;
+pub(crate) use crate::compose::UpArgs;
 
 /// Runs the single-process swarm until a signal or its coordinator's failure.
 ///

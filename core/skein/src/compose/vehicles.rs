@@ -2,7 +2,8 @@
 //! one `udpin` endpoint per simulated vehicle (sysids from the role's first, ports in the
 //! PX4 SITL layout from `--sim-base-port`), with the swarm settings they fly under.
 
-use super::{Role, UpArgs};
+use super::options::UpArgs;
+use super::role::Role;
 use crate::config::ConfigFile;
 use skein_link::ConnectionAddress;
 use skein_mavlink::signing::SigningKey;

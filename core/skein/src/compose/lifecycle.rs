@@ -3,7 +3,7 @@
 //! wait) or until the coordinator fails (exit [`EXIT_COORDINATOR_FAILED`] for the outer
 //! supervisor to restart skein); then the swarm and the simulator stop.
 
-use super::Role;
+use super::role::Role;
 use crate::process::{EXIT_COORDINATOR_FAILED, shutdown_signal};
 use crate::shutdown::ShutdownPlan;
 use skein_swarm::{CoordinatorMsg, Swarm};

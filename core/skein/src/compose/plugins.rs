@@ -2,7 +2,7 @@
 //! warning for each payload kind no plugin provides, and the vehicles told when a plugin
 //! is loaded, unloaded or reloaded at run time.
 
-use super::UpArgs;
+use super::options::UpArgs;
 use super::vehicles::Fleet;
 use crate::config::ConfigFile;
 use skein_plugin_host::{PluginEvent, PluginManager};

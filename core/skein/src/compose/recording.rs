@@ -2,7 +2,7 @@
 //! /api/v1/recording/start` records on demand), started at once with `--record FILE`,
 //! and finished before the process exits.
 
-use super::UpArgs;
+use super::options::UpArgs;
 use crate::config::ConfigFile;
 use skein_record::Recorder;
 use skein_swarm::Swarm;

@@ -4,6 +4,7 @@
 //!
 //! | part | module | `up` | `agent` | `coordinator` |
 //! |---|---|---|---|---|
+//! | the role: what sets the three apart | [`role`] | [`Role::Up`] | [`Role::Agent`] | [`Role::Coordinator`] |
 //! | options, config file | [`options`] | every flag | its flags | its flags |
 //! | API settings: listen address, auth, TLS, map | [`api`] | ✓ | loopback by default | ✓ |
 //! | vehicles: `[[vehicles]]` and simulated ones | [`vehicles`] | at least one | at least one, sysids from `--first-sysid` | the config's, maybe none |
@@ -17,7 +18,9 @@
 //! | shutdown | [`lifecycle`] | exit | vehicles secured first (`crate::shutdown`) | exit |
 //!
 //! The role commands (`crate::cmd::{up, agent, coordinator}`) only turn their flags into
-//! a [`Role`] and [`UpArgs`]; none of them imports another.
+//! a [`Role`] and [`UpArgs`]; none of them imports another. The parts import their
+//! siblings (`options`, `role`) and never this module, so the dependencies point one
+//! way: commands → this sequence → parts.
 
 mod api;
 mod dds;
@@ -27,112 +30,20 @@ mod lifecycle;
 mod options;
 mod plugins;
 mod recording;
+mod role;
 mod services;
 mod simulator;
 mod vehicles;
 
 pub(crate) use election::hostname;
 pub(crate) use options::UpArgs;
+pub(crate) use role::{AgentRole, Candidate, Role};
 
 use crate::config::ConfigFile;
-use crate::shutdown::ShutdownPlan;
-use skein_dds::agent::AgentConfig;
 use skein_swarm::Swarm;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Duration;
-
-/// Which role this process plays: what sets the parts apart (see the module docs).
-#[derive(Debug, Clone)]
-pub(crate) enum Role {
-    /// `skein up`: everything in one process; DDS only when asked for.
-    Up,
-    /// `skein coordinator`: a candidate of the coordinator election, no vehicles needed.
-    Coordinator(Candidate),
-    /// `skein agent`: this computer's vehicles, steered over DDS by the active coordinator.
-    Agent(AgentRole),
-}
-
-/// A coordinator candidate's identity in the election.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Candidate {
-    /// Id on the lease topic.
-    pub id: String,
-    /// Priority: the live candidate with the highest is active.
-    pub priority: u32,
-}
-
-/// What an agent needs beyond `skein up`'s options.
-#[derive(Debug, Clone)]
-pub(crate) struct AgentRole {
-    /// The first simulated vehicle's sysid.
-    pub first_sysid: u8,
-    /// The carrier's settings.
-    pub config: AgentConfig,
-    /// What the vehicles do before the process exits.
-    pub shutdown: ShutdownPlan,
-}
-
-impl Role {
-    /// Whether the process refuses to start without a vehicle (`--sim N` or
-    /// `[[vehicles]]`): a coordinator candidate flies the agents' vehicles.
-    fn needs_vehicles(&self) -> bool {
-        !matches!(self, Role::Coordinator(_))
-    }
-
-    /// Whether the DDS link runs whatever `--dds` and `[dds] enabled` say.
-    fn needs_dds(&self) -> bool {
-        !matches!(self, Role::Up)
-    }
-
-    /// The sysid of the first simulated vehicle.
-    fn first_sysid(&self) -> u8 {
-        match self {
-            Role::Agent(a) => a.first_sysid,
-            Role::Up | Role::Coordinator(_) => 1,
-        }
-    }
-
-    /// The election candidate this process is, if any.
-    fn candidate(&self) -> Option<&Candidate> {
-        match self {
-            Role::Coordinator(c) => Some(c),
-            Role::Up | Role::Agent(_) => None,
-        }
-    }
-
-    /// The agent this process is, if any.
-    fn agent(&self) -> Option<&AgentRole> {
-        match self {
-            Role::Agent(a) => Some(a),
-            Role::Up | Role::Coordinator(_) => None,
-        }
-    }
-
-    /// The line that says what the role does on DDS, printed once DDS runs.
-    fn describe(&self) -> Option<String> {
-        match self {
-            Role::Up => None,
-            Role::Coordinator(c) => Some(format!(
-                "skein: coordinator candidate `{}`, priority {} (GET /api/v1/coordinator)",
-                c.id, c.priority
-            )),
-            Role::Agent(a) => {
-                let c = &a.config;
-                Some(format!(
-                    "skein: agent `{}`: obeys the active coordinator; rides through {:.1} s of \
-                     silence on its slots; without a coordinator for {:.1} s it holds, then \
-                     after {:.1} s more: {:?}",
-                    c.agent_id,
-                    c.ride_through.as_secs_f64(),
-                    c.coordinator_timeout.max(c.ride_through).as_secs_f64(),
-                    c.lost_action_after.as_secs_f64(),
-                    c.lost_action
-                ))
-            }
-        }
-    }
-}
 
 /// Runs the process of `role` with `args` until a signal or the coordinator's failure:
 /// the parts in order (see the module docs), then the shutdown.

@@ -5,9 +5,10 @@
 //! `[dds] enabled`; an agent (the agent carrier) and a coordinator candidate (the
 //! election) always do.
 
+use super::options::UpArgs;
 use super::options::parse_tf_frame;
+use super::role::Role;
 use super::services::add_service;
-use super::{Role, UpArgs};
 use crate::config::ConfigFile;
 use skein_swarm::Swarm;
 use std::net::SocketAddr;

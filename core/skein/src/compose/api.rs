@@ -4,8 +4,8 @@
 //! tiles (`--map-tiles`, `[map]`), resolved before anything flies; then the API served as
 //! a service the coordinator supervises, with what the other parts add to it.
 
-use super::UpArgs;
 use super::dds::Dds;
+use super::options::UpArgs;
 use super::plugins::Plugins;
 use super::services::add_service;
 use crate::config::ConfigFile;

@@ -1,7 +1,7 @@
 //! Forwarding every vehicle's MAVLink to a ground station and its commands back
 //! (`--gcs-forward` over `[gcs] forward`; setpoints from the ground station are dropped).
 
-use super::UpArgs;
+use super::options::UpArgs;
 use crate::config::ConfigFile;
 use skein_swarm::Swarm;
 use std::sync::Arc;

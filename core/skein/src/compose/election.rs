@@ -2,7 +2,7 @@
 //! lease's settings, the API address it advertises there (where a standby's 409 sends
 //! clients), and the host name that default ids are made from.
 
-use super::Candidate;
+use super::role::Candidate;
 use std::net::{IpAddr, SocketAddr};
 
 /// The lease a coordinator candidate publishes: its id and priority, the API address it

@@ -4,8 +4,9 @@
 //! given the simulator's controls before it exists ([`SimSlot`]): payloads reach it once
 //! it runs.
 
+use super::options::UpArgs;
+use super::role::Role;
 use super::vehicles::Simulated;
-use super::{Role, UpArgs};
 use crate::sim_control::LateSimControl;
 use skein_swarm::Swarm;
 use std::sync::{Arc, OnceLock};
