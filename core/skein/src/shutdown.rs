@@ -275,7 +275,7 @@ fn settle(
             continue;
         };
         *state = v.state;
-        if !(secured(action, v) || !v.state.is_connected()) {
+        if !secured(action, v) && v.state.is_connected() {
             continue;
         }
         let what = if !v.state.is_connected() {
