@@ -361,7 +361,7 @@ fn tracking_metrics() -> Vec<Metric> {
             "m",
             Tol::Abs(0.25),
             false,
-            |t| ramp_lag(t),
+            ramp_lag,
         ),
         metric(
             "ramp_5ms_posvel",
@@ -382,7 +382,7 @@ fn tracking_metrics() -> Vec<Metric> {
             "m",
             Tol::Abs(0.25),
             false,
-            |t| ramp_lag(t),
+            ramp_lag,
         ),
         metric(
             "velocity_steps",
