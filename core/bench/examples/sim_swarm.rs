@@ -97,6 +97,16 @@ struct ClientCounters {
     setpoints_sent: AtomicU64,
 }
 
+/// The client's shared state: its counters, the switches the main thread flips, and the
+/// commands it sends to every vehicle with the next setpoints.
+#[derive(Default)]
+struct ClientControl {
+    counters: ClientCounters,
+    streaming: AtomicBool,
+    stop: AtomicBool,
+    commands: std::sync::Mutex<Vec<MavMessage>>,
+}
+
 fn main() {
     let args = Args::parse();
     assert!(
@@ -115,7 +125,39 @@ fn main() {
     let client_std = std::net::UdpSocket::bind("127.0.0.1:0").expect("client socket");
     client_std.set_nonblocking(true).expect("nonblocking");
     let client_addr = client_std.local_addr().expect("addr");
+    let (sims, vehicles) = start_simulators(&args, &sim_rt, client_addr);
+    let control = Arc::new(ClientControl::default());
+    let client_thread = spawn_client(client_std, vehicles, args.rate_hz, control.clone());
 
+    settle("warm-up", Duration::from_secs(3));
+    measure_idle(&args, &control.counters);
+    // Streaming phase: setpoints to everyone, then OFFBOARD + arm.
+    control.streaming.store(true, Ordering::Relaxed);
+    settle("pre-stream", Duration::from_millis(1500));
+    switch_to_offboard_and_arm(&control);
+    settle("climb", Duration::from_secs(4));
+    measure_streaming(&args, &sims, &control.counters);
+
+    control.stop.store(true, Ordering::Relaxed);
+    let _ = client_thread.join();
+    for sim in sims {
+        sim_rt.block_on(sim.shutdown());
+    }
+}
+
+/// Waits `d`, saying what for.
+fn settle(what: &str, d: Duration) {
+    println!("{what} ({:.0} s)…", d.as_secs_f64());
+    std::thread::sleep(d);
+}
+
+/// Starts the simulators on `sim_rt`, 255 vehicles each at most, every vehicle sending to
+/// `client_addr`; returns them and each vehicle's (sysid, bound address).
+fn start_simulators(
+    args: &Args,
+    sim_rt: &tokio::runtime::Runtime,
+    client_addr: SocketAddr,
+) -> (Vec<Simulator>, Vec<(u8, SocketAddr)>) {
     // MAVLink system ids are one byte: above 255 vehicles, several simulators would be
     // needed in real life; the benchmark reuses ids across 255-vehicle simulators.
     let n = args.vehicles;
@@ -149,128 +191,144 @@ fn main() {
         sims.len(),
         if args.full_telemetry { "px4" } else { "swarm" }
     );
+    (sims, vehicles)
+}
 
-    let counters = Arc::new(ClientCounters::default());
-    let streaming = Arc::new(AtomicBool::new(false));
-    let stop = Arc::new(AtomicBool::new(false));
-    let commands: Arc<std::sync::Mutex<Vec<MavMessage>>> = Arc::default();
-    let client_thread = {
-        let counters = counters.clone();
-        let streaming = streaming.clone();
-        let stop = stop.clone();
-        let commands = commands.clone();
-        let vehicles = vehicles.clone();
-        let rate_hz = args.rate_hz;
-        std::thread::Builder::new()
-            .name("client".into())
-            .spawn(move || {
-                let rt = tokio::runtime::Builder::new_current_thread()
-                    .enable_all()
-                    .build()
-                    .expect("client runtime");
-                rt.block_on(async move {
-                    let sock =
-                        Arc::new(tokio::net::UdpSocket::from_std(client_std).expect("socket"));
-                    let rx = {
-                        let sock = sock.clone();
-                        let counters = counters.clone();
-                        tokio::spawn(async move {
-                            let mut buf = vec![0u8; 65536];
-                            let mut dec = Decoder::default();
-                            loop {
-                                let Ok((len, _)) = sock.recv_from(&mut buf).await else {
-                                    continue;
-                                };
-                                counters.datagrams.fetch_add(1, Ordering::Relaxed);
-                                let mut frames = 0;
-                                dec.decode_datagram(&buf[..len], |_| frames += 1);
-                                counters.frames.fetch_add(frames, Ordering::Relaxed);
-                                counters
-                                    .decode_errors
-                                    .store(dec.stats().snapshot().errors(), Ordering::Relaxed);
-                            }
-                        })
-                    };
-                    let mut enc = Encoder::new(245, 190);
-                    let mut iv = tokio::time::interval(Duration::from_secs_f64(1.0 / rate_hz));
-                    iv.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-                    let mut last_hb = Instant::now() - Duration::from_secs(2);
-                    let mut buf = Vec::with_capacity(512);
-                    while !stop.load(Ordering::Relaxed) {
-                        iv.tick().await;
-                        if !streaming.load(Ordering::Relaxed) {
-                            continue;
-                        }
-                        let hb = last_hb.elapsed() >= Duration::from_secs(1);
-                        if hb {
-                            last_hb = Instant::now();
-                        }
-                        let pending: Vec<MavMessage> =
-                            std::mem::take(&mut *commands.lock().expect("lock"));
-                        for &(sysid, addr) in &vehicles {
-                            buf.clear();
-                            if hb {
-                                enc.encode_into(
-                                    &MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-                                        custom_mode: 0,
-                                        mavtype: MavType::MAV_TYPE_GCS,
-                                        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-                                        base_mode: MavModeFlag::empty(),
-                                        system_status: MavState::MAV_STATE_ACTIVE,
-                                        mavlink_version: 3,
-                                    }),
-                                    &mut buf,
-                                );
-                            }
-                            enc.encode_into(
-                                &MavMessage::SET_POSITION_TARGET_LOCAL_NED(
-                                    SET_POSITION_TARGET_LOCAL_NED_DATA {
-                                        time_boot_ms: 0,
-                                        x: 0.0,
-                                        y: 0.0,
-                                        z: -5.0,
-                                        vx: 0.0,
-                                        vy: 0.0,
-                                        vz: 0.0,
-                                        afx: 0.0,
-                                        afy: 0.0,
-                                        afz: 0.0,
-                                        yaw: 0.0,
-                                        yaw_rate: 0.0,
-                                        type_mask: PositionTargetTypemask::from_bits_retain(
-                                            type_mask::POSITION_YAW,
-                                        ),
-                                        target_system: sysid,
-                                        target_component: 1,
-                                        coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
-                                    },
-                                ),
-                                &mut buf,
-                            );
-                            for cmd in &pending {
-                                let mut cmd = cmd.clone();
-                                if let MavMessage::COMMAND_LONG(c) = &mut cmd {
-                                    c.target_system = sysid;
-                                }
-                                enc.encode_into(&cmd, &mut buf);
-                            }
-                            if sock.try_send_to(&buf, addr).is_ok() {
-                                counters.setpoints_sent.fetch_add(1, Ordering::Relaxed);
-                            }
-                        }
-                    }
-                    rx.abort();
-                });
-            })
-            .expect("client thread")
-    };
+/// Runs the client on a thread of its own (`client`, a single-threaded runtime): it
+/// counts the telemetry it receives and, while streaming, sends every vehicle its frames
+/// at `rate_hz` until told to stop.
+fn spawn_client(
+    client_std: std::net::UdpSocket,
+    vehicles: Vec<(u8, SocketAddr)>,
+    rate_hz: f64,
+    control: Arc<ClientControl>,
+) -> std::thread::JoinHandle<()> {
+    std::thread::Builder::new()
+        .name("client".into())
+        .spawn(move || {
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .expect("client runtime");
+            rt.block_on(async move {
+                let sock = Arc::new(tokio::net::UdpSocket::from_std(client_std).expect("socket"));
+                let rx = tokio::spawn(receive(sock.clone(), control.clone()));
+                stream(&sock, &vehicles, rate_hz, &control).await;
+                rx.abort();
+            });
+        })
+        .expect("client thread")
+}
 
-    let settle = |what: &str, d: Duration| {
-        println!("{what} ({:.0} s)…", d.as_secs_f64());
-        std::thread::sleep(d);
-    };
-    settle("warm-up", Duration::from_secs(3));
+/// Counts the datagrams and frames arriving on `sock`, and the decoder's errors.
+async fn receive(sock: Arc<tokio::net::UdpSocket>, control: Arc<ClientControl>) {
+    let counters = &control.counters;
+    let mut buf = vec![0u8; 65536];
+    let mut dec = Decoder::default();
+    loop {
+        let Ok((len, _)) = sock.recv_from(&mut buf).await else {
+            continue;
+        };
+        counters.datagrams.fetch_add(1, Ordering::Relaxed);
+        let mut frames = 0;
+        dec.decode_datagram(&buf[..len], |_| frames += 1);
+        counters.frames.fetch_add(frames, Ordering::Relaxed);
+        counters
+            .decode_errors
+            .store(dec.stats().snapshot().errors(), Ordering::Relaxed);
+    }
+}
 
+/// Every `1 / rate_hz` while streaming, one datagram to each vehicle: a GCS heartbeat once
+/// a second, a position setpoint, and the pending commands.
+async fn stream(
+    sock: &tokio::net::UdpSocket,
+    vehicles: &[(u8, SocketAddr)],
+    rate_hz: f64,
+    control: &ClientControl,
+) {
+    let mut enc = Encoder::new(245, 190);
+    let mut iv = tokio::time::interval(Duration::from_secs_f64(1.0 / rate_hz));
+    iv.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut last_hb = Instant::now() - Duration::from_secs(2);
+    let mut buf = Vec::with_capacity(512);
+    while !control.stop.load(Ordering::Relaxed) {
+        iv.tick().await;
+        if !control.streaming.load(Ordering::Relaxed) {
+            continue;
+        }
+        let hb = last_hb.elapsed() >= Duration::from_secs(1);
+        if hb {
+            last_hb = Instant::now();
+        }
+        let pending: Vec<MavMessage> = std::mem::take(&mut *control.commands.lock().expect("lock"));
+        for &(sysid, addr) in vehicles {
+            buf.clear();
+            encode_frames(&mut enc, &mut buf, sysid, hb, &pending);
+            if sock.try_send_to(&buf, addr).is_ok() {
+                control
+                    .counters
+                    .setpoints_sent
+                    .fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+}
+
+/// Appends vehicle `sysid`'s frames to `buf`: a GCS heartbeat (with `hb`), a setpoint
+/// 5 m up, and `pending`'s commands addressed to it.
+fn encode_frames(
+    enc: &mut Encoder,
+    buf: &mut Vec<u8>,
+    sysid: u8,
+    hb: bool,
+    pending: &[MavMessage],
+) {
+    if hb {
+        enc.encode_into(
+            &MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                custom_mode: 0,
+                mavtype: MavType::MAV_TYPE_GCS,
+                autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+                base_mode: MavModeFlag::empty(),
+                system_status: MavState::MAV_STATE_ACTIVE,
+                mavlink_version: 3,
+            }),
+            buf,
+        );
+    }
+    enc.encode_into(
+        &MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+            time_boot_ms: 0,
+            x: 0.0,
+            y: 0.0,
+            z: -5.0,
+            vx: 0.0,
+            vy: 0.0,
+            vz: 0.0,
+            afx: 0.0,
+            afy: 0.0,
+            afz: 0.0,
+            yaw: 0.0,
+            yaw_rate: 0.0,
+            type_mask: PositionTargetTypemask::from_bits_retain(type_mask::POSITION_YAW),
+            target_system: sysid,
+            target_component: 1,
+            coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+        }),
+        buf,
+    );
+    for cmd in pending {
+        let mut cmd = cmd.clone();
+        if let MavMessage::COMMAND_LONG(c) = &mut cmd {
+            c.target_system = sysid;
+        }
+        enc.encode_into(&cmd, buf);
+    }
+}
+
+/// Measures one window with the vehicles on the ground and prints the CPU and telemetry.
+fn measure_idle(args: &Args, counters: &ClientCounters) {
     let window = Duration::from_secs_f64(args.seconds);
     let frames0 = counters.frames.load(Ordering::Relaxed);
     let dgrams0 = counters.datagrams.load(Ordering::Relaxed);
@@ -283,37 +341,62 @@ fn main() {
         "idle:      simulator {sim_idle:5.1} % of one core, client {client_idle:5.1} %, \
          telemetry {idle_frames:.0} frames/s in {idle_dgrams:.0} datagrams/s"
     );
+}
 
-    // Streaming phase: setpoints to everyone, then OFFBOARD + arm.
-    streaming.store(true, Ordering::Relaxed);
-    settle("pre-stream", Duration::from_millis(1500));
+/// Has the client broadcast OFFBOARD, then (300 ms later) arm, to every vehicle.
+fn switch_to_offboard_and_arm(control: &ClientControl) {
     let (main, sub) = Px4Mode::Offboard.main_sub();
     // Broadcast (target system 0) to every simulated autopilot.
     let command = |command: MavCmd, p: [f32; 7]| {
         skein_mavlink::command_long(skein_mavlink::CommandTarget::new(0, 1), command, p, 0)
     };
-    commands.lock().expect("lock").push(command(
+    control.commands.lock().expect("lock").push(command(
         MavCmd::MAV_CMD_DO_SET_MODE,
         [1.0, f32::from(main), f32::from(sub), 0.0, 0.0, 0.0, 0.0],
     ));
     std::thread::sleep(Duration::from_millis(300));
-    commands.lock().expect("lock").push(command(
+    control.commands.lock().expect("lock").push(command(
         MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
         [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
     ));
-    settle("climb", Duration::from_secs(4));
-    for sim in &sims {
+}
+
+/// Measures one window of streaming and prints the CPU, the setpoints sent and
+/// received, the largest setpoint gaps and the vehicles' states.
+fn measure_streaming(args: &Args, sims: &[Simulator], counters: &ClientCounters) {
+    for sim in sims {
         sim.reset_stats();
     }
     let frames0 = counters.frames.load(Ordering::Relaxed);
     let sent0 = counters.setpoints_sent.load(Ordering::Relaxed);
     let w = Window::begin();
-    std::thread::sleep(window);
+    std::thread::sleep(Duration::from_secs_f64(args.seconds));
     let (sim_busy, client_busy) = w.end();
     let frames = (counters.frames.load(Ordering::Relaxed) - frames0) as f64 / args.seconds;
     let sent = counters.setpoints_sent.load(Ordering::Relaxed) - sent0;
     let stats: Vec<_> = sims.iter().flat_map(|s| s.stats()).collect();
     let received: u64 = stats.iter().map(|s| s.setpoints_received).sum();
+    println!(
+        "streaming: simulator {sim_busy:5.1} % of one core, client {client_busy:5.1} %, \
+         telemetry {frames:.0} frames/s"
+    );
+    println!(
+        "           setpoints sent {sent}, received {received} ({:.1} %), \
+         {:.0} setpoints/s into the simulator",
+        100.0 * received as f64 / sent.max(1) as f64,
+        received as f64 / args.seconds
+    );
+    print_vehicle_report(args, &stats, counters);
+}
+
+/// Prints the largest setpoint gaps in OFFBOARD and how many vehicles are armed, at
+/// altitude, in failsafe, in which mode.
+fn print_vehicle_report(
+    args: &Args,
+    stats: &[skein_sim::SimVehicleStats],
+    counters: &ClientCounters,
+) {
+    let n = args.vehicles;
     let mut gaps: Vec<f64> = stats
         .iter()
         .map(|s| s.setpoint_max_gap_offboard_ms)
@@ -330,19 +413,9 @@ fn main() {
     let failsafes: u64 = stats.iter().map(|s| s.offboard_loss_failsafes).sum();
     let drops: u64 = stats.iter().map(|s| s.send_drops).sum();
     let mut modes: HashMap<&str, usize> = HashMap::new();
-    for s in &stats {
+    for s in stats {
         *modes.entry(s.truth.mode_name).or_default() += 1;
     }
-    println!(
-        "streaming: simulator {sim_busy:5.1} % of one core, client {client_busy:5.1} %, \
-         telemetry {frames:.0} frames/s"
-    );
-    println!(
-        "           setpoints sent {sent}, received {received} ({:.1} %), \
-         {:.0} setpoints/s into the simulator",
-        100.0 * received as f64 / sent.max(1) as f64,
-        received as f64 / args.seconds
-    );
     println!(
         "           per-vehicle largest setpoint gap in OFFBOARD: median {:.1} ms, \
          p99 {:.1} ms, max {:.1} ms (nominal {:.1} ms)",
@@ -357,10 +430,4 @@ fn main() {
          client decode errors {}",
         counters.decode_errors.load(Ordering::Relaxed)
     );
-
-    stop.store(true, Ordering::Relaxed);
-    let _ = client_thread.join();
-    for sim in sims {
-        sim_rt.block_on(sim.shutdown());
-    }
 }

@@ -78,33 +78,11 @@ async fn fly(
     base: u16,
     setup_s: f64,
 ) -> Result<Value, String> {
-    let mut child = Command::new(python())
-        .arg(script)
-        .args(["--base-port", &base.to_string()])
-        .args(["--vehicles", &args.vehicles.to_string()])
-        .args(["--rate-hz", &args.rate_hz.to_string()])
-        .args(["--seconds", &args.seconds.to_string()])
-        .args(["--altitude-m", &args.altitude_m.to_string()])
-        .args(["--timeout", &setup_s.to_string()])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .kill_on_drop(true)
-        .spawn()
-        .map_err(|e| format!("cannot start {}: {e}", python().display()))?;
+    let mut child = spawn_loop(args, script, base, setup_s)?;
     let pid = child.id();
     let mut lines = BufReader::new(child.stdout.take().ok_or("script stdout")?).lines();
     let mut stdin = child.stdin.take().ok_or("script stdin")?;
-    let stderr = child.stderr.take().ok_or("script stderr")?;
-    let errors = tokio::spawn(async move {
-        let mut text = String::new();
-        let mut lines = BufReader::new(stderr).lines();
-        while let Ok(Some(l)) = lines.next_line().await {
-            text.push_str(&l);
-            text.push('\n');
-        }
-        text
-    });
+    let errors = tokio::spawn(read_all(child.stderr.take().ok_or("script stderr")?));
     // The script has bound its ports once it runs; give it a moment before the simulator
     // starts sending to them by waiting for the simulator's own start.
     // The loop keeps a port per vehicle, whatever skein's run shared.
@@ -149,14 +127,63 @@ async fn fly(
     if let Some(e) = peer.get("error") {
         return Err(format!("pymavlink loop: {e}"));
     }
-    let summary = summary?;
+    let sim_cpu_s = match (sim_cpu0, sim_cpu1) {
+        (Some(a), Some(b)) => json!(round(b - a, 2)),
+        _ => Value::Null,
+    };
+    Ok(peer_report(args, pid, &peer, &summary?, sim_cpu_s))
+}
+
+/// Starts the pymavlink loop `script` on the ports from `base`, its stdio piped.
+fn spawn_loop(
+    args: &SwarmBenchArgs,
+    script: &std::path::Path,
+    base: u16,
+    setup_s: f64,
+) -> Result<tokio::process::Child, String> {
+    Command::new(python())
+        .arg(script)
+        .args(["--base-port", &base.to_string()])
+        .args(["--vehicles", &args.vehicles.to_string()])
+        .args(["--rate-hz", &args.rate_hz.to_string()])
+        .args(["--seconds", &args.seconds.to_string()])
+        .args(["--altitude-m", &args.altitude_m.to_string()])
+        .args(["--timeout", &setup_s.to_string()])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .kill_on_drop(true)
+        .spawn()
+        .map_err(|e| format!("cannot start {}: {e}", python().display()))
+}
+
+/// Everything `stderr` says until it closes.
+async fn read_all(stderr: tokio::process::ChildStderr) -> String {
+    let mut text = String::new();
+    let mut lines = BufReader::new(stderr).lines();
+    while let Ok(Some(l)) = lines.next_line().await {
+        text.push_str(&l);
+        text.push('\n');
+    }
+    text
+}
+
+/// The loop's figures: its own report `peer`, the simulator's `summary` of the window,
+/// and the simulator's CPU meanwhile.
+fn peer_report(
+    args: &SwarmBenchArgs,
+    pid: Option<u32>,
+    peer: &Value,
+    summary: &Value,
+    sim_cpu_s: Value,
+) -> Value {
     let period_ms = 1e3 / args.rate_hz;
     let threshold = 1.25 * period_ms;
     let intervals = u64_at(&summary["setpoint_intervals"], "count");
     let late = late_intervals(&summary["setpoint_interval_buckets"], threshold);
     let cpu = peer["cpu_s"].as_f64().unwrap_or(f64::NAN);
     let n = args.vehicles as f64;
-    Ok(json!({
+    json!({
         "peer": "pymavlink",
         "pid": pid,
         "cpu_s": cpu,
@@ -167,12 +194,9 @@ async fn fly(
         "interval_ms_p99": f64_at(&summary["setpoint_intervals"], &["p99_ms"]),
         "interval_ms_max": f64_at(&summary["setpoint_intervals"], &["max_ms"]),
         "setpoints_sent": peer["setpoints_sent"],
-        "setpoints_received": u64_at(&summary, "setpoints_received"),
-        "offboard_loss_failsafes": u64_at(&summary, "offboard_loss_failsafes"),
+        "setpoints_received": u64_at(summary, "setpoints_received"),
+        "offboard_loss_failsafes": u64_at(summary, "offboard_loss_failsafes"),
         "all_offboard": summary["modes"]["OFFBOARD"].as_u64().unwrap_or(0) == args.vehicles as u64,
-        "sim_cpu_s": match (sim_cpu0, sim_cpu1) {
-            (Some(a), Some(b)) => json!(round(b - a, 2)),
-            _ => Value::Null,
-        },
-    }))
+        "sim_cpu_s": sim_cpu_s,
+    })
 }

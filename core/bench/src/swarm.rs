@@ -8,6 +8,7 @@ use crate::sim_process::*;
 use crate::stack::*;
 use serde_json::{Value, json};
 use skein_swarm::{Swarm, SwarmServices};
+use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 /// A task on this process's runtime ticking at the setpoint period for `window`; returns
@@ -111,6 +112,46 @@ pub async fn swarm(args: SwarmBenchArgs) -> Result<Value, String> {
     Ok(report)
 }
 
+/// What is read at each end of the measurement window.
+struct Readings {
+    /// Setpoints skein sent.
+    sent: u64,
+    /// skein's send errors.
+    errors: u64,
+    /// skein's CPU seconds.
+    cpu: Option<f64>,
+    /// skein's CPU seconds per thread name.
+    threads: BTreeMap<String, f64>,
+    /// The simulator process's CPU seconds.
+    sim_cpu: Option<f64>,
+    /// The host's busy CPU seconds.
+    host: Option<f64>,
+}
+
+impl Readings {
+    async fn take(swarm: &Swarm, sim: &SimProcess) -> Result<Readings, String> {
+        Ok(Readings {
+            sent: skein_setpoints_sent(swarm).await?,
+            errors: skein_send_errors(swarm),
+            cpu: cpu_seconds(None),
+            threads: thread_cpu_seconds(None),
+            sim_cpu: sim.pid.and_then(|p| cpu_seconds(Some(p))),
+            host: host_busy_seconds(),
+        })
+    }
+}
+
+/// CPU the rest of the host used between `r0` and `r1`: other work competing for the
+/// cores makes the figures of this run unrepresentative.
+fn host_other_cpu_s(r0: &Readings, r1: &Readings) -> Value {
+    match (r0.host, r1.host, r0.cpu, r1.cpu, r0.sim_cpu, r1.sim_cpu) {
+        (Some(h0), Some(h1), Some(c0), Some(c1), Some(s0), Some(s1)) => {
+            json!(round(((h1 - h0) - (c1 - c0) - (s1 - s0)).max(0.0), 2))
+        }
+        _ => Value::Null,
+    }
+}
+
 async fn measure(
     swarm: &Swarm,
     sim: &mut SimProcess,
@@ -127,12 +168,7 @@ async fn measure(
     );
 
     // The window.
-    let sent0 = skein_setpoints_sent(swarm).await?;
-    let errors0 = skein_send_errors(swarm);
-    let cpu0 = cpu_seconds(None);
-    let threads0 = thread_cpu_seconds(None);
-    let sim_cpu0 = sim.pid.and_then(|p| cpu_seconds(Some(p)));
-    let host0 = host_busy_seconds();
+    let r0 = Readings::take(swarm, sim).await?;
     sim.ask("reset").await?;
     let t0 = Instant::now();
     let probe = tokio::spawn(probe(
@@ -143,20 +179,13 @@ async fn measure(
     let summary = sim.ask("summary").await?;
     let probe = probe.await.unwrap_or_default();
     let window_s = t0.elapsed().as_secs_f64();
-    let sent1 = skein_setpoints_sent(swarm).await?;
-    let errors1 = skein_send_errors(swarm);
-    let cpu1 = cpu_seconds(None);
-    let threads1 = thread_cpu_seconds(None);
-    let sim_cpu1 = sim.pid.and_then(|p| cpu_seconds(Some(p)));
-    let host1 = host_busy_seconds();
-    // CPU the rest of the host used meanwhile: other work competing for the cores makes
-    // the figures of this run unrepresentative.
-    let other = match (host0, host1, cpu0, cpu1, sim_cpu0, sim_cpu1) {
-        (Some(h0), Some(h1), Some(c0), Some(c1), Some(s0), Some(s1)) => {
-            json!(round(((h1 - h0) - (c1 - c0) - (s1 - s0)).max(0.0), 2))
-        }
-        _ => Value::Null,
-    };
+    let r1 = Readings::take(swarm, sim).await?;
+    let other = host_other_cpu_s(&r0, &r1);
+    let (cpu0, cpu1) = (r0.cpu, r1.cpu);
+    let (sent0, sent1) = (r0.sent, r1.sent);
+    let (errors0, errors1) = (r0.errors, r1.errors);
+    let (sim_cpu0, sim_cpu1) = (r0.sim_cpu, r1.sim_cpu);
+    let (threads0, threads1) = (r0.threads, r1.threads);
 
     let period_ms = 1e3 / args.rate_hz;
     let late_threshold_ms = 1.25 * period_ms;

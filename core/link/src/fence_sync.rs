@@ -3,22 +3,22 @@
 //! `GF_ACTION` and `GF_MAX_VER_DIST` with the parameter protocol; the outcome is the
 //! vehicle's [`FenceStatus`] (`synced`, `differs` or `failed` with the reason).
 //!
-//! The `Px4Link` actor runs a sync as a task talking to the actor itself
-//! ([`Px4LinkMsg::MissionUpload`] …), in the background on connect, after a reboot or a
-//! restored link and whenever the plan the vehicle follows changes
-//! ([`VehicleLink::follow_fence`]), and on demand for a candidate fence
-//! ([`Px4LinkMsg::TryFence`], what `PUT /api/v1/geofence` does before it commits). The
+//! A sync drives the autopilot through the narrow [`FenceAutopilot`] trait: the
+//! `Px4Link` actor implements it with its own mission and parameter messages
+//! (`px4link/missions.rs`), so this module depends on the mission items and the fence
+//! plan only, and the link actor on it. The actor runs a sync in the background on
+//! connect, after a reboot or a restored link and whenever the plan the vehicle follows
+//! changes (`VehicleLink::follow_fence`), and on demand for a candidate fence
+//! (`Px4LinkMsg::TryFence`, what `PUT /api/v1/geofence` does before it commits). The
 //! syncs of one vehicle never overlap. A vehicle whose sync failed or differs is tried
 //! again every [`RETRY_AFTER`] (a refusal may have been passing: a full storage, a link
 //! that dropped the transfer).
 
 use crate::fence::{FencePlan, difference};
 use crate::mission::MissionItem;
-use crate::px4link::{Px4LinkMsg, VehicleLink};
-use ractor::ActorRef;
-use ractor::rpc::CallResult;
 use skein_mavlink::dialect::MavMissionType;
 use skein_model::geofence::{FenceStatus, FenceSyncState};
+use std::future::Future;
 use std::sync::{Arc, OnceLock, RwLock};
 use std::time::Duration;
 use tokio::sync::watch;
@@ -27,9 +27,6 @@ use tokio::sync::watch;
 /// origin is known).
 pub type FencePlans = watch::Receiver<Option<Arc<FencePlan>>>;
 
-/// Longest wait for one mission operation or parameter write (the protocols' own
-/// time-outs end them well before).
-const CALL_TIMEOUT: Duration = Duration::from_secs(60);
 /// Longest wait for a home position (what `GF_MAX_VER_DIST` is measured from).
 const HOME_TIMEOUT: Duration = Duration::from_secs(15);
 /// A vehicle whose sync failed or differs is tried again this long after.
@@ -100,53 +97,41 @@ impl FenceLink {
     }
 }
 
-async fn call<T: Send + 'static>(
-    link: &ActorRef<Px4LinkMsg>,
-    msg: impl FnOnce(ractor::RpcReplyPort<T>) -> Px4LinkMsg,
-    what: &str,
-) -> Result<T, String> {
-    match link.call(msg, Some(CALL_TIMEOUT)).await {
-        Ok(CallResult::Success(v)) => Ok(v),
-        Ok(_) => Err(format!("{what}: no answer from the link")),
-        Err(e) => Err(format!("{what}: the link stopped ({e})")),
-    }
-}
+/// What a fence sync needs of a vehicle's autopilot link: its side of the fence, whether
+/// it is lost, the mission protocol (upload and read-back of one mission type), one
+/// parameter write and the home altitude. Errors are the reason as text, naming the step.
+pub trait FenceAutopilot: Send + Sync {
+    /// The vehicle's side of the fence (status, one sync at a time).
+    fn fence(&self) -> &FenceLink;
 
-async fn upload(
-    link: &ActorRef<Px4LinkMsg>,
-    kind: MavMissionType,
-    items: &[MissionItem],
-) -> Result<(), String> {
-    let what = format!("{} upload", crate::mission::type_name(kind));
-    let items = items.to_vec();
-    call(link, |r| Px4LinkMsg::MissionUpload(kind, items, r), &what)
-        .await?
-        .map_err(|e| e.to_string())
-}
+    /// True while the link to the vehicle is lost.
+    fn is_lost(&self) -> bool;
 
-async fn download(
-    link: &ActorRef<Px4LinkMsg>,
-    kind: MavMissionType,
-) -> Result<Vec<MissionItem>, String> {
-    let what = format!("{} read-back", crate::mission::type_name(kind));
-    call(link, |r| Px4LinkMsg::MissionDownload(kind, r), &what)
-        .await?
-        .map_err(|e| e.to_string())
-}
+    /// Uploads `items` as the autopilot's plan of type `kind` (fence or rally).
+    fn upload(
+        &self,
+        kind: MavMissionType,
+        items: Vec<MissionItem>,
+    ) -> impl Future<Output = Result<(), String>> + Send;
 
-async fn set_param(link: &ActorRef<Px4LinkMsg>, name: &str, value: f64) -> Result<(), String> {
-    let n = name.to_string();
-    call(link, |r| Px4LinkMsg::ParamSet(n, value, r), name)
-        .await?
-        .map(|_| ())
-        .map_err(|e| format!("{name}: {e}"))
+    /// Reads the autopilot's plan of type `kind` back.
+    fn download(
+        &self,
+        kind: MavMissionType,
+    ) -> impl Future<Output = Result<Vec<MissionItem>, String>> + Send;
+
+    /// Writes the parameter `name` (a float or integer PX4 parameter) as `value`.
+    fn set_param(&self, name: &str, value: f64) -> impl Future<Output = Result<(), String>> + Send;
+
+    /// The vehicle's home altitude (m AMSL) from its telemetry, if known yet.
+    fn home_altitude_m(&self) -> Option<f64>;
 }
 
 /// Waits (polling the telemetry) for the vehicle's home altitude.
-async fn home_altitude(vehicle: &VehicleLink) -> Option<f64> {
+async fn home_altitude(autopilot: &impl FenceAutopilot) -> Option<f64> {
     let deadline = tokio::time::Instant::now() + HOME_TIMEOUT;
     loop {
-        if let Some(alt) = vehicle.with_telemetry(|t| t.home.map(|h| h.geo.alt_amsl_m)) {
+        if let Some(alt) = autopilot.home_altitude_m() {
             return Some(alt);
         }
         if tokio::time::Instant::now() >= deadline {
@@ -156,17 +141,15 @@ async fn home_altitude(vehicle: &VehicleLink) -> Option<f64> {
     }
 }
 
-/// Brings the autopilot behind `link` to `plan` (see the module docs); the outcome is
-/// stored as the vehicle's status and returned. With `only_if_changed`, a vehicle already
-/// synced to this version (or that failed it less than [`RETRY_AFTER`] ago) is left
-/// alone.
+/// Brings `autopilot` to `plan` (see the module docs); the outcome is stored as the
+/// vehicle's status and returned. With `only_if_changed`, a vehicle already synced to
+/// this version (or that failed it less than [`RETRY_AFTER`] ago) is left alone.
 pub async fn sync(
-    link: ActorRef<Px4LinkMsg>,
-    vehicle: Arc<VehicleLink>,
+    autopilot: impl FenceAutopilot,
     plan: Arc<FencePlan>,
     only_if_changed: bool,
 ) -> FenceStatus {
-    let fence = vehicle.fence();
+    let fence = autopilot.fence();
     let _turn = fence.running.lock().await;
     let before = fence.status();
     let recent = fence
@@ -188,7 +171,7 @@ pub async fn sync(
         breached: before.breached,
         ..FenceStatus::pending(plan.version, "uploading")
     });
-    let outcome = run(&link, &vehicle, &plan).await;
+    let outcome = run(&autopilot, &plan).await;
     let status = match outcome {
         Ok(None) => FenceStatus {
             state: FenceSyncState::Synced,
@@ -225,27 +208,25 @@ pub async fn sync(
 
 /// The steps: `Ok(None)` synced, `Ok(Some(how))` the read-back differs, `Err` a step
 /// failed.
-async fn run(
-    link: &ActorRef<Px4LinkMsg>,
-    vehicle: &VehicleLink,
-    plan: &FencePlan,
-) -> Result<Option<String>, String> {
+async fn run(autopilot: &impl FenceAutopilot, plan: &FencePlan) -> Result<Option<String>, String> {
     use MavMissionType::{MAV_MISSION_TYPE_FENCE as FENCE, MAV_MISSION_TYPE_RALLY as RALLY};
-    if vehicle.is_lost() {
+    if autopilot.is_lost() {
         return Err("no link to the vehicle".into());
     }
-    upload(link, FENCE, &plan.fence).await?;
-    upload(link, RALLY, &plan.rally).await?;
-    let held = download(link, FENCE).await?;
+    autopilot.upload(FENCE, plan.fence.clone()).await?;
+    autopilot.upload(RALLY, plan.rally.clone()).await?;
+    let held = autopilot.download(FENCE).await?;
     if let Some(d) = difference(&plan.fence, &held) {
         return Ok(Some(format!("fence: {d}")));
     }
-    let held = download(link, RALLY).await?;
+    let held = autopilot.download(RALLY).await?;
     if let Some(d) = difference(&plan.rally, &held) {
         return Ok(Some(format!("rally: {d}")));
     }
-    set_param(link, "GF_ACTION", f64::from(plan.gf_action)).await?;
-    let home = home_altitude(vehicle)
+    autopilot
+        .set_param("GF_ACTION", f64::from(plan.gf_action))
+        .await?;
+    let home = home_altitude(autopilot)
         .await
         .ok_or("no home position: GF_MAX_VER_DIST is measured from it")?;
     let above_home = plan.ceiling_amsl_m - home;
@@ -255,6 +236,6 @@ async fn run(
             plan.ceiling_amsl_m
         ));
     }
-    set_param(link, "GF_MAX_VER_DIST", above_home).await?;
+    autopilot.set_param("GF_MAX_VER_DIST", above_home).await?;
     Ok(None)
 }

@@ -6,7 +6,7 @@
 
 use serde::Serialize;
 use skein_mavlink::MavMessage;
-use skein_mavlink::dialect::{MavModeFlag, MavType};
+use skein_mavlink::dialect::{HOME_POSITION_DATA, MavModeFlag, MavType};
 use skein_model::fsm::Observed;
 use skein_model::geo::{GeoPoint, Ned, NedFrame};
 use skein_model::px4::{LandedState, Px4Mode};
@@ -172,17 +172,8 @@ impl Telemetry {
     pub fn apply(&mut self, msg: &MavMessage, now: Instant) -> Change {
         self.messages += 1;
         self.last_message_at = Some(now);
-        if let Some(boot_ms) = boot_time_ms(msg) {
-            let rebooted = self
-                .boot_ms
-                .is_some_and(|last| boot_ms.saturating_add(REBOOT_JUMP_MS) < last);
-            self.boot_ms = Some(boot_ms);
-            if rebooted {
-                // A rebooted EKF may have a new origin: forget the old home until the
-                // vehicle sends HOME_POSITION again.
-                self.home = None;
-                return Change::Rebooted;
-            }
+        if self.note_boot_time(msg) {
+            return Change::Rebooted;
         }
         let before = self.observed();
         match msg {
@@ -204,6 +195,39 @@ impl Telemetry {
             MavMessage::EXTENDED_SYS_STATE(s) => {
                 self.landed_state = LandedState::from_mavlink(s.landed_state as u8);
             }
+            MavMessage::STATUSTEXT(t) => {
+                let text = t.text.to_str().unwrap_or("<invalid utf-8>").to_string();
+                return Change::StatusText(t.severity as u8, text);
+            }
+            msg => self.apply_state(msg, now),
+        }
+        match (before, self.observed()) {
+            (b, Some(now_obs)) if b != Some(now_obs) => Change::Observed(now_obs),
+            _ => Change::None,
+        }
+    }
+
+    /// Notes the boot time `msg` carries, if any; true when it jumped back (a reboot:
+    /// the old home is forgotten, a rebooted EKF may have a new origin, until the
+    /// vehicle sends HOME_POSITION again).
+    fn note_boot_time(&mut self, msg: &MavMessage) -> bool {
+        let Some(boot_ms) = boot_time_ms(msg) else {
+            return false;
+        };
+        let rebooted = self
+            .boot_ms
+            .is_some_and(|last| boot_ms.saturating_add(REBOOT_JUMP_MS) < last);
+        self.boot_ms = Some(boot_ms);
+        if rebooted {
+            self.home = None;
+        }
+        rebooted
+    }
+
+    /// Folds a message of the vehicle's state (position, attitude, battery, home, GPS)
+    /// into the telemetry; any other message is ignored.
+    fn apply_state(&mut self, msg: &MavMessage, now: Instant) {
+        match msg {
             MavMessage::GLOBAL_POSITION_INT(g) => {
                 self.global = Some(GlobalPosition {
                     geo: GeoPoint::from_mavlink(g.lat, g.lon, g.alt),
@@ -254,34 +278,29 @@ impl Telemetry {
                     entry.percent = Some(f64::from(s.battery_remaining));
                 }
             }
-            MavMessage::HOME_POSITION(h) => {
-                let geo = GeoPoint::from_mavlink(h.latitude, h.longitude, h.altitude);
-                let local = Ned::new(h.x.into(), h.y.into(), h.z.into());
-                // PX4 repeats it (0.5 Hz here): the frame is worked out when it changes.
-                if self
-                    .home
-                    .is_none_or(|old| old.geo != geo || old.local != local)
-                {
-                    self.home = Some(Home {
-                        geo,
-                        local,
-                        origin: NedFrame::from_reference(geo, local),
-                    });
-                }
-            }
+            MavMessage::HOME_POSITION(h) => self.apply_home(h),
             MavMessage::GPS_RAW_INT(g) => {
                 self.gps_fix_type = Some(g.fix_type as u8);
                 self.satellites = Some(g.satellites_visible);
             }
-            MavMessage::STATUSTEXT(t) => {
-                let text = t.text.to_str().unwrap_or("<invalid utf-8>").to_string();
-                return Change::StatusText(t.severity as u8, text);
-            }
             _ => {}
         }
-        match (before, self.observed()) {
-            (b, Some(now_obs)) if b != Some(now_obs) => Change::Observed(now_obs),
-            _ => Change::None,
+    }
+
+    /// A HOME_POSITION: PX4 repeats it (0.5 Hz here), the frame is worked out when it
+    /// changes.
+    fn apply_home(&mut self, h: &HOME_POSITION_DATA) {
+        let geo = GeoPoint::from_mavlink(h.latitude, h.longitude, h.altitude);
+        let local = Ned::new(h.x.into(), h.y.into(), h.z.into());
+        if self
+            .home
+            .is_none_or(|old| old.geo != geo || old.local != local)
+        {
+            self.home = Some(Home {
+                geo,
+                local,
+                origin: NedFrame::from_reference(geo, local),
+            });
         }
     }
 }

@@ -38,6 +38,95 @@ pub(crate) struct LoadedLibrary {
     owns_shadow: bool,
 }
 
+/// Checks the frozen header of `vtable` (ABI version and vtable size) against ours;
+/// nothing else of a vtable is read before it matches.
+///
+/// # Safety
+/// `vtable` is non-null and points to a plugin's vtable of any ABI version, valid while
+/// its library is mapped.
+unsafe fn check_header(vtable: *const PluginVTable, file: &Path) -> Result<(), HostError> {
+    // SAFETY: the first two u32 of every skein vtable, of any ABI version, are
+    // `abi_version` and `struct_size` (frozen by the ABI rules).
+    let (abi_version, struct_size) = unsafe {
+        (
+            vtable.cast::<u32>().read(),
+            vtable.cast::<u32>().add(1).read(),
+        )
+    };
+    if abi_version != ABI_VERSION {
+        return Err(HostError::Incompatible {
+            file: file.to_path_buf(),
+            difference: format!(
+                "ABI version mismatch: the plugin was built for ABI {abi_version}, this skein speaks ABI {ABI_VERSION}"
+            ),
+        });
+    }
+    let host_size = std::mem::size_of::<PluginVTable>() as u32;
+    if struct_size != host_size {
+        return Err(HostError::Incompatible {
+            file: file.to_path_buf(),
+            difference: format!(
+                "vtable size mismatch: the plugin's is {struct_size} bytes, this skein's is {host_size} bytes"
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Refuses a plugin whose build stamp differs from ours, naming what differs.
+fn check_stamp(stamp: &str, file: &Path) -> Result<(), HostError> {
+    let ours = build_stamp();
+    if stamp == ours {
+        return Ok(());
+    }
+    let diffs = stamp_differences(stamp, &ours);
+    Err(HostError::Incompatible {
+        file: file.to_path_buf(),
+        difference: format!(
+            "build stamp mismatch: {} (plugin stamp `{stamp}`, host stamp `{ours}`)",
+            if diffs.is_empty() {
+                "formatting differs".to_string()
+            } else {
+                diffs.join("; ")
+            }
+        ),
+    })
+}
+
+/// The plugin's name, version and payload kinds, checked: a name without spaces or
+/// slashes, 1 to 64 non-empty kinds.
+fn describe(vt: &PluginVTable, file: &Path) -> Result<(String, String, Vec<String>), HostError> {
+    let not_a_plugin = |reason: String| HostError::NotAPlugin {
+        file: file.to_path_buf(),
+        reason,
+    };
+    let name = utf8(vt.name, "name", file)?;
+    if name.is_empty() || name.chars().any(|c| c.is_whitespace() || c == '/') {
+        return Err(not_a_plugin(format!(
+            "its name {name:?} is empty or contains spaces or slashes"
+        )));
+    }
+    let version = utf8(vt.version, "version", file)?;
+    if vt.kinds_len == 0 || vt.kinds_len > 64 || vt.kinds.is_null() {
+        return Err(not_a_plugin(format!(
+            "it declares {} payload kinds (1 to 64 expected)",
+            vt.kinds_len
+        )));
+    }
+    // SAFETY: the vtable has our layout (checked by the caller); `kinds` points to
+    // `kinds_len` RawBytes living as long as the library (checked non-null and bounded
+    // above).
+    let raw_kinds = unsafe { std::slice::from_raw_parts(vt.kinds, vt.kinds_len) };
+    let kinds = raw_kinds
+        .iter()
+        .map(|k| utf8(*k, "payload kind", file))
+        .collect::<Result<Vec<_>, _>>()?;
+    if kinds.iter().any(|k| k.is_empty()) {
+        return Err(not_a_plugin("it declares an empty payload kind".into()));
+    }
+    Ok((name, version, kinds))
+}
+
 // SAFETY: `vtable` points into the mapped library, immutable for as long as `lib` is
 // loaded (we keep it loaded until drop); the ABI requires every vtable function to be
 // callable from any thread (instances are `Send`, distinct instances may run concurrently).
@@ -121,81 +210,15 @@ impl LoadedLibrary {
                     .into(),
             });
         }
-        // Frozen header first, nothing else before it matches.
-        // SAFETY: non-null; the first two u32 of every skein vtable, of any ABI version,
-        // are `abi_version` and `struct_size` (frozen by the ABI rules).
-        let (abi_version, struct_size) = unsafe {
-            (
-                vtable.cast::<u32>().read(),
-                vtable.cast::<u32>().add(1).read(),
-            )
-        };
-        if abi_version != ABI_VERSION {
-            return Err(HostError::Incompatible {
-                file,
-                difference: format!(
-                    "ABI version mismatch: the plugin was built for ABI {abi_version}, this skein speaks ABI {ABI_VERSION}"
-                ),
-            });
-        }
-        let host_size = std::mem::size_of::<PluginVTable>() as u32;
-        if struct_size != host_size {
-            return Err(HostError::Incompatible {
-                file,
-                difference: format!(
-                    "vtable size mismatch: the plugin's is {struct_size} bytes, this skein's is {host_size} bytes"
-                ),
-            });
-        }
+        // SAFETY: non-null, returned by the plugin's entry point and valid while `lib` is
+        // mapped (the ABI's contract).
+        unsafe { check_header(vtable, &file) }?;
         // SAFETY: ABI version and size match ours, so `vtable` points to a `PluginVTable`
         // with our layout, valid while `lib` is mapped.
         let vt = unsafe { &*vtable };
         let stamp = utf8(vt.build_stamp, "build stamp", &file)?;
-        let ours = build_stamp();
-        if stamp != ours {
-            let diffs = stamp_differences(&stamp, &ours);
-            return Err(HostError::Incompatible {
-                file,
-                difference: format!(
-                    "build stamp mismatch: {} (plugin stamp `{stamp}`, host stamp `{ours}`)",
-                    if diffs.is_empty() {
-                        "formatting differs".to_string()
-                    } else {
-                        diffs.join("; ")
-                    }
-                ),
-            });
-        }
-        let name = utf8(vt.name, "name", &file)?;
-        if name.is_empty() || name.chars().any(|c| c.is_whitespace() || c == '/') {
-            return Err(HostError::NotAPlugin {
-                file,
-                reason: format!("its name {name:?} is empty or contains spaces or slashes"),
-            });
-        }
-        let version = utf8(vt.version, "version", &file)?;
-        if vt.kinds_len == 0 || vt.kinds_len > 64 || vt.kinds.is_null() {
-            return Err(HostError::NotAPlugin {
-                file,
-                reason: format!(
-                    "it declares {} payload kinds (1 to 64 expected)",
-                    vt.kinds_len
-                ),
-            });
-        }
-        // SAFETY: layout matches ours; `kinds` points to `kinds_len` RawBytes living as long
-        // as the library (checked non-null and bounded above).
-        let raw_kinds = unsafe { std::slice::from_raw_parts(vt.kinds, vt.kinds_len) };
-        let kinds = raw_kinds
-            .iter()
-            .map(|k| utf8(*k, "payload kind", &file))
-            .collect::<Result<Vec<_>, _>>()?;
-        if kinds.iter().any(|k| k.is_empty()) {
-            return Err(HostError::NotAPlugin {
-                file,
-                reason: "it declares an empty payload kind".into(),
-            });
-        }
+        check_stamp(&stamp, &file)?;
+        let (name, version, kinds) = describe(vt, &file)?;
         Ok(LoadedLibrary {
             lib: Some(lib),
             vtable,

@@ -107,6 +107,89 @@ impl std::fmt::Debug for Simulator {
     }
 }
 
+/// Refuses no vehicles, a zero system id, or two vehicles with the same system id and
+/// the same target (see [`Simulator::start`]).
+fn check_vehicles(cfg: &SimConfig) -> std::io::Result<()> {
+    use std::io::{Error, ErrorKind};
+    if cfg.vehicles.is_empty() {
+        return Err(Error::new(
+            ErrorKind::InvalidInput,
+            "no vehicles configured",
+        ));
+    }
+    let mut seen = std::collections::HashSet::new();
+    for v in &cfg.vehicles {
+        if v.sysid == 0 || !seen.insert((v.sysid, v.target)) {
+            return Err(Error::new(
+                ErrorKind::InvalidInput,
+                format!(
+                    "invalid system id {} or duplicate (sysid, target) ({}, {})",
+                    v.sysid, v.sysid, v.target
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Vehicle `i` of `cfg`: its socket bound (with kernel receive timestamps where the
+/// kernel has them), its place on the spawn grid, and its cell.
+fn vehicle_cell(
+    cfg: &SimConfig,
+    i: usize,
+    env: &Environment,
+    now: Instant,
+) -> std::io::Result<(Arc<Cell>, Arc<tokio::net::UdpSocket>)> {
+    let vc = &cfg.vehicles[i];
+    let n = cfg.vehicles.len();
+    let std_socket = std::net::UdpSocket::bind(vc.bind).map_err(|e| {
+        std::io::Error::new(
+            e.kind(),
+            format!("sysid {}: bind {}: {e}", vc.sysid, vc.bind),
+        )
+    })?;
+    std_socket.set_nonblocking(true)?;
+    if let Err(e) = arrival::stamp_arrivals(&std_socket) {
+        tracing::warn!(
+            sysid = vc.sysid,
+            "no kernel receive timestamps ({e}): setpoint intervals are measured \
+             when the simulator reads them"
+        );
+    }
+    let socket = Arc::new(tokio::net::UdpSocket::from_std(std_socket)?);
+    let bound = socket.local_addr()?;
+    let (index, cols) = match cfg.grid_columns {
+        Some(cols) => (usize::from(vc.sysid.max(1) - 1), cols),
+        None => (i, (n as f64).sqrt().ceil() as usize),
+    };
+    let spawn = spawn_point(cfg.home, index, cols, cfg.spacing_m);
+    let vehicle = Vehicle::new(vc.sysid, spawn, env.clone(), now);
+    let signing = signing::SimSigning::with_key(cfg.signing_key.clone());
+    let mut encoder = Encoder::new(vc.sysid, 1);
+    encoder.set_signing(signing.current.clone());
+    let cell = Arc::new(Cell {
+        sysid: vc.sysid,
+        bound,
+        target: vc.target,
+        slot: Mutex::new(Slot {
+            vehicle,
+            encoder,
+            peer: None,
+            silence: Silence::Off,
+            killed: false,
+            socket: Some(socket.clone()),
+            out: Vec::with_capacity(4096),
+            net: Default::default(),
+            decode_baseline: DecodeCounts::default(),
+            impair: Impairment::new(link_seed(cfg.seed, i)),
+            signing,
+        }),
+        decode_stats: Arc::new(DecodeStats::default()),
+        recv_task: Mutex::new(None),
+    });
+    Ok((cell, socket))
+}
+
 /// Spawn point of vehicle `index` on a grid around `home`: `cols` columns east, rows
 /// north, `spacing_m` apart.
 fn spawn_point(home: GeoPoint, index: usize, cols: usize, spacing_m: f64) -> GeoPoint {
@@ -153,25 +236,7 @@ impl Simulator {
     /// (link, sysid): that is how more than 255 vehicles run in one process); the methods
     /// taking a `sysid` then address the first vehicle with it.
     pub async fn start(cfg: SimConfig) -> std::io::Result<Simulator> {
-        use std::io::{Error, ErrorKind};
-        if cfg.vehicles.is_empty() {
-            return Err(Error::new(
-                ErrorKind::InvalidInput,
-                "no vehicles configured",
-            ));
-        }
-        let mut seen = std::collections::HashSet::new();
-        for v in &cfg.vehicles {
-            if v.sysid == 0 || !seen.insert((v.sysid, v.target)) {
-                return Err(Error::new(
-                    ErrorKind::InvalidInput,
-                    format!(
-                        "invalid system id {} or duplicate (sysid, target) ({}, {})",
-                        v.sysid, v.sysid, v.target
-                    ),
-                ));
-            }
-        }
+        check_vehicles(&cfg)?;
         let env = Environment {
             wind: cfg.wind,
             gps_noise_m: cfg.gps_noise_m.max(0.0),
@@ -183,56 +248,10 @@ impl Simulator {
             estimator_noise: cfg.estimator_noise,
         };
         let now = Instant::now();
-        let n = cfg.vehicles.len();
-        let mut cells = Vec::with_capacity(n);
-        let mut sockets = Vec::with_capacity(n);
-        for (i, vc) in cfg.vehicles.iter().enumerate() {
-            let std_socket = std::net::UdpSocket::bind(vc.bind).map_err(|e| {
-                Error::new(
-                    e.kind(),
-                    format!("sysid {}: bind {}: {e}", vc.sysid, vc.bind),
-                )
-            })?;
-            std_socket.set_nonblocking(true)?;
-            if let Err(e) = arrival::stamp_arrivals(&std_socket) {
-                tracing::warn!(
-                    sysid = vc.sysid,
-                    "no kernel receive timestamps ({e}): setpoint intervals are measured \
-                     when the simulator reads them"
-                );
-            }
-            let socket = Arc::new(tokio::net::UdpSocket::from_std(std_socket)?);
-            let bound = socket.local_addr()?;
-            let (index, cols) = match cfg.grid_columns {
-                Some(cols) => (usize::from(vc.sysid.max(1) - 1), cols),
-                None => (i, (n as f64).sqrt().ceil() as usize),
-            };
-            let spawn = spawn_point(cfg.home, index, cols, cfg.spacing_m);
-            let vehicle = Vehicle::new(vc.sysid, spawn, env.clone(), now);
-            let decode_stats = Arc::new(DecodeStats::default());
-            let signing = signing::SimSigning::with_key(cfg.signing_key.clone());
-            let mut encoder = Encoder::new(vc.sysid, 1);
-            encoder.set_signing(signing.current.clone());
-            let cell = Arc::new(Cell {
-                sysid: vc.sysid,
-                bound,
-                target: vc.target,
-                slot: Mutex::new(Slot {
-                    vehicle,
-                    encoder,
-                    peer: None,
-                    silence: Silence::Off,
-                    killed: false,
-                    socket: Some(socket.clone()),
-                    out: Vec::with_capacity(4096),
-                    net: Default::default(),
-                    decode_baseline: DecodeCounts::default(),
-                    impair: Impairment::new(link_seed(cfg.seed, i)),
-                    signing,
-                }),
-                decode_stats,
-                recv_task: Mutex::new(None),
-            });
+        let mut cells = Vec::with_capacity(cfg.vehicles.len());
+        let mut sockets = Vec::with_capacity(cfg.vehicles.len());
+        for i in 0..cfg.vehicles.len() {
+            let (cell, socket) = vehicle_cell(&cfg, i, &env, now)?;
             cells.push(cell);
             sockets.push(socket);
         }

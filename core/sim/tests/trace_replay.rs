@@ -288,176 +288,159 @@ fn yaw_deg(tr: &Trace) -> Vec<(f64, f64)> {
     tr.att.iter().map(|a| (a.0, a.1.to_degrees())).collect()
 }
 
+/// A metric of `maneuver`'s trace (see [`Metric`]).
+fn metric(
+    maneuver: &'static str,
+    name: &'static str,
+    unit: &'static str,
+    tol: Tol,
+    noisy: bool,
+    f: fn(&Trace) -> f64,
+) -> Metric {
+    Metric {
+        maneuver,
+        name,
+        unit,
+        tol,
+        noisy,
+        f,
+    }
+}
+
+/// Every metric compared with PX4's recording.
 fn metrics() -> Vec<Metric> {
+    let mut all = step_response_metrics();
+    all.extend(tracking_metrics());
+    all
+}
+
+/// The 10 m step north: (rise time, overshoot, steady-state error).
+fn north_step(t: &Trace) -> (f64, f64, f64) {
+    step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0)
+}
+
+/// The 5 m step up (to 15 m), the same figures.
+fn up_step(t: &Trace) -> (f64, f64, f64) {
+    step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5)
+}
+
+/// The 5 m step back down (to 10 m), the same figures.
+fn down_step(t: &Trace) -> (f64, f64, f64) {
+    step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5)
+}
+
+/// The position steps: rise time, overshoot and steady-state error, north, up and down.
+fn step_response_metrics() -> Vec<Metric> {
+    use Tol::{Abs, Rel};
+    let (n, u) = ("step_north_10m", "step_up_5m");
     vec![
-        Metric {
-            maneuver: "step_north_10m",
-            name: "t90",
-            unit: "s",
-            tol: Tol::Rel(0.15),
-            noisy: false,
-            f: |t| step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).0,
-        },
-        Metric {
-            maneuver: "step_north_10m",
-            name: "overshoot",
-            unit: "m",
-            tol: Tol::Abs(0.3),
-            noisy: false,
-            f: |t| step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).1,
-        },
-        Metric {
-            maneuver: "step_north_10m",
-            name: "steady-state",
-            unit: "m",
-            tol: Tol::Abs(0.15),
-            noisy: false,
-            f: |t| step_metrics(&axis(t, 0), 0.0, 10.0, 10.0, 2.0).2,
-        },
-        Metric {
-            maneuver: "step_up_5m",
-            name: "t90 up",
-            unit: "s",
-            tol: Tol::Rel(0.15),
-            noisy: false,
-            f: |t| step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).0,
-        },
-        Metric {
-            maneuver: "step_up_5m",
-            name: "overshoot up",
-            unit: "m",
-            tol: Tol::Abs(0.3),
-            noisy: false,
-            f: |t| step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).1,
-        },
-        Metric {
-            maneuver: "step_up_5m",
-            name: "steady-state up",
-            unit: "m",
-            tol: Tol::Abs(0.15),
-            noisy: true,
-            f: |t| step_metrics(&axis(t, 2), 0.0, 8.0, -15.0, 1.5).2,
-        },
-        Metric {
-            maneuver: "step_up_5m",
-            name: "t90 down",
-            unit: "s",
-            tol: Tol::Rel(0.15),
-            noisy: true,
-            f: |t| step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).0,
-        },
-        Metric {
-            maneuver: "step_up_5m",
-            name: "overshoot down",
-            unit: "m",
-            tol: Tol::Abs(0.3),
-            noisy: false,
-            f: |t| step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).1,
-        },
-        Metric {
-            maneuver: "step_up_5m",
-            name: "steady-state down",
-            unit: "m",
-            tol: Tol::Abs(0.15),
-            noisy: true,
-            f: |t| step_metrics(&axis(t, 2), 8.0, 16.0, -10.0, 1.5).2,
-        },
-        Metric {
-            maneuver: "ramp_5ms_posvel",
-            name: "lag t=4..12",
-            unit: "m",
-            tol: Tol::Abs(0.25),
-            noisy: false,
-            f: |t| ramp_lag(t),
-        },
-        Metric {
-            maneuver: "ramp_5ms_posvel",
-            name: "overshoot at stop",
-            unit: "m",
-            tol: Tol::Report,
-            noisy: false,
-            f: |t| {
+        metric(n, "t90", "s", Rel(0.15), false, |t| north_step(t).0),
+        metric(n, "overshoot", "m", Abs(0.3), false, |t| north_step(t).1),
+        metric(n, "steady-state", "m", Abs(0.15), false, |t| {
+            north_step(t).2
+        }),
+        metric(u, "t90 up", "s", Rel(0.15), false, |t| up_step(t).0),
+        metric(u, "overshoot up", "m", Abs(0.3), false, |t| up_step(t).1),
+        metric(u, "steady-state up", "m", Abs(0.15), true, |t| up_step(t).2),
+        metric(u, "t90 down", "s", Rel(0.15), true, |t| down_step(t).0),
+        metric(u, "overshoot down", "m", Abs(0.3), false, |t| {
+            down_step(t).1
+        }),
+        metric(u, "steady-state down", "m", Abs(0.15), true, |t| {
+            down_step(t).2
+        }),
+    ]
+}
+
+/// The ramps, velocity steps, circle, yaw step and landing.
+fn tracking_metrics() -> Vec<Metric> {
+    vec![
+        metric(
+            "ramp_5ms_posvel",
+            "lag t=4..12",
+            "m",
+            Tol::Abs(0.25),
+            false,
+            ramp_lag,
+        ),
+        metric(
+            "ramp_5ms_posvel",
+            "overshoot at stop",
+            "m",
+            Tol::Report,
+            false,
+            |t| {
                 window(&axis(t, 0), 12.0, 18.0)
                     .iter()
                     .map(|s| s.1 - 60.0)
                     .fold(0.0, f64::max)
             },
-        },
-        Metric {
-            maneuver: "ramp_5ms_pos_only",
-            name: "lag t=4..12",
-            unit: "m",
-            tol: Tol::Abs(0.25),
-            noisy: false,
-            f: |t| ramp_lag(t),
-        },
-        Metric {
-            maneuver: "velocity_steps",
-            name: "vy at 5 s",
-            unit: "m/s",
-            tol: Tol::Report,
-            noisy: false,
-            f: |t| mean(window(&t.pos, 4.5, 5.0).iter().map(|p| p.1.1[1])),
-        },
-        Metric {
-            maneuver: "velocity_steps",
-            name: "creep t=7..10",
-            unit: "m/s",
-            tol: Tol::Report,
-            noisy: false,
-            f: |t| {
+        ),
+        metric(
+            "ramp_5ms_pos_only",
+            "lag t=4..12",
+            "m",
+            Tol::Abs(0.25),
+            false,
+            ramp_lag,
+        ),
+        metric(
+            "velocity_steps",
+            "vy at 5 s",
+            "m/s",
+            Tol::Report,
+            false,
+            |t| mean(window(&t.pos, 4.5, 5.0).iter().map(|p| p.1.1[1])),
+        ),
+        metric(
+            "velocity_steps",
+            "creep t=7..10",
+            "m/s",
+            Tol::Report,
+            false,
+            |t| {
                 mean(
                     window(&t.pos, 7.0, 10.0)
                         .iter()
                         .map(|p| p.1.1[0].hypot(p.1.1[1])),
                 )
             },
-        },
-        Metric {
-            maneuver: "turn_circle",
-            name: "mean error",
-            unit: "m",
-            tol: Tol::Abs(0.5),
-            noisy: false,
-            f: |t| circle(t).0,
-        },
-        Metric {
-            maneuver: "turn_circle",
-            name: "radial offset",
-            unit: "m",
-            tol: Tol::Report,
-            noisy: false,
-            f: |t| circle(t).1,
-        },
-        Metric {
-            maneuver: "yaw_step",
-            name: "t90",
-            unit: "s",
-            tol: Tol::Rel(0.15),
-            noisy: false,
-            f: |t| step_metrics(&yaw_deg(t), 0.0, 6.0, 90.0, 1.0).0,
-        },
-        Metric {
-            maneuver: "yaw_step",
-            name: "overshoot",
-            unit: "deg",
-            tol: Tol::Abs(5.0),
-            noisy: false,
-            f: |t| step_metrics(&yaw_deg(t), 0.0, 6.0, 90.0, 1.0).1,
-        },
-        Metric {
-            maneuver: "landing",
-            name: "NAV_LAND to disarm",
-            unit: "s",
-            tol: Tol::Abs(3.0),
-            noisy: false,
-            f: |t| {
+        ),
+        metric(
+            "turn_circle",
+            "mean error",
+            "m",
+            Tol::Abs(0.5),
+            false,
+            |t| circle(t).0,
+        ),
+        metric(
+            "turn_circle",
+            "radial offset",
+            "m",
+            Tol::Report,
+            false,
+            |t| circle(t).1,
+        ),
+        metric("yaw_step", "t90", "s", Tol::Rel(0.15), false, |t| {
+            step_metrics(&yaw_deg(t), 0.0, 6.0, 90.0, 1.0).0
+        }),
+        metric("yaw_step", "overshoot", "deg", Tol::Abs(5.0), false, |t| {
+            step_metrics(&yaw_deg(t), 0.0, 6.0, 90.0, 1.0).1
+        }),
+        metric(
+            "landing",
+            "NAV_LAND to disarm",
+            "s",
+            Tol::Abs(3.0),
+            false,
+            |t| {
                 t.modes
                     .iter()
                     .find(|m| m.0 >= 0.0 && !m.1)
                     .map_or(f64::NAN, |m| m.0)
             },
-        },
+        ),
     ]
 }
 

@@ -6,7 +6,7 @@
 //!   vehicle, see [`config`]).
 //! - `skein coordinator --priority P`: a coordinator candidate with no vehicles of its
 //!   own (API, dashboard, DDS); the live candidate of highest priority is active, the
-//!   others stand by (see [`cmd::candidate`]).
+//!   others stand by (see [`cmd::coordinator`]).
 //! - `skein agent --sim N --first-sysid K`: the vehicles of this computer, steered over
 //!   DDS by the active coordinator (see [`cmd::agent`]).
 //! - `skein sim --vehicles N`: the simulator alone, for any MAVLink client.
@@ -27,7 +27,8 @@
 //!   child process that runs one payload plugin library under process isolation, spoken
 //!   to over a Unix socket (see `skein_plugin_host`).
 //!
-//! Each command is a module of [`cmd`] (the table there maps roles to files); [`config`]
+//! Each command is a module of [`cmd`] (the table there maps roles to files); `up`,
+//! `coordinator` and `agent` are one composition of parts in three roles ([`compose`]); [`config`]
 //! reads the config file, [`process`] holds what every long-running command shares
 //! (signals, the exit status of a failed coordinator, the process watchdog), [`service`]
 //! talks to systemd (readiness, watchdog), [`shutdown`] is what an agent does with its
@@ -35,6 +36,7 @@
 #![warn(missing_docs)]
 
 mod cmd;
+mod compose;
 mod config;
 mod process;
 mod service;
@@ -42,7 +44,7 @@ mod shutdown;
 mod sim_control;
 
 use clap::{Parser, Subcommand};
-use cmd::{agent, bench, candidate, dds, fault, health, keys, plugin_new, replay, token, up};
+use cmd::{agent, bench, coordinator, dds, fault, health, keys, plugin_new, replay, token, up};
 use std::process::ExitCode;
 
 /// Command line.
@@ -64,7 +66,7 @@ enum Commands {
     Up(Box<up::UpArgs>),
     /// A coordinator candidate with no vehicles of its own: API, dashboard, DDS, and the
     /// election (`--priority P`; the live candidate with the highest is active).
-    Coordinator(candidate::CoordinatorArgs),
+    Coordinator(coordinator::CoordinatorArgs),
     /// The vehicles of this computer, steered over DDS by the active coordinator
     /// (`--sim N --first-sysid K` simulates vehicles K..K+N-1).
     Agent(agent::AgentArgs),
@@ -153,7 +155,7 @@ fn main() -> ExitCode {
     let result = runtime.block_on(async {
         match cli.command {
             Commands::Up(args) => up::up(*args).await,
-            Commands::Coordinator(args) => candidate::coordinator(args).await,
+            Commands::Coordinator(args) => coordinator::coordinator(args).await,
             Commands::Agent(args) => agent::agent(args).await,
             Commands::Sim(args) => skein_sim::cli::run(args)
                 .await

@@ -148,7 +148,45 @@ pub(crate) async fn secure_vehicles(
     let started = Instant::now();
     let deadline = started + plan.timeout;
     let action = plan.action;
-    let mut pending: BTreeMap<String, VehicleState> = BTreeMap::new();
+    let mut pending = airborne(coordinator).await?;
+    if pending.is_empty() {
+        println!("skein: shutdown: no vehicle in the air");
+        return Ok(());
+    }
+    let list = listing(&pending);
+    println!("skein: shutdown: {} first: {list}", action.name());
+    crate::service::stopping(&format!("{}: {list}", action.name()));
+    let command = match action {
+        ShutdownAction::Hold => return hold_all(coordinator, &pending, started, deadline).await,
+        ShutdownAction::Land => Command::Land,
+        ShutdownAction::Rtl => Command::Rtl,
+    };
+    for id in pending.keys() {
+        command_vehicle(coordinator, id, command.clone()).await;
+    }
+    loop {
+        let now = vehicles(coordinator).await?;
+        settle(action, &now, &mut pending, started);
+        if pending.is_empty() {
+            return Ok(());
+        }
+        if Instant::now() >= deadline {
+            return Err(format!(
+                "still in the air after {:.0} s: {}",
+                plan.timeout.as_secs_f64(),
+                listing(&pending)
+            ));
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+}
+
+/// The connected airborne vehicles and their states; those whose link is lost are left
+/// as they are (said on stdout).
+async fn airborne(
+    coordinator: &ActorRef<CoordinatorMsg>,
+) -> Result<BTreeMap<String, VehicleState>, String> {
+    let mut pending = BTreeMap::new();
     for v in vehicles(coordinator).await? {
         if !v.state.is_airborne() {
             continue;
@@ -162,101 +200,99 @@ pub(crate) async fn secure_vehicles(
         }
         pending.insert(v.id, v.state);
     }
-    if pending.is_empty() {
-        println!("skein: shutdown: no vehicle in the air");
-        return Ok(());
-    }
-    let list = pending
+    Ok(pending)
+}
+
+/// `id (state), …` of `pending`.
+fn listing(pending: &BTreeMap<String, VehicleState>) -> String {
+    pending
         .iter()
         .map(|(id, s)| format!("{id} ({s})"))
         .collect::<Vec<_>>()
-        .join(", ");
-    println!("skein: shutdown: {} first: {list}", action.name());
-    crate::service::stopping(&format!("{}: {list}", action.name()));
+        .join(", ")
+}
+
+/// Puts every vehicle of `pending` in PX4 Hold, each confirmed by its link from PX4's
+/// HEARTBEAT or failed, before `deadline`.
+async fn hold_all(
+    coordinator: &ActorRef<CoordinatorMsg>,
+    pending: &BTreeMap<String, VehicleState>,
+    started: Instant,
+    deadline: Instant,
+) -> Result<(), String> {
     let mut failed = Vec::new();
     for id in pending.keys() {
-        let command = match action {
-            ShutdownAction::Land => Command::Land,
-            ShutdownAction::Rtl => Command::Rtl,
-            ShutdownAction::Hold => {
-                let left = deadline.saturating_duration_since(Instant::now());
-                match hold(coordinator, id, left).await {
-                    Ok(()) => println!(
-                        "skein: shutdown: {id} holds (PX4 Hold) after {:.1} s",
-                        started.elapsed().as_secs_f64()
-                    ),
-                    Err(e) => {
-                        eprintln!("skein: shutdown: {e}");
-                        failed.push(e);
-                    }
-                }
-                continue;
+        let left = deadline.saturating_duration_since(Instant::now());
+        match hold(coordinator, id, left).await {
+            Ok(()) => println!(
+                "skein: shutdown: {id} holds (PX4 Hold) after {:.1} s",
+                started.elapsed().as_secs_f64()
+            ),
+            Err(e) => {
+                eprintln!("skein: shutdown: {e}");
+                failed.push(e);
             }
-        };
-        let name = id.clone();
-        match coordinator
-            .call(
-                |r| CoordinatorMsg::VehicleCommand(name, command, r),
-                Some(ASK),
-            )
-            .await
-        {
-            Ok(CallResult::Success(Ok(outcome))) if outcome.refused.is_empty() => {}
-            Ok(CallResult::Success(Ok(outcome))) => {
-                for r in outcome.refused {
-                    eprintln!("skein: shutdown: {}: {}", r.id, r.reason);
-                }
-            }
-            _ => eprintln!("skein: shutdown: {id}: the command was not delivered"),
         }
     }
-    if action == ShutdownAction::Hold {
-        // Each hold was confirmed by its link from PX4's HEARTBEAT, or failed, above.
-        return if failed.is_empty() {
-            Ok(())
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("not holding: {}", failed.join("; ")))
+    }
+}
+
+/// Gives vehicle `id` `command` through the coordinator; a refusal or a lost command is
+/// said on stderr (the wait that follows tells the outcome).
+async fn command_vehicle(coordinator: &ActorRef<CoordinatorMsg>, id: &str, command: Command) {
+    let name = id.to_string();
+    match coordinator
+        .call(
+            |r| CoordinatorMsg::VehicleCommand(name, command, r),
+            Some(ASK),
+        )
+        .await
+    {
+        Ok(CallResult::Success(Ok(outcome))) if outcome.refused.is_empty() => {}
+        Ok(CallResult::Success(Ok(outcome))) => {
+            for r in outcome.refused {
+                eprintln!("skein: shutdown: {}: {}", r.id, r.reason);
+            }
+        }
+        _ => eprintln!("skein: shutdown: {id}: the command was not delivered"),
+    }
+}
+
+/// Takes out of `pending` the vehicles of `now` that are done under `action` (or whose
+/// link is lost), saying so on stdout and to systemd.
+fn settle(
+    action: ShutdownAction,
+    now: &[VehicleSnapshot],
+    pending: &mut BTreeMap<String, VehicleState>,
+    started: Instant,
+) {
+    for v in now {
+        let Some(state) = pending.get_mut(&v.id) else {
+            continue;
+        };
+        *state = v.state;
+        if !secured(action, v) && v.state.is_connected() {
+            continue;
+        }
+        let what = if !v.state.is_connected() {
+            format!("is {} (nothing reaches it)", v.state)
+        } else if v.state.is_airborne() {
+            format!("is {}", v.state)
         } else {
-            Err(format!("not holding: {}", failed.join("; ")))
+            "landed".to_string()
         };
-    }
-    loop {
-        let now = vehicles(coordinator).await?;
-        for v in &now {
-            if let Some(state) = pending.get_mut(&v.id) {
-                *state = v.state;
-                if secured(action, v) || !v.state.is_connected() {
-                    let what = if !v.state.is_connected() {
-                        format!("is {} (nothing reaches it)", v.state)
-                    } else if v.state.is_airborne() {
-                        format!("is {}", v.state)
-                    } else {
-                        "landed".to_string()
-                    };
-                    let line = format!(
-                        "shutdown: {} {what} after {:.1} s",
-                        v.id,
-                        started.elapsed().as_secs_f64()
-                    );
-                    println!("skein: {line}");
-                    crate::service::status(&line);
-                    pending.remove(&v.id);
-                }
-            }
-        }
-        if pending.is_empty() {
-            return Ok(());
-        }
-        if Instant::now() >= deadline {
-            let left = pending
-                .iter()
-                .map(|(id, s)| format!("{id} ({s})"))
-                .collect::<Vec<_>>()
-                .join(", ");
-            return Err(format!(
-                "still in the air after {:.0} s: {left}",
-                plan.timeout.as_secs_f64()
-            ));
-        }
-        tokio::time::sleep(Duration::from_millis(200)).await;
+        let line = format!(
+            "shutdown: {} {what} after {:.1} s",
+            v.id,
+            started.elapsed().as_secs_f64()
+        );
+        println!("skein: {line}");
+        crate::service::status(&line);
+        pending.remove(&v.id);
     }
 }
 

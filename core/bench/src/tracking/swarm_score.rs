@@ -73,6 +73,86 @@ fn ratio(a: u64, b: u64) -> Value {
     }
 }
 
+/// One sample's views of the truth, the matches, the tracks and the swarms.
+struct SampleView<'a> {
+    /// Intruders of the truth by id.
+    by_id: BTreeMap<&'a str, &'a Value>,
+    /// Intruder → matched confirmed track, and its distance (m).
+    assigned: &'a BTreeMap<String, (String, f64)>,
+    /// Intruder → its matched track.
+    track_of: BTreeMap<&'a str, &'a str>,
+    /// Matched track → its intruder.
+    intruder_of: BTreeMap<&'a str, &'a str>,
+    /// Confirmed tracks.
+    confirmed: BTreeSet<&'a str>,
+    /// Tracks' velocities (north, east), m/s.
+    velocity_of: BTreeMap<&'a str, [f64; 2]>,
+    /// Swarms by id, with their member tracks.
+    members: Vec<(String, BTreeSet<&'a str>)>,
+}
+
+impl<'a> SampleView<'a> {
+    fn new(
+        intruders: &[&'a Value],
+        assigned: &'a BTreeMap<String, (String, f64)>,
+        tracks: &'a [Value],
+        swarms: &'a [Value],
+    ) -> SampleView<'a> {
+        let by_id = intruders
+            .iter()
+            .filter_map(|i| Some((i["id"].as_str()?, *i)))
+            .collect();
+        let track_of: BTreeMap<&str, &str> = assigned
+            .iter()
+            .map(|(i, (tr, _))| (i.as_str(), tr.as_str()))
+            .collect();
+        let intruder_of = track_of.iter().map(|(i, tr)| (*tr, *i)).collect();
+        let confirmed = tracks
+            .iter()
+            .filter(|t| t["status"] == "confirmed")
+            .filter_map(|t| t["id"].as_str())
+            .collect();
+        let velocity_of = tracks
+            .iter()
+            .filter_map(|t| Some((t["id"].as_str()?, ned_velocity(&t["velocity"])?)))
+            .collect();
+        let members = swarms
+            .iter()
+            .filter_map(|s| {
+                let m = s["members"]
+                    .as_array()?
+                    .iter()
+                    .filter_map(Value::as_str)
+                    .collect();
+                Some((s["id"].as_str()?.to_string(), m))
+            })
+            .collect();
+        SampleView {
+            by_id,
+            assigned,
+            track_of,
+            intruder_of,
+            confirmed,
+            velocity_of,
+            members,
+        }
+    }
+
+    /// Whether intruder `iid`'s matched track follows it (see the module docs).
+    fn locked(&self, iid: &str) -> bool {
+        let (Some((tr, d)), Some(truth)) = (self.assigned.get(iid), self.by_id.get(iid)) else {
+            return false;
+        };
+        let (Some(v), Some(w)) = (
+            self.velocity_of.get(tr.as_str()),
+            ned_velocity(&truth["velocity"]),
+        ) else {
+            return false;
+        };
+        *d <= LOCKED_M && (v[0] - w[0]).hypot(v[1] - w[1]) <= LOCKED_M_S
+    }
+}
+
 impl SwarmScorer {
     /// One sample at `t` s: `truth` (`GET /api/v1/sim/truth`), `assigned` (intruder →
     /// matched confirmed track, from [`super::score::Scorer::sample`]), `tracks` and
@@ -91,122 +171,103 @@ impl SwarmScorer {
             .into_iter()
             .flatten()
             .collect();
-        let by_id: BTreeMap<&str, &Value> = intruders
-            .iter()
-            .filter_map(|i| Some((i["id"].as_str()?, *i)))
-            .collect();
-        self.resolve(t, &by_id);
-        let track_of: BTreeMap<&str, &str> = assigned
-            .iter()
-            .map(|(i, (tr, _))| (i.as_str(), tr.as_str()))
-            .collect();
-        let intruder_of: BTreeMap<&str, &str> = track_of.iter().map(|(i, tr)| (*tr, *i)).collect();
-        let confirmed: BTreeSet<&str> = tracks
-            .iter()
-            .filter(|t| t["status"] == "confirmed")
-            .filter_map(|t| t["id"].as_str())
-            .collect();
-        let velocity_of: BTreeMap<&str, [f64; 2]> = tracks
-            .iter()
-            .filter_map(|t| Some((t["id"].as_str()?, ned_velocity(&t["velocity"])?)))
-            .collect();
-        // Intruders whose matched track follows them (see the module docs).
-        let locked = |iid: &str| -> bool {
-            let (Some((tr, d)), Some(truth)) = (assigned.get(iid), by_id.get(iid)) else {
-                return false;
-            };
-            let (Some(v), Some(w)) = (
-                velocity_of.get(tr.as_str()),
-                ned_velocity(&truth["velocity"]),
-            ) else {
-                return false;
-            };
-            *d <= LOCKED_M && (v[0] - w[0]).hypot(v[1] - w[1]) <= LOCKED_M_S
-        };
-        let members: Vec<(String, BTreeSet<&str>)> = swarms
-            .iter()
-            .filter_map(|s| {
-                let m = s["members"]
-                    .as_array()?
-                    .iter()
-                    .filter_map(Value::as_str)
-                    .collect();
-                Some((s["id"].as_str()?.to_string(), m))
-            })
-            .collect();
-        for (id, _) in &members {
+        let view = SampleView::new(&intruders, assigned, tracks, swarms);
+        self.resolve(t, &view.by_id);
+        for (id, _) in &view.members {
             self.swarm_ids.insert(id.clone());
         }
+        for (g, ids) in self.groups_of(&intruders, &view) {
+            if ids.len() >= 2 {
+                self.score_group(t, g, &ids, &view, observing);
+            }
+        }
+        self.expect_forecasts(t, tracks, swarms, &view);
+    }
+
+    /// The intruders flying together, by truth group; counts the lone intruders whose
+    /// track is in a swarm.
+    fn groups_of<'a>(
+        &mut self,
+        intruders: &[&'a Value],
+        view: &SampleView,
+    ) -> BTreeMap<&'a str, Vec<&'a str>> {
         let mut groups: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
-        for i in &intruders {
+        for i in intruders {
             let Some(iid) = i["id"].as_str() else {
                 continue;
             };
             match i["group"].as_str() {
                 Some(g) => groups.entry(g).or_default().push(iid),
                 None => {
-                    if track_of
+                    if view
+                        .track_of
                         .get(iid)
-                        .is_some_and(|tr| members.iter().any(|(_, m)| m.contains(tr)))
+                        .is_some_and(|tr| view.members.iter().any(|(_, m)| m.contains(tr)))
                     {
                         self.lone_in_swarm += 1;
                     }
                 }
             }
         }
-        for (g, ids) in groups {
-            if ids.len() < 2 {
-                continue;
-            }
-            let score = self.groups.entry(g.to_string()).or_default();
-            score.members = score.members.max(ids.len());
-            let tracked: BTreeSet<&str> = ids
+        groups
+    }
+
+    /// Scores truth group `g` (intruders `ids`) at `t`: its first confirmed member, all
+    /// locked, recognition, then membership counts, and the observed errors.
+    fn score_group(&mut self, t: f64, g: &str, ids: &[&str], view: &SampleView, observing: bool) {
+        let score = self.groups.entry(g.to_string()).or_default();
+        score.members = score.members.max(ids.len());
+        let tracked: BTreeSet<&str> = ids
+            .iter()
+            .filter_map(|i| view.track_of.get(i).copied())
+            .collect();
+        if !tracked.is_empty() {
+            score.first_confirmed.get_or_insert(t);
+        }
+        let all_locked = ids.iter().all(|i| view.locked(i));
+        if all_locked {
+            score.all_confirmed.get_or_insert(t);
+        }
+        let best = view
+            .members
+            .iter()
+            .max_by_key(|(_, m)| m.intersection(&tracked).count())
+            .filter(|(_, m)| m.intersection(&tracked).count() > 0);
+        let (tp, fp) = best.map_or((0, 0), |(_, m)| {
+            let tp = m.intersection(&tracked).count() as u64;
+            let fp = m
                 .iter()
-                .filter_map(|i| track_of.get(i).copied())
-                .collect();
-            if !tracked.is_empty() {
-                score.first_confirmed.get_or_insert(t);
-            }
-            let all_locked = ids.iter().all(|i| locked(i));
-            if all_locked {
-                score.all_confirmed.get_or_insert(t);
-            }
-            let best = members
-                .iter()
-                .max_by_key(|(_, m)| m.intersection(&tracked).count())
-                .filter(|(_, m)| m.intersection(&tracked).count() > 0);
-            let (tp, fp) = best.map_or((0, 0), |(_, m)| {
-                let tp = m.intersection(&tracked).count() as u64;
-                let fp = m
-                    .iter()
-                    .filter(|tr| !tracked.contains(*tr))
-                    .filter(|tr| intruder_of.contains_key(*tr) || confirmed.contains(*tr))
-                    .count() as u64;
-                (tp, fp)
-            });
-            let fn_ = tracked.len() as u64 - tp;
-            if score.recognised.is_none()
-                && score.all_confirmed.is_some()
-                && all_locked
-                && fn_ == 0
-                && fp == 0
-            {
-                score.recognised = Some(t);
-            }
-            if score.recognised.is_some() {
-                score.tp += tp;
-                score.fp += fp;
-                score.fn_ += fn_;
-            }
-            if observing {
-                for i in &ids {
-                    if let Some((_, d)) = assigned.get(*i) {
-                        self.observed_sq.push(d * d);
-                    }
+                .filter(|tr| !tracked.contains(*tr))
+                .filter(|tr| view.intruder_of.contains_key(*tr) || view.confirmed.contains(*tr))
+                .count() as u64;
+            (tp, fp)
+        });
+        let fn_ = tracked.len() as u64 - tp;
+        if score.recognised.is_none()
+            && score.all_confirmed.is_some()
+            && all_locked
+            && fn_ == 0
+            && fp == 0
+        {
+            score.recognised = Some(t);
+        }
+        if score.recognised.is_some() {
+            score.tp += tp;
+            score.fp += fp;
+            score.fn_ += fn_;
+        }
+        if observing {
+            for i in ids {
+                if let Some((_, d)) = view.assigned.get(*i) {
+                    self.observed_sq.push(d * d);
                 }
             }
         }
-        // Forecasts to check when their time comes.
+    }
+
+    /// Queues the swarms' and the matched tracks' forecasts, to check when their time
+    /// comes.
+    fn expect_forecasts(&mut self, t: f64, tracks: &[Value], swarms: &[Value], view: &SampleView) {
         for s in swarms {
             let Some(m) = s["members"].as_array() else {
                 continue;
@@ -214,7 +275,7 @@ impl SwarmScorer {
             let ints: Vec<String> = m
                 .iter()
                 .filter_map(Value::as_str)
-                .filter_map(|tr| intruder_of.get(tr).map(|i| i.to_string()))
+                .filter_map(|tr| view.intruder_of.get(tr).map(|i| i.to_string()))
                 .collect();
             if ints.len() < 2 {
                 continue;
@@ -222,10 +283,11 @@ impl SwarmScorer {
             self.expect(t, &s["forecast"], "swarm_centroid", ints);
         }
         for tr in tracks {
-            let Some(i) = tr["id"].as_str().and_then(|id| intruder_of.get(id)) else {
+            let Some(i) = tr["id"].as_str().and_then(|id| view.intruder_of.get(id)) else {
                 continue;
             };
-            let pattern = by_id
+            let pattern = view
+                .by_id
                 .get(i)
                 .and_then(|v| v["pattern"].as_str())
                 .unwrap_or("?");

@@ -3,6 +3,7 @@
 //! deadlines out, and the fence syncs ([`crate::fence_sync`]) started on connect, on a
 //! new plan and on demand.
 
+use super::fence_autopilot::LinkAutopilot;
 use super::{Px4LinkMsg, Px4LinkState, VehicleLink};
 use crate::command::LinkError;
 use crate::fence_sync;
@@ -97,14 +98,20 @@ impl Px4LinkState {
                 // or the greeting brings it.
                 let heard = self.link.with_telemetry(|t| t.heartbeat.is_some());
                 if let (Some(plan), true) = (self.link.fence().current(), heard) {
-                    let (me, link) = (myself.clone(), self.link.clone());
-                    tokio::spawn(fence_sync::sync(me, link, plan, only_if_changed));
+                    let autopilot = LinkAutopilot {
+                        link: myself.clone(),
+                        vehicle: self.link.clone(),
+                    };
+                    tokio::spawn(fence_sync::sync(autopilot, plan, only_if_changed));
                 }
             }
             Px4LinkMsg::TryFence(plan, reply) => {
-                let (me, link) = (myself.clone(), Arc::clone(&self.link));
+                let autopilot = LinkAutopilot {
+                    link: myself.clone(),
+                    vehicle: Arc::clone(&self.link),
+                };
                 tokio::spawn(async move {
-                    let status = fence_sync::sync(me, link, plan, false).await;
+                    let status = fence_sync::sync(autopilot, plan, false).await;
                     let _ = reply.send(status);
                 });
             }

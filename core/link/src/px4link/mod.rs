@@ -14,6 +14,7 @@
 //! the setpoint stream, the fence status) lives in the shared [`VehicleLink`]; a
 //! restarted actor picks it up and re-registers its route.
 
+mod fence_autopilot;
 mod missions;
 mod route;
 mod vehicle_link;

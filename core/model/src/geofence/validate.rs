@@ -32,6 +32,37 @@ fn fault(field: impl Into<String>, why: impl Into<String>) -> Fault {
 
 /// See the module docs; the field at fault and why.
 pub(super) fn validate(g: &Geofence) -> Result<(), Fault> {
+    limits(g)?;
+    if !g.polygon.is_empty() {
+        simple_polygon("polygon", &g.polygon)?;
+        for (i, v) in g.polygon.iter().enumerate() {
+            let d = v[0].hypot(v[1]);
+            if d > g.radius_m {
+                return Err(fault(
+                    "polygon",
+                    format!(
+                        "vertex {i} is {d:.1} m from the swarm origin, outside radius_m {}: \
+                         the polygon must lie inside the circle",
+                        g.radius_m
+                    ),
+                ));
+            }
+        }
+    }
+    if g.exclusions.len() > MAX_AREAS {
+        return Err(fault(
+            "exclusions",
+            format!("at most {MAX_AREAS} areas, got {}", g.exclusions.len()),
+        ));
+    }
+    for (i, area) in g.exclusions.iter().enumerate() {
+        exclusion(g, i, area)?;
+    }
+    rally_points(g)
+}
+
+/// The radius and the altitude band.
+fn limits(g: &Geofence) -> Result<(), Fault> {
     if !(g.radius_m.is_finite() && g.radius_m > 0.0 && g.radius_m <= MAX_RADIUS_M) {
         return Err(fault(
             "radius_m",
@@ -59,64 +90,51 @@ pub(super) fn validate(g: &Geofence) -> Result<(), Fault> {
             format!("must be in [0, max_altitude_m), got {}", g.min_altitude_m),
         ));
     }
-    if !g.polygon.is_empty() {
-        simple_polygon("polygon", &g.polygon)?;
-        for (i, v) in g.polygon.iter().enumerate() {
-            let d = v[0].hypot(v[1]);
-            if d > g.radius_m {
+    Ok(())
+}
+
+/// Exclusion area `i`: a simple polygon, or a circle of positive radius, within twice
+/// the fence's radius of the swarm origin.
+fn exclusion(g: &Geofence, i: usize, area: &FenceArea) -> Result<(), Fault> {
+    match area {
+        FenceArea::Polygon(v) => {
+            let field = format!("exclusions[{i}].polygon");
+            simple_polygon(&field, v)?;
+            if v.iter().any(|p| p[0].hypot(p[1]) > 2.0 * g.radius_m) {
                 return Err(fault(
-                    "polygon",
-                    format!(
-                        "vertex {i} is {d:.1} m from the swarm origin, outside radius_m {}: \
-                         the polygon must lie inside the circle",
-                        g.radius_m
-                    ),
+                    field,
+                    "a vertex lies beyond twice radius_m from the swarm origin",
+                ));
+            }
+        }
+        FenceArea::Circle {
+            north_m,
+            east_m,
+            radius_m,
+        } => {
+            let field = format!("exclusions[{i}].circle");
+            if !(north_m.is_finite() && east_m.is_finite()) {
+                return Err(fault(field, "the centre must be finite numbers"));
+            }
+            if !(radius_m.is_finite() && *radius_m > 0.0 && *radius_m <= 2.0 * g.radius_m) {
+                return Err(fault(
+                    field,
+                    format!("radius_m must be in (0, 2 × radius_m], got {radius_m}"),
+                ));
+            }
+            if north_m.hypot(*east_m) > 2.0 * g.radius_m {
+                return Err(fault(
+                    field,
+                    "the centre lies beyond twice radius_m from the swarm origin",
                 ));
             }
         }
     }
-    if g.exclusions.len() > MAX_AREAS {
-        return Err(fault(
-            "exclusions",
-            format!("at most {MAX_AREAS} areas, got {}", g.exclusions.len()),
-        ));
-    }
-    for (i, area) in g.exclusions.iter().enumerate() {
-        match area {
-            FenceArea::Polygon(v) => {
-                let field = format!("exclusions[{i}].polygon");
-                simple_polygon(&field, v)?;
-                if v.iter().any(|p| p[0].hypot(p[1]) > 2.0 * g.radius_m) {
-                    return Err(fault(
-                        field,
-                        "a vertex lies beyond twice radius_m from the swarm origin",
-                    ));
-                }
-            }
-            FenceArea::Circle {
-                north_m,
-                east_m,
-                radius_m,
-            } => {
-                let field = format!("exclusions[{i}].circle");
-                if !(north_m.is_finite() && east_m.is_finite()) {
-                    return Err(fault(field, "the centre must be finite numbers"));
-                }
-                if !(radius_m.is_finite() && *radius_m > 0.0 && *radius_m <= 2.0 * g.radius_m) {
-                    return Err(fault(
-                        field,
-                        format!("radius_m must be in (0, 2 × radius_m], got {radius_m}"),
-                    ));
-                }
-                if north_m.hypot(*east_m) > 2.0 * g.radius_m {
-                    return Err(fault(
-                        field,
-                        "the centre lies beyond twice radius_m from the swarm origin",
-                    ));
-                }
-            }
-        }
-    }
+    Ok(())
+}
+
+/// The rally points: finite, inside the fence, not too many.
+fn rally_points(g: &Geofence) -> Result<(), Fault> {
     if g.rally_points.len() > MAX_RALLY_POINTS {
         return Err(fault(
             "rally_points",

@@ -93,58 +93,17 @@ impl Vehicle {
         if frame.sysid == self.sysid && frame.compid == 1 {
             return; // our own frames echoed back
         }
+        if let Some(cmd) = self.command_of(frame) {
+            self.on_command(now, cmd, out);
+            return;
+        }
+        if self.on_param_frame(now, frame, out) || self.on_mission_frame(now, frame, out) {
+            return;
+        }
         match &frame.msg {
             MavMessage::HEARTBEAT(hb) => self.on_heartbeat(now, hb),
-            MavMessage::COMMAND_LONG(c) if self.targets_me(c.target_system, c.target_component) => {
-                let cmd = Command {
-                    command: c.command,
-                    params: [
-                        c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
-                    ],
-                    int_xy: None,
-                    confirmation: c.confirmation,
-                    src_sysid: frame.sysid,
-                    src_compid: frame.compid,
-                };
-                self.on_command(now, cmd, out);
-            }
-            MavMessage::COMMAND_INT(c) if self.targets_me(c.target_system, c.target_component) => {
-                let cmd = Command {
-                    command: c.command,
-                    params: [
-                        c.param1, c.param2, c.param3, c.param4, c.x as f32, c.y as f32, c.z,
-                    ],
-                    int_xy: Some((c.frame, c.x, c.y)),
-                    confirmation: 0,
-                    src_sysid: frame.sysid,
-                    src_compid: frame.compid,
-                };
-                self.on_command(now, cmd, out);
-            }
             MavMessage::SET_POSITION_TARGET_LOCAL_NED(sp) => self.on_setpoint_local(now, sp),
             MavMessage::SET_POSITION_TARGET_GLOBAL_INT(sp) => self.on_setpoint_global(now, sp),
-            MavMessage::PARAM_REQUEST_READ(r)
-                if self.targets_me(r.target_system, r.target_component) =>
-            {
-                let index = if r.param_index >= 0 {
-                    Some(r.param_index as usize).filter(|&i| i < PARAM_COUNT)
-                } else {
-                    r.param_id.to_str().ok().and_then(Params::index_of)
-                };
-                if let Some(i) = index {
-                    self.param_value(i, out);
-                }
-            }
-            MavMessage::PARAM_REQUEST_LIST(r)
-                if self.targets_me(r.target_system, r.target_component) =>
-            {
-                for i in 0..PARAM_COUNT {
-                    self.param_value(i, out);
-                }
-            }
-            MavMessage::PARAM_SET(s) if self.targets_me(s.target_system, s.target_component) => {
-                self.on_param_set(now, s, out);
-            }
             MavMessage::PING(p) if p.target_system == 0 && p.target_component == 0 => {
                 // A ping request: answer it, addressed to the requester.
                 out.push(&MavMessage::PING(PING_DATA {
@@ -173,40 +132,110 @@ impl Vehicle {
                     self.statustext(now, MavSeverity::MAV_SEVERITY_CRITICAL, reason, out);
                 }
             }
-            // The mission protocol (see `mission`): fence and rally plans; flight plans
-            // are an empty list.
+            _ => {}
+        }
+    }
+
+    /// The command in `frame` (COMMAND_LONG or COMMAND_INT) when it is addressed to us.
+    fn command_of(&self, frame: &Frame) -> Option<Command> {
+        let (src_sysid, src_compid) = (frame.sysid, frame.compid);
+        match &frame.msg {
+            MavMessage::COMMAND_LONG(c) if self.targets_me(c.target_system, c.target_component) => {
+                Some(Command {
+                    command: c.command,
+                    params: [
+                        c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
+                    ],
+                    int_xy: None,
+                    confirmation: c.confirmation,
+                    src_sysid,
+                    src_compid,
+                })
+            }
+            MavMessage::COMMAND_INT(c) if self.targets_me(c.target_system, c.target_component) => {
+                Some(Command {
+                    command: c.command,
+                    params: [
+                        c.param1, c.param2, c.param3, c.param4, c.x as f32, c.y as f32, c.z,
+                    ],
+                    int_xy: Some((c.frame, c.x, c.y)),
+                    confirmation: 0,
+                    src_sysid,
+                    src_compid,
+                })
+            }
+            _ => None,
+        }
+    }
+
+    /// The parameter protocol's requests addressed to us; false for any other frame.
+    fn on_param_frame(&mut self, now: Instant, frame: &Frame, out: &mut Outbox) -> bool {
+        match &frame.msg {
+            MavMessage::PARAM_REQUEST_READ(r)
+                if self.targets_me(r.target_system, r.target_component) =>
+            {
+                let index = if r.param_index >= 0 {
+                    Some(r.param_index as usize).filter(|&i| i < PARAM_COUNT)
+                } else {
+                    r.param_id.to_str().ok().and_then(Params::index_of)
+                };
+                if let Some(i) = index {
+                    self.param_value(i, out);
+                }
+            }
+            MavMessage::PARAM_REQUEST_LIST(r)
+                if self.targets_me(r.target_system, r.target_component) =>
+            {
+                for i in 0..PARAM_COUNT {
+                    self.param_value(i, out);
+                }
+            }
+            MavMessage::PARAM_SET(s) if self.targets_me(s.target_system, s.target_component) => {
+                self.on_param_set(now, s, out);
+            }
+            _ => return false,
+        }
+        true
+    }
+
+    /// The mission protocol's messages addressed to us (see `mission`: fence and rally
+    /// plans; flight plans are an empty list); false for any other frame.
+    fn on_mission_frame(&mut self, now: Instant, frame: &Frame, out: &mut Outbox) -> bool {
+        let from = (frame.sysid, frame.compid);
+        match &frame.msg {
             MavMessage::MISSION_REQUEST_LIST(m)
                 if self.targets_me(m.target_system, m.target_component) =>
             {
-                self.on_mission_request_list((frame.sysid, frame.compid), m.mission_type, out);
+                self.on_mission_request_list(from, m.mission_type, out);
             }
             MavMessage::MISSION_COUNT(c)
                 if self.targets_me(c.target_system, c.target_component) =>
             {
-                self.on_mission_count(now, (frame.sysid, frame.compid), c, out);
+                self.on_mission_count(now, from, c, out);
             }
             MavMessage::MISSION_ITEM_INT(i)
                 if self.targets_me(i.target_system, i.target_component) =>
             {
-                self.on_mission_item(now, (frame.sysid, frame.compid), i, out);
+                self.on_mission_item(now, from, i, out);
             }
             MavMessage::MISSION_REQUEST_INT(r)
                 if self.targets_me(r.target_system, r.target_component) =>
             {
-                self.on_mission_request((frame.sysid, frame.compid), r.mission_type, r.seq, out);
+                self.on_mission_request(from, r.mission_type, r.seq, out);
             }
             MavMessage::MISSION_REQUEST(r)
                 if self.targets_me(r.target_system, r.target_component) =>
             {
-                self.on_mission_request((frame.sysid, frame.compid), r.mission_type, r.seq, out);
+                self.on_mission_request(from, r.mission_type, r.seq, out);
             }
             MavMessage::MISSION_CLEAR_ALL(c)
                 if self.targets_me(c.target_system, c.target_component) =>
             {
-                self.on_mission_clear((frame.sysid, frame.compid), c.mission_type, out);
+                self.on_mission_clear(from, c.mission_type, out);
             }
-            _ => {}
+            _ => return false,
         }
+        true
     }
 
     pub(super) fn on_heartbeat(&mut self, now: Instant, hb: &HEARTBEAT_DATA) {
@@ -430,6 +459,8 @@ impl Vehicle {
         }
     }
 
+    /// Executes `cmd`: its ACK result, PX4's second ACK where it sends one, and what is
+    /// sent after the ACK.
     pub(super) fn execute(
         &mut self,
         now: Instant,
@@ -438,134 +469,43 @@ impl Vehicle {
     ) -> (MavResult, Option<MavResult>, Option<Followup>) {
         use MavResult::*;
         let p = cmd.params;
-        match cmd.command {
+        let result = match cmd.command {
             MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => {
                 let force = (p[1] - FORCE_ARM_DISARM_MAGIC).abs() < 0.5;
-                (self.arm_disarm(now, p[0] > 0.5, force, out), None, None)
+                self.arm_disarm(now, p[0] > 0.5, force, out)
             }
             MavCmd::MAV_CMD_DO_SET_MODE => {
                 // PX4 acknowledges twice: ACCEPTED first, then the real result.
-                let second = if (p[0] as u32) & 1 == 0 {
-                    MAV_RESULT_DENIED
-                } else {
-                    match Px4Mode::from_main_sub(p[1] as u8, p[2] as u8) {
-                        None => MAV_RESULT_DENIED,
-                        Some(mode) => match self.request_mode(now, mode) {
-                            Ok(()) => MAV_RESULT_ACCEPTED,
-                            Err(reason) => {
-                                self.statustext(
-                                    now,
-                                    MavSeverity::MAV_SEVERITY_CRITICAL,
-                                    reason,
-                                    out,
-                                );
-                                MAV_RESULT_TEMPORARILY_REJECTED
-                            }
-                        },
-                    }
-                };
-                (MAV_RESULT_ACCEPTED, Some(second), None)
+                let second = self.set_mode_command(now, p, out);
+                return (MAV_RESULT_ACCEPTED, Some(second), None);
             }
-            MavCmd::MAV_CMD_NAV_TAKEOFF => (self.takeoff(now, p[6], out), None, None),
-            MavCmd::MAV_CMD_NAV_LAND => (self.mode_command(now, Px4Mode::Land, out), None, None),
-            MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => {
-                (self.mode_command(now, Px4Mode::Rtl, out), None, None)
-            }
-            MavCmd::MAV_CMD_NAV_LOITER_UNLIM => {
-                (self.mode_command(now, Px4Mode::Hold, out), None, None)
-            }
-            MavCmd::MAV_CMD_DO_REPOSITION => (self.reposition(now, cmd, out), None, None),
+            MavCmd::MAV_CMD_NAV_TAKEOFF => self.takeoff(now, p[6], out),
+            MavCmd::MAV_CMD_NAV_LAND => self.mode_command(now, Px4Mode::Land, out),
+            MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => self.mode_command(now, Px4Mode::Rtl, out),
+            MavCmd::MAV_CMD_NAV_LOITER_UNLIM => self.mode_command(now, Px4Mode::Hold, out),
+            MavCmd::MAV_CMD_DO_REPOSITION => self.reposition(now, cmd, out),
             MavCmd::MAV_CMD_DO_CHANGE_SPEED => {
                 if p[1] > 0.0 && p[1].is_finite() {
                     self.auto_speed_m_s = Some(f64::from(p[1]));
                 }
-                (MAV_RESULT_ACCEPTED, None, None)
+                MAV_RESULT_ACCEPTED
             }
-            MavCmd::MAV_CMD_DO_SET_HOME => {
-                if p[0] > 0.5 {
-                    self.set_home_here(now, out);
-                } else if p[4].is_finite() && p[5].is_finite() && p[6].is_finite() {
-                    let (lat, lon) = match cmd.int_xy {
-                        Some((_, x, y)) => (f64::from(x) * 1e-7, f64::from(y) * 1e-7),
-                        None => (f64::from(p[4]), f64::from(p[5])),
-                    };
-                    self.home = GeoPoint::new(lat, lon, f64::from(p[6]));
-                    self.home_local = self.origin.to_ned(&self.home);
-                    self.streams
-                        .force(crate::vehicle::telemetry::Stream::HomePosition, now);
-                } else {
-                    return (MAV_RESULT_DENIED, None, None);
-                }
-                (MAV_RESULT_ACCEPTED, None, None)
+            MavCmd::MAV_CMD_DO_SET_HOME => self.set_home_command(now, cmd, out),
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL
+            | MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL
+            | MavCmd::MAV_CMD_REQUEST_MESSAGE
+            | MavCmd::MAV_CMD_GET_HOME_POSITION
+            | MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES
+            | MavCmd::MAV_CMD_REQUEST_PROTOCOL_VERSION => {
+                let (result, followup) = self.message_command(now, cmd);
+                return (result, None, followup);
             }
-            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => {
-                let id = p[0] as u32;
-                let result = if self.streams.set_interval(id, p[1], now) {
-                    MAV_RESULT_ACCEPTED
-                } else {
-                    MAV_RESULT_DENIED
-                };
-                (result, None, None)
-            }
-            MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL => (
-                MAV_RESULT_ACCEPTED,
-                None,
-                Some(Followup::MessageInterval(p[0] as u32)),
-            ),
-            MavCmd::MAV_CMD_REQUEST_MESSAGE => {
-                let id = p[0] as u32;
-                if self.can_send_message(now, id) {
-                    (MAV_RESULT_ACCEPTED, None, Some(Followup::Message(id)))
-                } else if crate::vehicle::telemetry::is_known_message(id) {
-                    (MAV_RESULT_TEMPORARILY_REJECTED, None, None)
-                } else {
-                    (MAV_RESULT_UNSUPPORTED, None, None)
-                }
-            }
-            MavCmd::MAV_CMD_GET_HOME_POSITION => {
-                if self.has_fix {
-                    (
-                        MAV_RESULT_ACCEPTED,
-                        None,
-                        Some(Followup::Message(
-                            crate::vehicle::telemetry::HOME_POSITION_ID,
-                        )),
-                    )
-                } else {
-                    (MAV_RESULT_TEMPORARILY_REJECTED, None, None)
-                }
-            }
-            MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => (
-                MAV_RESULT_ACCEPTED,
-                None,
-                Some(Followup::Message(
-                    crate::vehicle::telemetry::AUTOPILOT_VERSION_ID,
-                )),
-            ),
-            MavCmd::MAV_CMD_REQUEST_PROTOCOL_VERSION => (
-                MAV_RESULT_ACCEPTED,
-                None,
-                Some(Followup::Message(
-                    crate::vehicle::telemetry::PROTOCOL_VERSION_ID,
-                )),
-            ),
-            MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN => {
-                if p[0].round() as i32 == 1 {
-                    if self.armed {
-                        (MAV_RESULT_DENIED, None, None)
-                    } else {
-                        self.reboot_requested = true;
-                        (MAV_RESULT_ACCEPTED, None, None)
-                    }
-                } else {
-                    (MAV_RESULT_UNSUPPORTED, None, None)
-                }
-            }
+            MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN => self.reboot_command(p),
             MavCmd::MAV_CMD_DO_FLIGHTTERMINATION => {
                 if p[0] > 0.5 {
                     self.disarm(now, "Flight termination", out);
                 }
-                (MAV_RESULT_ACCEPTED, None, None)
+                MAV_RESULT_ACCEPTED
             }
             MavCmd::MAV_CMD_MISSION_START => {
                 self.statustext(
@@ -574,9 +514,107 @@ impl Vehicle {
                     "Mission start denied: no valid mission",
                     out,
                 );
-                (MAV_RESULT_DENIED, None, None)
+                MAV_RESULT_DENIED
             }
-            _ => (MAV_RESULT_UNSUPPORTED, None, None),
+            _ => MAV_RESULT_UNSUPPORTED,
+        };
+        (result, None, None)
+    }
+
+    /// `MAV_CMD_DO_SET_MODE`'s real result (its second ACK): denied without the custom
+    /// mode flag or for an unknown mode, temporarily rejected (with a STATUSTEXT) when
+    /// the mode cannot be entered now.
+    fn set_mode_command(&mut self, now: Instant, p: [f32; 7], out: &mut Outbox) -> MavResult {
+        use MavResult::*;
+        if (p[0] as u32) & 1 == 0 {
+            return MAV_RESULT_DENIED;
         }
+        match Px4Mode::from_main_sub(p[1] as u8, p[2] as u8) {
+            None => MAV_RESULT_DENIED,
+            Some(mode) => match self.request_mode(now, mode) {
+                Ok(()) => MAV_RESULT_ACCEPTED,
+                Err(reason) => {
+                    self.statustext(now, MavSeverity::MAV_SEVERITY_CRITICAL, reason, out);
+                    MAV_RESULT_TEMPORARILY_REJECTED
+                }
+            },
+        }
+    }
+
+    /// `MAV_CMD_DO_SET_HOME`: here (param 1), or at the given point (degrees, or degE7
+    /// in a COMMAND_INT).
+    fn set_home_command(&mut self, now: Instant, cmd: &Command, out: &mut Outbox) -> MavResult {
+        let p = cmd.params;
+        if p[0] > 0.5 {
+            self.set_home_here(now, out);
+        } else if p[4].is_finite() && p[5].is_finite() && p[6].is_finite() {
+            let (lat, lon) = match cmd.int_xy {
+                Some((_, x, y)) => (f64::from(x) * 1e-7, f64::from(y) * 1e-7),
+                None => (f64::from(p[4]), f64::from(p[5])),
+            };
+            self.home = GeoPoint::new(lat, lon, f64::from(p[6]));
+            self.home_local = self.origin.to_ned(&self.home);
+            self.streams
+                .force(crate::vehicle::telemetry::Stream::HomePosition, now);
+        } else {
+            return MavResult::MAV_RESULT_DENIED;
+        }
+        MavResult::MAV_RESULT_ACCEPTED
+    }
+
+    /// The commands about messages: set or get a stream's interval, request one message
+    /// (the home position, the autopilot version and the protocol version by their own
+    /// commands too). Returns the result and the message to send after the ACK.
+    fn message_command(&mut self, now: Instant, cmd: &Command) -> (MavResult, Option<Followup>) {
+        use MavResult::*;
+        let p = cmd.params;
+        let message = |id: u32| (MAV_RESULT_ACCEPTED, Some(Followup::Message(id)));
+        match cmd.command {
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => {
+                if self.streams.set_interval(p[0] as u32, p[1], now) {
+                    (MAV_RESULT_ACCEPTED, None)
+                } else {
+                    (MAV_RESULT_DENIED, None)
+                }
+            }
+            MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL => (
+                MAV_RESULT_ACCEPTED,
+                Some(Followup::MessageInterval(p[0] as u32)),
+            ),
+            MavCmd::MAV_CMD_REQUEST_MESSAGE => {
+                let id = p[0] as u32;
+                if self.can_send_message(now, id) {
+                    message(id)
+                } else if crate::vehicle::telemetry::is_known_message(id) {
+                    (MAV_RESULT_TEMPORARILY_REJECTED, None)
+                } else {
+                    (MAV_RESULT_UNSUPPORTED, None)
+                }
+            }
+            MavCmd::MAV_CMD_GET_HOME_POSITION if self.has_fix => {
+                message(crate::vehicle::telemetry::HOME_POSITION_ID)
+            }
+            MavCmd::MAV_CMD_GET_HOME_POSITION => (MAV_RESULT_TEMPORARILY_REJECTED, None),
+            MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => {
+                message(crate::vehicle::telemetry::AUTOPILOT_VERSION_ID)
+            }
+            MavCmd::MAV_CMD_REQUEST_PROTOCOL_VERSION => {
+                message(crate::vehicle::telemetry::PROTOCOL_VERSION_ID)
+            }
+            _ => (MAV_RESULT_UNSUPPORTED, None),
+        }
+    }
+
+    /// `MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN`: a reboot of the autopilot (param 1 = 1), not
+    /// while armed; nothing else is supported.
+    fn reboot_command(&mut self, p: [f32; 7]) -> MavResult {
+        if p[0].round() as i32 != 1 {
+            return MavResult::MAV_RESULT_UNSUPPORTED;
+        }
+        if self.armed {
+            return MavResult::MAV_RESULT_DENIED;
+        }
+        self.reboot_requested = true;
+        MavResult::MAV_RESULT_ACCEPTED
     }
 }

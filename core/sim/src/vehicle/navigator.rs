@@ -217,6 +217,8 @@ impl Vehicle {
             || sp.vel[2].is_some_and(|vz| vz < -0.05)
     }
 
+    /// What the vehicle flies now: idle or falling when disarmed, else the goal of its
+    /// mode (auto modes hold, take off, land or return; offboard follows the setpoint).
     pub(super) fn compute_goal(&self) -> Goal {
         if !self.armed {
             return if self.landed {
@@ -225,47 +227,6 @@ impl Vehicle {
                 Goal::FreeFall
             };
         }
-        let p = &self.params;
-        let cruise = p
-            .get(Param::MPC_XY_CRUISE)
-            .min(p.get(Param::MPC_XY_VEL_MAX));
-        let auto_xy = self
-            .auto_speed_m_s
-            .unwrap_or(cruise)
-            .min(p.get(Param::MPC_XY_VEL_MAX));
-        let auto_up = p.get(Param::MPC_Z_V_AUTO_UP);
-        let auto_dn = p.get(Param::MPC_Z_V_AUTO_DN);
-        let auto_yaw_rate = p.get(Param::MPC_YAWRAUTO_MAX).to_radians();
-        let hold = |pos: Ned, yaw: YawGoal| {
-            Goal::Track(Track {
-                pos: [Some(pos.north_m), Some(pos.east_m), Some(pos.down_m)],
-                vel: [None; 3],
-                acc: [None; 3],
-                xy_max_m_s: auto_xy,
-                up_max_m_s: auto_up,
-                down_max_m_s: auto_dn,
-                yaw,
-                yaw_rate_max_rad_s: auto_yaw_rate,
-                smooth: true,
-            })
-        };
-        let land_at = |x: f64, y: f64, yaw: YawGoal| {
-            Goal::Track(Track {
-                pos: [Some(x), Some(y), None],
-                vel: [
-                    None,
-                    None,
-                    Some(self.land_speed_m_s(self.height_above_home_m())),
-                ],
-                acc: [None; 3],
-                xy_max_m_s: auto_xy,
-                up_max_m_s: auto_up,
-                down_max_m_s: auto_dn.max(p.get(Param::MPC_LAND_SPEED)),
-                yaw,
-                yaw_rate_max_rad_s: auto_yaw_rate,
-                smooth: true,
-            })
-        };
         let wants_takeoff = match self.mode {
             Px4Mode::Takeoff => self.takeoff_z < self.pos.down_m - TAKEOFF_DETECT_M,
             Px4Mode::Offboard => self.offboard_wants_takeoff(),
@@ -274,6 +235,7 @@ impl Vehicle {
         if self.landed && !wants_takeoff {
             return Goal::Idle;
         }
+        let limits = self.auto_limits();
         match self.mode {
             Px4Mode::Takeoff => Goal::Track(Track {
                 pos: [
@@ -281,56 +243,122 @@ impl Vehicle {
                     Some(self.hold_pos.east_m),
                     Some(self.takeoff_z),
                 ],
-                vel: [None; 3],
-                acc: [None; 3],
-                xy_max_m_s: auto_xy,
-                up_max_m_s: p.get(Param::MPC_TKO_SPEED),
-                down_max_m_s: auto_dn,
-                yaw: self.hold_yaw,
-                yaw_rate_max_rad_s: auto_yaw_rate,
-                smooth: true,
+                up_max_m_s: self.params.get(Param::MPC_TKO_SPEED),
+                ..limits.track(self.hold_yaw)
             }),
-            Px4Mode::Land | Px4Mode::Precland => {
-                land_at(self.land_xy.0, self.land_xy.1, self.hold_yaw)
-            }
+            Px4Mode::Land | Px4Mode::Precland => self.land_goal(&limits),
             Px4Mode::Rtl => match self.rtl_phase {
-                RtlPhase::Climb => hold(
+                RtlPhase::Climb => limits.hold(
                     Ned::new(self.rtl_start.north_m, self.rtl_start.east_m, self.rtl_z),
                     self.hold_yaw,
                 ),
-                RtlPhase::Return => hold(
+                RtlPhase::Return => limits.hold(
                     Ned::new(self.home_local.north_m, self.home_local.east_m, self.rtl_z),
                     self.hold_yaw,
                 ),
-                RtlPhase::Land => land_at(self.land_xy.0, self.land_xy.1, self.hold_yaw),
+                RtlPhase::Land => self.land_goal(&limits),
             },
-            Px4Mode::Offboard => {
-                let sp = self.setpoint.unwrap_or(Setpoint {
-                    pos: [
-                        Some(self.hold_pos.north_m),
-                        Some(self.hold_pos.east_m),
-                        Some(self.hold_pos.down_m),
-                    ],
-                    ..Setpoint::default()
-                });
-                let yaw = match (sp.yaw_rad, sp.yaw_rate_rad_s) {
-                    (Some(y), _) => YawGoal::Heading(y),
-                    (None, Some(r)) => YawGoal::Rate(r),
-                    (None, None) => YawGoal::Rate(0.0),
-                };
-                Goal::Track(Track {
-                    pos: sp.pos,
-                    vel: sp.vel,
-                    acc: sp.acc,
-                    xy_max_m_s: p.get(Param::MPC_XY_VEL_MAX),
-                    up_max_m_s: p.get(Param::MPC_Z_VEL_MAX_UP),
-                    down_max_m_s: p.get(Param::MPC_Z_VEL_MAX_DN),
-                    yaw,
-                    yaw_rate_max_rad_s: p.get(Param::MC_YAWRATE_MAX).to_radians(),
-                    smooth: false,
-                })
-            }
-            _ => hold(self.hold_pos, self.hold_yaw),
+            Px4Mode::Offboard => self.offboard_goal(),
+            _ => limits.hold(self.hold_pos, self.hold_yaw),
         }
+    }
+
+    /// The limits of the auto modes (PX4's `MPC_XY_CRUISE`, or a DO_CHANGE_SPEED, under
+    /// `MPC_XY_VEL_MAX`; `MPC_Z_V_AUTO_*`, `MPC_YAWRAUTO_MAX`).
+    fn auto_limits(&self) -> AutoLimits {
+        let p = &self.params;
+        let cruise = p
+            .get(Param::MPC_XY_CRUISE)
+            .min(p.get(Param::MPC_XY_VEL_MAX));
+        AutoLimits {
+            xy_m_s: self
+                .auto_speed_m_s
+                .unwrap_or(cruise)
+                .min(p.get(Param::MPC_XY_VEL_MAX)),
+            up_m_s: p.get(Param::MPC_Z_V_AUTO_UP),
+            down_m_s: p.get(Param::MPC_Z_V_AUTO_DN),
+            yaw_rate_rad_s: p.get(Param::MPC_YAWRAUTO_MAX).to_radians(),
+        }
+    }
+
+    /// Landing where the land started: down at PX4's landing speed for the height.
+    fn land_goal(&self, limits: &AutoLimits) -> Goal {
+        Goal::Track(Track {
+            pos: [Some(self.land_xy.0), Some(self.land_xy.1), None],
+            vel: [
+                None,
+                None,
+                Some(self.land_speed_m_s(self.height_above_home_m())),
+            ],
+            down_max_m_s: limits.down_m_s.max(self.params.get(Param::MPC_LAND_SPEED)),
+            ..limits.track(self.hold_yaw)
+        })
+    }
+
+    /// Offboard: the last setpoint as given (a hold where offboard began before the
+    /// first), raw, within the vehicle's maximum speeds.
+    fn offboard_goal(&self) -> Goal {
+        let p = &self.params;
+        let sp = self.setpoint.unwrap_or(Setpoint {
+            pos: [
+                Some(self.hold_pos.north_m),
+                Some(self.hold_pos.east_m),
+                Some(self.hold_pos.down_m),
+            ],
+            ..Setpoint::default()
+        });
+        let yaw = match (sp.yaw_rad, sp.yaw_rate_rad_s) {
+            (Some(y), _) => YawGoal::Heading(y),
+            (None, Some(r)) => YawGoal::Rate(r),
+            (None, None) => YawGoal::Rate(0.0),
+        };
+        Goal::Track(Track {
+            pos: sp.pos,
+            vel: sp.vel,
+            acc: sp.acc,
+            xy_max_m_s: p.get(Param::MPC_XY_VEL_MAX),
+            up_max_m_s: p.get(Param::MPC_Z_VEL_MAX_UP),
+            down_max_m_s: p.get(Param::MPC_Z_VEL_MAX_DN),
+            yaw,
+            yaw_rate_max_rad_s: p.get(Param::MC_YAWRATE_MAX).to_radians(),
+            smooth: false,
+        })
+    }
+}
+
+/// The speed limits of PX4's auto modes.
+struct AutoLimits {
+    /// Horizontal, m/s.
+    xy_m_s: f64,
+    /// Climbing, m/s.
+    up_m_s: f64,
+    /// Descending, m/s.
+    down_m_s: f64,
+    /// Yaw rate, rad/s.
+    yaw_rate_rad_s: f64,
+}
+
+impl AutoLimits {
+    /// A smooth track within these limits, towards nothing yet (`pos` to be set).
+    fn track(&self, yaw: YawGoal) -> Track {
+        Track {
+            pos: [None; 3],
+            vel: [None; 3],
+            acc: [None; 3],
+            xy_max_m_s: self.xy_m_s,
+            up_max_m_s: self.up_m_s,
+            down_max_m_s: self.down_m_s,
+            yaw,
+            yaw_rate_max_rad_s: self.yaw_rate_rad_s,
+            smooth: true,
+        }
+    }
+
+    /// Holding `pos` with heading goal `yaw`.
+    fn hold(&self, pos: Ned, yaw: YawGoal) -> Goal {
+        Goal::Track(Track {
+            pos: [Some(pos.north_m), Some(pos.east_m), Some(pos.down_m)],
+            ..self.track(yaw)
+        })
     }
 }

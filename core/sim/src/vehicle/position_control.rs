@@ -146,34 +146,7 @@ impl PositionControl {
         acc_m_s2: [f64; 3],
         dt_s: f64,
     ) -> PosCtrlOutput {
-        // Position P loop; the feed-forward velocity is added where both exist.
-        let mut vel_sp = [None; 3];
-        let mut vel_sp_position = [0.0; 3];
-        for i in 0..3 {
-            let p = sp.pos_m[i].map(|target| (target - pos_m[i]) * k.pos_p[i]);
-            vel_sp_position[i] = p.unwrap_or(0.0);
-            vel_sp[i] = match (sp.vel_m_s[i], p) {
-                (Some(v), Some(p)) => Some(v + p),
-                (Some(v), None) => Some(v),
-                (None, p) => p,
-            };
-        }
-        let vs = [
-            vel_sp[0].unwrap_or(0.0),
-            vel_sp[1].unwrap_or(0.0),
-            vel_sp[2].unwrap_or(0.0),
-        ];
-        let xy = constrain_xy(
-            [vel_sp_position[0], vel_sp_position[1]],
-            [vs[0] - vel_sp_position[0], vs[1] - vel_sp_position[1]],
-            sp.vel_xy_max_m_s.max(0.0),
-        );
-        let vel_sp = [
-            xy[0],
-            xy[1],
-            vs[2].clamp(-sp.vel_up_max_m_s.max(0.0), sp.vel_dn_max_m_s.max(0.0)),
-        ];
-
+        let vel_sp = velocity_setpoint(k, sp, pos_m);
         // Velocity PID → acceleration setpoint.
         self.vel_int[2] = self.vel_int[2].clamp(-GRAVITY_M_S2, GRAVITY_M_S2);
         let mut vel_err = [0.0; 3];
@@ -183,46 +156,31 @@ impl PositionControl {
             acc_sp[i] = vel_err[i] * k.vel_p[i] + self.vel_int[i] - acc_m_s2[i] * k.vel_d[i]
                 + sp.acc_m_s2[i].unwrap_or(0.0);
         }
-
-        // Acceleration → thrust (PositionControl::_accelerationControl, decoupled).
-        let mut body_z = [-acc_sp[0], -acc_sp[1], GRAVITY_M_S2];
-        let n = (body_z[0] * body_z[0] + body_z[1] * body_z[1] + body_z[2] * body_z[2]).sqrt();
-        for c in &mut body_z {
-            *c /= n;
-        }
-        // body_z is the body z axis (down when level); limit its angle to the vertical.
-        let tilt = body_z[0].hypot(body_z[1]).atan2(body_z[2]);
-        if tilt > k.tilt_max_rad {
-            let h = body_z[0].hypot(body_z[1]);
-            let (s, c) = k.tilt_max_rad.sin_cos();
-            body_z = [body_z[0] / h * s, body_z[1] / h * s, c];
-        }
-        let thrust_ned_z = acc_sp[2] * (k.thr_hover / GRAVITY_M_S2) - k.thr_hover;
-        let collective = (thrust_ned_z / body_z[2]).min(-k.thr_min);
-        // Thrust vector in NED: body z axis (pointing down) times collective (negative).
-        let mut thr = [
-            body_z[0] * collective,
-            body_z[1] * collective,
-            body_z[2] * collective,
-        ];
-
+        let mut thr = thrust_of(k, acc_sp);
         // Vertical anti-windup.
         if (thr[2] >= -k.thr_min && vel_err[2] >= 0.0)
             || (thr[2] <= -k.thr_max && vel_err[2] <= 0.0)
         {
             vel_err[2] = 0.0;
         }
-        // Prioritise vertical thrust, keeping a horizontal margin.
-        let thr_xy_norm = thr[0].hypot(thr[1]);
-        let thr_max_sq = k.thr_max * k.thr_max;
-        let allocated_xy = thr_xy_norm.min(k.thr_xy_margin);
-        let thr_z_max_sq = thr_max_sq - allocated_xy * allocated_xy;
-        thr[2] = thr[2].max(-thr_z_max_sq.max(0.0).sqrt());
-        let thr_max_xy = (thr_max_sq - thr[2] * thr[2]).max(0.0).sqrt();
-        if thr_xy_norm > thr_max_xy {
-            limit_xy(&mut thr, thr_max_xy);
+        prioritise_vertical(k, &mut thr);
+        self.integrate(k, acc_sp, thr, vel_err, dt_s);
+        PosCtrlOutput {
+            thrust_ned: thr,
+            vel_sp_m_s: vel_sp,
         }
-        // Horizontal tracking anti-windup.
+    }
+
+    /// The velocity integrator's step, with the horizontal tracking anti-windup: the
+    /// error is reduced by the acceleration the thrust limit left out.
+    fn integrate(
+        &mut self,
+        k: &PosCtrlParams,
+        acc_sp: [f64; 3],
+        thr: [f64; 3],
+        mut vel_err: [f64; 3],
+        dt_s: f64,
+    ) {
         let produced = [
             thr[0] * GRAVITY_M_S2 / k.thr_hover,
             thr[1] * GRAVITY_M_S2 / k.thr_hover,
@@ -248,10 +206,75 @@ impl PositionControl {
                 *int += err * ki * dt_s;
             }
         }
-        PosCtrlOutput {
-            thrust_ned: thr,
-            vel_sp_m_s: vel_sp,
-        }
+    }
+}
+
+/// The position P loop's velocity setpoint, with the feed-forward velocity added where
+/// both exist, limited horizontally (the position part first) and vertically.
+fn velocity_setpoint(k: &PosCtrlParams, sp: &PosCtrlSetpoint, pos_m: [f64; 3]) -> [f64; 3] {
+    let mut vel_sp = [None; 3];
+    let mut vel_sp_position = [0.0; 3];
+    for i in 0..3 {
+        let p = sp.pos_m[i].map(|target| (target - pos_m[i]) * k.pos_p[i]);
+        vel_sp_position[i] = p.unwrap_or(0.0);
+        vel_sp[i] = match (sp.vel_m_s[i], p) {
+            (Some(v), Some(p)) => Some(v + p),
+            (Some(v), None) => Some(v),
+            (None, p) => p,
+        };
+    }
+    let vs = [
+        vel_sp[0].unwrap_or(0.0),
+        vel_sp[1].unwrap_or(0.0),
+        vel_sp[2].unwrap_or(0.0),
+    ];
+    let xy = constrain_xy(
+        [vel_sp_position[0], vel_sp_position[1]],
+        [vs[0] - vel_sp_position[0], vs[1] - vel_sp_position[1]],
+        sp.vel_xy_max_m_s.max(0.0),
+    );
+    [
+        xy[0],
+        xy[1],
+        vs[2].clamp(-sp.vel_up_max_m_s.max(0.0), sp.vel_dn_max_m_s.max(0.0)),
+    ]
+}
+
+/// Acceleration → thrust vector in NED (PositionControl::_accelerationControl,
+/// decoupled): the body z axis tilted at most `tilt_max_rad`, times the collective.
+fn thrust_of(k: &PosCtrlParams, acc_sp: [f64; 3]) -> [f64; 3] {
+    let mut body_z = [-acc_sp[0], -acc_sp[1], GRAVITY_M_S2];
+    let n = (body_z[0] * body_z[0] + body_z[1] * body_z[1] + body_z[2] * body_z[2]).sqrt();
+    for c in &mut body_z {
+        *c /= n;
+    }
+    // body_z is the body z axis (down when level); limit its angle to the vertical.
+    let tilt = body_z[0].hypot(body_z[1]).atan2(body_z[2]);
+    if tilt > k.tilt_max_rad {
+        let h = body_z[0].hypot(body_z[1]);
+        let (s, c) = k.tilt_max_rad.sin_cos();
+        body_z = [body_z[0] / h * s, body_z[1] / h * s, c];
+    }
+    let thrust_ned_z = acc_sp[2] * (k.thr_hover / GRAVITY_M_S2) - k.thr_hover;
+    let collective = (thrust_ned_z / body_z[2]).min(-k.thr_min);
+    // Thrust vector in NED: body z axis (pointing down) times collective (negative).
+    [
+        body_z[0] * collective,
+        body_z[1] * collective,
+        body_z[2] * collective,
+    ]
+}
+
+/// Limits the thrust to `thr_max`, vertical first, keeping a horizontal margin.
+fn prioritise_vertical(k: &PosCtrlParams, thr: &mut [f64; 3]) {
+    let thr_xy_norm = thr[0].hypot(thr[1]);
+    let thr_max_sq = k.thr_max * k.thr_max;
+    let allocated_xy = thr_xy_norm.min(k.thr_xy_margin);
+    let thr_z_max_sq = thr_max_sq - allocated_xy * allocated_xy;
+    thr[2] = thr[2].max(-thr_z_max_sq.max(0.0).sqrt());
+    let thr_max_xy = (thr_max_sq - thr[2] * thr[2]).max(0.0).sqrt();
+    if thr_xy_norm > thr_max_xy {
+        limit_xy(thr, thr_max_xy);
     }
 }
 

@@ -12,8 +12,11 @@
 //! Told to stop (SIGTERM, Ctrl-C), the agent first lands its airborne vehicles (or puts
 //! them in PX4 Hold or RTL: `--shutdown-action`, `[agent] shutdown_action`), then exits 0
 //! (see [`crate::shutdown`]).
+//!
+//! The composition of [`crate::compose`] in its [`Role::Agent`] role: `skein up`'s options at
+//! their defaults, then this command's.
 
-use super::up::{UpArgs, up};
+use crate::compose::{AgentRole, Role, UpArgs, hostname, run};
 use crate::config::ConfigFile;
 use crate::shutdown::{ShutdownAction, ShutdownPlan};
 use clap::Args;
@@ -99,26 +102,15 @@ pub struct AgentArgs {
     test_clock_skew_ms: Option<i64>,
 }
 
-/// What `skein up` needs to run as an agent.
-#[derive(Debug, Clone)]
-pub struct AgentRole {
-    /// The first simulated vehicle's sysid.
-    pub first_sysid: u8,
-    /// The carrier's settings.
-    pub config: AgentConfig,
-    /// What the vehicles do before the process exits.
-    pub shutdown: ShutdownPlan,
-}
-
 /// Runs an agent until a signal or its coordinator actor's failure.
 ///
 /// # Errors
 /// A bad config or option (named), a port in use, DDS that cannot start.
 pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
-    let id = match args.id {
+    let id = match &args.id {
         Some(id) if id.trim().is_empty() => return Err("--id: empty".into()),
-        Some(id) => id,
-        None => format!("{}-{}", super::candidate::hostname(), std::process::id()),
+        Some(id) => id.clone(),
+        None => format!("{}-{}", hostname(), std::process::id()),
     };
     let file = match &args.config {
         Some(path) => ConfigFile::load(path)?,
@@ -128,16 +120,61 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
         eprintln!("skein: tests only: this agent's wall clock runs {ms} ms off");
         skein_swarm::protocol::skew_wall_clock(ms);
     }
+    let config = carrier_config(&args, &file, id)?;
+    let shutdown = shutdown_plan(&args, &file)?;
+    if let Some(n) = args.sim
+        && usize::from(args.first_sysid) + n > 256
+    {
+        return Err(format!(
+            "--sim {n} --first-sysid {}: system ids run past 255",
+            args.first_sysid
+        ));
+    }
+    let role = Role::Agent(AgentRole {
+        first_sysid: args.first_sysid,
+        config,
+        shutdown,
+    });
+    run(role, up_args(args)?).await
+}
+
+/// `skein up`'s options at their defaults, then this role's (the API on a free loopback
+/// port unless `--http` names one).
+fn up_args(args: AgentArgs) -> Result<UpArgs, String> {
+    let http = args
+        .http
+        .unwrap_or(SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0));
+    let mut up_args = UpArgs::for_role(
+        args.config,
+        Some(http),
+        args.domain_id,
+        args.dds_network,
+        args.dds_security,
+    )?;
+    up_args.sim = args.sim;
+    up_args.sim_base_port = args.sim_base_port;
+    up_args.sim_seed = args.sim_seed;
+    up_args.sim_model = args.sim_model;
+    up_args.sim_stats = args.sim_stats;
+    up_args.plugin_dir = args.plugin_dir;
+    Ok(up_args)
+}
+
+/// `what` as a time in (0, 3600] seconds, if given.
+fn seconds(what: &str, v: Option<f64>) -> Result<Option<Duration>, String> {
+    match v {
+        None => Ok(None),
+        Some(s) if s.is_finite() && s > 0.0 && s <= 3600.0 => Ok(Some(Duration::from_secs_f64(s))),
+        Some(s) => Err(format!("{what}: {s} is not a time in (0, 3600] seconds")),
+    }
+}
+
+/// The agent carrier's settings: the flags over `[agent]` over the defaults.
+///
+/// # Errors
+/// A time out of range or an unknown lost action (named).
+fn carrier_config(args: &AgentArgs, file: &ConfigFile, id: String) -> Result<AgentConfig, String> {
     let mut config = AgentConfig::new(id);
-    let seconds = |what: &str, v: Option<f64>| -> Result<Option<Duration>, String> {
-        match v {
-            None => Ok(None),
-            Some(s) if s.is_finite() && s > 0.0 && s <= 3600.0 => {
-                Ok(Some(Duration::from_secs_f64(s)))
-            }
-            Some(s) => Err(format!("{what}: {s} is not a time in (0, 3600] seconds")),
-        }
-    };
     if let Some(d) = seconds(
         "coordinator_timeout_s",
         args.coordinator_timeout_s
@@ -165,14 +202,28 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
     }
     if let Some(a) = args
         .coordinator_lost_action
+        .clone()
         .or(file.agent.coordinator_lost_action.clone())
     {
         config.lost_action = a
             .parse::<LostAction>()
             .map_err(|e| format!("coordinator_lost_action: {e}"))?;
     }
+    Ok(config)
+}
+
+/// What the vehicles do at shutdown: the flags over `[agent]` over the default (land,
+/// within 60 s).
+///
+/// # Errors
+/// An unknown action or a time out of range (named).
+fn shutdown_plan(args: &AgentArgs, file: &ConfigFile) -> Result<ShutdownPlan, String> {
     let mut shutdown = ShutdownPlan::default();
-    if let Some(a) = args.shutdown_action.or(file.agent.shutdown_action.clone()) {
+    if let Some(a) = args
+        .shutdown_action
+        .clone()
+        .or(file.agent.shutdown_action.clone())
+    {
         shutdown.action = a
             .parse::<ShutdownAction>()
             .map_err(|e| format!("shutdown_action: {e}"))?;
@@ -183,34 +234,5 @@ pub async fn agent(args: AgentArgs) -> Result<ExitCode, String> {
     )? {
         shutdown.timeout = d;
     }
-    if let Some(n) = args.sim
-        && usize::from(args.first_sysid) + n > 256
-    {
-        return Err(format!(
-            "--sim {n} --first-sysid {}: system ids run past 255",
-            args.first_sysid
-        ));
-    }
-    // `skein up`'s options at their defaults, then this role's.
-    let mut up_args = UpArgs::defaults()?;
-    up_args.sim = args.sim;
-    up_args.sim_base_port = args.sim_base_port;
-    up_args.sim_seed = args.sim_seed;
-    up_args.sim_model = args.sim_model;
-    up_args.sim_stats = args.sim_stats;
-    up_args.config = args.config;
-    up_args.plugin_dir = args.plugin_dir;
-    up_args.http = Some(
-        args.http
-            .unwrap_or(SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0)),
-    );
-    up_args.domain_id = args.domain_id;
-    up_args.dds_network = args.dds_network;
-    up_args.dds_security = args.dds_security;
-    up_args.agent = Some(AgentRole {
-        first_sysid: args.first_sysid,
-        config,
-        shutdown,
-    });
-    up(up_args).await
+    Ok(shutdown)
 }

@@ -14,13 +14,16 @@
 //! | `skein dds keystore create`, `skein dds enclave create` | an SROS 2 keystore, a participant's enclave | [`dds`] |
 //! | `skein plugin new` | a payload plugin crate that builds | [`plugin_new`] |
 //!
+//! `up`, `coordinator` and `agent` are one composition in three roles ([`crate::compose`]):
+//! each turns its flags into a role and its options; none imports another.
+//!
 //! `skein sim` is `skein_sim::cli`; `skein plugin-host` is `skein_plugin_host`'s child
 //! entry point. The actors these commands start are in `skein_swarm` (the `Coordinator`
 //! actor, `Vehicle` actors) and `skein_dds` (the DDS roles).
 
 pub mod agent;
 pub mod bench;
-pub mod candidate;
+pub mod coordinator;
 pub mod dds;
 pub mod fault;
 pub mod health;

@@ -59,107 +59,144 @@ pub(super) fn driver_thread(
     jobs: std::sync::mpsc::Receiver<Job>,
     actor: ActorRef<PayloadMsg>,
 ) {
-    use std::panic::{AssertUnwindSafe, catch_unwind};
-    let create = || {
-        catch_unwind(AssertUnwindSafe(|| {
-            args.factory.create(&args.spec, args.host.clone())
-        }))
-        .unwrap_or_else(|p| Err(format!("panicked while creating: {}", panic_text(&*p))))
-    };
-    let mut created = Instant::now();
-    let mut driver = match create() {
+    let created = Instant::now();
+    let driver = match create(&args) {
         Ok(d) => d,
         Err(e) => {
             let _ = actor.cast(PayloadMsg::Ready(Err(e)));
             return;
         }
     };
-    args.shared.set_served_by(driver.served_by());
+    let mut thread = DriverThread {
+        args,
+        driver,
+        created,
+    };
+    thread.args.shared.set_served_by(thread.driver.served_by());
     if actor
-        .cast(PayloadMsg::Ready(Ok(driver.tick_rate_hz())))
+        .cast(PayloadMsg::Ready(Ok(thread.driver.tick_rate_hz())))
         .is_err()
     {
-        drop(driver);
-        args.shared.set_served_by(None);
+        thread.retire();
         return;
     }
-    let run = |driver: &mut Box<dyn PayloadDriver>, call: &DriverCall| match call {
+    while let Ok(job) = jobs.recv() {
+        let go_on = match job.call {
+            DriverCall::Shutdown => {
+                thread.retire();
+                let _ = job.reply.send((Ok(Value::Null), 0.0));
+                false
+            }
+            DriverCall::Refresh(reloaded_at) => thread.refresh(reloaded_at, job.reply),
+            _ => thread.call(job),
+        };
+        if !go_on {
+            break;
+        }
+    }
+    // The driver is dropped here, on its own thread (a process-isolated one reaps its
+    // child; a stuck destructor blocks nobody else).
+    thread.retire();
+}
+
+/// A driver made by the payload's factory (a panic while creating it is an error).
+fn create(args: &PayloadArgs) -> Result<Box<dyn PayloadDriver>, String> {
+    use std::panic::{AssertUnwindSafe, catch_unwind};
+    catch_unwind(AssertUnwindSafe(|| {
+        args.factory.create(&args.spec, args.host.clone())
+    }))
+    .unwrap_or_else(|p| Err(format!("panicked while creating: {}", panic_text(&*p))))
+}
+
+/// Runs `call` on `driver` (a refresh or shutdown does nothing here).
+fn run(driver: &mut dyn PayloadDriver, call: &DriverCall) -> Result<Value, String> {
+    match call {
         DriverCall::Tick(dt) => driver.tick(*dt).map(|()| Value::Null),
         DriverCall::Handle(cmd) => driver.handle(cmd.clone()),
         DriverCall::Mavlink(compid, msg) => driver.on_mavlink(*compid, msg).map(|()| Value::Null),
         DriverCall::Refresh(_) | DriverCall::Shutdown => Ok(Value::Null),
-    };
-    // Replaces the driver by a new one from the current build of its plugin. The old one
-    // is dropped first, so that what it restores at shutdown (the radio's link) does not
-    // undo what the new one sets up.
-    let recreate = |driver: &mut Box<dyn PayloadDriver>, created: &mut Instant| {
-        drop(std::mem::replace(driver, Box::new(Retired)));
+    }
+}
+
+/// What the driver thread holds: the payload, its driver and when it was created.
+struct DriverThread {
+    args: PayloadArgs,
+    driver: Box<dyn PayloadDriver>,
+    created: Instant,
+}
+
+impl DriverThread {
+    /// Drops the driver (its `shutdown` runs) and says the slot is served by nobody.
+    fn retire(&mut self) {
+        drop(std::mem::replace(&mut self.driver, Box::new(Retired)));
+        self.args.shared.set_served_by(None);
+    }
+
+    /// Replaces the driver by a new one from the current build of its plugin. The old
+    /// one is dropped first, so that what it restores at shutdown (the radio's link)
+    /// does not undo what the new one sets up.
+    fn recreate(&mut self) -> Result<(), String> {
+        drop(std::mem::replace(&mut self.driver, Box::new(Retired)));
         let c = Instant::now();
-        let fresh = create()?;
-        *driver = fresh;
-        *created = c;
-        args.shared.set_served_by(driver.served_by());
+        self.driver = create(&self.args)?;
+        self.created = c;
+        self.args.shared.set_served_by(self.driver.served_by());
         tracing::info!(
-            vehicle = %args.host.vehicle_id(), slot = %args.spec.slot,
+            vehicle = %self.args.host.vehicle_id(), slot = %self.args.spec.slot,
             "payload re-created on the reloaded plugin"
         );
-        Ok::<(), String>(())
-    };
-    while let Ok(job) = jobs.recv() {
-        if let DriverCall::Shutdown = job.call {
-            drop(std::mem::replace(&mut driver, Box::new(Retired)));
-            args.shared.set_served_by(None);
-            let _ = job.reply.send((Ok(Value::Null), 0.0));
-            break;
-        }
-        if let DriverCall::Refresh(reloaded_at) = job.call {
-            // Created before the reload: replace it now; created since (at its first call
-            // after the reload, below): nothing to do.
-            let result = if created < reloaded_at {
-                recreate(&mut driver, &mut created)
-                    .map(|()| Value::Null)
-                    .map_err(|e| Ok(format!("re-creating it on the reloaded plugin failed: {e}")))
-            } else {
-                Ok(Value::Null)
-            };
-            let failed = result.is_err();
-            if job.reply.send((result, driver.tick_rate_hz())).is_err() || failed {
-                break;
-            }
-            continue;
-        }
-        let mut result = catch_unwind(AssertUnwindSafe(|| run(&mut driver, &job.call)));
+        Ok(())
+    }
+
+    /// A plugin reloaded at `reloaded_at`: a driver created before is replaced now; one
+    /// created since (at its first call after the reload) is left. False when the thread
+    /// must end (no driver left, or the actor gone).
+    fn refresh(
+        &mut self,
+        reloaded_at: Instant,
+        reply: tokio::sync::oneshot::Sender<CallReply>,
+    ) -> bool {
+        let result = if self.created < reloaded_at {
+            self.recreate()
+                .map(|()| Value::Null)
+                .map_err(|e| Ok(format!("re-creating it on the reloaded plugin failed: {e}")))
+        } else {
+            Ok(Value::Null)
+        };
+        let failed = result.is_err();
+        reply.send((result, self.driver.tick_rate_hz())).is_ok() && !failed
+    }
+
+    /// Runs `job`'s call and answers it; a driver whose library was reloaded is
+    /// re-created and the call repeated. False when the thread must end (the actor gave
+    /// up on the call, or the driver is poisoned by a panic or gone).
+    fn call(&mut self, job: Job) -> bool {
+        use std::panic::{AssertUnwindSafe, catch_unwind};
+        let mut result = catch_unwind(AssertUnwindSafe(|| run(self.driver.as_mut(), &job.call)));
         if let Ok(Err(e)) = &result
             && is_stale(e)
         {
             // The library was reloaded and the reload's notice has not reached us yet:
             // re-create on the new build and repeat the call (a fresh driver's tick is
             // harmless).
-            if let Err(e2) = recreate(&mut driver, &mut created) {
+            if let Err(e2) = self.recreate() {
                 // No driver left: the actor must fail (its supervisor tries again).
                 let _ = job
                     .reply
                     .send((Err(Err(format!("{e}; re-creating it failed: {e2}"))), 0.0));
-                break;
+                return false;
             }
-            result = catch_unwind(AssertUnwindSafe(|| run(&mut driver, &job.call)));
+            result = catch_unwind(AssertUnwindSafe(|| run(self.driver.as_mut(), &job.call)));
         }
-        let rate = driver.tick_rate_hz();
+        let rate = self.driver.tick_rate_hz();
         let panicked = result.is_err();
         let reply = match result {
             Ok(Ok(v)) => Ok(v),
             Ok(Err(e)) => Err(Ok(e)),
             Err(p) => Err(Err(format!("panicked: {}", panic_text(&*p)))),
         };
-        if job.reply.send((reply, rate)).is_err() || panicked {
-            // The actor gave up on this call, or the driver is poisoned by a panic.
-            break;
-        }
+        job.reply.send((reply, rate)).is_ok() && !panicked
     }
-    // The driver is dropped here, on its own thread (a process-isolated one reaps its
-    // child; a stuck destructor blocks nobody else).
-    drop(driver);
-    args.shared.set_served_by(None);
 }
 
 /// Stands in for a driver being replaced (between dropping the old and creating the new).

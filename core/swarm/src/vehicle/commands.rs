@@ -96,6 +96,12 @@ impl VehicleCore {
 }
 
 impl VehicleActorState {
+    /// Obeys operator command `cmd` (`command_id` names its result event): checks what
+    /// needs telemetry, applies it to the FSM, then starts its procedure or sets its
+    /// target.
+    ///
+    /// # Errors
+    /// The reason a check or the FSM refused it (the state unchanged).
     pub(super) fn command(
         &self,
         myself: &ActorRef<VehicleMsg>,
@@ -104,30 +110,9 @@ impl VehicleActorState {
     ) -> Result<(), String> {
         let mut mem = self.shared.memory();
         let name = cmd.name();
+        let current = self.swarm_frame().and_then(|f| self.shared.position(&f));
         // Checks that need telemetry, before the FSM: a clear reason, state unchanged.
-        let needs_position = matches!(cmd, Command::Takeoff(_) | Command::Hold | Command::GoTo(_));
-        let frame = self.swarm_frame();
-        let current = frame.and_then(|f| self.shared.position(&f));
-        let has_local_frame = self
-            .shared
-            .link
-            .with_telemetry(|t| t.local_frame().is_some());
-        if needs_position && (current.is_none() || !has_local_frame) {
-            return Err(format!(
-                "{name} refused: vehicle {} has no position and home yet (waiting for GLOBAL_POSITION_INT and HOME_POSITION)",
-                self.shared.id
-            ));
-        }
-        if let Command::Takeoff(skein_model::command::Takeoff {
-            altitude_m: Some(a),
-        }) = cmd
-            && !(a.is_finite() && a > 0.0 && a <= self.context.geofence().fence.max_altitude_m)
-        {
-            return Err(format!(
-                "takeoff refused: altitude_m {a} outside (0, {}] m",
-                self.context.geofence().fence.max_altitude_m
-            ));
-        }
+        self.check_command(&cmd, current)?;
         self.apply(&mut mem, Event::Command(cmd.kind()))
             .map_err(|r| r.reason)?;
         let yaw = self
@@ -184,35 +169,7 @@ impl VehicleActorState {
             }
             Command::Hold | Command::GoTo(_) => {
                 let current = current.expect("checked above");
-                let offboard = self.observed().is_some_and(|o| o.mode == Px4Mode::Offboard);
-                if !offboard {
-                    mem.shaper = None;
-                    mem.yaw_rad = yaw;
-                }
-                let target = match cmd {
-                    Command::GoTo(g) => {
-                        let target = g.target();
-                        mem.goto_target = Some(target);
-                        Target::Hold(target)
-                    }
-                    _ => {
-                        // Hold where the setpoint is now (no jump back), or here.
-                        let here = mem.shaper.as_ref().map_or(current, |s| s.carrot());
-                        Target::Hold(here)
-                    }
-                };
-                self.set_target(&mut mem, target, current);
-                if offboard {
-                    self.emit_result(command_id, name, Ok(()));
-                } else {
-                    self.start_procedure(
-                        myself,
-                        &mut mem,
-                        command_id,
-                        name,
-                        Procedure::EnterOffboard { arm: false },
-                    );
-                }
+                self.hold_or_go_to(myself, &mut mem, &cmd, command_id, current, yaw);
             }
             Command::JoinFormation => {
                 // The slot arrives with the next formation tick; hold until then.
@@ -229,6 +186,78 @@ impl VehicleActorState {
             Command::ClearHazard => return Err(format!("{name} is the coordinator's")),
         }
         Ok(())
+    }
+
+    /// The checks of `cmd` that need telemetry: a position and home for the commands that
+    /// fly somewhere (`current`: the swarm-frame position), a takeoff altitude under the
+    /// fence's ceiling.
+    fn check_command(&self, cmd: &Command, current: Option<Ned>) -> Result<(), String> {
+        let name = cmd.name();
+        let needs_position = matches!(cmd, Command::Takeoff(_) | Command::Hold | Command::GoTo(_));
+        let has_local_frame = self
+            .shared
+            .link
+            .with_telemetry(|t| t.local_frame().is_some());
+        if needs_position && (current.is_none() || !has_local_frame) {
+            return Err(format!(
+                "{name} refused: vehicle {} has no position and home yet (waiting for GLOBAL_POSITION_INT and HOME_POSITION)",
+                self.shared.id
+            ));
+        }
+        if let Command::Takeoff(skein_model::command::Takeoff {
+            altitude_m: Some(a),
+        }) = *cmd
+            && !(a.is_finite() && a > 0.0 && a <= self.context.geofence().fence.max_altitude_m)
+        {
+            return Err(format!(
+                "takeoff refused: altitude_m {a} outside (0, {}] m",
+                self.context.geofence().fence.max_altitude_m
+            ));
+        }
+        Ok(())
+    }
+
+    /// `hold` or `goto` from `current`: the target set (a go-to's point, or where the
+    /// setpoint is now), done at once in OFFBOARD, else after entering it.
+    fn hold_or_go_to(
+        &self,
+        myself: &ActorRef<VehicleMsg>,
+        mem: &mut Memory,
+        cmd: &Command,
+        command_id: u64,
+        current: Ned,
+        yaw: f64,
+    ) {
+        let name = cmd.name();
+        let offboard = self.observed().is_some_and(|o| o.mode == Px4Mode::Offboard);
+        if !offboard {
+            mem.shaper = None;
+            mem.yaw_rad = yaw;
+        }
+        let target = match cmd {
+            Command::GoTo(g) => {
+                let target = g.target();
+                mem.goto_target = Some(target);
+                Target::Hold(target)
+            }
+            _ => {
+                // Hold where the setpoint is now (no jump back), or here.
+                let here = mem.shaper.as_ref().map_or(current, |s| s.carrot());
+                Target::Hold(here)
+            }
+        };
+        self.set_target(mem, target, current);
+        if offboard {
+            self.emit_result(command_id, name, Ok(()));
+        } else {
+            self.start_procedure(
+                myself,
+                mem,
+                command_id,
+                name,
+                Procedure::EnterOffboard { arm: false },
+            );
+        }
     }
 }
 

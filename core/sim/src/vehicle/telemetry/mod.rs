@@ -1,9 +1,10 @@
 //! PX4's onboard-link telemetry: [`scheduler`] holds the stream table (rates per profile)
 //! and the per-vehicle scheduler that `MAV_CMD_SET_MESSAGE_INTERVAL` changes at run time;
-//! [`messages`] builds every message from the vehicle state.
+//! [`messages`] builds every message from the vehicle state, the sensors' in [`sensors`].
 
 mod messages;
 mod scheduler;
+mod sensors;
 
 pub use scheduler::{STREAMS, Stream, Streams, is_known_message};
 
