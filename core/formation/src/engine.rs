@@ -567,7 +567,7 @@ impl FormationEngine {
                 let silent = m.silence > PACE_SILENCE;
                 let unseen_s = m
                     .silence
-                    .saturating_sub(crate::protocol::REPORT_EXTRAPOLATION)
+                    .saturating_sub(skein_protocol::REPORT_EXTRAPOLATION)
                     .as_secs_f64();
                 let at = if silent {
                     m.position + velocity * unseen_s

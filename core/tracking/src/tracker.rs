@@ -54,7 +54,7 @@ use pathfinding::prelude::{Matrix, kuhn_munkres_min};
 use std::collections::BTreeMap;
 
 pub use super::track::TrackerConfig;
-pub(super) use crate::tracks::{
+pub(super) use skein_protocol::tracks::{
     NedJson, TrackEvent, TrackStatus, TrackView, TrackerCounters, VelocityJson,
 };
 

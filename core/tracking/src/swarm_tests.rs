@@ -5,7 +5,7 @@
 
 use super::picture::AirPicture;
 use super::swarms::GroupingConfig;
-use crate::tracks::{
+use skein_protocol::tracks::{
     HostileSwarmEvent, MotionModel, NedJson, SwarmShape, TrackStatus, TrackView, VelocityJson,
 };
 
@@ -103,7 +103,7 @@ fn formation(
         .collect()
 }
 
-fn detected(events: &[(f64, HostileSwarmEvent)]) -> Vec<(f64, &crate::tracks::SwarmView)> {
+fn detected(events: &[(f64, HostileSwarmEvent)]) -> Vec<(f64, &skein_protocol::tracks::SwarmView)> {
     events
         .iter()
         .filter_map(|(t, e)| match e {

@@ -44,10 +44,10 @@
 
 use super::forecast::mean_forecast;
 use super::shape;
-use crate::tracks::{
+use dbscan::Classification;
+use skein_protocol::tracks::{
     HostileSwarmEvent, NedJson, SwarmShape, SwarmView, TrackStatus, TrackView, VelocityJson,
 };
-use dbscan::Classification;
 use std::collections::{BTreeMap, BTreeSet};
 
 /// Tuning of the grouping.
@@ -188,7 +188,7 @@ fn view_of(id: &str, members: &[&TrackView], age_s: f64) -> SwarmView {
     } else {
         0.0
     };
-    let forecasts: Vec<&[crate::tracks::ForecastPoint]> =
+    let forecasts: Vec<&[skein_protocol::tracks::ForecastPoint]> =
         members.iter().map(|t| t.forecast.as_slice()).collect();
     let mut ids: Vec<String> = members.iter().map(|t| t.id.clone()).collect();
     ids.sort_by_key(|id| track_number(id));
@@ -502,7 +502,11 @@ impl SwarmRecognizer {
                 g.thin_since = None;
             }
             if g.id.is_none() && t - g.first_seen_s + 1e-9 >= c.detect_after_s {
-                g.id = Some(format!("{}{}", crate::tracks::SWARM_PREFIX, self.next_id));
+                g.id = Some(format!(
+                    "{}{}",
+                    skein_protocol::tracks::SWARM_PREFIX,
+                    self.next_id
+                ));
                 self.next_id += 1;
                 g.detected_s = t;
                 g.view = None;
