@@ -4,7 +4,7 @@
 use super::tests::{fence, fly, member};
 use super::*;
 use crate::spec::tests::line;
-use crate::{FormationSpec, VIRTUAL};
+use crate::{FormationSpec, Member, VIRTUAL};
 use skein_model::formation::Shape;
 
 /// uav-1 to uav-3 flying `line()` behind uav-2, on their slots.

@@ -3,8 +3,9 @@
 
 use super::*;
 use crate::spec::tests::line;
-use crate::{FormationSpec, PACE_STOP_M, VIRTUAL};
+use crate::{FormationFrame, FormationSpec, Member, PACE_STOP_M, SlotCommand, VIRTUAL};
 use skein_model::formation::Shape;
+use skein_model::safety::Geofence;
 
 /// A member at rest at (`n`, `e`, `d`), swarm-frame NED metres, heard just now.
 pub(crate) fn member(n: f64, e: f64, d: f64) -> Member {
