@@ -15,7 +15,7 @@ use crate::vehicle::fleet::Fleet;
 use nalgebra::Vector3;
 pub use skein_tracking::{
     AirPicture, GroupingConfig, MemberPose, Tracker, TrackerConfig, detection, filter, forecast,
-    geometry, picture, shape, stations, swarms, track, tracker,
+    geometry, picture, shape, stations, swarms, target, track, tracker,
 };
 use std::collections::HashMap;
 use std::sync::{Arc, PoisonError, RwLock};

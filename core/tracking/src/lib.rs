@@ -14,7 +14,9 @@
 //! - [`swarms`]: confirmed tracks flying together grouped into hostile swarms (DBSCAN over
 //!   position and velocity, stable `swarm-N` ids), their [`shape`]; [`picture`]: both
 //!   over a tracker's tracks;
-//! - [`stations`]: where observation UAVs see a target best (triangulation geometry).
+//! - [`target`]: a track or a swarm as a target to observe (its centre, its points now
+//!   and ahead); [`stations`]: where observation UAVs see it best (triangulation
+//!   geometry).
 //!
 //! A crate below the runtime, as `skein-model` is: no actor, no task, no I/O; every step
 //! takes its time as an argument (wall-clock µs), so all of it is tested on made-up
@@ -34,6 +36,7 @@ pub mod stations;
 #[cfg(test)]
 mod swarm_tests;
 pub mod swarms;
+pub mod target;
 #[cfg(test)]
 mod tests;
 pub mod track;

@@ -10,7 +10,7 @@ use skein_protocol::tracks::{
 };
 
 /// A confirmed track at `p` (north, east; 15 m up) flying `v` (north, east), m and m/s.
-fn track(id: &str, p: [f64; 2], v: [f64; 2]) -> TrackView {
+pub(crate) fn track(id: &str, p: [f64; 2], v: [f64; 2]) -> TrackView {
     TrackView {
         id: id.to_string(),
         status: TrackStatus::Confirmed,
