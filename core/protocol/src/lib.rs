@@ -24,9 +24,9 @@
 //! own clock (`skein_swarm::clocks`: offsets estimated from clock exchanges); a negative
 //! age counts as zero, and the extrapolation is capped.
 //!
-//! Nothing here runs: no actor, no task, no socket (the crate depends on `skein-model` and
-//! `skein-payload` only, besides serde), so both carriers and the pure crates below the
-//! runtime (`skein-formation`, `skein-tracking`) share it.
+//! Nothing here runs: no actor, no task, no socket (the crate depends on `skein-model`
+//! only, besides serde), so both carriers and the pure crates below the runtime
+//! (`skein-formation`, `skein-tracking`) share it.
 #![warn(missing_docs)]
 
 mod from_vehicle;

@@ -61,7 +61,7 @@ pub enum ToVehicle {
         /// Request id, echoed in the answer.
         request_id: u64,
         /// The slot to add.
-        spec: skein_payload::PayloadSpec,
+        spec: skein_model::payload::PayloadSpec,
     },
     /// Detach the payload in `slot`: its driver's `shutdown` runs, then the slot is gone;
     /// answered by [`FromVehicle::PayloadResult`](crate::FromVehicle::PayloadResult).
