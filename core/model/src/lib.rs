@@ -12,6 +12,7 @@
 //! - [`geofence`]: the cylinder (and optional polygon) every setpoint is clamped into.
 //! - [`obstacles`]: the other vehicles as the separation check sees them, asked by
 //!   distance.
+//! - [`payload`]: a vehicle model's payload slot (slot, kind, plugin, hosting).
 //! - [`safety`]: the setpoint shaper: geofence clamp, speed and acceleration limiting and
 //!   separation checks that every setpoint passes before it leaves skein.
 //! - [`supervision`]: restart policies, child kinds and statuses, injectable faults.
@@ -27,6 +28,7 @@ pub mod fsm;
 pub use skein_geo as geo;
 pub mod geofence;
 pub mod obstacles;
+pub mod payload;
 pub mod px4;
 pub mod safety;
 pub mod supervision;

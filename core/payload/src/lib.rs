@@ -16,39 +16,9 @@
 
 use serde::{Deserialize, Serialize};
 use skein_mavlink::MavMessage;
+pub use skein_model::payload::{Isolation, PayloadSpec};
 use skein_model::vehicle::VehicleSnapshot;
 use std::sync::Arc;
-
-/// How a payload is hosted.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, utoipa::ToSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum Isolation {
-    /// The plugin library is loaded into the skein process (fast; a segfault or abort in
-    /// it takes skein down).
-    #[default]
-    InProcess,
-    /// The plugin runs in a `skein plugin-host` child process (a crash kills only the
-    /// child, which its supervisor restarts).
-    Process,
-}
-
-/// One payload of a vehicle model: which slot, which kind, which plugin, how configured.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct PayloadSpec {
-    /// Slot name on the vehicle, unique per vehicle (`"gimbal"`, `"camera"`, `"radio"`).
-    pub slot: String,
-    /// Payload kind the plugin must provide (`"gimbal"`).
-    pub kind: String,
-    /// Plugin name; `None` = any loaded plugin that provides `kind`.
-    #[serde(default)]
-    pub plugin: Option<String>,
-    /// Hosting.
-    #[serde(default)]
-    pub isolation: Isolation,
-    /// Plugin configuration (JSON object, passed at creation).
-    #[serde(default)]
-    pub config: serde_json::Value,
-}
 
 /// A payload's own state as it publishes it (JSON object, shown by the API and dashboard).
 pub type PayloadState = serde_json::Value;

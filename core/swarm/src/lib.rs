@@ -9,7 +9,8 @@
 //!  └─ Vehicle uav-2 …
 //! ```
 //!
-//! - [`protocol`]: the swarm protocol between coordinator and vehicles (serde types).
+//! - [`protocol`]: the swarm protocol between coordinator and vehicles (serde types; the
+//!   `skein-protocol` crate, re-exported).
 //! - [`carrier`]: the in-process carrier of the protocol.
 //! - [`coordinator`]: the root actor, vehicle discovery, commands, formation loop.
 //! - [`election`]: which coordinator candidate of a DDS domain is active (lease, failover).
@@ -17,11 +18,13 @@
 //!   host are aged right.
 //! - [`link_security`]: who the swarm link proves is speaking (DDS Security), for the API.
 //! - [`vehicle`]: the per-vehicle actor, its control loop and procedures.
-//! - [`formation`]: the formation engine's state between ticks.
+//! - [`formation`]: the formation engine's state between ticks (the pure
+//!   `skein-formation` crate, re-exported; the coordinator's formation loop ticks it).
 //! - [`payload`]: payload actors (children of their Vehicle), built-in payloads.
 //! - [`supervision`]: restart policies, failure records, the supervision tree.
-//! - [`tracking`]: counter-UAS tracker fusing the detectors' bearings into 3D tracks;
-//!   [`tracks`]: the tracks as everyone else sees them.
+//! - [`tracking`]: the task that runs the counter-UAS tracker (the pure `skein-tracking`
+//!   crate, re-exported there) fusing the detectors' bearings into 3D tracks;
+//!   [`tracks`]: the tracks as everyone else sees them (`skein_protocol::tracks`).
 //! - [`metrics`]: Prometheus metrics.
 //! - [`load`]: how late the process runs, what the watchdog forgives and what optional
 //!   work yields when it is short of CPU.
@@ -44,19 +47,20 @@ pub mod context;
 pub mod coordinator;
 pub mod election;
 pub mod events;
-pub mod formation;
 pub mod link_security;
 pub mod load;
 pub mod metrics;
 pub mod neighbours;
 pub mod payload;
-pub mod protocol;
 pub mod services;
 pub mod supervision;
 pub mod ticker;
 pub mod tracking;
-pub mod tracks;
 pub mod vehicle;
+
+pub use skein_formation as formation;
+pub use skein_protocol as protocol;
+pub use skein_protocol::tracks;
 
 pub use config::{SwarmConfig, VehicleModel};
 pub use context::SwarmContext;

@@ -12,10 +12,10 @@
 
 use super::CoordinatorState;
 use crate::protocol::ToVehicle;
-use crate::tracks::{SwarmView, TrackStatus, TrackView};
+use crate::tracks::TrackStatus;
 use serde_json::json;
-use skein_model::geo::Ned;
 
+pub(super) use crate::tracking::target::{TargetNow, locate};
 pub use crate::tracks::SWARM_PREFIX;
 
 /// Why an observation was refused.
@@ -68,55 +68,6 @@ pub struct ObserveSpec {
     /// The stations' least horizontal distance from the target, metres (`None`: the
     /// default, [`super::stations::DEFAULT_STANDOFF_M`]).
     pub standoff_m: Option<f64>,
-}
-
-/// A target where the coordinator sees it now: its centre (a track's position, a swarm's
-/// centroid), its points now and as forecast [`super::stations::PLAN_AHEAD_S`] ahead (a
-/// swarm's members), and whether it is still fixed (a lost track is only predicted).
-#[derive(Debug, Clone, PartialEq)]
-pub(super) struct TargetNow {
-    pub(super) centre: Ned,
-    pub(super) now: Vec<Ned>,
-    pub(super) ahead: Vec<Ned>,
-    pub(super) live: bool,
-}
-
-fn ned(p: &crate::tracks::NedJson) -> Ned {
-    Ned::new(p.north_m, p.east_m, p.down_m)
-}
-
-/// `track`'s forecast `horizon_s` ahead, or its position.
-fn ahead_of(track: &TrackView, horizon_s: f64) -> Ned {
-    track
-        .forecast
-        .iter()
-        .find(|f| (f.horizon_s - horizon_s).abs() < 1e-9)
-        .map_or(ned(&track.position), |f| ned(&f.position))
-}
-
-/// Where `id` (a track or a swarm) is, from the tracker's `tracks` and `swarms`.
-pub(super) fn locate(id: &str, tracks: &[TrackView], swarms: &[SwarmView]) -> Option<TargetNow> {
-    let h = super::stations::PLAN_AHEAD_S;
-    if id.starts_with(SWARM_PREFIX) {
-        let s = swarms.iter().find(|s| s.id == id)?;
-        let members: Vec<&TrackView> = tracks
-            .iter()
-            .filter(|t| s.members.contains(&t.id))
-            .collect();
-        return Some(TargetNow {
-            centre: ned(&s.centroid),
-            now: members.iter().map(|t| ned(&t.position)).collect(),
-            ahead: members.iter().map(|t| ahead_of(t, h)).collect(),
-            live: true,
-        });
-    }
-    let t = tracks.iter().find(|t| t.id == id)?;
-    Some(TargetNow {
-        centre: ned(&t.position),
-        now: vec![ned(&t.position)],
-        ahead: vec![ahead_of(t, h)],
-        live: t.status != TrackStatus::Lost,
-    })
 }
 
 impl CoordinatorState {

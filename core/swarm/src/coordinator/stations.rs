@@ -19,9 +19,10 @@
 //! ends the observation and the observers hold where they are.
 
 use super::CoordinatorState;
-use super::observe::{ObserveRefusal, locate};
+use super::observe::ObserveRefusal;
 use crate::protocol::Command;
 use crate::tracking::stations::{self, Observer, StationLimits, StationPlan};
+use crate::tracking::target::locate;
 use crate::tracks::{SwarmView, TrackView};
 use serde::Serialize;
 use skein_model::command::GoTo;
@@ -37,9 +38,7 @@ pub const STANDOFF_RANGE_M: (f64, f64) = (10.0, 60.0);
 pub const MAX_RANGE_M: f64 = 80.0;
 /// Horizontal field of view of the observation cameras, degrees (the simulated camera's).
 pub const CAMERA_FOV_DEG: f64 = 75.0;
-/// Stations are planned for the target's forecast this far ahead (about the time an
-/// observer takes to get there), seconds.
-pub const PLAN_AHEAD_S: f64 = 5.0;
+pub use crate::tracking::target::PLAN_AHEAD_S;
 /// How often stations are planned again, seconds.
 pub const REPLAN_EVERY_S: f64 = 1.0;
 /// The observers move when their stations' predicted variance exceeds the best layout's

@@ -44,10 +44,10 @@
 
 use super::forecast::mean_forecast;
 use super::shape;
-use crate::tracks::{
+use dbscan::Classification;
+use skein_protocol::tracks::{
     HostileSwarmEvent, NedJson, SwarmShape, SwarmView, TrackStatus, TrackView, VelocityJson,
 };
-use dbscan::Classification;
 use std::collections::{BTreeMap, BTreeSet};
 
 /// Tuning of the grouping.
@@ -113,6 +113,74 @@ struct Group {
     thin_since: Option<f64>,
     /// The centroid's own forecaster.
     forecaster: super::forecast::TrackForecaster,
+}
+
+impl Group {
+    /// Gives `view` its centroid's own forecast, once the centroid's models have been
+    /// judged (`members`: its tracks now).
+    fn forecast_centroid(&mut self, t: f64, view: &mut SwarmView, members: &[&TrackView]) {
+        let (cp, cv) = (&view.centroid, &view.velocity);
+        let position = nalgebra::Vector3::new(cp.north_m, cp.east_m, cp.down_m);
+        let velocity = nalgebra::Vector3::new(cv.north_m_s, cv.east_m_s, cv.down_m_s);
+        self.forecaster.observe(t, position, velocity);
+        if self.forecaster.judged() {
+            let n = members.len() as f64;
+            let var = members
+                .iter()
+                .map(|m| m.covariance_ne_m2[0][0] + m.covariance_ne_m2[1][1])
+                .sum::<f64>()
+                / n;
+            let vs = members.iter().map(|m| m.velocity_sigma_m_s).sum::<f64>() / n;
+            view.forecast = self
+                .forecaster
+                .forecast_from(t, position, velocity, var, vs);
+        }
+    }
+
+    /// What the group's new `view` says happened to a recognised swarm: detected (its
+    /// first view since recognised), or changed (its members, or its shape once the new
+    /// one has held `shape_hold_s`; until then the view keeps the old shape).
+    fn news(
+        &mut self,
+        t: f64,
+        view: &mut SwarmView,
+        c: &GroupingConfig,
+    ) -> Option<HostileSwarmEvent> {
+        let Some(before) = &self.view else {
+            return self
+                .id
+                .is_some()
+                .then(|| HostileSwarmEvent::Detected(view.clone()));
+        };
+        let mut shape_changed = false;
+        if view.shape == before.shape {
+            self.pending_shape = None;
+        } else {
+            let since = match self.pending_shape {
+                Some((s, since)) if s == view.shape => since,
+                _ => t,
+            };
+            self.pending_shape = Some((view.shape, since));
+            if t - since + 1e-9 >= c.shape_hold_s {
+                shape_changed = true;
+                self.pending_shape = None;
+            } else {
+                view.shape = before.shape;
+                view.shape_heading_deg = before.shape_heading_deg;
+            }
+        }
+        let old: BTreeSet<&String> = before.members.iter().collect();
+        let new: BTreeSet<&String> = view.members.iter().collect();
+        let joined: Vec<String> = new.difference(&old).map(|s| (*s).clone()).collect();
+        let left: Vec<String> = old.difference(&new).map(|s| (*s).clone()).collect();
+        (self.id.is_some() && (shape_changed || !joined.is_empty() || !left.is_empty())).then(
+            || HostileSwarmEvent::Changed {
+                swarm: view.clone(),
+                joined,
+                left,
+            },
+        )
+    }
 }
 
 /// The recognizer (see the module docs). Times are wall-clock microseconds.
@@ -188,7 +256,7 @@ fn view_of(id: &str, members: &[&TrackView], age_s: f64) -> SwarmView {
     } else {
         0.0
     };
-    let forecasts: Vec<&[crate::tracks::ForecastPoint]> =
+    let forecasts: Vec<&[skein_protocol::tracks::ForecastPoint]> =
         members.iter().map(|t| t.forecast.as_slice()).collect();
     let mut ids: Vec<String> = members.iter().map(|t| t.id.clone()).collect();
     ids.sort_by_key(|id| track_number(id));
@@ -215,6 +283,62 @@ fn track_number(id: &str) -> (u64, String) {
         .and_then(|n| n.parse().ok())
         .unwrap_or(u64::MAX);
     (n, id.to_string())
+}
+
+/// One step's clusters of the tracks (indices into the step's tracks).
+struct Clustering {
+    /// The tracks that may be clustered: confirmed ones sure enough of their velocity, and
+    /// the confirmed or lost members of a group.
+    eligible: Vec<usize>,
+    /// Cluster number → its tracks.
+    clusters: BTreeMap<usize, Vec<usize>>,
+    /// Track → its cluster number.
+    cluster_of: BTreeMap<usize, usize>,
+}
+
+/// What a step regroups: its time (seconds), its tracks, their clusters, and each track's
+/// index by id.
+struct Regrouping<'a> {
+    t: f64,
+    tracks: &'a [TrackView],
+    clustering: &'a Clustering,
+    index: &'a BTreeMap<String, usize>,
+}
+
+/// Clusters the eligible `tracks` by DBSCAN over their scaled position and velocity
+/// (`member_of`: track id → the group it is a member of).
+fn cluster(
+    c: &GroupingConfig,
+    tracks: &[TrackView],
+    member_of: &BTreeMap<String, usize>,
+) -> Clustering {
+    let eligible: Vec<usize> = (0..tracks.len())
+        .filter(|&i| {
+            let member = member_of.contains_key(&tracks[i].id);
+            match tracks[i].status {
+                TrackStatus::Confirmed => {
+                    member || tracks[i].velocity_sigma_m_s <= c.max_velocity_sigma_m_s
+                }
+                TrackStatus::Lost => member,
+                TrackStatus::Tentative => false,
+            }
+        })
+        .collect();
+    let input: Vec<Vec<f64>> = eligible.iter().map(|&i| features(c, &tracks[i])).collect();
+    let classes = dbscan::cluster(1.0, c.min_members.max(2), &input);
+    let mut clusters: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    let mut cluster_of: BTreeMap<usize, usize> = BTreeMap::new();
+    for (k, class) in classes.iter().enumerate() {
+        if let Classification::Core(n) | Classification::Edge(n) = class {
+            clusters.entry(*n).or_default().push(eligible[k]);
+            cluster_of.insert(eligible[k], *n);
+        }
+    }
+    Clustering {
+        eligible,
+        clusters,
+        cluster_of,
+    }
 }
 
 impl SwarmRecognizer {
@@ -248,45 +372,65 @@ impl SwarmRecognizer {
     /// sets each track's `swarm`, and returns what happened to the swarms.
     pub fn step(&mut self, now_us: u64, tracks: &mut [TrackView]) -> Vec<HostileSwarmEvent> {
         let t = now_us as f64 / 1e6;
-        let c = self.config.clone();
         let member_of: BTreeMap<String, usize> = self
             .groups
             .iter()
             .enumerate()
             .flat_map(|(g, grp)| grp.members.keys().map(move |id| (id.clone(), g)))
             .collect();
-        let eligible: Vec<usize> = (0..tracks.len())
-            .filter(|&i| {
-                let member = member_of.contains_key(&tracks[i].id);
-                match tracks[i].status {
-                    TrackStatus::Confirmed => {
-                        member || tracks[i].velocity_sigma_m_s <= c.max_velocity_sigma_m_s
-                    }
-                    TrackStatus::Lost => member,
-                    TrackStatus::Tentative => false,
-                }
-            })
-            .collect();
-        let input: Vec<Vec<f64>> = eligible.iter().map(|&i| features(&c, &tracks[i])).collect();
-        let classes = dbscan::cluster(1.0, c.min_members.max(2), &input);
-        // Cluster number → track indices; track index → cluster number.
-        let mut clusters: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
-        let mut cluster_of: BTreeMap<usize, usize> = BTreeMap::new();
-        for (k, class) in classes.iter().enumerate() {
-            if let Classification::Core(n) | Classification::Edge(n) = class {
-                clusters.entry(*n).or_default().push(eligible[k]);
-                cluster_of.insert(eligible[k], *n);
-            }
-        }
+        let clustering = cluster(&self.config, tracks, &member_of);
         let index: BTreeMap<String, usize> = tracks
             .iter()
             .enumerate()
             .map(|(i, t)| (t.id.clone(), i))
             .collect();
-        let assigned = self.match_clusters(t, tracks, &clusters, &member_of);
-        let joining = self.less_sure_joiners(&c, tracks, &eligible, &clusters, &assigned);
+        let assigned = self.match_clusters(t, tracks, &clustering.clusters, &member_of);
+        let joining = self.less_sure_joiners(
+            &self.config,
+            tracks,
+            &clustering.eligible,
+            &clustering.clusters,
+            &assigned,
+        );
+        let step = Regrouping {
+            t,
+            tracks,
+            clustering: &clustering,
+            index: &index,
+        };
+        self.update_members(&step, &assigned, &joining);
+        self.add_candidates(&step, &assigned);
+        let events = self.update_views(t, tracks, &index);
+        for tr in tracks.iter_mut() {
+            tr.swarm = None;
+        }
+        for g in self.groups.iter().filter(|g| g.id.is_some()) {
+            for id in g.members.keys() {
+                if let Some(&i) = index.get(id) {
+                    tracks[i].swarm = g.id.clone();
+                }
+            }
+        }
+        events
+    }
 
-        // New members, and who stays.
+    /// Each group takes the tracks of its cluster (`assigned`: group index → cluster
+    /// number) and its less sure `joining` ones, and keeps those that still fly with it:
+    /// a member leaves when it is deleted or no longer eligible, when it went to another
+    /// cluster, or when it has been away from the others (beyond `keep_factor`) for
+    /// `leave_after_s`; a swarm down to one track keeps it while it waits for a partner.
+    fn update_members(
+        &mut self,
+        step: &Regrouping,
+        assigned: &BTreeMap<usize, usize>,
+        joining: &BTreeMap<usize, Vec<usize>>,
+    ) {
+        let (c, t, tracks) = (&self.config, step.t, step.tracks);
+        let Clustering {
+            eligible,
+            clusters,
+            cluster_of,
+        } = step.clustering;
         let mut eligible_set: BTreeSet<usize> = eligible.iter().copied().collect();
         eligible_set.extend(joining.values().flatten().copied());
         for (g, group) in self.groups.iter_mut().enumerate() {
@@ -305,12 +449,11 @@ impl SwarmRecognizer {
             let current: Vec<usize> = group
                 .members
                 .keys()
-                .filter_map(|id| index.get(id).copied())
+                .filter_map(|id| step.index.get(id).copied())
                 .collect();
-            // A swarm down to one track keeps it while it waits for a partner.
             let thin = group.id.is_some() && current.len() < c.min_members.max(2);
             group.members.retain(|id, last_in| {
-                let Some(&i) = index.get(id) else {
+                let Some(&i) = step.index.get(id) else {
                     return false; // deleted
                 };
                 if !eligible_set.contains(&i) {
@@ -319,26 +462,34 @@ impl SwarmRecognizer {
                 if let Some(k) = cluster_of.get(&i) {
                     return Some(k) == mine; // in another cluster: it went there
                 }
-                let sigma = less_sure_sigma(&c, &tracks[i]);
+                let sigma = less_sure_sigma(c, &tracks[i]);
                 let near = current
                     .iter()
                     .filter(|&&j| j != i)
-                    .any(|&j| scaled_distance(&c, &tracks[i], &tracks[j], sigma) < c.keep_factor);
+                    .any(|&j| scaled_distance(c, &tracks[i], &tracks[j], sigma) < c.keep_factor);
                 if near {
                     *last_in = t;
                 }
                 thin || t - *last_in <= c.leave_after_s
             });
         }
-        // Clusters no group took: candidates.
+    }
+
+    /// The clusters no group took (`assigned`: group index → cluster number) become
+    /// candidates, recognised once they hold together (see `update_views`).
+    fn add_candidates(&mut self, step: &Regrouping, assigned: &BTreeMap<usize, usize>) {
+        let t = step.t;
         let taken: BTreeSet<usize> = assigned.values().copied().collect();
-        for (k, members) in &clusters {
+        for (k, members) in &step.clustering.clusters {
             if taken.contains(k) {
                 continue;
             }
             self.groups.push(Group {
                 id: None,
-                members: members.iter().map(|&i| (tracks[i].id.clone(), t)).collect(),
+                members: members
+                    .iter()
+                    .map(|&i| (step.tracks[i].id.clone(), t))
+                    .collect(),
                 first_seen_s: t,
                 detected_s: t,
                 view: None,
@@ -348,18 +499,6 @@ impl SwarmRecognizer {
                 forecaster: Default::default(),
             });
         }
-        let events = self.update_views(t, tracks, &index);
-        for tr in tracks.iter_mut() {
-            tr.swarm = None;
-        }
-        for g in self.groups.iter().filter(|g| g.id.is_some()) {
-            for id in g.members.keys() {
-                if let Some(&i) = index.get(id) {
-                    tracks[i].swarm = g.id.clone();
-                }
-            }
-        }
-        events
     }
 
     /// The confirmed tracks too unsure of their velocity to be clustered (σ between
@@ -502,66 +641,19 @@ impl SwarmRecognizer {
                 g.thin_since = None;
             }
             if g.id.is_none() && t - g.first_seen_s + 1e-9 >= c.detect_after_s {
-                g.id = Some(format!("{}{}", crate::tracks::SWARM_PREFIX, self.next_id));
+                g.id = Some(format!(
+                    "{}{}",
+                    skein_protocol::tracks::SWARM_PREFIX,
+                    self.next_id
+                ));
                 self.next_id += 1;
                 g.detected_s = t;
                 g.view = None;
             }
             let id = g.id.clone().unwrap_or_default();
             let mut view = view_of(&id, &members, t - g.detected_s);
-            // The centroid's own forecast, once its models have been judged.
-            let (cp, cv) = (&view.centroid, &view.velocity);
-            let position = nalgebra::Vector3::new(cp.north_m, cp.east_m, cp.down_m);
-            let velocity = nalgebra::Vector3::new(cv.north_m_s, cv.east_m_s, cv.down_m_s);
-            g.forecaster.observe(t, position, velocity);
-            if g.forecaster.judged() {
-                let n = members.len() as f64;
-                let var = members
-                    .iter()
-                    .map(|m| m.covariance_ne_m2[0][0] + m.covariance_ne_m2[1][1])
-                    .sum::<f64>()
-                    / n;
-                let vs = members.iter().map(|m| m.velocity_sigma_m_s).sum::<f64>() / n;
-                view.forecast = g.forecaster.forecast_from(t, position, velocity, var, vs);
-            }
-            match &g.view {
-                None => {
-                    if g.id.is_some() {
-                        events.push(HostileSwarmEvent::Detected(view.clone()));
-                    }
-                }
-                Some(before) => {
-                    // The shape changes once the new one has held.
-                    let mut shape_changed = false;
-                    if view.shape == before.shape {
-                        g.pending_shape = None;
-                    } else {
-                        let since = match g.pending_shape {
-                            Some((s, since)) if s == view.shape => since,
-                            _ => t,
-                        };
-                        g.pending_shape = Some((view.shape, since));
-                        if t - since + 1e-9 >= c.shape_hold_s {
-                            shape_changed = true;
-                            g.pending_shape = None;
-                        } else {
-                            view.shape = before.shape;
-                            view.shape_heading_deg = before.shape_heading_deg;
-                        }
-                    }
-                    let old: BTreeSet<&String> = before.members.iter().collect();
-                    let new: BTreeSet<&String> = view.members.iter().collect();
-                    let joined: Vec<String> = new.difference(&old).map(|s| (*s).clone()).collect();
-                    let left: Vec<String> = old.difference(&new).map(|s| (*s).clone()).collect();
-                    if g.id.is_some() && (shape_changed || !joined.is_empty() || !left.is_empty()) {
-                        events.push(HostileSwarmEvent::Changed {
-                            swarm: view.clone(),
-                            joined,
-                            left,
-                        });
-                    }
-                }
-            }
+            g.forecast_centroid(t, &mut view, &members);
+            events.extend(g.news(t, &mut view, &c));
             g.view = Some(view);
             g.last_t_s = t;
             keep.push(g);

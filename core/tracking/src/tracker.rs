@@ -49,12 +49,12 @@
 use super::filter::ConstantVelocity;
 use super::geometry::{Ray, RayNoise, fuse_rays, perp};
 use super::management::NEW_VELOCITY_SIGMA_M_S;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use pathfinding::prelude::{Matrix, kuhn_munkres_min};
 use std::collections::BTreeMap;
 
 pub use super::track::TrackerConfig;
-pub(super) use crate::tracks::{
+pub(super) use skein_protocol::tracks::{
     NedJson, TrackEvent, TrackStatus, TrackView, TrackerCounters, VelocityJson,
 };
 
@@ -71,6 +71,18 @@ pub(super) struct Track {
     /// Time of the last update two observers fixed, µs.
     pub(super) last_triangulated_us: Option<u64>,
     pub(super) observers: Vec<String>,
+}
+
+/// The point a track's bearings of one step fix.
+struct Fix {
+    /// Swarm-frame NED, metres.
+    point: Vector3<f64>,
+    /// Its covariance, m².
+    cov: Matrix3<f64>,
+    /// The observers of the bearings, sorted, once each.
+    observers: Vec<String>,
+    /// Fixed by two observers or more.
+    triangulated: bool,
 }
 
 /// The tracker (see the module docs). Times are wall-clock microseconds.
@@ -254,48 +266,11 @@ impl Tracker {
         Some((d2, e.norm()))
     }
 
+    /// Steps 3 and 4 of the module docs: associates `rays` with the tracks and updates
+    /// each track with the point its bearings fix; deletes the tracks split over two
+    /// cameras. Returns the bearings no track took.
     fn associate_and_update(&mut self, rays: Vec<Ray>, events: &mut Vec<TrackEvent>) -> Vec<Ray> {
-        let mut by_observer: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
-        for (i, r) in rays.iter().enumerate() {
-            by_observer.entry(r.observer.as_str()).or_default().push(i);
-        }
-        let mut assigned: Vec<Vec<usize>> = vec![Vec::new(); self.tracks.len()];
-        let mut used = vec![false; rays.len()];
-        let n_tracks = self.tracks.len();
-        for idx in by_observer.values() {
-            if n_tracks == 0 {
-                break;
-            }
-            // Rows: this observer's bearings; columns: tracks, then one "new" column per
-            // bearing (the cost of leaving it unassigned).
-            let cols = n_tracks + idx.len();
-            let mut m = Matrix::new(idx.len(), cols, UNASSIGNED * 4);
-            for (row, &i) in idx.iter().enumerate() {
-                m[(row, n_tracks + row)] = UNASSIGNED;
-                for (c, t) in self.tracks.iter().enumerate() {
-                    if let Some((d2, dist)) = self.ray_distance2(t, &rays[i])
-                        && (d2 <= self.config.gate_chi2 || dist <= self.config.gate_floor_m)
-                    {
-                        // A lost track's covariance has grown while it went unseen, so it
-                        // would win bearings from a track being updated: it only gets one
-                        // no such track can take.
-                        let lost = if t.status == TrackStatus::Lost {
-                            self.config.gate_chi2.max(1.0) * 4.0
-                        } else {
-                            0.0
-                        };
-                        m[(row, c)] = ((d2 + lost).min(1e6) * SCALE) as i64;
-                    }
-                }
-            }
-            let (_, cols_of) = kuhn_munkres_min(&m);
-            for (row, &c) in cols_of.iter().enumerate() {
-                if c < n_tracks && m[(row, c)] < UNASSIGNED {
-                    assigned[c].push(idx[row]);
-                    used[idx[row]] = true;
-                }
-            }
-        }
+        let (mut assigned, mut used) = self.associate(&rays);
         let split = self.join_split(&rays, &mut assigned);
         let restart = self.triangulate_lone(&rays, &mut assigned, &mut used);
         let noise = self.noise();
@@ -303,70 +278,10 @@ impl Tracker {
             if ray_ids.is_empty() {
                 continue;
             }
-            let t = &self.tracks[ti];
-            let v = t.filter.velocity();
-            let p = t.filter.position();
-            let mut observers: Vec<String> =
-                ray_ids.iter().map(|&i| rays[i].observer.clone()).collect();
-            observers.sort();
-            observers.dedup();
-            let triangulated = observers.len() >= 2;
-            let fused: Vec<_> = ray_ids
-                .iter()
-                .map(|&i| {
-                    let r = &rays[i];
-                    let o = Self::shifted(r, &v, t.t_us);
-                    // Two observers fix the point by triangulation alone (a size range is
-                    // far coarser); a lone bearing uses its size range, or without one
-                    // keeps the track's range.
-                    let range = if triangulated {
-                        None
-                    } else {
-                        r.range_from_size_m.or(Some((p - o).dot(&r.dir)))
-                    };
-                    (o, r.dir, range)
-                })
-                .collect();
-            // Nearly parallel rays of two observers fix no point: keep the track's range.
-            let fix = fuse_rays(&fused, noise).or_else(|| {
-                let along: Vec<_> = fused
-                    .iter()
-                    .map(|(o, d, _)| (*o, *d, Some((p - o).dot(d))))
-                    .collect();
-                fuse_rays(&along, noise)
-            });
-            let Some((z, cov)) = fix else {
+            let Some(fix) = Self::fix(&self.tracks[ti], &rays, ray_ids, noise) else {
                 continue;
             };
-            let view_before = self.tracks[ti].status;
-            let accel = self.config.accel_sigma_m_s2;
-            let t = &mut self.tracks[ti];
-            if restart[ti] {
-                // Its range was one camera's guess: it starts again where two fix it.
-                t.filter = ConstantVelocity::new(z, cov, NEW_VELOCITY_SIGMA_M_S, accel);
-            } else if !t.filter.update(&z, &cov) {
-                continue;
-            }
-            self.counters.bearings_associated += ray_ids.len() as u64;
-            t.hits += 1;
-            if triangulated {
-                t.triangulated_hits += 1;
-                t.last_triangulated_us = Some(t.t_us);
-            }
-            t.observers = observers;
-            t.last_update_us = t.t_us;
-            let t_us = t.t_us;
-            let confirm = view_before == TrackStatus::Tentative
-                && t.hits >= self.config.confirm_hits
-                && t.triangulated_hits >= 1;
-            if confirm {
-                t.status = TrackStatus::Confirmed;
-                self.counters.tracks_confirmed += 1;
-                events.push(TrackEvent::Confirmed(self.view(&self.tracks[ti], t_us)));
-            } else if view_before == TrackStatus::Lost {
-                self.tracks[ti].status = TrackStatus::Confirmed;
-                events.push(TrackEvent::Recovered(self.view(&self.tracks[ti], t_us)));
-            }
+            self.update(ti, fix, restart[ti], ray_ids.len(), events);
         }
         for i in split.into_iter().rev() {
             let t = self.tracks.remove(i);
@@ -377,5 +292,143 @@ impl Tracker {
             .zip(used)
             .filter_map(|(r, u)| (!u).then_some(r))
             .collect()
+    }
+
+    /// Each observer's bearings to the tracks one-to-one, by minimum total gated cost
+    /// ([`Tracker::costs`], Hungarian algorithm); bearings of different observers may go
+    /// to one track. Returns each track's bearings (indices into `rays`) and which
+    /// bearings a track took.
+    fn associate(&self, rays: &[Ray]) -> (Vec<Vec<usize>>, Vec<bool>) {
+        let mut by_observer: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
+        for (i, r) in rays.iter().enumerate() {
+            by_observer.entry(r.observer.as_str()).or_default().push(i);
+        }
+        let n_tracks = self.tracks.len();
+        let mut assigned: Vec<Vec<usize>> = vec![Vec::new(); n_tracks];
+        let mut used = vec![false; rays.len()];
+        if n_tracks == 0 {
+            return (assigned, used);
+        }
+        for idx in by_observer.values() {
+            let m = self.costs(rays, idx);
+            let (_, cols_of) = kuhn_munkres_min(&m);
+            for (row, &c) in cols_of.iter().enumerate() {
+                if c < n_tracks && m[(row, c)] < UNASSIGNED {
+                    assigned[c].push(idx[row]);
+                    used[idx[row]] = true;
+                }
+            }
+        }
+        (assigned, used)
+    }
+
+    /// The cost matrix of one observer's bearings (`idx` into `rays`): rows its bearings;
+    /// columns the tracks, then one "new" column per bearing (the cost of leaving it
+    /// unassigned). A track outside a bearing's gate costs more than leaving it.
+    fn costs(&self, rays: &[Ray], idx: &[usize]) -> Matrix<i64> {
+        let n_tracks = self.tracks.len();
+        let mut m = Matrix::new(idx.len(), n_tracks + idx.len(), UNASSIGNED * 4);
+        for (row, &i) in idx.iter().enumerate() {
+            m[(row, n_tracks + row)] = UNASSIGNED;
+            for (c, t) in self.tracks.iter().enumerate() {
+                if let Some((d2, dist)) = self.ray_distance2(t, &rays[i])
+                    && (d2 <= self.config.gate_chi2 || dist <= self.config.gate_floor_m)
+                {
+                    // A lost track's covariance has grown while it went unseen, so it
+                    // would win bearings from a track being updated: it only gets one
+                    // no such track can take.
+                    let lost = if t.status == TrackStatus::Lost {
+                        self.config.gate_chi2.max(1.0) * 4.0
+                    } else {
+                        0.0
+                    };
+                    m[(row, c)] = ((d2 + lost).min(1e6) * SCALE) as i64;
+                }
+            }
+        }
+        m
+    }
+
+    /// The point the bearings `ray_ids` (into `rays`) fix for track `t`, each moved by the
+    /// track's velocity for its age; `None` when they fix none.
+    fn fix(t: &Track, rays: &[Ray], ray_ids: &[usize], noise: RayNoise) -> Option<Fix> {
+        let v = t.filter.velocity();
+        let p = t.filter.position();
+        let mut observers: Vec<String> =
+            ray_ids.iter().map(|&i| rays[i].observer.clone()).collect();
+        observers.sort();
+        observers.dedup();
+        let triangulated = observers.len() >= 2;
+        let fused: Vec<_> = ray_ids
+            .iter()
+            .map(|&i| {
+                let r = &rays[i];
+                let o = Self::shifted(r, &v, t.t_us);
+                // Two observers fix the point by triangulation alone (a size range is
+                // far coarser); a lone bearing uses its size range, or without one
+                // keeps the track's range.
+                let range = if triangulated {
+                    None
+                } else {
+                    r.range_from_size_m.or(Some((p - o).dot(&r.dir)))
+                };
+                (o, r.dir, range)
+            })
+            .collect();
+        // Nearly parallel rays of two observers fix no point: keep the track's range.
+        let (point, cov) = fuse_rays(&fused, noise).or_else(|| {
+            let along: Vec<_> = fused
+                .iter()
+                .map(|(o, d, _)| (*o, *d, Some((p - o).dot(d))))
+                .collect();
+            fuse_rays(&along, noise)
+        })?;
+        Some(Fix {
+            point,
+            cov,
+            observers,
+            triangulated,
+        })
+    }
+
+    /// Updates track `ti` with `fix` from `bearings` bearings (or, on `restart`, starts
+    /// its filter again there: its range was one camera's guess), and runs its
+    /// confirmation or recovery.
+    fn update(
+        &mut self,
+        ti: usize,
+        fix: Fix,
+        restart: bool,
+        bearings: usize,
+        events: &mut Vec<TrackEvent>,
+    ) {
+        let view_before = self.tracks[ti].status;
+        let accel = self.config.accel_sigma_m_s2;
+        let t = &mut self.tracks[ti];
+        if restart {
+            t.filter = ConstantVelocity::new(fix.point, fix.cov, NEW_VELOCITY_SIGMA_M_S, accel);
+        } else if !t.filter.update(&fix.point, &fix.cov) {
+            return;
+        }
+        self.counters.bearings_associated += bearings as u64;
+        t.hits += 1;
+        if fix.triangulated {
+            t.triangulated_hits += 1;
+            t.last_triangulated_us = Some(t.t_us);
+        }
+        t.observers = fix.observers;
+        t.last_update_us = t.t_us;
+        let t_us = t.t_us;
+        let confirm = view_before == TrackStatus::Tentative
+            && t.hits >= self.config.confirm_hits
+            && t.triangulated_hits >= 1;
+        if confirm {
+            t.status = TrackStatus::Confirmed;
+            self.counters.tracks_confirmed += 1;
+            events.push(TrackEvent::Confirmed(self.view(&self.tracks[ti], t_us)));
+        } else if view_before == TrackStatus::Lost {
+            self.tracks[ti].status = TrackStatus::Confirmed;
+            events.push(TrackEvent::Recovered(self.view(&self.tracks[ti], t_us)));
+        }
     }
 }

@@ -61,7 +61,14 @@
 //!   (an agent's ride-through, a standby's resumption).
 //! - `absence`: members that dropped out without being asked, still listed with their
 //!   error, so that `rms_error_m` never improves because a member is out.
-//! - `engine`: the engine's state, its tick and its status.
+//! - `engine`: the engine's state, its tick (`engine::tick`, one function per step) and
+//!   its status.
+//!
+//! A crate below the runtime, as `skein-model` is: no actor, no task, no I/O. The
+//! coordinator's formation loop (`skein_swarm`) feeds it the members' reports and sends
+//! the slot commands it returns; the benchmarks' virtual-time rehearsal ticks it
+//! directly. It reads the swarm protocol's time stamps and track ids (`skein-protocol`).
+#![warn(missing_docs)]
 
 mod absence;
 mod assignment;

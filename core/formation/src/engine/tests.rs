@@ -2,24 +2,25 @@
 //! commands and the status they produce.
 
 use super::*;
-use crate::formation::spec::tests::line;
-use crate::formation::{FormationSpec, PACE_STOP_M, VIRTUAL};
+use crate::spec::tests::line;
+use crate::{FormationFrame, FormationSpec, Member, PACE_STOP_M, SlotCommand, VIRTUAL};
 use skein_model::formation::Shape;
+use skein_model::safety::Geofence;
 
 /// A member at rest at (`n`, `e`, `d`), swarm-frame NED metres, heard just now.
-pub(in crate::formation) fn member(n: f64, e: f64, d: f64) -> Member {
+pub(crate) fn member(n: f64, e: f64, d: f64) -> Member {
     Member {
         position: Ned::new(n, e, d),
         velocity: Ned::ZERO,
         heading_rad: 0.0,
         silence: std::time::Duration::ZERO,
         target: None,
-        ride_through: crate::formation::LEADER_SILENCE,
+        ride_through: crate::LEADER_SILENCE,
     }
 }
 
 /// The default geofence (500 m radius, 0 to 120 m).
-pub(in crate::formation) fn fence() -> Geofence {
+pub(crate) fn fence() -> Geofence {
     Geofence::default()
 }
 
@@ -301,8 +302,8 @@ fn deactivating_keeps_the_spec_for_later() {
     assert_eq!(e.tick(&members, 0.1, &fence()).len(), 1);
 }
 
-fn lost(id: &str, n: f64, e: f64, radius_m: f64) -> crate::formation::Hazard {
-    crate::formation::Hazard {
+fn lost(id: &str, n: f64, e: f64, radius_m: f64) -> crate::Hazard {
+    crate::Hazard {
         id: id.into(),
         position: Ned::new(n, e, -10.0),
         radius_m,

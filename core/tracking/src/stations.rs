@@ -192,6 +192,39 @@ pub fn plan(
     }
     let pts: Vec<Vector3<f64>> = points.iter().map(|p| v3(*p)).collect();
     let clear: Vec<Vector3<f64>> = clear.iter().map(|p| v3(*p)).collect();
+    let candidates = candidates(observers, &pts, &clear, obstacles, limits);
+    if let Some(i) = candidates.iter().position(Vec::is_empty) {
+        return Err(format!(
+            "no station for {} keeps the {} m stand-off within {} m of the target inside the geofence",
+            observers[i].id, limits.standoff_m, limits.max_range_m
+        ));
+    }
+    let (layout, best) = search(observers, &candidates, &pts, limits);
+    if !best.is_finite() {
+        return Err(format!(
+            "the observers cannot be placed {} m apart around the target within the limits",
+            limits.min_separation_m
+        ));
+    }
+    let stations: Vec<(String, Ned)> = observers
+        .iter()
+        .zip(&layout)
+        .filter_map(|(o, p)| Some((o.id.clone(), (*p)?)))
+        .collect();
+    Ok(evaluate(&stations, points, limits.bearing_sigma_rad))
+}
+
+/// Each observer's candidate stations, at its own altitude: on rings about the centre of
+/// `pts` from the stand-off (plus the target's reach) out to the cameras' range, every
+/// [`RING_STEP_M`] and [`RING_STEP_DEG`], those [`admissible`] and `min_separation_m`
+/// from every one of `obstacles`.
+fn candidates(
+    observers: &[Observer],
+    pts: &[Vector3<f64>],
+    clear: &[Vector3<f64>],
+    obstacles: &[Ned],
+    limits: &StationLimits,
+) -> Vec<Vec<Ned>> {
     let n = pts.len() as f64;
     let centre = pts.iter().fold(Vector3::zeros(), |a, p| a + p) / n;
     let reach = pts
@@ -205,8 +238,7 @@ pub fn plan(
         .take_while(|r| *r <= limits.max_range_m)
         .collect();
     let steps = (360.0 / RING_STEP_DEG).round() as usize;
-    // Each observer's candidates, at its altitude.
-    let candidates: Vec<Vec<Ned>> = observers
+    observers
         .iter()
         .map(|o| {
             let mut c = Vec::new();
@@ -218,7 +250,7 @@ pub fn plan(
                         centre.y + r * a.sin(),
                         o.position.down_m,
                     );
-                    if admissible(limits, &fence, p, &pts, &clear)
+                    if admissible(limits, &fence, p, pts, clear)
                         && obstacles
                             .iter()
                             .all(|q| (*q - p).norm() >= limits.min_separation_m)
@@ -229,39 +261,26 @@ pub fn plan(
             }
             c
         })
-        .collect();
-    if let Some(i) = candidates.iter().position(Vec::is_empty) {
-        return Err(format!(
-            "no station for {} keeps the {} m stand-off within {} m of the target inside the geofence",
-            observers[i].id, limits.standoff_m, limits.max_range_m
-        ));
-    }
-    let apart = |p: Ned, others: &[Option<Ned>], me: usize| {
-        others
-            .iter()
-            .enumerate()
-            .filter(|(j, _)| *j != me)
-            .all(|(_, q)| q.is_none_or(|q| (q - p).norm() >= limits.min_separation_m))
-    };
-    let objective = |layout: &[Option<Ned>]| -> f64 {
-        let st: Vec<Vector3<f64>> = layout.iter().flatten().map(|p| v3(*p)).collect();
-        if st.len() < layout.len() {
-            return f64::INFINITY;
-        }
-        let travel: f64 = layout
-            .iter()
-            .zip(observers)
-            .map(|(p, o)| p.map_or(0.0, |p| (p - o.position).norm()))
-            .sum();
-        predicted_variance(&st, &pts, limits.bearing_sigma_rad)
-            .map_or(f64::INFINITY, |v| v * (1.0 + travel / TRAVEL_SCALE_M))
-    };
-    // Start: each observer's nearest candidate apart from those already placed.
+        .collect()
+}
+
+/// The layout of the observers over their `candidates` that minimises [`objective`]
+/// (coordinate descent): each observer starts at its nearest candidate apart from those
+/// already placed, then one observer at a time moves to a candidate that improves it,
+/// until a sweep improves nothing or after [`MAX_SWEEPS`]. Returns the layout and its
+/// objective (infinite when not every observer has a station).
+fn search(
+    observers: &[Observer],
+    candidates: &[Vec<Ned>],
+    pts: &[Vector3<f64>],
+    limits: &StationLimits,
+) -> (Vec<Option<Ned>>, f64) {
+    let separation_m = limits.min_separation_m;
     let mut layout: Vec<Option<Ned>> = vec![None; observers.len()];
     for (i, o) in observers.iter().enumerate() {
         layout[i] = candidates[i]
             .iter()
-            .filter(|p| apart(**p, &layout, i))
+            .filter(|p| apart(**p, &layout, i, separation_m))
             .min_by(|a, b| {
                 (**a - o.position)
                     .norm()
@@ -269,17 +288,17 @@ pub fn plan(
             })
             .copied();
     }
-    let mut best = objective(&layout);
+    let mut best = objective(&layout, observers, pts, limits);
     for _ in 0..MAX_SWEEPS {
         let mut improved = false;
         for i in 0..observers.len() {
             for p in &candidates[i] {
-                if !apart(*p, &layout, i) {
+                if !apart(*p, &layout, i, separation_m) {
                     continue;
                 }
                 let before = layout[i];
                 layout[i] = Some(*p);
-                let v = objective(&layout);
+                let v = objective(&layout, observers, pts, limits);
                 if v < best * (1.0 - 1e-9) {
                     best = v;
                     improved = true;
@@ -292,18 +311,39 @@ pub fn plan(
             break;
         }
     }
-    if !best.is_finite() {
-        return Err(format!(
-            "the observers cannot be placed {} m apart around the target within the limits",
-            limits.min_separation_m
-        ));
-    }
-    let stations: Vec<(String, Ned)> = observers
+    (layout, best)
+}
+
+/// True when `p` is at least `separation_m` from every station of `layout` but the
+/// observer `me`'s own.
+fn apart(p: Ned, layout: &[Option<Ned>], me: usize, separation_m: f64) -> bool {
+    layout
         .iter()
-        .zip(&layout)
-        .filter_map(|(o, p)| Some((o.id.clone(), (*p)?)))
-        .collect();
-    Ok(evaluate(&stations, points, limits.bearing_sigma_rad))
+        .enumerate()
+        .filter(|(j, _)| *j != me)
+        .all(|(_, q)| q.is_none_or(|q| (q - p).norm() >= separation_m))
+}
+
+/// What the search minimises: the predicted variance of a fix from `layout` (see
+/// [`predicted_variance`]) times `1 + travel / TRAVEL_SCALE_M`, the travel summed over
+/// the observers; infinite while an observer has no station or the layout fixes nothing.
+fn objective(
+    layout: &[Option<Ned>],
+    observers: &[Observer],
+    pts: &[Vector3<f64>],
+    limits: &StationLimits,
+) -> f64 {
+    let st: Vec<Vector3<f64>> = layout.iter().flatten().map(|p| v3(*p)).collect();
+    if st.len() < layout.len() {
+        return f64::INFINITY;
+    }
+    let travel: f64 = layout
+        .iter()
+        .zip(observers)
+        .map(|(p, o)| p.map_or(0.0, |p| (p - o.position).norm()))
+        .sum();
+    predicted_variance(&st, pts, limits.bearing_sigma_rad)
+        .map_or(f64::INFINITY, |v| v * (1.0 + travel / TRAVEL_SCALE_M))
 }
 
 /// How well `stations` fix the target at `points`: the plan they make (an infinite σ when

@@ -2,7 +2,7 @@
 //! serves it, its absent members and figures included.
 
 use super::FormationEngine;
-use crate::formation::{FormationStatus, Whereabouts};
+use crate::{FormationStatus, Whereabouts};
 use skein_model::geo::Ned;
 use std::collections::BTreeMap;
 

@@ -3,7 +3,7 @@
 
 use super::forecast::Forecaster;
 use super::swarms::{GroupingConfig, SwarmRecognizer};
-use crate::tracks::{HostileSwarmEvent, SwarmView, TrackView};
+use skein_protocol::tracks::{HostileSwarmEvent, SwarmView, TrackView};
 
 /// Forecasts and swarm recognition over a tracker's tracks.
 #[derive(Debug)]

@@ -3,8 +3,8 @@
 
 use super::tests::{fence, fly, member};
 use super::*;
-use crate::formation::spec::tests::line;
-use crate::formation::{FormationSpec, VIRTUAL};
+use crate::spec::tests::line;
+use crate::{FormationSpec, Member, VIRTUAL};
 use skein_model::formation::Shape;
 
 /// uav-1 to uav-3 flying `line()` behind uav-2, on their slots.
@@ -23,7 +23,7 @@ fn line_of_three_on_their_slots() -> (FormationEngine, BTreeMap<String, Member>)
 
 #[test]
 fn a_silent_member_stays_listed_and_counted_with_its_error_to_its_slot() {
-    use crate::formation::{Absence, Whereabouts};
+    use crate::{Absence, Whereabouts};
     let (mut e, mut members) = line_of_three_on_their_slots();
     assert!(e.status(&[]).rms_error_m.unwrap() < 1e-6);
     // uav-3 falls silent and drifts 6 m off its slot: the formation re-forms without it...
@@ -114,7 +114,7 @@ fn cruising_wedge(
     for _ in 0..100 {
         fly(&mut e, &mut members);
     }
-    e.set_motion(crate::formation::LeaderMotion::GoTo {
+    e.set_motion(crate::LeaderMotion::GoTo {
         target: Ned::new(400.0, 0.0, -10.0),
         speed_m_s: 5.0,
     })

@@ -92,7 +92,7 @@ impl Absences {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formation::Absence;
+    use crate::Absence;
 
     fn at(slot: usize, north_m: f64) -> SlotOffset {
         (slot, Ned::new(north_m, 0.0, 0.0))

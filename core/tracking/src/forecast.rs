@@ -24,8 +24,8 @@
 //! velocity variance grown over the horizon, plus the chosen model's recent mean squared
 //! residual scaled to the horizon: it is as wide as the model has lately been wrong.
 
-use crate::tracks::{ForecastPoint, MotionModel, NedJson, TrackStatus, TrackView};
 use nalgebra::Vector3;
+use skein_protocol::tracks::{ForecastPoint, MotionModel, NedJson, TrackStatus, TrackView};
 use std::collections::{BTreeMap, VecDeque};
 
 /// The horizons every track and swarm is forecast at, seconds.

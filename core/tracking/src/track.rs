@@ -1,5 +1,5 @@
 //! The tracker's tuning. The types it publishes (a track as the API shows it, track
-//! events, counters) are in [`crate::tracks`], which the event bus and the metrics read.
+//! events, counters) are in [`skein_protocol::tracks`], which the event bus and the metrics read.
 
 /// Tuning of the tracker.
 #[derive(Debug, Clone, PartialEq)]

@@ -5,12 +5,12 @@
 
 use super::picture::AirPicture;
 use super::swarms::GroupingConfig;
-use crate::tracks::{
+use skein_protocol::tracks::{
     HostileSwarmEvent, MotionModel, NedJson, SwarmShape, TrackStatus, TrackView, VelocityJson,
 };
 
 /// A confirmed track at `p` (north, east; 15 m up) flying `v` (north, east), m and m/s.
-fn track(id: &str, p: [f64; 2], v: [f64; 2]) -> TrackView {
+pub(crate) fn track(id: &str, p: [f64; 2], v: [f64; 2]) -> TrackView {
     TrackView {
         id: id.to_string(),
         status: TrackStatus::Confirmed,
@@ -103,7 +103,7 @@ fn formation(
         .collect()
 }
 
-fn detected(events: &[(f64, HostileSwarmEvent)]) -> Vec<(f64, &crate::tracks::SwarmView)> {
+fn detected(events: &[(f64, HostileSwarmEvent)]) -> Vec<(f64, &skein_protocol::tracks::SwarmView)> {
     events
         .iter()
         .filter_map(|(t, e)| match e {

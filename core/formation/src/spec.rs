@@ -5,6 +5,7 @@
 use serde::{Deserialize, Serialize};
 use skein_model::formation::{Shape, custom_offsets, slot_offsets};
 use skein_model::geo::Ned;
+use skein_protocol::tracks::SWARM_PREFIX;
 
 /// The name of the virtual leader in specs and status (`"leader": "virtual"`).
 pub const VIRTUAL: &str = "virtual";
@@ -77,7 +78,7 @@ impl FormationSpec {
     pub fn track_leader(&self) -> Option<&str> {
         self.leader
             .as_deref()
-            .filter(|l| l.starts_with(TRACK_PREFIX) || l.starts_with(crate::tracks::SWARM_PREFIX))
+            .filter(|l| l.starts_with(TRACK_PREFIX) || l.starts_with(SWARM_PREFIX))
     }
 }
 
@@ -123,7 +124,7 @@ pub(super) mod tests {
     use super::*;
 
     /// A line of 5 m spacing led by `uav-2`, world frame, heading north.
-    pub(in crate::formation) fn line() -> FormationSpec {
+    pub(crate) fn line() -> FormationSpec {
         FormationSpec {
             shape: Shape::Line,
             spacing_m: 5.0,

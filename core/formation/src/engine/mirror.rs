@@ -11,10 +11,10 @@
 //! a jump and without the formation stopping.
 
 use super::FormationEngine;
-use crate::formation::{FormationSpec, Reference, RideThrough};
-use crate::protocol::wall_us;
+use crate::{FormationSpec, Reference, RideThrough};
 use serde::{Deserialize, Serialize};
 use skein_model::safety::Geofence;
+use skein_protocol::wall_us;
 use std::collections::BTreeMap;
 
 /// The formation as a standby mirrors it.
@@ -30,7 +30,7 @@ pub struct FormationMirror {
     pub pattern_heading_rad: Option<f64>,
     /// Vehicle id → slot index.
     pub assignment: BTreeMap<String, usize>,
-    /// When it was taken, wall-clock µs ([`crate::protocol::wall_us`]).
+    /// When it was taken, wall-clock µs ([`skein_protocol::wall_us`]).
     pub stamp_us: u64,
 }
 
@@ -46,7 +46,7 @@ impl FormationEngine {
             leader: self.leader.clone(),
             pattern_heading_rad: self.pattern_heading,
             assignment: self.assignment.clone(),
-            stamp_us: crate::protocol::wall_us(),
+            stamp_us: skein_protocol::wall_us(),
         })
     }
 
@@ -77,7 +77,7 @@ impl FormationEngine {
 mod tests {
     use super::super::RESUME_PACE_GRACE;
     use super::*;
-    use crate::formation::LeaderMotion;
+    use crate::LeaderMotion;
     use skein_model::geo::Ned;
     use std::time::Duration;
 
@@ -147,7 +147,7 @@ mod tests {
         e.resume(mirror, &Geofence::default());
         // The members are nowhere near where this coordinator sends them: their agents
         // still fly the old coordinator's formation (here: they stay 20 m behind).
-        let members: BTreeMap<String, crate::formation::Member> = ["uav-1", "uav-2"]
+        let members: BTreeMap<String, crate::Member> = ["uav-1", "uav-2"]
             .iter()
             .map(|id| {
                 (

@@ -2,7 +2,7 @@
 //! the DDS `/skein/tracks` topic show it ([`TrackView`], swarm frame), what happens to
 //! tracks ([`TrackEvent`]) and the tracker's counters; the hostile swarms the tracks are
 //! grouped into ([`SwarmView`], [`HostileSwarmEvent`]) and the forecasts of
-//! both ([`ForecastPoint`]). A leaf: the tracker ([`crate::tracking`]) makes these, the
+//! both ([`ForecastPoint`]). A leaf: the tracker (`skein_tracking`) makes these, the
 //! event bus and the metrics read them.
 
 use serde::{Deserialize, Serialize};
@@ -50,7 +50,7 @@ pub struct TrackView {
     /// Root of the velocity covariance's trace, m/s.
     #[serde(default)]
     pub velocity_sigma_m_s: f64,
-    /// Where it will be in 5, 10 and 20 s (see [`crate::tracking::forecast`]); empty
+    /// Where it will be in 5, 10 and 20 s (see `skein_tracking::forecast`); empty
     /// until the tracker has forecast it.
     #[serde(default)]
     pub forecast: Vec<ForecastPoint>,
@@ -60,7 +60,7 @@ pub struct TrackView {
 }
 
 /// The motion model a forecast extrapolates with (chosen per track, per horizon, by the
-/// recent forecast residuals of each: see [`crate::tracking::forecast`]).
+/// recent forecast residuals of each: see `skein_tracking::forecast`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum MotionModel {
@@ -109,7 +109,7 @@ pub struct SwarmExtent {
     pub radius_m: f64,
 }
 
-/// A hostile swarm: confirmed tracks flying together (see [`crate::tracking::swarms`]).
+/// A hostile swarm: confirmed tracks flying together (see `skein_tracking::swarms`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct SwarmView {
     /// `swarm-<n>`, n from 1, never reused.

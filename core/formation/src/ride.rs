@@ -35,7 +35,7 @@ use skein_model::safety::Geofence;
 pub const RIDE_STEP_S: f64 = 0.05;
 
 /// A formation flown on from its mirror (see the module docs). Times are wall-clock µs of
-/// this process ([`crate::protocol::wall_us`]), positions swarm-frame NED of this process.
+/// this process ([`skein_protocol::wall_us`]), positions swarm-frame NED of this process.
 #[derive(Debug, Clone)]
 pub struct RideThrough {
     mirror: FormationMirror,
@@ -155,14 +155,14 @@ impl RideThrough {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formation::{FormationEngine, LeaderMotion, Member};
+    use crate::{FormationEngine, LeaderMotion, Member};
     use std::collections::BTreeMap;
 
     fn fence() -> Geofence {
         Geofence::default()
     }
 
-    fn wedge() -> crate::formation::FormationSpec {
+    fn wedge() -> crate::FormationSpec {
         serde_json::from_value(serde_json::json!({
             "shape": "wedge", "spacing_m": 6.0, "leader": "virtual", "altitude_m": 12.0,
             "heading_deg": 0.0, "frame": "leader", "offsets": []

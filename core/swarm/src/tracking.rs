@@ -1,56 +1,27 @@
-//! Counter-UAS tracking on the coordinator: the detections of every observation UAV fused
-//! into 3D tracks of non-cooperative aircraft.
+//! Counter-UAS tracking at run time: [`TrackingService`] steps the pure tracker of
+//! `skein-tracking` (re-exported here, so `skein_swarm::tracking::...` names it) in a task
+//! of its own beside the coordinator.
 //!
-//! - [`geometry`]: bearings and their least-squares fusion (triangulation);
-//! - [`filter`]: the constant-velocity Kalman filter of each track (`nalgebra`);
-//! - [`tracker`]: association (gated Hungarian) and update; `management`: track start,
-//!   continuation through manoeuvres and blind spots, lifecycle, merging, stable ids;
-//! - [`track`]: the tuning (the tracks as the API shows them, track events and counters
-//!   are in the leaf [`crate::tracks`]);
-//! - [`detection`]: the detector plugin's detections (its payload state) as bearings;
-//! - [`forecast`]: where each track will be in 5, 10 and 20 s (constant velocity,
-//!   constant turn, mean velocity; chosen by their recent residuals);
-//! - [`swarms`]: confirmed tracks flying together grouped into hostile swarms (DBSCAN over
-//!   position and velocity, stable `swarm-N` ids), their [`shape`]; [`picture`]: both
-//!   over a tracker's tracks;
-//! - [`stations`]: where observation UAVs see a target best (triangulation geometry).
-//!
-//! [`TrackingService`] runs the tracker in a task of its own beside the coordinator: at
-//! [`TRACKER_HZ`] it reads every frame the detectors processed since its last step from
+//! At [`TRACKER_HZ`] it reads every frame the detectors processed since its last step from
 //! their payload states, steps the tracker with them and the swarm members' poses (so
 //! members are never tracks), forecasts the tracks and groups them into swarms, raises the
 //! `track_*` and `swarm_*` events on the bus, and keeps the current tracks and swarms for
 //! `GET /api/v1/tracks`, `GET /api/v1/swarms` and the metrics.
-
-pub mod detection;
-pub mod filter;
-pub mod forecast;
-pub mod geometry;
-mod management;
-pub mod picture;
-pub mod shape;
-pub mod stations;
-#[cfg(test)]
-mod swarm_tests;
-pub mod swarms;
-#[cfg(test)]
-mod tests;
-pub mod track;
-pub mod tracker;
 
 use crate::events::SwarmEvent;
 use crate::metrics::Metrics;
 use crate::tracks::{HostileSwarmEvent, SwarmView, TrackEvent, TrackView, TrackerCounters};
 use crate::vehicle::fleet::Fleet;
 use nalgebra::Vector3;
-pub use picture::AirPicture;
+pub use skein_tracking::{
+    AirPicture, GroupingConfig, MemberPose, Tracker, TrackerConfig, detection, filter, forecast,
+    geometry, picture, shape, stations, swarms, target, track, tracker,
+};
 use std::collections::HashMap;
 use std::sync::{Arc, PoisonError, RwLock};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
-pub use swarms::GroupingConfig;
 use tokio::sync::broadcast;
 use tokio::task::JoinHandle;
-pub use tracker::{MemberPose, Tracker, TrackerConfig};
 
 /// Rate of the tracker's steps, Hz.
 pub const TRACKER_HZ: f64 = 10.0;

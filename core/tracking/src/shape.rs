@@ -15,7 +15,7 @@
 //!
 //! Positions are swarm-frame (north, east), metres; headings degrees clockwise from north.
 
-use crate::tracks::{SwarmExtent, SwarmShape};
+use skein_protocol::tracks::{SwarmExtent, SwarmShape};
 
 /// A line's spread across its axis is under this fraction of the spread along it.
 pub const LINE_RATIO: f64 = 0.3;
