@@ -6,7 +6,9 @@
 //!    `--seconds`;
 //! 2. the same flight with `skein coordinator` and N `skein agent --sim 1` (one generic
 //!    vehicle each, sysids 1 to N) on DDS over loopback, a domain of its own: the same
-//!    samples, each agent's CPU and the coordinator's, and the latency of every slot
+//!    samples, each agent's CPU and the coordinator's, the swarm's assembly (all agents
+//!    started at once, until the coordinator lists every vehicle with a home: the
+//!    seconds, and the agents' mean CPU meanwhile), and the latency of every slot
 //!    target from the coordinator's write to its arrival at a subscriber in this process
 //!    (a RustDDS participant reading `/skein/swarm/target` as an agent does; its header
 //!    stamp against the same host's clock);
@@ -15,9 +17,9 @@
 //!    probe presenting an enclave of their role (`coordinator`, `agent`, `viewer`);
 //! 4. prints one JSON object: `vehicles`, `seconds`, `single_process` (`rms_slot_error_m`
 //!    mean and max; CPU in cores, simulators included, per vehicle), `distributed` and
-//!    `distributed_secured` side by side (each: `rms_slot_error_m`,
-//!    `agent_cpu_cores_per_vehicle`, `coordinator_cpu_cores`, `target_latency_ms` with
-//!    `p50`, `p99`, `max`, `samples`), `rms_difference_m` (open distributed mean minus
+//!    `distributed_secured` side by side (each: `assembly_s`,
+//!    `assembly_agent_cpu_cores`, `rms_slot_error_m`, `agent_cpu_cores_per_vehicle`,
+//!    `coordinator_cpu_cores`, `target_latency_ms` with `p50`, `p99`, `max`, `samples`), `rms_difference_m` (open distributed mean minus
 //!    single-process mean) and `secured_over_open` (the ratios of agent CPU,
 //!    coordinator CPU and target latency p50).
 
@@ -71,6 +73,28 @@ fn fly(c: &UpProcess, n: usize) -> Result<(), String> {
     Ok(())
 }
 
+/// The CPU seconds process `pid` has used.
+fn process_cpu_s(pid: u32) -> Result<f64, String> {
+    cpu_seconds(Some(pid)).ok_or_else(|| "no /proc CPU figures".to_string())
+}
+
+/// Waits until `c` lists its `n` vehicles with a home (120 s at most); returns the seconds
+/// since `started` and the mean CPU (cores) of the agents `pids` since they started.
+fn assemble(c: &UpProcess, n: usize, started: Instant, pids: &[u32]) -> Result<(f64, f64), String> {
+    c.wait_vehicles(
+        n,
+        "every vehicle with a home",
+        Duration::from_secs(120),
+        |v| v["home"].is_object(),
+    )?;
+    let seconds = started.elapsed().as_secs_f64();
+    let cpu = pids
+        .iter()
+        .map(|p| process_cpu_s(*p))
+        .sum::<Result<f64, _>>()?;
+    Ok((seconds, cpu / seconds / pids.len().max(1) as f64))
+}
+
 /// Polls `GET /api/v1/formation` until `ok` (60 s at most).
 fn wait(c: &UpProcess, what: &str, ok: impl Fn(&Value) -> bool) -> Result<(), String> {
     let deadline = Instant::now() + Duration::from_secs(60);
@@ -101,8 +125,10 @@ fn active(c: &UpProcess) -> Result<(), String> {
 /// The RMS slot error every 100 ms for `seconds`, and the CPU seconds of `pids` per
 /// second meanwhile, each.
 fn sample(c: &UpProcess, seconds: f64, pids: &[u32]) -> Result<(Vec<f64>, Vec<f64>), String> {
-    let cpu = |pid: u32| cpu_seconds(Some(pid)).ok_or("no /proc CPU figures");
-    let c0: Vec<f64> = pids.iter().map(|p| cpu(*p)).collect::<Result<_, _>>()?;
+    let c0: Vec<f64> = pids
+        .iter()
+        .map(|p| process_cpu_s(*p))
+        .collect::<Result<_, _>>()?;
     let t0 = Instant::now();
     let mut rms = Vec::new();
     while t0.elapsed().as_secs_f64() < seconds {
@@ -113,7 +139,10 @@ fn sample(c: &UpProcess, seconds: f64, pids: &[u32]) -> Result<(Vec<f64>, Vec<f6
         std::thread::sleep(Duration::from_millis(100));
     }
     let dt = t0.elapsed().as_secs_f64();
-    let c1: Vec<f64> = pids.iter().map(|p| cpu(*p)).collect::<Result<_, _>>()?;
+    let c1: Vec<f64> = pids
+        .iter()
+        .map(|p| process_cpu_s(*p))
+        .collect::<Result<_, _>>()?;
     let cores = c0.iter().zip(&c1).map(|(a, b)| (b - a) / dt).collect();
     Ok((rms, cores))
 }
@@ -128,6 +157,10 @@ fn stats(rms: &[f64]) -> Value {
 
 /// What one distributed flight measured.
 struct Flight {
+    /// Seconds from the agents' start to every vehicle listed with a home.
+    assembly_s: f64,
+    /// Each agent's CPU during the assembly, cores, mean over the agents.
+    assembly_agent_cpu: f64,
     rms: Vec<f64>,
     agents_cpu_per_vehicle: f64,
     coordinator_cpu: f64,
@@ -137,6 +170,8 @@ struct Flight {
 impl Flight {
     fn json(&self) -> Value {
         json!({
+            "assembly_s": self.assembly_s,
+            "assembly_agent_cpu_cores": self.assembly_agent_cpu,
             "rms_slot_error_m": stats(&self.rms),
             "agent_cpu_cores_per_vehicle": self.agents_cpu_per_vehicle,
             "coordinator_cpu_cores": self.coordinator_cpu,
@@ -177,13 +212,17 @@ fn keystore(dir: &std::path::Path, n: usize) -> Result<PathBuf, String> {
     Ok(ks)
 }
 
-/// A coordinator and `n` agents on `domain` (with `keystore`, each presenting its
-/// enclave), flown as [`fly`] does; samples as [`sample`] does, and the targets'
-/// latency to a probe (a viewer with `keystore`).
-fn flight(n: usize, domain: &str, seconds: f64, keystore: Option<&Path>) -> Result<Flight, String> {
-    let ks = keystore.map(|k| k.to_string_lossy().into_owned());
-    let security = |enclave: &str| -> Vec<String> {
-        ks.iter()
+/// How a flight's processes are started: its domain and, when secured, its keystore.
+struct Roles<'a> {
+    domain: &'a str,
+    keystore: Option<String>,
+}
+
+impl Roles<'_> {
+    /// `--dds-keystore K --dds-enclave E` when secured, else nothing.
+    fn security(&self, enclave: &str) -> Vec<String> {
+        self.keystore
+            .iter()
             .flat_map(|k| {
                 [
                     "--dds-keystore".into(),
@@ -193,33 +232,34 @@ fn flight(n: usize, domain: &str, seconds: f64, keystore: Option<&Path>) -> Resu
                 ]
             })
             .collect()
-    };
-    let with = |base: &[&str], extra: &[String]| -> Vec<String> {
-        base.iter()
+    }
+
+    /// `skein <role> <base> <security for enclave>` on the flight's domain, over loopback.
+    fn start(&self, role: &[&str], base: &[&str], enclave: &str) -> Result<UpProcess, String> {
+        let args: Vec<String> = base
+            .iter()
             .map(|s| s.to_string())
-            .chain(extra.iter().cloned())
-            .collect()
-    };
-    let args = with(
-        &[
-            "--id",
-            "bench",
-            "--domain-id",
-            domain,
-            "--dds-network",
-            "127.0.0.1",
-        ],
-        &security(COORDINATOR_ENCLAVE),
-    );
-    let coordinator = UpProcess::start_role(
-        &["coordinator", "--http", "127.0.0.1:0"],
-        &args.iter().map(String::as_str).collect::<Vec<_>>(),
-    )?;
-    let agents = (1..=n)
-        .map(|k| {
-            let first = k.to_string();
-            let args = with(
-                &[
+            .chain(["--domain-id", self.domain, "--dds-network", "127.0.0.1"].map(String::from))
+            .chain(self.security(enclave))
+            .collect();
+        UpProcess::start_role(role, &args.iter().map(String::as_str).collect::<Vec<_>>())
+    }
+
+    /// `skein coordinator` with its API on a free port.
+    fn coordinator(&self) -> Result<UpProcess, String> {
+        self.start(
+            &["coordinator", "--http", "127.0.0.1:0"],
+            &["--id", "bench"],
+            COORDINATOR_ENCLAVE,
+        )
+    }
+
+    /// `n` `skein agent --sim 1`, sysids 1 to `n`, started one after another.
+    fn agents(&self, n: usize) -> Result<Vec<UpProcess>, String> {
+        (1..=n)
+            .map(|k| {
+                let first = k.to_string();
+                let base = [
                     "--sim",
                     "1",
                     "--first-sysid",
@@ -228,19 +268,24 @@ fn flight(n: usize, domain: &str, seconds: f64, keystore: Option<&Path>) -> Resu
                     "generic",
                     "--sim-base-port",
                     "0",
-                    "--domain-id",
-                    domain,
-                    "--dds-network",
-                    "127.0.0.1",
-                ],
-                &security(&agent_enclave(k)),
-            );
-            UpProcess::start_role(
-                &["agent"],
-                &args.iter().map(String::as_str).collect::<Vec<_>>(),
-            )
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+                ];
+                self.start(&["agent"], &base, &agent_enclave(k))
+            })
+            .collect()
+    }
+}
+
+/// A coordinator and `n` agents on `domain` (with `keystore`, each presenting its
+/// enclave), flown as [`fly`] does; samples as [`sample`] does, and the targets'
+/// latency to a probe (a viewer with `keystore`).
+fn flight(n: usize, domain: &str, seconds: f64, keystore: Option<&Path>) -> Result<Flight, String> {
+    let roles = Roles {
+        domain,
+        keystore: keystore.map(|k| k.to_string_lossy().into_owned()),
+    };
+    let coordinator = roles.coordinator()?;
+    let started = Instant::now();
+    let agents = roles.agents(n)?;
     let probe_security = keystore
         .map(|k| skein_dds::security::DdsSecurity::new(k, PROBE_ENCLAVE))
         .transpose()?;
@@ -254,15 +299,24 @@ fn flight(n: usize, domain: &str, seconds: f64, keystore: Option<&Path>) -> Resu
     .map_err(|e| e.to_string())?;
     let mut pids: Vec<u32> = agents.iter().map(UpProcess::pid).collect();
     pids.push(coordinator.pid());
-    let (rms, cpu) = tokio::task::block_in_place(|| {
+    let (assembly, rms, cpu) = tokio::task::block_in_place(|| {
         active(&coordinator)?;
+        let assembly = assemble(&coordinator, n, started, &pids[..n])?;
+        // Said at once: a flight that fails later (a saturated machine) still tells it.
+        eprintln!(
+            "bench dds --distributed: {n} vehicles listed with a home {:.1} s after the agents started",
+            assembly.0
+        );
         fly(&coordinator, n)?;
         probe.take();
-        sample(&coordinator, seconds, &pids)
+        let (rms, cpu) = sample(&coordinator, seconds, &pids)?;
+        Ok::<_, String>((assembly, rms, cpu))
     })?;
     let mut latencies_ms: Vec<f64> = probe.take().iter().map(|(_, l)| l * 1e3).collect();
     latencies_ms.sort_by(f64::total_cmp);
     Ok(Flight {
+        assembly_s: assembly.0,
+        assembly_agent_cpu: assembly.1,
         rms,
         agents_cpu_per_vehicle: cpu[..n].iter().sum::<f64>() / n as f64,
         coordinator_cpu: cpu[n],

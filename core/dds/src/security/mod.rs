@@ -191,7 +191,15 @@ fn check_validity(path: &Path) -> Result<(), String> {
     let pem = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let cert = openssl::x509::X509::from_pem(&pem)
         .map_err(|e| format!("{}: not a PEM certificate: {e}", path.display()))?;
-    let now = openssl::asn1::Asn1Time::days_from_now(0).map_err(|e| e.to_string())?;
+    // The clock the keystore dated the certificate with (`clock_gettime(CLOCK_REALTIME)`),
+    // not OpenSSL's `time()`, which on Linux reads the coarse clock, up to a tick behind: a
+    // certificate made in the same second was "valid only from" the next second.
+    let now_s = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_err(|e| e.to_string())?
+        .as_secs();
+    let now = openssl::asn1::Asn1Time::from_unix(i64::try_from(now_s).map_err(|e| e.to_string())?)
+        .map_err(|e| e.to_string())?;
     if cert.not_after() < now {
         return Err(format!(
             "its certificate expired on {} ({})",

@@ -1265,7 +1265,7 @@ impl DomainParticipantInner {
 
     // Magic value 120 below is from RTPS spec 2.5 Section "9.6.2.3 Default Port
     // Numbers"
-    while discovery_listener.is_none() && participant_id < 120 {
+    while discovery_listener.is_none() && participant_id < MAX_PARTICIPANT_ID_COUNT {
       discovery_listener = UDPListener::new_unicast_with_buf_size(
         "0.0.0.0",
         spdp_well_known_unicast_port(domain_id, participant_id),

@@ -110,6 +110,15 @@ pub enum DiscoveryCommand {
     local_endpoint_guid: GUID,
     remote_endpoint_guid: GUID,
   },
+
+  // skein patch: our SPDP writer has just matched the SPDP reader of a
+  // participant we heard of (see `DPEventLoop::update_participant`): announce
+  // ourselves now. The quick response that Discovery sends on its own, 10 ms
+  // after the participant's first SPDP, reached it only if the event loop had
+  // matched its reader by then: under load it had not, and a participant that
+  // had found us by a unicast probe (no multicast, e.g. on loopback) waited a
+  // whole SPDP period (10 s), or, while being authenticated, for ever.
+  AnnounceParticipant,
 }
 
 pub struct LivelinessState {
@@ -207,6 +216,12 @@ pub(crate) enum NormalDiscoveryPermission {
   #[cfg(feature = "security")] // Deny variant is never constructed if security feature is not on
   Deny,
 }
+
+// How many ParticipantStatelessMessages (authentication handshake steps) a
+// participant keeps until Discovery takes them (skein patch; see
+// `create_participant_stateless_message_qos`).
+#[cfg(feature = "security")]
+const STATELESS_MESSAGE_HISTORY_DEPTH: i32 = 256;
 
 pub(crate) struct Discovery {
   poll: Poll,
@@ -828,6 +843,12 @@ impl Discovery {
                       &self.discovery_db,
                     );
                   }
+                }
+                DiscoveryCommand::AnnounceParticipant => {
+                  self.discovery_timer.borrow_mut().set_timeout(
+                    StdDuration::from_millis(1),
+                    DiscoveryTimerEvent::SendParticipantInfo { reschedule: false },
+                  );
                 }
               };
             }
@@ -2103,9 +2124,19 @@ impl Discovery {
   pub const fn create_participant_stateless_message_qos() -> QosPolicies {
     // See section 7.4.3 "New DCPSParticipantStatelessMessage builtin Topic" of the
     // Security spec
+    //
+    // The spec's depth is 1, which suits a reader that hands each message to a
+    // listener as it arrives. RustDDS's Discovery takes them when its loop gets
+    // to them, and a no-key topic has one instance: with depth 1, of the
+    // handshake messages of several participants that arrived since its last
+    // take, it kept only the newest, and the others' handshakes waited for a
+    // resend that met the same fate (skein patch). Keep a burst of them: one
+    // message in flight per remote participant and handshake step.
     QosPolicyBuilder::new()
       .reliability(Reliability::BestEffort) // Important!
-      .history(History::KeepLast { depth: 1 })
+      .history(History::KeepLast {
+        depth: STATELESS_MESSAGE_HISTORY_DEPTH,
+      })
       .build()
   }
 

@@ -350,6 +350,8 @@ impl SecureDiscovery {
             discovery_db,
             auth_msg_writer,
           );
+        } else {
+          self.keep_handshake_going(guid_prefix, discovery_db, auth_msg_writer);
         }
         info!("Authenticating with Participant {guid_prefix:?}");
         // Otherwise keep the same authentication status
@@ -1414,8 +1416,12 @@ impl SecureDiscovery {
     discovery_db: &Arc<RwLock<DiscoveryDB>>,
     discovery_updated_sender: &WakeSender<DiscoveryNotificationType>,
   ) {
-    let mut db = discovery_db_write(discovery_db);
-    db.update_authentication_status(participant_guid_prefix, new_status);
+    // skein patch: the database's write lock is released before the notification. The
+    // notification channel is bounded, and the event loop that drains it takes the
+    // database's read lock between two drains: with the lock held across a blocking send
+    // to a full channel, Discovery and the event loop waited for each other for ever
+    // (seen assembling 24 secured participants in one process).
+    discovery_db_write(discovery_db).update_authentication_status(participant_guid_prefix, new_status);
 
     send_discovery_notification(
       discovery_updated_sender,
@@ -1491,7 +1497,7 @@ impl SecureDiscovery {
     );
 
     // Try to send the message
-    let _ = auth_msg_writer.write(request_message, None).map_err(|err| {
+    let _ = send_stateless_message(auth_msg_writer, request_message).map_err(|err| {
       warn!(
         "Failed to send a handshake request message. Remote GUID prefix: {remote_guid_prefix:?}. \
          Info: {err}. Trying to resend the message later."
@@ -1514,8 +1520,8 @@ impl SecureDiscovery {
       if self.handshake_states.get(guid_prefix)
         != Some(&DiscHandshakeState::CompletedWithFinalMessageSent)
       {
-        match auth_msg_writer.write(stored_message.message.clone(), None) {
-          Ok(()) => {
+        match send_stateless_message(auth_msg_writer, stored_message.message.clone()) {
+          Ok(_) => {
             stored_message.remaining_resend_counter -= 1;
             debug!(
               "Resent an unanswered authentication message to remote participant {:?}. Resending \
@@ -1559,6 +1565,35 @@ impl SecureDiscovery {
       }
     }
     self.cached_key_exchange_messages_for_resend = msgs_still_to_cache;
+  }
+
+  // The remote is alive (its SPDP came again) and our handshake with it is not
+  // done: our unanswered message gets its resends back, and a request whose
+  // resends ran out is made anew (skein patch). Before, a handshake whose
+  // messages were all lost within their ten resends (one a second) waited for
+  // ever, so a participant that came up in a burst of others, or behind a link
+  // that dropped out for ten seconds, never authenticated while both lived.
+  fn keep_handshake_going(
+    &mut self,
+    remote_guid_prefix: GuidPrefix,
+    discovery_db: &Arc<RwLock<DiscoveryDB>>,
+    auth_msg_writer: &no_key::DataWriter<ParticipantStatelessMessage>,
+  ) {
+    if self
+      .stored_authentication_messages
+      .contains_key(&remote_guid_prefix)
+    {
+      self.reset_stored_message_resend_counter(&remote_guid_prefix);
+    } else if self.get_handshake_state(&remote_guid_prefix)
+      == Some(DiscHandshakeState::PendingReplyMessage)
+    {
+      debug!("Handshake request to {remote_guid_prefix:?} unanswered: sending a new one");
+      self.try_sending_new_handshake_request_message(
+        remote_guid_prefix,
+        discovery_db,
+        auth_msg_writer,
+      );
+    }
   }
 
   fn reset_stored_message_resend_counter(&mut self, remote_guid_prefix: &GuidPrefix) {
@@ -1699,8 +1734,7 @@ impl SecureDiscovery {
         debug!("Sending a handshake reply message to remote participant {remote_guid_prefix:?}");
 
         // Send the token
-        let _ = auth_msg_writer
-          .write(reply_message.clone(), None)
+        let _ = send_stateless_message(auth_msg_writer, reply_message.clone())
           .map_err(|err| {
             error!(
               "Failed to send a handshake reply message. Remote GUID prefix: \
@@ -1787,8 +1821,7 @@ impl SecureDiscovery {
         debug!("Sending a final handshake message to remote participant {remote_guid_prefix:?}");
 
         // Send the token
-        let _ = auth_msg_writer
-          .write(final_message.clone(), None)
+        let _ = send_stateless_message(auth_msg_writer, final_message.clone())
           .map_err(|err| {
             error!(
               "Failed to send a final handshake message. Remote GUID prefix: \
@@ -2528,13 +2561,20 @@ impl SecureDiscovery {
     remote_guid_prefix: GuidPrefix,
     discovery_db: &Arc<RwLock<DiscoveryDB>>,
   ) -> SecurityResult<()> {
-    let mut sec_plugins = self.security_plugins.get_plugins();
-
     // Get PermissionsToken
+    //
+    // skein patch: read before the plugins' lock is taken, never under it. The event
+    // loop takes the database's read lock and then the plugins' (encoding a message
+    // while matching a participant's endpoints): taken the other way round here, with
+    // a participant's own thread queued for the database's write lock (creating a
+    // writer), the three waited for each other for ever (seen assembling 16 secured
+    // participants in one process).
     let permissions_token = discovery_db_read(discovery_db)
       .find_participant_proxy(remote_guid_prefix)
       .and_then(|data| data.permissions_token.clone())
       .ok_or_else(|| security_error("Could not get PermissionsToken from DiscoveryDB"))?;
+
+    let mut sec_plugins = self.security_plugins.get_plugins();
 
     // Get AuthenticatedPeerCredentialToken
     let auth_credential_token =
@@ -2579,8 +2619,7 @@ impl SecureDiscovery {
     auth_msg_writer: &no_key::DataWriter<ParticipantStatelessMessage>,
   ) {
     if let Some(stored_msg) = self.stored_authentication_messages.get(&remote_guid_prefix) {
-      let _ = auth_msg_writer
-        .write(stored_msg.message.clone(), None)
+      let _ = send_stateless_message(auth_msg_writer, stored_msg.message.clone())
         .map_err(|err| {
           warn!(
             "Failed to send a final handshake message. Remote GUID prefix: \
@@ -2688,6 +2727,27 @@ impl SecureDiscovery {
 
     ParticipantVolatileMessageSecure::from(generic_message)
   }
+}
+
+// Sends an authentication message to the stateless reader of its destination
+// participant only (skein patch). Written to every matched stateless reader, as
+// before, each handshake message of a swarm of N participants reached all N - 1
+// of them (O(N^2) datagrams of a few KiB per handshake round, repeated by every
+// resend), and the bursts overran the readers, whose KeepLast history kept one
+// message per read: handshakes past about a dozen participants starved.
+// Security spec 7.4.3.4: the message is addressed to one participant.
+fn send_stateless_message(
+  auth_msg_writer: &no_key::DataWriter<ParticipantStatelessMessage>,
+  message: ParticipantStatelessMessage,
+) -> crate::dds::result::WriteResult<crate::structure::rpc::SampleIdentity, ParticipantStatelessMessage> {
+  let destination = GUID::new(
+    message.generic.destination_participant_guid.prefix,
+    EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_READER,
+  );
+  let opts = WriteOptionsBuilder::new()
+    .to_single_reader(destination)
+    .build();
+  auth_msg_writer.write_with_options(message, opts)
 }
 
 fn send_discovery_notification(

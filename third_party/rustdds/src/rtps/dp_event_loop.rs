@@ -24,7 +24,7 @@ use crate::{
   },
   messages::submessages::submessages::AckSubmessage,
   network::{
-    constant::SPDP_LOCALHOST_PEER_COUNT,
+    constant::localhost_spdp_peer_slots,
     udp_listener::UDPListener,
     udp_sender::UDPSender,
     util::{local_interface_table, localhost_spdp_peer_locators, IfAddr},
@@ -744,6 +744,17 @@ impl DPEventLoop {
           // Add just the stateless endpoint used for authentication
           readers_init_list.extend_from_slice(AUTHENTICATION_BUILTIN_READERS_INIT_LIST);
           writers_init_list.extend_from_slice(AUTHENTICATION_BUILTIN_WRITERS_INIT_LIST);
+          // skein patch: and its plain SPDP reader, so that our announcements reach
+          // it while we authenticate it (they are public: the same ones go to the
+          // multicast group). Without it, a participant that heard of us by a
+          // unicast probe (no multicast, e.g. on loopback) could not make itself
+          // known to us, and neither could start the handshake.
+          readers_init_list.extend(
+            STANDARD_BUILTIN_READERS_INIT_LIST
+              .iter()
+              .filter(|(writer_eid, ..)| *writer_eid == EntityId::SPDP_BUILTIN_PARTICIPANT_WRITER)
+              .cloned(),
+          );
         }
         Some(AuthenticationStatus::Authenticated) => {
           // Match all builtin endpoints
@@ -802,7 +813,21 @@ impl DPEventLoop {
             // `writer` knows not to expect them, and avoid stalling.
           };
 
+          // skein patch: a new SPDP reader hears from us at once (see
+          // `DiscoveryCommand::AnnounceParticipant`).
+          let announce = *writer_eid == EntityId::SPDP_BUILTIN_PARTICIPANT_WRITER
+            && !writer.has_matched_reader(reader_proxy.remote_reader_guid);
           writer.update_reader_proxy(&reader_proxy, &reader_qos);
+          // Never blocking: Discovery may itself be waiting for this loop, and a lost
+          // request only leaves the announcement to the next period.
+          if announce {
+            if let Err(e) = self
+              .discovery_command_sender
+              .try_send(DiscoveryCommand::AnnounceParticipant)
+            {
+              debug!("Could not ask Discovery to announce us to a new participant: {e}");
+            }
+          }
           debug!(
             "update_discovery writer - endpoint {:?} - {:?}",
             reader_endpoint_set_elem, discovered_participant.participant_guid
@@ -1119,7 +1144,7 @@ impl DPEventLoop {
       new_writer.set_extra_unicast_destinations(localhost_spdp_peer_locators(
         self.domain_info.domain_id,
         self.domain_info.participant_id,
-        SPDP_LOCALHOST_PEER_COUNT,
+        localhost_spdp_peer_slots(self.domain_info.participant_id),
       ));
     }
 

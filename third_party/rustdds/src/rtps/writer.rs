@@ -1890,7 +1890,14 @@ impl Writer {
               (DeliveryMode::Unicast, Some(_), _) => send_legacy!(reader.unicast_locator_list),
               (_, _, Some(_)) => send_legacy!(reader.multicast_locator_list),
               (_, Some(_), _) => send_legacy!(reader.unicast_locator_list),
-              (_, None, None) => warn!("send_message_to_readers: No locators for {reader:?}"),
+              // skein patch: a reader whose only locator is its loopback one
+              // (a same-host peer held to `127.0.0.1`) and whose route was
+              // resolved before we had heard from its participant: route it by
+              // what we know now (see `same_host_loopback_of`).
+              (_, None, None) => match self.same_host_loopback_of(reader) {
+                Some(lo) => emit_unicast!(lo),
+                None => warn!("send_message_to_readers: No locators for {reader:?}"),
+              },
             }
             continue;
           }
@@ -1966,6 +1973,36 @@ impl Writer {
   /// selection. See the participant-builder `same_host_loopback` knob.
   pub fn set_prefer_loopback_same_host(&mut self, enabled: bool) {
     self.prefer_loopback_same_host = enabled;
+  }
+
+  // skein patch: the loopback locator of `reader`, when its participant is
+  // known by now to be on this host. A reader's route is resolved when it is
+  // matched and again on its participant's SPDP; one matched before any of its
+  // participant's traffic had reached us has no route, and a peer that
+  // advertises only its loopback locator (held to `127.0.0.1`) then got
+  // nothing from this writer until that participant's next SPDP was processed
+  // (under DDS Security, whose plain SPDP of an authenticated participant
+  // updates nothing, possibly never: its key exchange messages stayed unsent).
+  fn same_host_loopback_of(&self, reader: &RtpsReaderProxy) -> Option<Locator> {
+    let same_host = self.prefer_loopback_same_host
+      && self
+        .interface_observations
+        .borrow()
+        .get(reader.remote_reader_guid.prefix)
+        .is_some_and(|o| o.is_same_host());
+    if !same_host {
+      return None;
+    }
+    reader
+      .loopback_unicast_locators
+      .iter()
+      .copied()
+      .find(|l| l.is_udp())
+  }
+
+  // skein patch: whether `reader` is among this writer's matched readers.
+  pub(crate) fn has_matched_reader(&self, reader: GUID) -> bool {
+    self.readers.contains_key(&reader)
   }
 
   pub fn update_reader_proxy(
