@@ -10,13 +10,13 @@ use serde::Serialize;
 use serde_json::{Value, json};
 use skein_link::Endpoint;
 use skein_model::vehicle::VehicleSnapshot;
-use skein_swarm::{CoordinatorMsg, SwarmEvent};
+use skein_swarm::{CoordinatorMsg, FleetMsg, FormationMsg, PayloadMsg, SwarmEvent};
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex, RwLock};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
-use tokio::sync::broadcast;
+use tokio::sync::{broadcast, oneshot};
 use tokio::task::JoinHandle;
 
 /// Vehicle snapshots and positions are recorded at this rate, Hz.
@@ -205,6 +205,9 @@ pub struct Recording {
     started: Instant,
     tx: mpsc::Sender<Command>,
     tasks: Vec<JoinHandle<()>>,
+    /// Tells the events task to record what the bus already holds and stop.
+    events_stop: Option<oneshot::Sender<()>>,
+    events_task: JoinHandle<()>,
     endpoints: Vec<Arc<Endpoint>>,
 }
 
@@ -234,20 +237,21 @@ impl Recording {
                 );
             })));
         }
-        let tasks = vec![
-            tokio::spawn(record_events(sources.events.subscribe(), tx.clone())),
-            tokio::spawn(record_swarm(
-                sources.coordinator.clone(),
-                tx.clone(),
-                sysids,
-            )),
-        ];
+        let (events_stop, stop) = oneshot::channel();
+        let events_task = tokio::spawn(record_events(sources.events.subscribe(), stop, tx.clone()));
+        let tasks = vec![tokio::spawn(record_swarm(
+            sources.coordinator.clone(),
+            tx.clone(),
+            sysids,
+        ))];
         tracing::info!("recording to {}", path.display());
         Ok(Recording {
             path: path.to_path_buf(),
             started: Instant::now(),
             tx,
             tasks,
+            events_stop: Some(events_stop),
+            events_task,
             endpoints: sources.endpoints.clone(),
         })
     }
@@ -263,17 +267,23 @@ impl Recording {
         put(&self.tx, topic, kind, value);
     }
 
-    /// Stops collecting and finishes the file.
+    /// Stops collecting and finishes the file. Every event sent on the bus before this
+    /// call is in the file (an API request that emitted one and returned before the stop
+    /// request is recorded, however busy the runtime).
     ///
     /// # Errors
     /// [`RecordError::Io`] when the file could not be written or finished.
-    pub async fn finish(self) -> Result<RecordingSummary, RecordError> {
+    pub async fn finish(mut self) -> Result<RecordingSummary, RecordError> {
         for ep in &self.endpoints {
             ep.set_sent_tap(None);
         }
         for t in &self.tasks {
             t.abort();
         }
+        if let Some(stop) = self.events_stop.take() {
+            let _ = stop.send(());
+        }
+        let _ = (&mut self.events_task).await;
         let (reply_tx, reply_rx) = mpsc::channel();
         self.tx
             .send(Command::Finish(reply_tx))
@@ -313,23 +323,57 @@ fn put(tx: &mpsc::Sender<Command>, topic: String, kind: Kind, value: &Value) {
     }
 }
 
-async fn record_events(mut events: broadcast::Receiver<SwarmEvent>, tx: mpsc::Sender<Command>) {
+/// Records the bus's events until `stop`, then the events the bus held for it at the
+/// stop (sent before it), so that none sent before the recording stops is lost.
+async fn record_events(
+    mut events: broadcast::Receiver<SwarmEvent>,
+    mut stop: oneshot::Receiver<()>,
+    tx: mpsc::Sender<Command>,
+) {
     loop {
-        match events.recv().await {
-            Ok(e) => {
-                if let Ok(v) = serde_json::to_value(&e) {
-                    put(&tx, channels::EVENTS.into(), Kind::Event, &v);
-                }
-            }
-            Err(broadcast::error::RecvError::Lagged(n)) => put(
-                &tx,
-                channels::EVENTS.into(),
-                Kind::Event,
-                &json!({"type": "events_dropped", "count": n}),
-            ),
-            Err(broadcast::error::RecvError::Closed) => return,
+        let received = tokio::select! {
+            biased;
+            _ = &mut stop => break,
+            r = events.recv() => r,
+        };
+        if !record_event(&tx, received) {
+            return;
         }
     }
+    // What the bus held at the stop, however fast events go on arriving.
+    for _ in 0..events.len() {
+        let received = match events.try_recv() {
+            Ok(e) => Ok(e),
+            Err(broadcast::error::TryRecvError::Lagged(n)) => {
+                Err(broadcast::error::RecvError::Lagged(n))
+            }
+            Err(_) => return,
+        };
+        record_event(&tx, received);
+    }
+}
+
+/// Writes one received event (or a count of those the bus dropped for a slow reader,
+/// as an `events_dropped` event); false once the bus is closed.
+fn record_event(
+    tx: &mpsc::Sender<Command>,
+    received: Result<SwarmEvent, broadcast::error::RecvError>,
+) -> bool {
+    match received {
+        Ok(e) => {
+            if let Ok(v) = serde_json::to_value(&e) {
+                put(tx, channels::EVENTS.into(), Kind::Event, &v);
+            }
+        }
+        Err(broadcast::error::RecvError::Lagged(n)) => put(
+            tx,
+            channels::EVENTS.into(),
+            Kind::Event,
+            &json!({"type": "events_dropped", "count": n}),
+        ),
+        Err(broadcast::error::RecvError::Closed) => return false,
+    }
+    true
 }
 
 async fn ask<T: Send + 'static>(
@@ -357,7 +401,7 @@ async fn record_swarm(
     let mut last_formation: Option<Instant> = None;
     loop {
         tick.tick().await;
-        let Some(list) = ask(&coordinator, CoordinatorMsg::ListVehicles).await else {
+        let Some(list) = ask(&coordinator, |r| FleetMsg::ListVehicles(r).into()).await else {
             if coordinator.get_status() == ractor::ActorStatus::Stopped {
                 return;
             }
@@ -379,7 +423,7 @@ async fn record_swarm(
                     continue;
                 }
                 let shared = ask(&coordinator, |r| {
-                    CoordinatorMsg::GetPayload(key.0.clone(), key.1.clone(), r)
+                    PayloadMsg::GetPayload(key.0.clone(), key.1.clone(), r).into()
                 })
                 .await;
                 if let Some(Ok(shared)) = shared {
@@ -393,7 +437,7 @@ async fn record_swarm(
         }
         if last_formation.is_none_or(|t| t.elapsed().as_secs_f64() >= FORMATION_PERIOD_S) {
             last_formation = Some(Instant::now());
-            if let Some(f) = ask(&coordinator, CoordinatorMsg::GetFormation).await
+            if let Some(f) = ask(&coordinator, |r| FormationMsg::GetFormation(r).into()).await
                 && let Ok(v) = serde_json::to_value(&f)
             {
                 put(&tx, channels::FORMATION.into(), Kind::Formation, &v);
@@ -477,5 +521,35 @@ mod tests {
         for bad in ["", "../etc", "a/b", ".hidden", "x y", &"n".repeat(65)] {
             assert_eq!(valid_name(bad), Err(RecordError::BadName(bad.to_string())));
         }
+    }
+
+    /// Events on the bus when the recording stops, not yet read by its task, are
+    /// written all the same (a formation set just before `recording/stop` was lost).
+    #[tokio::test]
+    async fn events_sent_before_the_stop_are_recorded() {
+        let (bus, _) = broadcast::channel(16);
+        let (tx, rx) = mpsc::channel();
+        let (stop_tx, stop) = oneshot::channel();
+        let task = tokio::spawn(record_events(bus.subscribe(), stop, tx));
+        for n in 0..3 {
+            let formation = json!({ "n": n });
+            bus.send(SwarmEvent::FormationChanged { formation })
+                .unwrap();
+        }
+        stop_tx.send(()).unwrap();
+        task.await.unwrap();
+        let written: Vec<Value> = rx
+            .try_iter()
+            .map(|c| match c {
+                Command::Write(e) => serde_json::from_slice(&e.data).unwrap(),
+                Command::Finish(_) => panic!("the events task finished the file"),
+            })
+            .collect();
+        let ns: Vec<Value> = written
+            .iter()
+            .map(|v| v["formation"]["n"].clone())
+            .collect();
+        assert_eq!(ns, [json!(0), json!(1), json!(2)], "{written:?}");
+        assert!(written.iter().all(|v| v["type"] == "formation_changed"));
     }
 }
