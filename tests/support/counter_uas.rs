@@ -135,6 +135,14 @@ impl Skein {
         });
     }
 
+    /// Starts the intruders' passes again from their beginning (90 m before the closest
+    /// point of approach, out of the cameras' view), through the simulator's stats socket:
+    /// a test that waits for them from here does not depend on how long its set-up took.
+    pub fn restart_intruders(&self) {
+        let answer = super::sim_stats(&self.sim_stats_addr(), "intruders restart");
+        assert_eq!(answer["ok"], true, "intruders restart: {answer}");
+    }
+
     /// Points the gimbals of `ids` at `yaw_deg` (earth frame), `pitch_deg` up, and waits
     /// until their cameras report that azimuth.
     pub fn point_gimbals(&self, ids: &[&str], yaw_deg: f64, pitch_deg: f64) {

@@ -16,6 +16,8 @@
 //! - `vehicles` → `{"vehicles":[SimVehicleInfo…]}`
 //! - `intruders` → `{"intruders":[IntruderTruth…]}`: ground truth of the non-cooperative
 //!   aircraft (`--intruders M`, see [`crate::intruders`])
+//! - `intruders restart` → `{"ok":true}`: their paths start again from their beginning
+//!   now ([`Simulator::restart_intruders`]); an error when there are none
 //!
 //! Commands taking a sysid act on the first vehicle with it (sysids repeat beyond 255
 //! vehicles).
@@ -234,7 +236,13 @@ pub fn stats_command(sim: &Simulator, line: &str) -> String {
             serde_json::json!({ "ok": true })
         }),
         "summary" => serde_json::to_value(sim.summary()).map_err(|e| e.to_string()),
-        "intruders" => Ok(serde_json::json!({ "intruders": sim.intruders() })),
+        "intruders" => match words.next() {
+            None => Ok(serde_json::json!({ "intruders": sim.intruders() })),
+            Some("restart") => sim
+                .restart_intruders()
+                .map(|()| serde_json::json!({ "ok": true })),
+            Some(other) => Err(format!("intruders: nothing or restart, got {other:?}")),
+        },
         "link" => link_command(sim, &mut words),
         "mission_fault" => sysid(words.next()).and_then(|id| {
             use skein_mavlink::dialect::MavMissionResult as R;
@@ -424,6 +432,7 @@ mod tests {
             .await
             .expect("start");
         assert_eq!(stats_command(&sim, "intruders"), r#"{"intruders":[]}"#);
+        assert!(stats_command(&sim, "intruders restart").contains("no intruders"));
         sim.start_intruders(cli.sim.intruders.config(cli.sim.seed))
             .expect("intruders");
         let reply: serde_json::Value =
@@ -438,6 +447,35 @@ mod tests {
         // The radio never hears them: no vehicle was added.
         assert_eq!(sim.vehicles().len(), 1);
         assert!(sim.start_intruders(cli.sim.intruders.config(0)).is_err());
+        // A restart puts each back where it started (its truth at t = 0), once it has
+        // flown from there.
+        let at_start = sim.inner.intruders.get().expect("started").truth_at(0.0);
+        let from_start = |sim: &Simulator| -> f64 {
+            let reply: serde_json::Value =
+                serde_json::from_str(&stats_command(sim, "intruders")).expect("json");
+            let list = reply["intruders"].as_array().cloned().unwrap_or_default();
+            list.iter()
+                .zip(&at_start)
+                .map(|(now, start)| {
+                    let p = &now["home_ned_m"];
+                    let dn = p["north_m"].as_f64().unwrap() - start.home_ned_m.north_m;
+                    let de = p["east_m"].as_f64().unwrap() - start.home_ned_m.east_m;
+                    dn.hypot(de)
+                })
+                .fold(0.0, f64::max)
+        };
+        let deadline = std::time::Instant::now() + Duration::from_secs(10);
+        while from_start(&sim) < 3.0 {
+            assert!(
+                std::time::Instant::now() < deadline,
+                "the intruders never left"
+            );
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        assert_eq!(stats_command(&sim, "intruders restart"), r#"{"ok":true}"#);
+        let d = from_start(&sim);
+        assert!(d < 2.0, "{d} m from where they started after a restart");
+        assert!(stats_command(&sim, "intruders again").contains("error"));
         sim.shutdown().await;
     }
 }

@@ -488,6 +488,21 @@ impl Simulator {
             .map_err(|_| "intruders already started".to_string())
     }
 
+    /// Starts the intruders' paths again from their beginning, now: each jumps back to
+    /// where it started (a test starts a pass once its cameras are ready).
+    ///
+    /// # Errors
+    /// No intruders were started.
+    pub fn restart_intruders(&self) -> Result<(), String> {
+        let ints = self
+            .inner
+            .intruders
+            .get()
+            .ok_or("no intruders were started")?;
+        ints.restart(Instant::now());
+        Ok(())
+    }
+
     /// Ground truth of every intruder now (empty without intruders).
     pub fn intruders(&self) -> Vec<intruders::IntruderTruth> {
         self.inner

@@ -34,6 +34,7 @@ use rand::SeedableRng;
 use rand::rngs::SmallRng;
 use serde::Serialize;
 use skein_model::geo::{GeoPoint, Ned, NedFrame};
+use std::sync::Mutex;
 use std::time::Instant;
 
 /// The flight pattern of an intruder.
@@ -154,10 +155,11 @@ mod tests;
 use paths::{Group, Path, crossing, pass, single_path, weaving};
 
 /// The intruders of one simulation run.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct Intruders {
     frame: NedFrame,
-    start: Instant,
+    /// When their paths started (t = 0); [`Intruders::restart`] moves it.
+    start: Mutex<Instant>,
     config: IntruderConfig,
     paths: Vec<(IntruderPattern, Path, Group)>,
 }
@@ -260,7 +262,7 @@ impl Intruders {
         }
         Ok(Intruders {
             frame: NedFrame::new(home),
-            start,
+            start: Mutex::new(start),
             config,
             paths,
         })
@@ -309,11 +311,18 @@ impl Intruders {
 
     /// Ground truth now.
     pub fn truth(&self) -> Vec<IntruderTruth> {
+        let start = *self.start.lock().unwrap_or_else(|p| p.into_inner());
         self.truth_at(
             Instant::now()
-                .saturating_duration_since(self.start)
+                .saturating_duration_since(start)
                 .as_secs_f64(),
         )
+    }
+
+    /// Starts every path again from its beginning at `at` (t = 0 then): each intruder
+    /// jumps back to where it started.
+    pub fn restart(&self, at: Instant) {
+        *self.start.lock().unwrap_or_else(|p| p.into_inner()) = at;
     }
 }
 
