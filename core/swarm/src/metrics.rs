@@ -7,7 +7,7 @@ use prometheus_client::encoding::text::encode;
 use prometheus_client::metrics::counter::Counter;
 use prometheus_client::metrics::family::Family;
 use prometheus_client::metrics::gauge::Gauge;
-use prometheus_client::registry::Registry;
+use prometheus_client::registry::{Metric, Registry};
 use skein_model::supervision::ChildKind;
 use std::sync::atomic::AtomicU64;
 
@@ -76,172 +76,144 @@ impl Default for Metrics {
     }
 }
 
+/// A new metric of type `M`, registered in `registry` as `name` (after the `skein_`
+/// prefix) with `help`; the handle that updates it.
+fn registered<M>(registry: &mut Registry, name: &str, help: &str) -> M
+where
+    M: Metric + Clone + Default,
+{
+    let metric = M::default();
+    registry.register(name, help, metric.clone());
+    metric
+}
+
 fn kind(k: ChildKind) -> Labels {
     vec![("kind".to_string(), k.name().to_string())]
 }
 
 impl Metrics {
-    /// A registry with every skein metric registered.
+    /// A registry with every skein metric registered (in this order on `/metrics`).
     pub fn new() -> Self {
-        let mut registry = Registry::with_prefix("skein");
-        let failures = Family::<Labels, Counter>::default();
-        let restarts = Family::<Labels, Counter>::default();
-        let hangs = Family::<Labels, Counter>::default();
-        let escalations = Family::<Labels, Counter>::default();
-        let vehicles = Gauge::default();
-        let vehicles_connected = Gauge::default();
-        let formation_rms_error_m = Gauge::<f64, AtomicU64>::default();
-        let min_separation_m = Gauge::<f64, AtomicU64>::default();
-        let slot_error_m = Family::<Labels, Gauge<f64, AtomicU64>>::default();
-        let mavlink_malformed = Family::<Labels, Gauge>::default();
-        let setpoints_sent = Family::<Labels, Gauge>::default();
-        let setpoint_max_gap_ms = Family::<Labels, Gauge<f64, AtomicU64>>::default();
-        let mavlink_signing_dropped = Family::<Labels, Gauge>::default();
-        let gcs_forward_frames = Family::<Labels, Gauge>::default();
-        let payload_threads_abandoned = Gauge::default();
-        let tracks = Family::<Labels, Gauge>::default();
-        let dds_samples = Family::<Labels, Gauge>::default();
-        registry.register(
-            "dds_samples",
-            "DDS link samples since the start: published, failed writes, commands taken, \
-             malformed samples dropped",
-            dds_samples.clone(),
-        );
-        let dds_security_refusals = Family::<Labels, Gauge>::default();
-        registry.register(
-            "dds_security_refusals",
-            "What DDS Security refused since the start, by reason: participants without a \
-             certificate (unauthenticated), from another CA (identity), failed handshakes, \
-             invalid or expired permissions, endpoints the permissions do not grant \
-             (access_control), secured messages that failed to authenticate or decrypt \
-             (undecodable), samples of authentic messages RTPS had already delivered (replay)",
-            dds_security_refusals.clone(),
-        );
-        let tracker_totals = Family::<Labels, Gauge>::default();
-        let load = Family::<Labels, Gauge<f64, AtomicU64>>::default();
-        registry.register(
-            "load",
-            "How late the process runs and what it did about it: lag_ms (now), max_lag_ms \
-             (last 30 s), shedding (1 while optional work yields), shedding_episodes, \
-             tick_overruns (actor ticks skipped), watchdog_late (late pings forgiven while the \
-             process was late), calls_extended (payload calls given more time), \
-             restarts_deferred (held back by the tree's restart rate limit)",
-            load.clone(),
-        );
-        let shed = Family::<Labels, Gauge>::default();
-        registry.register(
-            "shed",
-            "Units of optional work shed while short of CPU, by work (snapshots, dashboard, dds)",
-            shed.clone(),
-        );
-        registry.register(
-            "tracks",
-            "Tracks of non-cooperative aircraft, by status",
-            tracks.clone(),
-        );
-        registry.register(
-            "tracker",
-            "Counter-UAS tracker totals since the start: bearings received, excluded as swarm \
-             members, associated; tracks created, confirmed, lost, deleted",
-            tracker_totals.clone(),
-        );
-        registry.register(
-            "actor_failures",
-            "Supervised actor failures (panic, error, hang), by actor kind",
-            failures.clone(),
-        );
-        registry.register(
-            "actor_restarts",
-            "Supervised actor restarts, by actor kind",
-            restarts.clone(),
-        );
-        registry.register(
-            "actor_hangs",
-            "Actors killed by the watchdog for not answering, by actor kind",
-            hangs.clone(),
-        );
-        registry.register(
-            "actor_escalations",
-            "Restart budgets spent (escalated to the parent), by actor kind",
-            escalations.clone(),
-        );
-        registry.register("vehicles", "Vehicles known", vehicles.clone());
-        registry.register(
-            "vehicles_connected",
-            "Vehicles with a live link",
-            vehicles_connected.clone(),
-        );
-        registry.register(
-            "formation_rms_error_m",
-            "Root mean square of the formation slot errors, metres",
-            formation_rms_error_m.clone(),
-        );
-        registry.register(
-            "min_separation_m",
-            "Smallest distance between two airborne vehicles, metres",
-            min_separation_m.clone(),
-        );
-        registry.register(
-            "slot_error_m",
-            "Distance from each vehicle to its formation slot, metres",
-            slot_error_m.clone(),
-        );
-        registry.register(
-            "mavlink_malformed_frames",
-            "MAVLink input dropped as malformed (bad CRC, unknown id, garbage), per endpoint",
-            mavlink_malformed.clone(),
-        );
-        registry.register(
-            "mavlink_signing_dropped_frames",
-            "MAVLink frames dropped by MAVLink 2 signing checks (unsigned, bad signature, \
-             replayed, too old), per endpoint",
-            mavlink_signing_dropped.clone(),
-        );
-        registry.register(
-            "gcs_forward_frames",
-            "Ground-station forwarding: frames to and from the ground station and dropped, by kind",
-            gcs_forward_frames.clone(),
-        );
-        registry.register(
-            "setpoints_sent",
-            "Offboard setpoints sent, per vehicle",
-            setpoints_sent.clone(),
-        );
-        registry.register(
-            "setpoint_max_gap_ms",
-            "Longest pause of each vehicle's offboard setpoint stream while streaming, ms \
-             (PX4 fails safe after COM_OF_LOSS_T, 1 s; skein keeps it under 100 ms)",
-            setpoint_max_gap_ms.clone(),
-        );
-        registry.register(
-            "payload_driver_threads_abandoned",
-            "Payload driver threads given up because a plugin call did not return within its \
-             deadline (each still holds its stuck driver)",
-            payload_threads_abandoned.clone(),
-        );
+        let mut r = Registry::with_prefix("skein");
         Metrics {
-            registry,
-            failures,
-            restarts,
-            hangs,
-            escalations,
-            vehicles,
-            vehicles_connected,
-            formation_rms_error_m,
-            min_separation_m,
-            slot_error_m,
-            mavlink_malformed,
-            setpoints_sent,
-            setpoint_max_gap_ms,
-            mavlink_signing_dropped,
-            gcs_forward_frames,
-            payload_threads_abandoned,
-            dds_samples,
-            dds_security_refusals,
-            tracks,
-            tracker_totals,
-            load,
-            shed,
+            dds_samples: registered(
+                &mut r,
+                "dds_samples",
+                "DDS link samples since the start: published, failed writes, commands taken, \
+                 malformed samples dropped",
+            ),
+            dds_security_refusals: registered(
+                &mut r,
+                "dds_security_refusals",
+                "What DDS Security refused since the start, by reason: participants without a \
+                 certificate (unauthenticated), from another CA (identity), failed handshakes, \
+                 invalid or expired permissions, endpoints the permissions do not grant \
+                 (access_control), secured messages that failed to authenticate or decrypt \
+                 (undecodable), samples of authentic messages RTPS had already delivered \
+                 (replay)",
+            ),
+            load: registered(
+                &mut r,
+                "load",
+                "How late the process runs and what it did about it: lag_ms (now), max_lag_ms \
+                 (last 30 s), shedding (1 while optional work yields), shedding_episodes, \
+                 tick_overruns (actor ticks skipped), watchdog_late (late pings forgiven while \
+                 the process was late), calls_extended (payload calls given more time), \
+                 restarts_deferred (held back by the tree's restart rate limit)",
+            ),
+            shed: registered(
+                &mut r,
+                "shed",
+                "Units of optional work shed while short of CPU, by work (snapshots, dashboard, \
+                 dds)",
+            ),
+            tracks: registered(
+                &mut r,
+                "tracks",
+                "Tracks of non-cooperative aircraft, by status",
+            ),
+            tracker_totals: registered(
+                &mut r,
+                "tracker",
+                "Counter-UAS tracker totals since the start: bearings received, excluded as \
+                 swarm members, associated; tracks created, confirmed, lost, deleted",
+            ),
+            failures: registered(
+                &mut r,
+                "actor_failures",
+                "Supervised actor failures (panic, error, hang), by actor kind",
+            ),
+            restarts: registered(
+                &mut r,
+                "actor_restarts",
+                "Supervised actor restarts, by actor kind",
+            ),
+            hangs: registered(
+                &mut r,
+                "actor_hangs",
+                "Actors killed by the watchdog for not answering, by actor kind",
+            ),
+            escalations: registered(
+                &mut r,
+                "actor_escalations",
+                "Restart budgets spent (escalated to the parent), by actor kind",
+            ),
+            vehicles: registered(&mut r, "vehicles", "Vehicles known"),
+            vehicles_connected: registered(
+                &mut r,
+                "vehicles_connected",
+                "Vehicles with a live link",
+            ),
+            formation_rms_error_m: registered(
+                &mut r,
+                "formation_rms_error_m",
+                "Root mean square of the formation slot errors, metres",
+            ),
+            min_separation_m: registered(
+                &mut r,
+                "min_separation_m",
+                "Smallest distance between two airborne vehicles, metres",
+            ),
+            slot_error_m: registered(
+                &mut r,
+                "slot_error_m",
+                "Distance from each vehicle to its formation slot, metres",
+            ),
+            mavlink_malformed: registered(
+                &mut r,
+                "mavlink_malformed_frames",
+                "MAVLink input dropped as malformed (bad CRC, unknown id, garbage), per endpoint",
+            ),
+            mavlink_signing_dropped: registered(
+                &mut r,
+                "mavlink_signing_dropped_frames",
+                "MAVLink frames dropped by MAVLink 2 signing checks (unsigned, bad signature, \
+                 replayed, too old), per endpoint",
+            ),
+            gcs_forward_frames: registered(
+                &mut r,
+                "gcs_forward_frames",
+                "Ground-station forwarding: frames to and from the ground station and dropped, \
+                 by kind",
+            ),
+            setpoints_sent: registered(
+                &mut r,
+                "setpoints_sent",
+                "Offboard setpoints sent, per vehicle",
+            ),
+            setpoint_max_gap_ms: registered(
+                &mut r,
+                "setpoint_max_gap_ms",
+                "Longest pause of each vehicle's offboard setpoint stream while streaming, ms \
+                 (PX4 fails safe after COM_OF_LOSS_T, 1 s; skein keeps it under 100 ms)",
+            ),
+            payload_threads_abandoned: registered(
+                &mut r,
+                "payload_driver_threads_abandoned",
+                "Payload driver threads given up because a plugin call did not return within \
+                 its deadline (each still holds its stuck driver)",
+            ),
+            registry: r,
         }
     }
 
