@@ -28,7 +28,7 @@
 //! - [`probe`]: a listener of the pose topics (`skein bench dds`);
 //! - [`security`]: DDS Security (SROS 2 keystores and enclaves, permissions by role).
 //!
-//! The roles' scenario tests (`src/scenarios/`) wire several processes together on the
+//! The roles' scenario tests (`src/role_tests/`, test scaffolding) wire several processes together on the
 //! in-memory carrier, on tokio's paused clock.
 //!
 //! The domain is `--domain-id`, else `ROS_DOMAIN_ID`, else 0 ([`domain_id_from_env`]).
@@ -55,7 +55,7 @@ pub mod reframe;
 pub mod remote;
 pub mod ride;
 #[cfg(test)]
-mod scenarios;
+mod role_tests;
 pub mod security;
 pub mod swarm_adapter;
 pub mod tf;

@@ -3,8 +3,10 @@
 //! (a lost vehicle) flies it on a layer above or below it ([`Climb`]), chosen by its
 //! clearance from every such [`Keepout`] along the whole three-phase path.
 
-use super::transition::TRANSIT_CLIMB_M_S;
 use skein_model::geo::Ned;
+
+/// Vertical speed of a transition relative to the pattern, m/s (under PX4's descent limit).
+pub const TRANSIT_CLIMB_M_S: f64 = 1.0;
 
 /// The layer of a follower that passes a leader vehicle during a transition.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -4,6 +4,7 @@
 //! followers whose line would pass a leader vehicle fly it on a layer above (or below)
 //! it ([`Climb`]), reached before and left after the horizontal motion.
 
+pub use super::climb::TRANSIT_CLIMB_M_S;
 use super::climb::{Climb, Keepout};
 use skein_model::geo::Ned;
 use std::collections::BTreeMap;
@@ -11,8 +12,6 @@ use std::collections::BTreeMap;
 /// Speed of the longest path of a transition relative to the pattern, m/s (a formation
 /// moving at 5 m/s stays within the 8 m/s default vehicle limit).
 pub const TRANSIT_SPEED_M_S: f64 = 2.5;
-/// Vertical speed of a transition relative to the pattern, m/s (under PX4's descent limit).
-pub const TRANSIT_CLIMB_M_S: f64 = 1.0;
 /// Acceleration of a transition's time scale along the longest path, m/s².
 pub const TRANSIT_ACCEL_M_S2: f64 = 0.5;
 /// A member this far behind its planned place slows the transition's time scale down…

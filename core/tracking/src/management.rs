@@ -4,11 +4,8 @@
 
 use super::filter::ConstantVelocity;
 use super::geometry::{Ray, closest_approach, fuse_rays};
-use super::tracker::{Track, TrackEvent, TrackStatus, Tracker, us_to_s};
+use super::tracker::{NEW_VELOCITY_SIGMA_M_S, Track, TrackEvent, TrackStatus, Tracker, us_to_s};
 use nalgebra::{Matrix3, Vector3};
-
-/// Velocity uncertainty of a new (or restarted) track, m/s per axis.
-pub(super) const NEW_VELOCITY_SIGMA_M_S: f64 = 8.0;
 
 /// Two tracks two observers each fixed this recently are two aircraft, not the halves of
 /// one split over two cameras, seconds (see [`Tracker::join_split`]).

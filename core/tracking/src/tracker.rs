@@ -48,10 +48,12 @@
 
 use super::filter::ConstantVelocity;
 use super::geometry::{Ray, RayNoise, fuse_rays, perp};
-use super::management::NEW_VELOCITY_SIGMA_M_S;
 use nalgebra::{Matrix3, Vector3};
 use pathfinding::prelude::{Matrix, kuhn_munkres_min};
 use std::collections::BTreeMap;
+
+/// Velocity uncertainty of a new (or restarted) track, m/s per axis.
+pub(super) const NEW_VELOCITY_SIGMA_M_S: f64 = 8.0;
 
 pub use super::track::TrackerConfig;
 pub(super) use skein_protocol::tracks::{

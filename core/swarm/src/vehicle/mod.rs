@@ -24,17 +24,17 @@
 //! - [`payloads`]: payload slots waiting for plugins, plugin loads and unloads, run-time
 //!   attach and detach.
 
-mod children;
-pub mod commands;
 pub mod control;
 pub mod fence;
 pub mod fleet;
+pub mod fsm_events;
 pub mod messages;
 pub mod payload_host;
 mod payloads;
 pub mod procedures;
 pub mod shared;
 pub mod slot_correction;
+mod supervisor;
 
 pub use control::ARRIVAL_TOLERANCE_M;
 pub use messages::{AfterStop, Child, ProcedureStep, VehicleArgs, VehicleMsg};

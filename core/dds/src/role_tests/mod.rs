@@ -8,9 +8,9 @@
 //! The end-to-end tests (`tests/e2e_distributed.rs`, `e2e_failover.rs`, `e2e_dds.rs`)
 //! prove the same roles on real DDS, between processes and hosts.
 
-mod agent;
-mod mirror;
-mod remote;
+mod agent_role_tests;
+mod mirror_role_tests;
+mod remote_role_tests;
 
 use crate::agent::AgentContext;
 use crate::carrier::TopicWriter;
