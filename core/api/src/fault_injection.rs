@@ -9,7 +9,7 @@ use axum::Json;
 use axum::body::Bytes;
 use axum::extract::State;
 use axum::http::StatusCode;
-use skein_swarm::CoordinatorMsg;
+use skein_swarm::AdminMsg;
 
 /// Inject a fault into an actor (only with --enable-fault-injection)
 #[utoipa::path(post, path = "/api/v1/faults", request_body = FaultRequest,
@@ -21,7 +21,7 @@ pub(crate) async fn inject_fault(
 ) -> Result<(StatusCode, Json<FaultInjected>), ApiError> {
     let (target, kind) = crate::requests::faults::fault(&body)?;
     let t = target.clone();
-    s.ask(move |r| CoordinatorMsg::InjectFault(t, kind, r))
+    s.ask(move |r| AdminMsg::InjectFault(t, kind, r).into())
         .await??;
     Ok((StatusCode::ACCEPTED, Json(FaultInjected { target, kind })))
 }

@@ -20,7 +20,7 @@ use axum::body::Bytes;
 use axum::extract::State;
 use skein_model::formation::Shape;
 use skein_swarm::formation::LeaderMotion;
-use skein_swarm::{CoordinatorMsg, FormationStatus};
+use skein_swarm::{FormationMsg, FormationStatus};
 
 /// The formation status
 #[utoipa::path(get, path = "/api/v1/formation",
@@ -28,7 +28,7 @@ use skein_swarm::{CoordinatorMsg, FormationStatus};
 pub(crate) async fn get_formation(
     State(s): State<ApiState>,
 ) -> Result<Json<FormationStatus>, ApiError> {
-    Ok(Json(s.ask(CoordinatorMsg::GetFormation).await?))
+    Ok(Json(s.ask(|r| FormationMsg::GetFormation(r).into()).await?))
 }
 
 /// Fly a formation
@@ -48,7 +48,7 @@ pub(crate) async fn put_formation(
 ) -> Result<Json<FormationStatus>, ApiError> {
     let spec = crate::requests::formation::formation(&body)?;
     Ok(Json(
-        s.ask(move |r| CoordinatorMsg::SetFormation(spec, r))
+        s.ask(move |r| FormationMsg::SetFormation(spec, r).into())
             .await??,
     ))
 }
@@ -59,7 +59,9 @@ pub(crate) async fn put_formation(
 pub(crate) async fn delete_formation(
     State(s): State<ApiState>,
 ) -> Result<Json<FormationStatus>, ApiError> {
-    Ok(Json(s.ask(CoordinatorMsg::ClearFormation).await?))
+    Ok(Json(
+        s.ask(|r| FormationMsg::ClearFormation(r).into()).await?,
+    ))
 }
 
 /// The shapes, with the fewest vehicles each needs
@@ -84,7 +86,7 @@ async fn move_leader(
     motion: LeaderMotion,
 ) -> Result<Json<FormationStatus>, ApiError> {
     Ok(Json(
-        s.ask(move |r| CoordinatorMsg::LeaderMotion(motion, r))
+        s.ask(move |r| FormationMsg::LeaderMotion(motion, r).into())
             .await??,
     ))
 }

@@ -9,7 +9,7 @@ use axum::Json;
 use axum::body::Bytes;
 use axum::extract::State;
 use skein_model::geofence::Geofence;
-use skein_swarm::CoordinatorMsg;
+use skein_swarm::GeofenceMsg;
 use skein_swarm::coordinator::geofence::{FenceChange, FenceRefusal};
 
 /// The top-level field of a path (`exclusions[1].polygon` → `exclusions`): what an
@@ -35,7 +35,7 @@ impl From<FenceRefusal> for ApiError {
 #[utoipa::path(get, path = "/api/v1/geofence",
     responses((status = 200, body = Geofence), (status = 503)))]
 pub(crate) async fn get_geofence(State(s): State<ApiState>) -> Result<Json<Geofence>, ApiError> {
-    let live = s.ask(CoordinatorMsg::GetGeofence).await?;
+    let live = s.ask(|r| GeofenceMsg::GetGeofence(r).into()).await?;
     Ok(Json(live.fence.clone()))
 }
 
@@ -65,7 +65,7 @@ pub(crate) async fn put_geofence(
         e
     })?;
     let change = s
-        .ask(move |r| CoordinatorMsg::SetGeofence(fence, r))
+        .ask(move |r| GeofenceMsg::SetGeofence(fence, r).into())
         .await??;
     Ok(Json(change))
 }

@@ -23,7 +23,7 @@ use axum::body::Bytes;
 use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use serde_json::Value;
-use skein_swarm::CoordinatorMsg;
+use skein_swarm::{FleetMsg, PayloadMsg};
 
 pub use crate::requests::payloads::parse_attach;
 
@@ -36,7 +36,7 @@ pub use crate::requests::payloads::parse_attach;
 /// 404 for an unknown vehicle, 409 as above, 503 without an answer from the coordinator.
 pub async fn require_running(s: &ApiState, id: &str, slot: &str) -> Result<(), ApiError> {
     let id2 = id.to_string();
-    let Some(vehicle) = s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r)).await? else {
+    let Some(vehicle) = s.ask(move |r| FleetMsg::GetVehicle(id2, r).into()).await? else {
         return Err(ApiError::no_vehicle(id));
     };
     let Some(p) = vehicle.payloads.iter().find(|p| p["slot"] == slot) else {
@@ -65,7 +65,7 @@ pub(crate) async fn list_payloads(
     Path(VehicleId { id }): Path<VehicleId>,
 ) -> Result<Json<Vec<Value>>, ApiError> {
     let id2 = id.clone();
-    s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r))
+    s.ask(move |r| FleetMsg::GetVehicle(id2, r).into())
         .await?
         .map(|v| Json(v.payloads))
         .ok_or_else(|| ApiError::no_vehicle(&id))
@@ -87,7 +87,7 @@ pub(crate) async fn payload_command(
     let cmd = Value::Object(crate::requests::object(&body)?);
     require_running(&s, &id, &slot).await?;
     Ok(Json(
-        s.ask(move |r| CoordinatorMsg::PayloadCommand(id, slot, cmd, r))
+        s.ask(move |r| PayloadMsg::PayloadCommand(id, slot, cmd, r).into())
             .await??,
     ))
 }
@@ -111,7 +111,7 @@ pub(crate) async fn attach_payload(
 ) -> Result<(StatusCode, Json<Value>), ApiError> {
     let spec = parse_attach(&body)?;
     let payload = s
-        .ask(move |r| CoordinatorMsg::AttachPayload(id, spec, r))
+        .ask(move |r| PayloadMsg::AttachPayload(id, spec, r).into())
         .await??;
     Ok((StatusCode::CREATED, Json(payload)))
 }
@@ -125,7 +125,7 @@ pub(crate) async fn detach_payload(
     Path(PayloadSlot { id, slot }): Path<PayloadSlot>,
 ) -> Result<Json<Value>, ApiError> {
     Ok(Json(
-        s.ask(move |r| CoordinatorMsg::DetachPayload(id, slot, r))
+        s.ask(move |r| PayloadMsg::DetachPayload(id, slot, r).into())
             .await??,
     ))
 }

@@ -13,7 +13,7 @@ use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use ractor::ActorRef;
 use skein_link::{LinkError, Px4LinkMsg};
-use skein_swarm::CoordinatorMsg;
+use skein_swarm::FleetMsg;
 use skein_swarm::payload::PayloadCommandError;
 use std::time::Duration;
 
@@ -23,7 +23,7 @@ const PARAM_TIMEOUT: Duration = Duration::from_secs(15);
 /// The PX4 link of vehicle `id`: 404 for an unknown vehicle, 503 when it has none now.
 async fn link_of(s: &ApiState, id: &str) -> Result<ActorRef<Px4LinkMsg>, ApiError> {
     let id2 = id.to_string();
-    match s.ask(move |r| CoordinatorMsg::GetLink(id2, r)).await? {
+    match s.ask(move |r| FleetMsg::GetLink(id2, r).into()).await? {
         Ok(link) => Ok(link),
         Err(PayloadCommandError::Refused(why)) => Err(ApiError::unavailable(why)),
         Err(e) => Err(e.into()),

@@ -8,8 +8,8 @@ use axum::extract::State;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::response::Response;
 use ractor::ActorRef;
-use skein_swarm::CoordinatorMsg;
 use skein_swarm::load::ShedWork;
+use skein_swarm::{AdminMsg, CoordinatorMsg, FleetMsg, FormationMsg};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::broadcast;
@@ -37,7 +37,7 @@ pub(crate) async fn publish_telemetry(
         }
         if load.is_none()
             && let Ok(ractor::rpc::CallResult::Success(l)) = coordinator
-                .call(CoordinatorMsg::GetLoad, Some(COORDINATOR_TIMEOUT))
+                .call(|r| AdminMsg::GetLoad(r).into(), Some(COORDINATOR_TIMEOUT))
                 .await
         {
             load = Some(l);
@@ -49,7 +49,10 @@ pub(crate) async fn publish_telemetry(
             continue;
         }
         let Ok(ractor::rpc::CallResult::Success(list)) = coordinator
-            .call(CoordinatorMsg::ListVehicles, Some(COORDINATOR_TIMEOUT))
+            .call(
+                |r| FleetMsg::ListVehicles(r).into(),
+                Some(COORDINATOR_TIMEOUT),
+            )
             .await
         else {
             if coordinator.get_status() == ractor::ActorStatus::Stopped {
@@ -58,7 +61,10 @@ pub(crate) async fn publish_telemetry(
             continue;
         };
         let formation = match coordinator
-            .call(CoordinatorMsg::GetFormation, Some(COORDINATOR_TIMEOUT))
+            .call(
+                |r| FormationMsg::GetFormation(r).into(),
+                Some(COORDINATOR_TIMEOUT),
+            )
             .await
         {
             Ok(ractor::rpc::CallResult::Success(f)) => Some(serde_json::json!({
@@ -89,7 +95,7 @@ async fn stream_session(mut socket: WebSocket, s: ApiState) {
     let mut events = s.events.subscribe();
     let mut telemetry = s.telemetry.subscribe();
     // Send the current picture at once so a new dashboard is never empty for a tick.
-    if let Ok(list) = s.ask(CoordinatorMsg::ListVehicles).await {
+    if let Ok(list) = s.ask(|r| FleetMsg::ListVehicles(r).into()).await {
         let frame = serde_json::json!({"type": "vehicles", "vehicles": list});
         if socket
             .send(Message::Text(frame.to_string().into()))

@@ -8,15 +8,15 @@ use axum::Json;
 use axum::extract::State;
 use axum::http::header;
 use axum::response::{IntoResponse, Response};
-use skein_swarm::CoordinatorMsg;
 use skein_swarm::coordinator::messages::{EndpointStats, Health};
 use skein_swarm::supervision::TreeNode;
+use skein_swarm::{AdminMsg, FleetMsg};
 
 /// Swarm health (never needs a token)
 #[utoipa::path(get, path = "/api/v1/health",
     responses((status = 200, body = Health), (status = 503)))]
 pub(crate) async fn health(State(s): State<ApiState>) -> Result<Json<Health>, ApiError> {
-    let mut h = s.ask(CoordinatorMsg::Health).await?;
+    let mut h = s.ask(|r| AdminMsg::Health(r).into()).await?;
     h.coordinator_role = s.election.as_ref().map(|e| e.borrow().role);
     Ok(Json(h))
 }
@@ -27,7 +27,7 @@ pub(crate) async fn health(State(s): State<ApiState>) -> Result<Json<Health>, Ap
 pub(crate) async fn supervision_tree(
     State(s): State<ApiState>,
 ) -> Result<Json<TreeNode>, ApiError> {
-    Ok(Json(s.ask(CoordinatorMsg::GetSupervision).await?))
+    Ok(Json(s.ask(|r| AdminMsg::GetSupervision(r).into()).await?))
 }
 
 /// Prometheus / OpenMetrics counters
@@ -35,7 +35,7 @@ pub(crate) async fn supervision_tree(
     responses((status = 200, body = String, content_type = "application/openmetrics-text"),
         (status = 503)))]
 pub(crate) async fn metrics(State(s): State<ApiState>) -> Result<Response, ApiError> {
-    let text = s.ask(CoordinatorMsg::RenderMetrics).await?;
+    let text = s.ask(|r| AdminMsg::RenderMetrics(r).into()).await?;
     Ok((
         [(
             header::CONTENT_TYPE,
@@ -50,5 +50,5 @@ pub(crate) async fn metrics(State(s): State<ApiState>) -> Result<Response, ApiEr
 #[utoipa::path(get, path = "/api/v1/links",
     responses((status = 200, body = [EndpointStats]), (status = 503)))]
 pub(crate) async fn links(State(s): State<ApiState>) -> Result<Json<Vec<EndpointStats>>, ApiError> {
-    Ok(Json(s.ask(CoordinatorMsg::LinkStats).await?))
+    Ok(Json(s.ask(|r| FleetMsg::LinkStats(r).into()).await?))
 }

@@ -24,7 +24,7 @@ use axum::Json;
 use axum::body::Bytes;
 use axum::extract::{Path, State};
 use serde::Serialize;
-use skein_swarm::CoordinatorMsg;
+use skein_swarm::TrackingMsg;
 use skein_swarm::coordinator::observe::{ObserveRefusal, ObserveSpec};
 use skein_swarm::coordinator::stations::StationsView;
 use skein_swarm::tracks::SwarmView;
@@ -73,7 +73,7 @@ pub struct ReleasedSwarm {
 pub(crate) async fn list_swarms(
     State(s): State<ApiState>,
 ) -> Result<Json<SwarmsListing>, ApiError> {
-    let picture = s.ask(CoordinatorMsg::GetAirPicture).await?;
+    let picture = s.ask(|r| TrackingMsg::GetAirPicture(r).into()).await?;
     let swarms = picture
         .swarms
         .into_iter()
@@ -121,7 +121,9 @@ pub(crate) async fn observe_swarm(
         ))
         .into());
     }
-    let vehicles = s.ask(move |r| CoordinatorMsg::Observe(spec, r)).await??;
+    let vehicles = s
+        .ask(move |r| TrackingMsg::Observe(spec, r).into())
+        .await??;
     Ok(Json(ObservingSwarm {
         swarm: id,
         vehicles,
@@ -137,7 +139,7 @@ pub(crate) async fn stop_observing_swarm(
 ) -> Result<Json<ReleasedSwarm>, ApiError> {
     let swarm = id.clone();
     let released = s
-        .ask(move |r| CoordinatorMsg::StopObserving(swarm, r))
+        .ask(move |r| TrackingMsg::StopObserving(swarm, r).into())
         .await?;
     Ok(Json(ReleasedSwarm {
         swarm: id,

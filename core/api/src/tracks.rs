@@ -30,7 +30,7 @@ use axum::Json;
 use axum::body::Bytes;
 use axum::extract::{Path, State};
 use serde::Serialize;
-use skein_swarm::CoordinatorMsg;
+use skein_swarm::TrackingMsg;
 use skein_swarm::coordinator::observe::ObserveSpec;
 use skein_swarm::coordinator::stations::StationsView;
 use skein_swarm::tracks::TrackView;
@@ -79,7 +79,7 @@ pub struct Released {
 pub(crate) async fn list_tracks(
     State(s): State<ApiState>,
 ) -> Result<Json<TracksListing>, ApiError> {
-    let picture = s.ask(CoordinatorMsg::GetAirPicture).await?;
+    let picture = s.ask(|r| TrackingMsg::GetAirPicture(r).into()).await?;
     let tracks = picture
         .tracks
         .into_iter()
@@ -128,7 +128,9 @@ pub(crate) async fn observe(
         stations: req.stations.unwrap_or(false),
         standoff_m: req.standoff_m,
     };
-    let vehicles = s.ask(move |r| CoordinatorMsg::Observe(spec, r)).await??;
+    let vehicles = s
+        .ask(move |r| TrackingMsg::Observe(spec, r).into())
+        .await??;
     Ok(Json(Observing {
         track: id,
         vehicles,
@@ -144,7 +146,7 @@ pub(crate) async fn stop_observing(
 ) -> Result<Json<Released>, ApiError> {
     let track = id.clone();
     let released = s
-        .ask(move |r| CoordinatorMsg::StopObserving(track, r))
+        .ask(move |r| TrackingMsg::StopObserving(track, r).into())
         .await?;
     Ok(Json(Released {
         track: id,
@@ -160,7 +162,7 @@ pub(crate) async fn stop_observing(
 pub(crate) async fn sim_truth(
     State(s): State<ApiState>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    s.ask(CoordinatorMsg::GetSimTruth)
+    s.ask(|r| TrackingMsg::GetSimTruth(r).into())
         .await?
         .map(Json)
         .ok_or_else(|| {

@@ -17,7 +17,7 @@ use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use skein_model::vehicle::VehicleSnapshot;
-use skein_swarm::{CommandOutcome, CoordinatorMsg};
+use skein_swarm::{CommandMsg, CommandOutcome, FleetMsg, FormationMsg};
 
 /// Every vehicle, sorted by id.
 #[utoipa::path(get, path = "/api/v1/vehicles",
@@ -25,7 +25,7 @@ use skein_swarm::{CommandOutcome, CoordinatorMsg};
 pub(crate) async fn list_vehicles(
     State(s): State<ApiState>,
 ) -> Result<Json<Vec<VehicleSnapshot>>, ApiError> {
-    Ok(Json(s.ask(CoordinatorMsg::ListVehicles).await?))
+    Ok(Json(s.ask(|r| FleetMsg::ListVehicles(r).into()).await?))
 }
 
 /// One vehicle.
@@ -36,7 +36,7 @@ pub(crate) async fn get_vehicle(
     Path(VehicleId { id }): Path<VehicleId>,
 ) -> Result<Json<VehicleSnapshot>, ApiError> {
     let id2 = id.clone();
-    s.ask(move |r| CoordinatorMsg::GetVehicle(id2, r))
+    s.ask(move |r| FleetMsg::GetVehicle(id2, r).into())
         .await?
         .map(Json)
         .ok_or_else(|| ApiError::no_vehicle(&id))
@@ -71,14 +71,14 @@ pub(crate) async fn vehicle_command(
     let id2 = id.clone();
     match commands::vehicle_command(&body)? {
         Command::ClearHazard => {
-            s.ask(move |r| CoordinatorMsg::ClearHazard(id2, r))
+            s.ask(move |r| FormationMsg::ClearHazard(id2, r).into())
                 .await?
                 .map_err(|e| refused(&id, e))?;
             Ok(Json(Cleared { cleared: id }).into_response())
         }
         cmd => {
             let outcome = s
-                .ask(move |r| CoordinatorMsg::VehicleCommand(id2, cmd, r))
+                .ask(move |r| CommandMsg::VehicleCommand(id2, cmd, r).into())
                 .await?
                 .map_err(|e| refused(&id, e))?;
             s.record_command(outcome.command_id, &id, &body);
@@ -99,7 +99,9 @@ pub(crate) async fn swarm_command(
     body: Bytes,
 ) -> Result<Response, ApiError> {
     let cmd = commands::swarm_command(&body)?;
-    let outcome = s.ask(move |r| CoordinatorMsg::SwarmCommand(cmd, r)).await?;
+    let outcome = s
+        .ask(move |r| CommandMsg::SwarmCommand(cmd, r).into())
+        .await?;
     if outcome.accepted.is_empty() {
         let error = if outcome.refused.is_empty() {
             "no vehicles in the swarm".to_string()

@@ -10,14 +10,14 @@ use axum::body::Bytes;
 use axum::extract::{Path, State};
 use axum::http::header;
 use axum::response::{IntoResponse, Response};
-use skein_swarm::CoordinatorMsg;
+use skein_swarm::PayloadMsg;
 
 async fn payload_of(
     s: &ApiState,
     id: String,
     slot: String,
 ) -> Result<std::sync::Arc<skein_swarm::payload::PayloadShared>, ApiError> {
-    s.ask(move |r| CoordinatorMsg::GetPayload(id, slot, r))
+    s.ask(move |r| PayloadMsg::GetPayload(id, slot, r).into())
         .await?
         .map_err(ApiError::not_found)
 }

@@ -6,7 +6,7 @@ use crate::round;
 use crate::sim_process::*;
 use crate::stack::*;
 use serde_json::{Value, json};
-use skein_swarm::{CoordinatorMsg, Swarm, SwarmServices};
+use skein_swarm::{AdminMsg, Swarm, SwarmServices};
 use std::time::{Duration, Instant};
 
 /// `skein bench restart`.
@@ -152,7 +152,7 @@ async fn panic_payloads(
         match swarm
             .coordinator
             .call(
-                move |r| CoordinatorMsg::InjectFault(target, FaultKind::Panic, r),
+                move |r| AdminMsg::InjectFault(target, FaultKind::Panic, r).into(),
                 Some(COORDINATOR_TIMEOUT),
             )
             .await

@@ -8,7 +8,8 @@ use skein_link::{Identity, LinkSetup, TelemetryProfile};
 use skein_model::fsm::VehicleState;
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::{
-    Command, CoordinatorMsg, EndpointSpec, Swarm, SwarmConfig, SwarmServices, VehicleSpec,
+    AdminMsg, Command, CommandMsg, EndpointSpec, FleetMsg, Swarm, SwarmConfig, SwarmServices,
+    VehicleSpec,
 };
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::time::{Duration, Instant};
@@ -107,7 +108,10 @@ pub(crate) async fn start_swarm(
 pub(crate) async fn list_vehicles(swarm: &Swarm) -> Result<Vec<VehicleSnapshot>, String> {
     match swarm
         .coordinator
-        .call(CoordinatorMsg::ListVehicles, Some(COORDINATOR_TIMEOUT))
+        .call(
+            |r| FleetMsg::ListVehicles(r).into(),
+            Some(COORDINATOR_TIMEOUT),
+        )
         .await
     {
         Ok(ractor::rpc::CallResult::Success(v)) => Ok(v),
@@ -128,7 +132,7 @@ pub(crate) async fn command(
         return match swarm
             .coordinator
             .call(
-                move |r| CoordinatorMsg::SwarmCommand(c, r),
+                move |r| CommandMsg::SwarmCommand(c, r).into(),
                 Some(COORDINATOR_TIMEOUT),
             )
             .await
@@ -146,7 +150,7 @@ pub(crate) async fn command(
         match swarm
             .coordinator
             .call(
-                move |r| CoordinatorMsg::VehicleCommand(i, c, r),
+                move |r| CommandMsg::VehicleCommand(i, c, r).into(),
                 Some(COORDINATOR_TIMEOUT),
             )
             .await
@@ -248,7 +252,10 @@ pub(crate) fn skein_send_errors(swarm: &Swarm) -> u64 {
 pub(crate) async fn skein_setpoints_sent(swarm: &Swarm) -> Result<u64, String> {
     let text = match swarm
         .coordinator
-        .call(CoordinatorMsg::RenderMetrics, Some(COORDINATOR_TIMEOUT))
+        .call(
+            |r| AdminMsg::RenderMetrics(r).into(),
+            Some(COORDINATOR_TIMEOUT),
+        )
         .await
     {
         Ok(ractor::rpc::CallResult::Success(t)) => t,

@@ -24,7 +24,10 @@ use skein_swarm::load::{LoadMonitor, ShedWork};
 use skein_swarm::metrics::Metrics;
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehicleReport};
 use skein_swarm::tracks::TrackView;
-use skein_swarm::{Command, CoordinatorMsg, DistributedMsg, RemoteVehicle, SwarmEvent};
+use skein_swarm::{
+    AdminMsg, Command, CommandMsg, CoordinatorMsg, DistributedMsg, FleetMsg, RemoteVehicle,
+    SwarmEvent, TrackingMsg,
+};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{broadcast, mpsc};
@@ -72,7 +75,7 @@ impl SwarmAdapter {
     }
 
     fn distributed(&self, msg: DistributedMsg) {
-        let _ = self.coordinator.cast(CoordinatorMsg::Distributed(msg));
+        let _ = self.coordinator.cast(msg.into());
     }
 
     /// Copies `counters` into `/metrics` (`skein_dds_samples{what=...}`), and this
@@ -107,9 +110,7 @@ impl SwarmFrame for SwarmContext {
 
 impl FrameSource for SwarmAdapter {
     async fn swarm_frame(&self) -> Option<Arc<dyn SwarmFrame>> {
-        let view: Arc<SwarmContext> = self
-            .ask(|r| CoordinatorMsg::Distributed(DistributedMsg::GetContext(r)))
-            .await?;
+        let view: Arc<SwarmContext> = self.ask(|r| DistributedMsg::GetContext(r).into()).await?;
         Some(view)
     }
 }
@@ -127,12 +128,11 @@ impl ElectionContext for SwarmAdapter {
 
 impl AgentContext for SwarmAdapter {
     async fn reports(&self) -> Option<Vec<(String, VehicleReport)>> {
-        self.ask(|r| CoordinatorMsg::Distributed(DistributedMsg::ListReports(r)))
-            .await
+        self.ask(|r| DistributedMsg::ListReports(r).into()).await
     }
 
     async fn snapshots(&self) -> Option<Vec<VehicleSnapshot>> {
-        self.ask(CoordinatorMsg::ListVehicles).await
+        self.ask(|r| FleetMsg::ListVehicles(r).into()).await
     }
 
     fn to_vehicle(&self, vehicle_id: String, msg: ToVehicle) {
@@ -154,9 +154,7 @@ impl AgentContext for SwarmAdapter {
     }
 
     async fn geofence(&self) -> Option<skein_model::safety::Geofence> {
-        let view: Arc<SwarmContext> = self
-            .ask(|r| CoordinatorMsg::Distributed(DistributedMsg::GetContext(r)))
-            .await?;
+        let view: Arc<SwarmContext> = self.ask(|r| DistributedMsg::GetContext(r).into()).await?;
         Some(view.geofence().fence.clone())
     }
 }
@@ -173,7 +171,7 @@ impl RemoteContext for SwarmAdapter {
     }
 
     fn answer(&self, msg: FromVehicle) {
-        let _ = self.coordinator.cast(CoordinatorMsg::FromVehicle(msg));
+        let _ = self.coordinator.cast(FleetMsg::FromVehicle(msg).into());
     }
 
     fn event(&self, event: SwarmEvent) {
@@ -183,7 +181,7 @@ impl RemoteContext for SwarmAdapter {
 
 impl MirrorContext for SwarmAdapter {
     async fn formation(&self) -> Option<Option<FormationMirror>> {
-        self.ask(|r| CoordinatorMsg::Distributed(DistributedMsg::GetFormationMirror(r)))
+        self.ask(|r| DistributedMsg::GetFormationMirror(r).into())
             .await
     }
 
@@ -194,12 +192,12 @@ impl MirrorContext for SwarmAdapter {
 
 impl VehiclesContext for SwarmAdapter {
     async fn vehicles(&self) -> Option<Vec<VehicleSnapshot>> {
-        self.ask(CoordinatorMsg::ListVehicles).await
+        self.ask(|r| FleetMsg::ListVehicles(r).into()).await
     }
 
     async fn keep_round(&self, round: u64) -> bool {
         if self.load.get().is_none()
-            && let Some(l) = self.ask(CoordinatorMsg::GetLoad).await
+            && let Some(l) = self.ask(|r| AdminMsg::GetLoad(r).into()).await
         {
             let _ = self.load.set(l);
         }
@@ -207,7 +205,7 @@ impl VehiclesContext for SwarmAdapter {
     }
 
     async fn tracks(&self) -> Option<Vec<TrackView>> {
-        self.ask(CoordinatorMsg::GetTracks)
+        self.ask(|r| TrackingMsg::GetTracks(r).into())
             .await
             .map(|(views, _)| views)
     }
@@ -217,7 +215,7 @@ impl VehiclesContext for SwarmAdapter {
         match self
             .coordinator
             .call(
-                move |r| CoordinatorMsg::VehicleCommand(id, command, r),
+                move |r| CommandMsg::VehicleCommand(id, command, r).into(),
                 Some(COMMAND_TIMEOUT),
             )
             .await
@@ -232,7 +230,7 @@ impl VehiclesContext for SwarmAdapter {
 
 impl TfContext for SwarmAdapter {
     async fn vehicles(&self) -> Option<Vec<VehicleSnapshot>> {
-        self.ask(CoordinatorMsg::ListVehicles).await
+        self.ask(|r| FleetMsg::ListVehicles(r).into()).await
     }
 
     async fn keep_round(&self, round: u64) -> bool {

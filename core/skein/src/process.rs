@@ -33,7 +33,7 @@ pub(crate) fn spawn_process_watchdog(
                 loop {
                     tokio::time::sleep(period).await;
                     match coordinator
-                        .call(skein_swarm::CoordinatorMsg::Ping, Some(deadline))
+                        .call(|r| skein_swarm::AdminMsg::Ping(r).into(), Some(deadline))
                         .await
                     {
                         Ok(ractor::rpc::CallResult::Success(())) => crate::service::watchdog(),

@@ -24,7 +24,7 @@ use skein_link::{LinkCommand, Px4LinkMsg};
 use skein_model::fsm::VehicleState;
 use skein_model::px4::Px4Mode;
 use skein_model::vehicle::VehicleSnapshot;
-use skein_swarm::{Command, CoordinatorMsg};
+use skein_swarm::{Command, CommandMsg, CoordinatorMsg, FleetMsg};
 use std::collections::BTreeMap;
 use std::str::FromStr;
 use std::time::{Duration, Instant};
@@ -86,7 +86,7 @@ const ASK: Duration = Duration::from_secs(5);
 
 async fn vehicles(coordinator: &ActorRef<CoordinatorMsg>) -> Result<Vec<VehicleSnapshot>, String> {
     match coordinator
-        .call(CoordinatorMsg::ListVehicles, Some(ASK))
+        .call(|r| FleetMsg::ListVehicles(r).into(), Some(ASK))
         .await
     {
         Ok(CallResult::Success(v)) => Ok(v),
@@ -115,7 +115,7 @@ async fn hold(
 ) -> Result<(), String> {
     let name = id.to_string();
     let link = match coordinator
-        .call(|r| CoordinatorMsg::GetLink(name, r), Some(ASK))
+        .call(|r| FleetMsg::GetLink(name, r).into(), Some(ASK))
         .await
     {
         Ok(CallResult::Success(Ok(link))) => link,
@@ -247,7 +247,7 @@ async fn command_vehicle(coordinator: &ActorRef<CoordinatorMsg>, id: &str, comma
     let name = id.to_string();
     match coordinator
         .call(
-            |r| CoordinatorMsg::VehicleCommand(name, command, r),
+            |r| CommandMsg::VehicleCommand(name, command, r).into(),
             Some(ASK),
         )
         .await

@@ -65,8 +65,9 @@ pub use skein_protocol::tracks;
 pub use config::{SwarmConfig, VehicleModel};
 pub use context::SwarmContext;
 pub use coordinator::{
-    CommandOutcome, Coordinator, CoordinatorMsg, DistributedMsg, EndpointSpec, FaultError,
-    FieldError, RemoteVehicle, ServiceMsg, ServiceSpawner, ServiceSpec, Swarm, VehicleSpec,
+    AdminMsg, CommandMsg, CommandOutcome, Coordinator, CoordinatorMsg, DistributedMsg,
+    EndpointSpec, FaultError, FieldError, FleetMsg, FormationMsg, GeofenceMsg, PayloadMsg,
+    RemoteVehicle, ServiceMsg, ServiceSpawner, ServiceSpec, Swarm, TrackingMsg, VehicleSpec,
 };
 pub use events::SwarmEvent;
 pub use formation::{FormationSpec, FormationStatus};

@@ -6,7 +6,7 @@ use super::options::UpArgs;
 use super::vehicles::Fleet;
 use crate::config::ConfigFile;
 use skein_plugin_host::{PluginEvent, PluginManager};
-use skein_swarm::{CoordinatorMsg, EndpointSpec, Swarm};
+use skein_swarm::{EndpointSpec, PayloadMsg, Swarm};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -67,13 +67,11 @@ impl Plugins {
                     .iter()
                     .map(|i| (i.vehicle_id.clone(), i.slot.clone()))
                     .collect();
-                let _ = coordinator.cast(CoordinatorMsg::RefreshPayloads(
-                    list,
-                    std::time::Instant::now(),
-                ));
+                let _ = coordinator
+                    .cast(PayloadMsg::RefreshPayloads(list, std::time::Instant::now()).into());
             }
             PluginEvent::Loaded { .. } | PluginEvent::Unloaded { .. } => {
-                let _ = coordinator.cast(CoordinatorMsg::PluginsChanged);
+                let _ = coordinator.cast(PayloadMsg::PluginsChanged.into());
             }
             PluginEvent::Refused { .. } => {}
         });

@@ -15,7 +15,7 @@ pub(super) async fn add_service(
     match swarm
         .coordinator
         .call(
-            |r| skein_swarm::CoordinatorMsg::AddService(service, r),
+            |r| skein_swarm::AdminMsg::AddService(service, r).into(),
             Some(Duration::from_secs(10)),
         )
         .await

@@ -4,9 +4,9 @@
 //! its Vehicle actor under itself.
 
 use super::CoordinatorState;
-use super::children::Node;
 use super::messages::CoordinatorMsg;
 use super::proxy::VehicleProxy;
+use super::supervisor::Node;
 use crate::events::SwarmEvent;
 use crate::vehicle::VehicleShared;
 use ractor::{ActorProcessingErr, ActorRef};

@@ -125,7 +125,29 @@ async fn try_on(vehicle: Option<ActorRef<VehicleMsg>>, plan: Arc<FencePlan>) -> 
     }
 }
 
+/// Messages about the geofence (inside [`CoordinatorMsg::Geofence`]).
+pub enum GeofenceMsg {
+    /// The geofence in force and its version (`GET /api/v1/geofence`).
+    GetGeofence(RpcReplyPort<Arc<LiveFence>>),
+    /// Put a new geofence in force (`PUT /api/v1/geofence`): checked, tried on every
+    /// connected autopilot, committed or refused as a whole (see [`super::geofence`]).
+    SetGeofence(Geofence, RpcReplyPort<Result<FenceChange, FenceRefusal>>),
+    /// The vehicles' uploads of a geofence change came back (from its task).
+    FenceTried(FenceTrial),
+}
+
 impl CoordinatorState {
+    /// Handles a [`GeofenceMsg`].
+    pub(super) fn handle_geofence(&mut self, myself: &ActorRef<CoordinatorMsg>, msg: GeofenceMsg) {
+        match msg {
+            GeofenceMsg::GetGeofence(reply) => {
+                let _ = reply.send(self.geofence());
+            }
+            GeofenceMsg::SetGeofence(fence, reply) => self.set_geofence(myself, fence, reply),
+            GeofenceMsg::FenceTried(trial) => self.fence_tried(trial),
+        }
+    }
+
     /// The geofence in force.
     pub(super) fn geofence(&self) -> Arc<LiveFence> {
         self.context.geofence()
@@ -133,7 +155,7 @@ impl CoordinatorState {
 
     /// `PUT /api/v1/geofence` (see the module docs): refused at once, committed at once
     /// (nothing to upload), or tried on the vehicles from a task that answers with
-    /// [`CoordinatorMsg::FenceTried`].
+    /// [`GeofenceMsg::FenceTried`].
     pub(super) fn set_geofence(
         &mut self,
         myself: &ActorRef<CoordinatorMsg>,
@@ -209,9 +231,12 @@ impl CoordinatorState {
                 async move { (id, try_on(actor, plan).await) }
             });
             let results = join_all(tries).await;
-            let _ = me.cast(CoordinatorMsg::FenceTried(FenceTrial {
-                results: results.into_iter().collect(),
-            }));
+            let _ = me.cast(
+                GeofenceMsg::FenceTried(FenceTrial {
+                    results: results.into_iter().collect(),
+                })
+                .into(),
+            );
         });
     }
 

@@ -1,23 +1,22 @@
 //! What the coordinator is told: its message enum (the API reaches the swarm only
-//! through it), the service actors it supervises, and the shapes of its answers.
+//! through it), routing to one message enum per concept (each defined next to its
+//! handler), the service actors it supervises, and the shapes of its answers.
 
-use super::children::Node;
-use super::commands::CommandOutcome;
-use crate::formation::{FormationSpec, FormationStatus, LeaderMotion};
-use crate::payload::PayloadShared;
-use crate::protocol::{Command, FromVehicle, PayloadCommandError};
-use crate::supervision::TreeNode;
-use ractor::{ActorCell, ActorId, ActorProcessingErr, ActorRef, RpcReplyPort};
+pub use super::admin::AdminMsg;
+pub use super::counter_uas::TrackingMsg;
+pub use super::distributed::DistributedMsg;
+pub use super::fan_out::CommandMsg;
+pub use super::fleet::FleetMsg;
+pub use super::formation_control::FormationMsg;
+pub use super::geofence::GeofenceMsg;
+pub use super::payloads::PayloadMsg;
+use ractor::{ActorCell, ActorProcessingErr, ActorRef, RpcReplyPort};
 use serde::Serialize;
-use skein_link::Px4LinkMsg;
-use skein_link::endpoint::Discovery;
 use skein_mavlink::DecodeCounts;
 use skein_model::supervision::{ChildKind, FaultKind};
-use skein_model::vehicle::VehicleSnapshot;
 use std::future::Future;
 use std::pin::Pin;
 use std::sync::Arc;
-use std::time::Instant;
 
 /// Per-endpoint link statistics.
 #[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
@@ -155,143 +154,54 @@ pub struct ServiceSpec {
     pub spawn: ServiceSpawner,
 }
 
-/// Messages of [`Coordinator`].
+/// Messages of [`Coordinator`]: one variant per concept, each carrying that concept's
+/// own message enum, handled in the concept's file (`Coordinator::handle` only routes).
+/// Each concept enum converts `.into()` a `CoordinatorMsg`
+/// (`FormationMsg::GetFormation(reply).into()`).
+///
+/// [`Coordinator`]: super::Coordinator
 pub enum CoordinatorMsg {
-    /// An endpoint heard an autopilot it has no route for.
-    Discovered {
-        /// Index of the endpoint.
-        endpoint: usize,
-        /// What it heard.
-        discovery: Discovery,
-    },
-    /// A vehicle's protocol message (acks, state changes, payload answers).
-    FromVehicle(FromVehicle),
-    /// What the DDS carrier of the distributed roles asks ([`super::remote`]).
-    Distributed(super::remote::DistributedMsg),
-    /// A command for every vehicle.
-    SwarmCommand(Command, RpcReplyPort<CommandOutcome>),
-    /// A command for one vehicle; `Err(None)` when the vehicle does not exist.
-    VehicleCommand(
-        String,
-        Command,
-        RpcReplyPort<Result<CommandOutcome, Option<String>>>,
-    ),
-    /// All vehicles, sorted by id.
-    ListVehicles(RpcReplyPort<Vec<VehicleSnapshot>>),
-    /// One vehicle.
-    GetVehicle(String, RpcReplyPort<Option<VehicleSnapshot>>),
-    /// The formation.
-    GetFormation(RpcReplyPort<FormationStatus>),
-    /// Set the formation.
-    SetFormation(
-        FormationSpec,
-        RpcReplyPort<Result<FormationStatus, FieldError>>,
-    ),
-    /// The operator says vehicle `id` is no longer a hazard; `Err(None)` when there is no
-    /// such vehicle, `Err(Some(why))` when it is not a hazard.
-    ClearHazard(String, RpcReplyPort<Result<(), Option<String>>>),
-    /// Stop flying the formation (vehicles hold where they are).
-    ClearFormation(RpcReplyPort<FormationStatus>),
-    /// Move the formation's reference point (leader go-to, waypoints, orbit).
-    LeaderMotion(
-        LeaderMotion,
-        RpcReplyPort<Result<FormationStatus, FieldError>>,
-    ),
-    /// Health.
-    Health(RpcReplyPort<Health>),
-    /// Link statistics per endpoint.
-    LinkStats(RpcReplyPort<Vec<EndpointStats>>),
-    /// The ground-station forwarder, for its counters (see `Swarm::forward_to_gcs`).
-    SetGcs(Arc<skein_link::GcsForwarder>),
-    /// The geofence in force and its version (`GET /api/v1/geofence`).
-    GetGeofence(RpcReplyPort<Arc<crate::context::LiveFence>>),
-    /// Put a new geofence in force (`PUT /api/v1/geofence`): checked, tried on every
-    /// connected autopilot, committed or refused as a whole (see [`super::geofence`]).
-    SetGeofence(
-        skein_model::geofence::Geofence,
-        RpcReplyPort<Result<super::geofence::FenceChange, super::geofence::FenceRefusal>>,
-    ),
-    /// The vehicles' uploads of a geofence change came back (from its task).
-    FenceTried(super::geofence::FenceTrial),
-    /// A local vehicle's `Px4Link` actor (parameters); `Err` says why there is none.
-    GetLink(
-        String,
-        RpcReplyPort<Result<ActorRef<Px4LinkMsg>, PayloadCommandError>>,
-    ),
-    /// A vehicle's payload (state, frames); `Err` names what is missing.
-    GetPayload(
-        String,
-        String,
-        RpcReplyPort<Result<Arc<PayloadShared>, String>>,
-    ),
-    /// A command for a vehicle's payload; the payload's answer or why there is none.
-    PayloadCommand(
-        String,
-        String,
-        serde_json::Value,
-        RpcReplyPort<Result<serde_json::Value, PayloadCommandError>>,
-    ),
-    /// Attach a payload slot to a vehicle at run time (until restart): the payload as
-    /// listed once its driver exists, or why not (naming the field).
-    AttachPayload(
-        String,
-        skein_payload::PayloadSpec,
-        RpcReplyPort<Result<serde_json::Value, PayloadCommandError>>,
-    ),
-    /// Detach a vehicle's payload slot (its driver's `shutdown` runs first).
-    DetachPayload(
-        String,
-        String,
-        RpcReplyPort<Result<serde_json::Value, PayloadCommandError>>,
-    ),
-    /// A payload plugin was loaded or unloaded in this process: every local vehicle starts
-    /// the slots now provided and stops the payloads whose library is gone.
-    PluginsChanged,
-    /// Payload instances (vehicle id, slot) whose plugin was reloaded at this instant: their
-    /// vehicles re-create them on the new build (those created since are left alone).
-    RefreshPayloads(Vec<(String, String)>, Instant),
-    /// The supervision tree.
-    GetSupervision(RpcReplyPort<TreeNode>),
-    /// The metrics in Prometheus text format.
-    RenderMetrics(RpcReplyPort<String>),
-    /// The counter-UAS tracks now and which vehicle observes which track
-    /// (`GET /api/v1/tracks`).
-    GetTracks(RpcReplyPort<TracksAnswer>),
-    /// The tracks, the hostile swarms and who observes what.
-    GetAirPicture(RpcReplyPort<AirPictureAnswer>),
-    /// Point the gimbals of the vehicles (default: all with a gimbal) at a track or swarm
-    /// and keep them on it, and with `stations` fly them to the stations that fix it
-    /// best; answers the observing vehicles.
-    Observe(
-        super::observe::ObserveSpec,
-        RpcReplyPort<Result<Vec<String>, super::observe::ObserveRefusal>>,
-    ),
-    /// Stop observing a track or swarm; answers the vehicles released.
-    StopObserving(String, RpcReplyPort<Vec<String>>),
-    /// The in-process simulator's ground truth (`GET /api/v1/sim/truth`); `None` when no
-    /// simulator is embedded.
-    GetSimTruth(RpcReplyPort<Option<serde_json::Value>>),
-    /// Start and supervise a service (the HTTP API).
-    AddService(ServiceSpec, RpcReplyPort<Result<(), String>>),
-    /// Inject a fault at an actor path (`"coordinator/uav-1/px4link"`).
-    InjectFault(String, FaultKind, RpcReplyPort<Result<(), FaultError>>),
-    /// Watchdog probe (the process watchdog pings the coordinator).
-    Ping(RpcReplyPort<()>),
-    /// The process's load monitor (services ask once, then read it directly to shed
-    /// optional work, see [`crate::load`]).
-    GetLoad(RpcReplyPort<std::sync::Arc<crate::load::LoadMonitor>>),
-    /// Fault injection into the coordinator itself.
-    Fault(FaultKind),
-    /// Formation loop tick.
-    FormationTick,
-    /// Time to ping the children.
-    WatchTick,
-    /// A child did not answer the watchdog.
-    ChildHung(Node, ActorId),
-    /// A child's backoff has passed.
-    RestartChild(Node, Instant, String),
-    /// A command's vehicles had their time to answer: the silent ones are refused.
-    CommandTimeout(u64),
-    /// A payload command's vehicle had its time to answer.
-    PayloadTimeout(u64),
+    /// Vehicles and their links: discovery, the vehicles' protocol messages, listings,
+    /// link counters, the ground-station forwarder ([`super::fleet`]).
+    Fleet(FleetMsg),
+    /// Commands fanned out to one vehicle or to all, and their timeouts
+    /// ([`super::fan_out`]).
+    Command(CommandMsg),
+    /// The formation, its leader's motion, its hazards and its tick
+    /// ([`super::formation_control`]).
+    Formation(FormationMsg),
+    /// The geofence in force and changes to it ([`super::geofence`]).
+    Geofence(GeofenceMsg),
+    /// Vehicles' payloads and the payload plugins ([`super::payloads`]).
+    Payload(PayloadMsg),
+    /// The counter-UAS air picture and the vehicles observing it ([`super::counter_uas`]).
+    Tracking(TrackingMsg),
+    /// Supervision, faults, health, metrics and load ([`super::admin`]).
+    Admin(AdminMsg),
+    /// What the DDS carrier of the distributed roles asks ([`super::distributed`]).
+    Distributed(DistributedMsg),
+}
+
+/// `From<concept enum> for CoordinatorMsg`, one per concept.
+macro_rules! route {
+    ($($concept:ident => $variant:ident),* $(,)?) => {
+        $(
+            impl From<$concept> for CoordinatorMsg {
+                fn from(msg: $concept) -> Self {
+                    CoordinatorMsg::$variant(msg)
+                }
+            }
+        )*
+    };
+}
+
+route! {
+    FleetMsg => Fleet,
+    CommandMsg => Command,
+    FormationMsg => Formation,
+    GeofenceMsg => Geofence,
+    PayloadMsg => Payload,
+    TrackingMsg => Tracking,
+    AdminMsg => Admin,
+    DistributedMsg => Distributed,
 }

@@ -56,7 +56,7 @@ impl VehicleProxy {
         }
     }
 
-    /// A proxy for a vehicle of another process (an agent's, see [`super::remote`]).
+    /// A proxy for a vehicle of another process (an agent's, see [`super::distributed`]).
     pub fn remote(
         port: Arc<dyn VehiclePort>,
         snapshots: watch::Receiver<VehicleSnapshot>,

@@ -2,7 +2,7 @@
 //! metrics.
 
 use super::discovery::EndpointSpec;
-use super::messages::CoordinatorMsg;
+use super::messages::{CoordinatorMsg, FleetMsg};
 use super::{Coordinator, CoordinatorArgs};
 use crate::config::SwarmConfig;
 use crate::events::SwarmEvent;
@@ -106,7 +106,7 @@ impl Swarm {
         let fwd = skein_link::GcsForwarder::start(address.clone(), self.endpoints.clone())
             .await
             .map_err(|e| StartError(format!("ground-station forward {address}: {e}")))?;
-        let _ = self.coordinator.cast(CoordinatorMsg::SetGcs(fwd.clone()));
+        let _ = self.coordinator.cast(FleetMsg::SetGcs(fwd.clone()).into());
         Ok(fwd)
     }
 
@@ -170,7 +170,10 @@ mod tests {
                 .unwrap();
             let listed = swarm
                 .coordinator
-                .call(CoordinatorMsg::ListVehicles, Some(Duration::from_secs(5)))
+                .call(
+                    |r| FleetMsg::ListVehicles(r).into(),
+                    Some(Duration::from_secs(5)),
+                )
                 .await;
             if matches!(listed, Ok(ractor::rpc::CallResult::Success(v)) if v.len() == 1) {
                 break;

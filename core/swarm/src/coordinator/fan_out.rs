@@ -3,9 +3,12 @@
 //! has acknowledged (accepted, or refused naming its state) or when
 //! [`VEHICLE_ACK_TIMEOUT`] has passed, whichever comes first. One stuck vehicle costs
 //! the command that timeout and never stalls the formation tick.
+//!
+//! [`CommandMsg`] is what the coordinator is told about commands; payload requests ride
+//! the same fan-out but are told through [`super::payloads`].
 
 use super::CoordinatorState;
-use super::messages::CoordinatorMsg;
+use super::messages::{CoordinatorMsg, PayloadMsg};
 use crate::protocol::{Command, PayloadCommandError, ToVehicle};
 use ractor::{ActorRef, RpcReplyPort};
 use serde::Serialize;
@@ -80,7 +83,50 @@ pub struct InFlight {
     next_request_id: u64,
 }
 
+/// Commands for the vehicles (inside [`CoordinatorMsg::Command`]).
+pub enum CommandMsg {
+    /// A command for every vehicle.
+    SwarmCommand(Command, RpcReplyPort<CommandOutcome>),
+    /// A command for one vehicle; `Err(None)` when the vehicle does not exist.
+    VehicleCommand(
+        String,
+        Command,
+        RpcReplyPort<Result<CommandOutcome, Option<String>>>,
+    ),
+    /// A command's vehicles had their time to answer: the silent ones are refused.
+    CommandTimeout(u64),
+}
+
 impl CoordinatorState {
+    /// Handles a [`CommandMsg`].
+    pub(super) fn handle_command(&mut self, myself: &ActorRef<CoordinatorMsg>, msg: CommandMsg) {
+        match msg {
+            CommandMsg::SwarmCommand(cmd, reply) => {
+                if matches!(cmd, Command::Land | Command::Rtl) && self.formation.is_active() {
+                    self.formation.deactivate();
+                    self.formation_changed();
+                }
+                let targets = self.vehicles.keys().cloned().collect();
+                self.run_command(myself, targets, cmd, CommandReply::Swarm(reply));
+            }
+            CommandMsg::VehicleCommand(id, cmd, reply) => {
+                if !self.vehicles.contains_key(&id) {
+                    let _ = reply.send(Err(None));
+                } else if cmd == Command::ClearHazard {
+                    // The formation's, not the vehicle's: done here, nothing to wait for.
+                    let _ = reply.send(self.clear_hazard(&id).map(|()| CommandOutcome {
+                        command_id: 0,
+                        accepted: vec![id],
+                        refused: vec![],
+                    }));
+                } else {
+                    self.run_command(myself, vec![id], cmd, CommandReply::Vehicle(reply));
+                }
+            }
+            CommandMsg::CommandTimeout(command_id) => self.on_command_timeout(command_id),
+        }
+    }
+
     /// Sends `cmd` to every vehicle of `targets` that exists and answers `reply` once
     /// all have acknowledged or the timeout passed.
     pub(super) fn run_command(
@@ -135,7 +181,7 @@ impl CoordinatorState {
         }
         self.in_flight.commands.insert(command_id, pending);
         myself.send_after(VEHICLE_ACK_TIMEOUT, move || {
-            CoordinatorMsg::CommandTimeout(command_id)
+            CommandMsg::CommandTimeout(command_id).into()
         });
     }
 
@@ -225,7 +271,7 @@ impl CoordinatorState {
         }
         self.in_flight.payloads.insert(request_id, reply);
         myself.send_after(PAYLOAD_TIMEOUT, move || {
-            CoordinatorMsg::PayloadTimeout(request_id)
+            PayloadMsg::PayloadTimeout(request_id).into()
         });
     }
 

@@ -4,7 +4,7 @@
 //! budget is spent ([`super::escalation`]), and routes injected faults by path.
 
 use super::CoordinatorState;
-use super::messages::{CoordinatorMsg, FaultError, ServiceMsg};
+use super::messages::{AdminMsg, CoordinatorMsg, FaultError, FleetMsg, ServiceMsg};
 use crate::protocol::Uplink;
 use crate::supervision::{self, ChildHandle, ChildKey, Exit, Next};
 use crate::vehicle::{Vehicle, VehicleArgs, VehicleMsg};
@@ -163,7 +163,7 @@ impl CoordinatorState {
             (Next::RestartNow, _) => self.restart_child(myself, node, noticed, reason).await?,
             (Next::RestartAfter(d), _) => {
                 myself.send_after(d, move || {
-                    CoordinatorMsg::RestartChild(node, noticed, reason)
+                    AdminMsg::RestartChild(node, noticed, reason).into()
                 });
             }
             // A vehicle left without its actor must not fly on unattended.
@@ -207,7 +207,7 @@ impl CoordinatorState {
         };
         if rest.is_empty() {
             let _ = reply.send(Ok(()));
-            let _ = myself.cast(CoordinatorMsg::Fault(kind));
+            let _ = myself.cast(AdminMsg::Fault(kind).into());
             return;
         }
         let rest = rest.trim_start_matches('/');
@@ -271,6 +271,6 @@ impl CoordinatorState {
 /// An uplink that posts a vehicle's protocol messages to the coordinator's mailbox.
 pub fn uplink_to(coordinator: ActorRef<CoordinatorMsg>) -> Uplink {
     Arc::new(move |msg| {
-        let _ = coordinator.cast(CoordinatorMsg::FromVehicle(msg));
+        let _ = coordinator.cast(FleetMsg::FromVehicle(msg).into());
     })
 }
