@@ -319,19 +319,26 @@ fn the_dashboard_shows_tracks_and_observes_one_in_chromium() {
         .join("screenshots")
         .join("tracks.png");
     let _ = std::fs::create_dir_all(shot.parent().unwrap());
-    // What the API says while the browser looks (printed on failure).
+    // What the API says while the browser looks (in the failure's message, after the
+    // browser's own report: one line per look, each track's id, status, swarm and
+    // observers).
     let watching = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
     let watcher = {
         let (base, watching) = (skein.base.clone(), watching.clone());
+        let started = std::time::Instant::now();
         std::thread::spawn(move || {
             let mut seen = Vec::new();
             while watching.load(std::sync::atomic::Ordering::Relaxed) {
-                let tracks = ureq::get(format!("{base}/api/v1/tracks"))
+                let tracks: serde_json::Value = ureq::get(format!("{base}/api/v1/tracks"))
                     .call()
                     .ok()
-                    .and_then(|mut r| r.body_mut().read_to_string().ok())
+                    .and_then(|mut r| r.body_mut().read_json().ok())
                     .unwrap_or_default();
-                seen.push(tracks);
+                seen.push(format!(
+                    "{:5.1} s: {}",
+                    started.elapsed().as_secs_f64(),
+                    tracks_line(&tracks)
+                ));
                 std::thread::sleep(Duration::from_secs(3));
             }
             seen
@@ -345,13 +352,31 @@ fn the_dashboard_shows_tracks_and_observes_one_in_chromium() {
     watching.store(false, std::sync::atomic::Ordering::Relaxed);
     let api_log = watcher.join().unwrap().join("\n");
     println!("{out}");
-    if code != Some(0) {
-        println!("GET /api/v1/tracks every 3 s meanwhile:\n{api_log}");
-    }
     assert_eq!(
         code,
         Some(0),
-        "tracks_selenium.py failed (exit {code:?})\n--- stdout\n{out}\n--- stderr\n{err}"
+        "tracks_selenium.py failed (exit {code:?})\n--- stdout\n{out}\n--- stderr\n{err}\n\
+         --- GET /api/v1/tracks every 3 s meanwhile\n{api_log}"
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// One look at `GET /api/v1/tracks`, short: each track's `id status swarm [observers]`.
+fn tracks_line(tracks: &serde_json::Value) -> String {
+    let Some(list) = tracks["tracks"].as_array() else {
+        return format!("no track list: {tracks}");
+    };
+    let each: Vec<String> = list
+        .iter()
+        .map(|t| {
+            format!(
+                "{} {} {} {}",
+                t["id"].as_str().unwrap_or("?"),
+                t["status"].as_str().unwrap_or("?"),
+                t["swarm"].as_str().unwrap_or("-"),
+                t["observed_by"]
+            )
+        })
+        .collect();
+    each.join("; ")
 }

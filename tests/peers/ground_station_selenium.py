@@ -355,6 +355,13 @@ def main():
                 try:
                     summary.setdefault("console_errors", [e.get("message") for e in driver.get_log("browser")
                                                           if e.get("level") == "SEVERE"])
+                    # What the dashboard told the operator: an API error shows as a toast.
+                    summary["toasts"] = driver.execute_script(
+                        "return [...document.querySelectorAll('#toasts .toast')].map(t => t.textContent.trim())")
+                    # And the event log's newest API notes (toasts fade; the log keeps them).
+                    summary["api_log"] = driver.execute_script(
+                        "return [...document.querySelectorAll('li[data-type=\"api\"]')].slice(0, 5)"
+                        ".map(l => l.textContent.trim())")
                     path = os.path.join(args.screenshots, "failure.png")
                     driver.save_screenshot(path)
                     summary["screenshots"].append(path)
