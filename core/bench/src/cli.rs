@@ -1,8 +1,8 @@
 //! The `skein bench` command line: one subcommand per benchmark, each printing one JSON
 //! object on stdout (progress on stderr).
 
-use crate::{DdsBenchArgs, FormationBenchArgs, RestartBenchArgs, TrackingBenchArgs};
-use crate::{dds, formation, plugins, restart, swarm, tracking};
+use crate::{ApiBenchArgs, DdsBenchArgs, FormationBenchArgs, RestartBenchArgs, TrackingBenchArgs};
+use crate::{api, dds, formation, plugins, restart, swarm, tracking};
 
 /// `skein bench`.
 #[derive(clap::Args, Debug)]
@@ -34,6 +34,10 @@ pub enum BenchWhat {
     /// ROS 2 topics: CPU of the DDS link per vehicle and pose latency to a subscriber on
     /// this host (see `core/bench/src/dds.rs`).
     Dds(DdsBenchArgs),
+    /// The API's reads while the coordinator is busy: latency of the dashboard's polled
+    /// routes, quiet and with clients keeping the coordinator's mailbox full (see
+    /// `core/bench/src/api.rs`).
+    Api(ApiBenchArgs),
 }
 
 /// `skein bench plugins`.
@@ -124,6 +128,13 @@ pub async fn run(args: BenchArgs) -> Result<(), String> {
         }
         BenchWhat::Tracking(a) => {
             let report = tokio::task::spawn_blocking(move || tracking(&a))
+                .await
+                .map_err(|e| e.to_string())??;
+            println!("{report}");
+            Ok(())
+        }
+        BenchWhat::Api(a) => {
+            let report = tokio::task::spawn_blocking(move || api(&a))
                 .await
                 .map_err(|e| e.to_string())??;
             println!("{report}");

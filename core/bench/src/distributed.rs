@@ -33,7 +33,7 @@ use std::time::{Duration, Instant};
 
 /// Takes `c`'s `n` vehicles off and flies them in a line north at 5 m/s; returns once the
 /// reference has cruised for 2 s.
-fn fly(c: &UpProcess, n: usize) -> Result<(), String> {
+pub(crate) fn fly(c: &UpProcess, n: usize) -> Result<(), String> {
     c.wait_vehicles(
         n,
         "every vehicle with a home",

@@ -17,6 +17,9 @@
 //! coordinator against one process: slot-target latency, CPU per vehicle, formation
 //! error, see [`distributed`].
 //!
+//! `skein bench api [--vehicles 24 --busy-clients 4]`: the API's read latency while the
+//! coordinator is busy, see [`api`].
+//!
 //! `skein bench swarm --vehicles N --rate-hz R --seconds S` (issue 3's benchmark):
 //!
 //! 1. opens one `udpin` endpoint per vehicle on a free block of N consecutive local UDP
@@ -70,6 +73,7 @@
 
 #![warn(missing_docs)]
 
+mod api;
 mod cli;
 mod dds;
 mod distributed;
@@ -86,6 +90,7 @@ mod swarm;
 mod tracking;
 mod up_process;
 
+pub use api::{ApiBenchArgs, api};
 pub use cli::{BenchArgs, BenchWhat, PluginsBenchArgs, SwarmBenchArgs, run};
 pub use dds::{DdsBenchArgs, dds};
 pub use exe::skein_exe;
