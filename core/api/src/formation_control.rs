@@ -24,11 +24,11 @@ use skein_swarm::{FormationMsg, FormationStatus};
 
 /// The formation status
 #[utoipa::path(get, path = "/api/v1/formation",
-    responses((status = 200, body = FormationStatus), (status = 503)))]
+    responses((status = 200, body = FormationStatus)))]
 pub(crate) async fn get_formation(
     State(s): State<ApiState>,
 ) -> Result<Json<FormationStatus>, ApiError> {
-    Ok(Json(s.ask(|r| FormationMsg::GetFormation(r).into()).await?))
+    Ok(Json(s.reads.formation()))
 }
 
 /// Fly a formation
@@ -48,7 +48,7 @@ pub(crate) async fn put_formation(
 ) -> Result<Json<FormationStatus>, ApiError> {
     let spec = crate::requests::formation::formation(&body)?;
     Ok(Json(
-        s.ask(move |r| FormationMsg::SetFormation(spec, r).into())
+        s.write(move |r| FormationMsg::SetFormation(spec, r).into())
             .await??,
     ))
 }
@@ -60,7 +60,7 @@ pub(crate) async fn delete_formation(
     State(s): State<ApiState>,
 ) -> Result<Json<FormationStatus>, ApiError> {
     Ok(Json(
-        s.ask(|r| FormationMsg::ClearFormation(r).into()).await?,
+        s.write(|r| FormationMsg::ClearFormation(r).into()).await?,
     ))
 }
 
@@ -86,7 +86,7 @@ async fn move_leader(
     motion: LeaderMotion,
 ) -> Result<Json<FormationStatus>, ApiError> {
     Ok(Json(
-        s.ask(move |r| FormationMsg::LeaderMotion(motion, r).into())
+        s.write(move |r| FormationMsg::LeaderMotion(motion, r).into())
             .await??,
     ))
 }

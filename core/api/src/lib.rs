@@ -70,6 +70,8 @@ pub const COORDINATOR_TIMEOUT: Duration = Duration::from_secs(5);
 #[derive(Clone)]
 pub struct ApiState {
     coordinator: ActorRef<CoordinatorMsg>,
+    /// The coordinator's published state: the pure reads never wait in its mailbox.
+    reads: skein_swarm::SwarmReads,
     events: broadcast::Sender<SwarmEvent>,
     telemetry: broadcast::Sender<Arc<str>>,
     plugins: Option<Arc<plugins::PluginsApi>>,
@@ -88,15 +90,18 @@ impl ApiState {
     /// the stream (it ends when the coordinator stops).
     pub fn new(
         coordinator: ActorRef<CoordinatorMsg>,
+        reads: skein_swarm::SwarmReads,
         events: broadcast::Sender<SwarmEvent>,
     ) -> Self {
         let (telemetry, _) = broadcast::channel(16);
         tokio::spawn(stream::publish_telemetry(
             coordinator.clone(),
+            reads.clone(),
             telemetry.clone(),
         ));
         ApiState {
             coordinator,
+            reads,
             events,
             telemetry,
             plugins: None,
@@ -182,6 +187,21 @@ impl ApiState {
         }
     }
 
+    /// A write through the coordinator: `msg`'s answer, given once the coordinator has
+    /// also published what the write did (one more question, a `Ping` queued behind it,
+    /// see `skein_swarm::coordinator::published`): a client answered a write reads its
+    /// effect from [`ApiState::reads`]. The `Ping` going unanswered does not undo the
+    /// write's answer.
+    async fn write<T: Send + 'static>(
+        &self,
+        msg: impl FnOnce(ractor::RpcReplyPort<T>) -> CoordinatorMsg,
+    ) -> Result<T, ApiError> {
+        let answer = self.ask(msg).await?;
+        let _ = self.ask(|r| skein_swarm::AdminMsg::Ping(r).into()).await;
+        Ok(answer)
+    }
+
+    /// A question to the coordinator, answered within [`COORDINATOR_TIMEOUT`].
     async fn ask<T: Send + 'static>(
         &self,
         msg: impl FnOnce(ractor::RpcReplyPort<T>) -> CoordinatorMsg,

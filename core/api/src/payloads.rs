@@ -23,7 +23,7 @@ use axum::body::Bytes;
 use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use serde_json::Value;
-use skein_swarm::{FleetMsg, PayloadMsg};
+use skein_swarm::PayloadMsg;
 
 pub use crate::requests::payloads::parse_attach;
 
@@ -33,10 +33,9 @@ pub use crate::requests::payloads::parse_attach;
 /// A payload that fails or hangs on the command itself is a 503 (see [`crate::error`]).
 ///
 /// # Errors
-/// 404 for an unknown vehicle, 409 as above, 503 without an answer from the coordinator.
+/// 404 for an unknown vehicle, 409 as above.
 pub async fn require_running(s: &ApiState, id: &str, slot: &str) -> Result<(), ApiError> {
-    let id2 = id.to_string();
-    let Some(vehicle) = s.ask(move |r| FleetMsg::GetVehicle(id2, r).into()).await? else {
+    let Some(vehicle) = s.reads.vehicle(id) else {
         return Err(ApiError::no_vehicle(id));
     };
     let Some(p) = vehicle.payloads.iter().find(|p| p["slot"] == slot) else {
@@ -59,14 +58,13 @@ pub async fn require_running(s: &ApiState, id: &str, slot: &str) -> Result<(), A
 
 /// The vehicle's payload slots
 #[utoipa::path(get, path = "/api/v1/vehicles/{id}/payloads", params(VehicleId),
-    responses((status = 200, body = [PayloadView]), (status = 404), (status = 503)))]
+    responses((status = 200, body = [PayloadView]), (status = 404)))]
 pub(crate) async fn list_payloads(
     State(s): State<ApiState>,
     Path(VehicleId { id }): Path<VehicleId>,
 ) -> Result<Json<Vec<Value>>, ApiError> {
-    let id2 = id.clone();
-    s.ask(move |r| FleetMsg::GetVehicle(id2, r).into())
-        .await?
+    s.reads
+        .vehicle(&id)
         .map(|v| Json(v.payloads))
         .ok_or_else(|| ApiError::no_vehicle(&id))
 }

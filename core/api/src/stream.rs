@@ -9,7 +9,7 @@ use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::response::Response;
 use ractor::ActorRef;
 use skein_swarm::load::ShedWork;
-use skein_swarm::{AdminMsg, CoordinatorMsg, FleetMsg, FormationMsg};
+use skein_swarm::{AdminMsg, CoordinatorMsg, SwarmReads};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::broadcast;
@@ -21,6 +21,7 @@ use tokio::sync::broadcast;
 /// error, absent members included; see `GET /api/v1/formation`).
 pub(crate) async fn publish_telemetry(
     coordinator: ActorRef<CoordinatorMsg>,
+    reads: SwarmReads,
     tx: broadcast::Sender<Arc<str>>,
 ) {
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / TELEMETRY_HZ));
@@ -48,32 +49,14 @@ pub(crate) async fn publish_telemetry(
         {
             continue;
         }
-        let Ok(ractor::rpc::CallResult::Success(list)) = coordinator
-            .call(
-                |r| FleetMsg::ListVehicles(r).into(),
-                Some(COORDINATOR_TIMEOUT),
-            )
-            .await
-        else {
-            if coordinator.get_status() == ractor::ActorStatus::Stopped {
-                return;
-            }
-            continue;
-        };
-        let formation = match coordinator
-            .call(
-                |r| FormationMsg::GetFormation(r).into(),
-                Some(COORDINATOR_TIMEOUT),
-            )
-            .await
-        {
-            Ok(ractor::rpc::CallResult::Success(f)) => Some(serde_json::json!({
-                "active": f.active,
-                "rms_error_m": f.rms_error_m,
-                "absent": f.absent,
-            })),
-            _ => None,
-        };
+        // Published by the coordinator, read without asking it (`skein_swarm::SwarmReads`).
+        let list = reads.vehicles();
+        let f = reads.formation();
+        let formation = Some(serde_json::json!({
+            "active": f.active,
+            "rms_error_m": f.rms_error_m,
+            "absent": f.absent,
+        }));
         let frame = serde_json::json!({
             "type": "vehicles",
             "vehicles": list,
@@ -95,8 +78,8 @@ async fn stream_session(mut socket: WebSocket, s: ApiState) {
     let mut events = s.events.subscribe();
     let mut telemetry = s.telemetry.subscribe();
     // Send the current picture at once so a new dashboard is never empty for a tick.
-    if let Ok(list) = s.ask(|r| FleetMsg::ListVehicles(r).into()).await {
-        let frame = serde_json::json!({"type": "vehicles", "vehicles": list});
+    {
+        let frame = serde_json::json!({"type": "vehicles", "vehicles": s.reads.vehicles()});
         if socket
             .send(Message::Text(frame.to_string().into()))
             .await

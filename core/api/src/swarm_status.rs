@@ -23,11 +23,11 @@ pub(crate) async fn health(State(s): State<ApiState>) -> Result<Json<Health>, Ap
 
 /// The actor tree: status, restarts, failures
 #[utoipa::path(get, path = "/api/v1/supervision",
-    responses((status = 200, body = TreeNode), (status = 503)))]
+    responses((status = 200, body = TreeNode)))]
 pub(crate) async fn supervision_tree(
     State(s): State<ApiState>,
 ) -> Result<Json<TreeNode>, ApiError> {
-    Ok(Json(s.ask(|r| AdminMsg::GetSupervision(r).into()).await?))
+    Ok(Json(s.reads.supervision()))
 }
 
 /// Prometheus / OpenMetrics counters

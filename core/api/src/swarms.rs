@@ -69,17 +69,18 @@ pub struct ReleasedSwarm {
 
 /// The hostile swarms (swarm frame), their forecasts and who observes each
 #[utoipa::path(get, path = "/api/v1/swarms",
-    responses((status = 200, body = SwarmsListing), (status = 503)))]
+    responses((status = 200, body = SwarmsListing)))]
 pub(crate) async fn list_swarms(
     State(s): State<ApiState>,
 ) -> Result<Json<SwarmsListing>, ApiError> {
-    let picture = s.ask(|r| TrackingMsg::GetAirPicture(r).into()).await?;
+    let picture = s.reads.air_picture();
+    let seen = &picture.observations;
     let swarms = picture
         .swarms
         .into_iter()
         .map(|swarm| SwarmEntry {
-            observed_by: observed_by(&picture.observing, &swarm.id),
-            stations: picture
+            observed_by: observed_by(&seen.observing, &swarm.id),
+            stations: seen
                 .stations
                 .iter()
                 .find(|st| st.target == swarm.id)
@@ -122,7 +123,7 @@ pub(crate) async fn observe_swarm(
         .into());
     }
     let vehicles = s
-        .ask(move |r| TrackingMsg::Observe(spec, r).into())
+        .write(move |r| TrackingMsg::Observe(spec, r).into())
         .await??;
     Ok(Json(ObservingSwarm {
         swarm: id,
@@ -139,7 +140,7 @@ pub(crate) async fn stop_observing_swarm(
 ) -> Result<Json<ReleasedSwarm>, ApiError> {
     let swarm = id.clone();
     let released = s
-        .ask(move |r| TrackingMsg::StopObserving(swarm, r).into())
+        .write(move |r| TrackingMsg::StopObserving(swarm, r).into())
         .await?;
     Ok(Json(ReleasedSwarm {
         swarm: id,

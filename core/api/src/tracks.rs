@@ -75,17 +75,18 @@ pub struct Released {
 
 /// The counter-UAS tracks (swarm frame) and who observes each
 #[utoipa::path(get, path = "/api/v1/tracks",
-    responses((status = 200, body = TracksListing), (status = 503)))]
+    responses((status = 200, body = TracksListing)))]
 pub(crate) async fn list_tracks(
     State(s): State<ApiState>,
 ) -> Result<Json<TracksListing>, ApiError> {
-    let picture = s.ask(|r| TrackingMsg::GetAirPicture(r).into()).await?;
+    let picture = s.reads.air_picture();
+    let seen = &picture.observations;
     let tracks = picture
         .tracks
         .into_iter()
         .map(|track| TrackEntry {
-            observed_by: observed_by(&picture.observing, &track.id),
-            stations: picture
+            observed_by: observed_by(&seen.observing, &track.id),
+            stations: seen
                 .stations
                 .iter()
                 .find(|st| st.target == track.id)
@@ -129,7 +130,7 @@ pub(crate) async fn observe(
         standoff_m: req.standoff_m,
     };
     let vehicles = s
-        .ask(move |r| TrackingMsg::Observe(spec, r).into())
+        .write(move |r| TrackingMsg::Observe(spec, r).into())
         .await??;
     Ok(Json(Observing {
         track: id,
@@ -146,7 +147,7 @@ pub(crate) async fn stop_observing(
 ) -> Result<Json<Released>, ApiError> {
     let track = id.clone();
     let released = s
-        .ask(move |r| TrackingMsg::StopObserving(track, r).into())
+        .write(move |r| TrackingMsg::StopObserving(track, r).into())
         .await?;
     Ok(Json(Released {
         track: id,

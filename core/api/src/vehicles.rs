@@ -17,27 +17,26 @@ use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use skein_model::vehicle::VehicleSnapshot;
-use skein_swarm::{CommandMsg, CommandOutcome, FleetMsg, FormationMsg};
+use skein_swarm::{CommandMsg, CommandOutcome, FormationMsg};
 
 /// Every vehicle, sorted by id.
 #[utoipa::path(get, path = "/api/v1/vehicles",
-    responses((status = 200, body = [VehicleSnapshot]), (status = 503)))]
+    responses((status = 200, body = [VehicleSnapshot])))]
 pub(crate) async fn list_vehicles(
     State(s): State<ApiState>,
 ) -> Result<Json<Vec<VehicleSnapshot>>, ApiError> {
-    Ok(Json(s.ask(|r| FleetMsg::ListVehicles(r).into()).await?))
+    Ok(Json(s.reads.vehicles()))
 }
 
 /// One vehicle.
 #[utoipa::path(get, path = "/api/v1/vehicles/{id}", params(VehicleId),
-    responses((status = 200, body = VehicleSnapshot), (status = 404), (status = 503)))]
+    responses((status = 200, body = VehicleSnapshot), (status = 404)))]
 pub(crate) async fn get_vehicle(
     State(s): State<ApiState>,
     Path(VehicleId { id }): Path<VehicleId>,
 ) -> Result<Json<VehicleSnapshot>, ApiError> {
-    let id2 = id.clone();
-    s.ask(move |r| FleetMsg::GetVehicle(id2, r).into())
-        .await?
+    s.reads
+        .vehicle(&id)
         .map(Json)
         .ok_or_else(|| ApiError::no_vehicle(&id))
 }
@@ -71,14 +70,14 @@ pub(crate) async fn vehicle_command(
     let id2 = id.clone();
     match commands::vehicle_command(&body)? {
         Command::ClearHazard => {
-            s.ask(move |r| FormationMsg::ClearHazard(id2, r).into())
+            s.write(move |r| FormationMsg::ClearHazard(id2, r).into())
                 .await?
                 .map_err(|e| refused(&id, e))?;
             Ok(Json(Cleared { cleared: id }).into_response())
         }
         cmd => {
             let outcome = s
-                .ask(move |r| CommandMsg::VehicleCommand(id2, cmd, r).into())
+                .write(move |r| CommandMsg::VehicleCommand(id2, cmd, r).into())
                 .await?
                 .map_err(|e| refused(&id, e))?;
             s.record_command(outcome.command_id, &id, &body);
@@ -100,7 +99,7 @@ pub(crate) async fn swarm_command(
 ) -> Result<Response, ApiError> {
     let cmd = commands::swarm_command(&body)?;
     let outcome = s
-        .ask(move |r| CommandMsg::SwarmCommand(cmd, r).into())
+        .write(move |r| CommandMsg::SwarmCommand(cmd, r).into())
         .await?;
     if outcome.accepted.is_empty() {
         let error = if outcome.refused.is_empty() {

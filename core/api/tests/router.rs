@@ -150,3 +150,30 @@ async fn the_dashboard_is_served_for_every_other_path_without_a_token() {
     .await;
     assert_eq!(status, StatusCode::NOT_FOUND);
 }
+
+/// The pure reads answer from the coordinator's published state, not its mailbox: with a
+/// coordinator that answers nothing, the vehicles, the formation, the supervision tree
+/// and the tracks are still read (a swarm with nothing in it), while the health check,
+/// which asks the coordinator, says it is unavailable.
+#[tokio::test]
+async fn reads_answer_without_the_coordinator_and_health_asks_it() {
+    let app = router(Auth::disabled()).await;
+    for path in [
+        "/api/v1/vehicles",
+        "/api/v1/formation",
+        "/api/v1/supervision",
+        "/api/v1/tracks",
+        "/api/v1/swarms",
+    ] {
+        let (status, body) = call(&app, request("GET", path, None, [127, 0, 0, 1])).await;
+        assert_eq!(status, StatusCode::OK, "{path}: {body}");
+    }
+    let (status, body) = call(
+        &app,
+        request("GET", "/api/v1/vehicles/uav-1", None, [127, 0, 0, 1]),
+    )
+    .await;
+    assert_eq!(status, StatusCode::NOT_FOUND, "{body}");
+    let (status, body) = call(&app, request("GET", "/api/v1/health", None, [127, 0, 0, 1])).await;
+    assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE, "{body}");
+}

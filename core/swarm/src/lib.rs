@@ -67,7 +67,8 @@ pub use context::SwarmContext;
 pub use coordinator::{
     AdminMsg, CommandMsg, CommandOutcome, Coordinator, CoordinatorMsg, DistributedMsg,
     EndpointSpec, FaultError, FieldError, FleetMsg, FormationMsg, GeofenceMsg, PayloadMsg,
-    RemoteVehicle, ServiceMsg, ServiceSpawner, ServiceSpec, Swarm, TrackingMsg, VehicleSpec,
+    RemoteVehicle, ServiceMsg, ServiceSpawner, ServiceSpec, Swarm, SwarmReads, TrackingMsg,
+    VehicleSpec,
 };
 pub use events::SwarmEvent;
 pub use formation::{FormationSpec, FormationStatus};

@@ -71,7 +71,8 @@ pub async fn router_of(
 ) -> axum::Router {
     let (coordinator, _) = Actor::spawn(None, Mute, ()).await.unwrap();
     let (events, _) = broadcast::channel(4);
-    let state = skein_api::ApiState::new(coordinator, events).with_auth(auth);
+    let state = skein_api::ApiState::new(coordinator, skein_swarm::SwarmReads::idle(), events)
+        .with_auth(auth);
     skein_api::app(match election {
         Some(e) => state.with_election(e),
         None => state,

@@ -116,11 +116,15 @@ impl ApiSettings {
         swarm: &Swarm,
     ) -> Result<(), String> {
         let scheme = self.scheme();
-        let mut state = skein_api::ApiState::new(swarm.coordinator.clone(), swarm.events.clone())
-            .with_plugins(plugins.manager, plugins.refused)
-            .with_map(self.map)
-            .with_auth(self.auth)
-            .with_recorder(recorder.clone());
+        let mut state = skein_api::ApiState::new(
+            swarm.coordinator.clone(),
+            swarm.reads.clone(),
+            swarm.events.clone(),
+        )
+        .with_plugins(plugins.manager, plugins.refused)
+        .with_map(self.map)
+        .with_auth(self.auth)
+        .with_recorder(recorder.clone());
         if let Some(dds) = dds {
             state = dds.extend_api(state);
         }

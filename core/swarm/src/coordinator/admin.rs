@@ -4,7 +4,7 @@
 
 use super::messages::{CoordinatorMsg, FaultError, Health, ServiceSpec};
 use super::{CoordinatorState, Node};
-use crate::supervision::{self, TreeNode};
+use crate::supervision;
 use ractor::{ActorId, ActorProcessingErr, ActorRef, RpcReplyPort};
 use skein_model::supervision::FaultKind;
 use std::sync::Arc;
@@ -15,13 +15,14 @@ use std::time::Instant;
 pub enum AdminMsg {
     /// Health.
     Health(RpcReplyPort<Health>),
-    /// The supervision tree.
-    GetSupervision(RpcReplyPort<TreeNode>),
     /// The metrics in Prometheus text format.
     RenderMetrics(RpcReplyPort<String>),
     /// The process's load monitor (services ask once, then read it directly to shed
     /// optional work, see [`crate::load`]).
     GetLoad(RpcReplyPort<Arc<crate::load::LoadMonitor>>),
+    /// What the coordinator publishes for reads that do not wait in its mailbox
+    /// ([`super::published`]); asked once, by [`super::Swarm::start`].
+    GetReads(RpcReplyPort<super::SwarmReads>),
     /// Watchdog probe (the process watchdog pings the coordinator).
     Ping(RpcReplyPort<()>),
     /// Start and supervise a service (the HTTP API).
@@ -49,11 +50,11 @@ impl CoordinatorState {
             AdminMsg::Health(reply) => {
                 let _ = reply.send(self.health());
             }
-            AdminMsg::GetSupervision(reply) => {
-                let _ = reply.send(self.supervision.tree());
-            }
             AdminMsg::RenderMetrics(reply) => {
                 let _ = reply.send(self.render_metrics());
+            }
+            AdminMsg::GetReads(reply) => {
+                let _ = reply.send(self.published.reads());
             }
             AdminMsg::GetLoad(reply) => {
                 let _ = reply.send(self.supervision.load.clone());

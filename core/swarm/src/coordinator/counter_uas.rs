@@ -3,17 +3,15 @@
 //! [`super::stations`]), and the embedded simulator's ground truth to compare them with.
 
 use super::CoordinatorState;
-use super::messages::{AirPictureAnswer, TracksAnswer};
+use super::messages::TracksAnswer;
 use super::observe::{ObserveRefusal, ObserveSpec};
 use ractor::RpcReplyPort;
 
 /// Messages about tracking and observation (inside [`super::CoordinatorMsg::Tracking`]).
 pub enum TrackingMsg {
-    /// The counter-UAS tracks now and which vehicle observes which track
-    /// (`GET /api/v1/tracks`).
+    /// The counter-UAS tracks now and which vehicle observes which track (the DDS
+    /// tracks topic; the API reads them from [`super::SwarmReads`]).
     GetTracks(RpcReplyPort<TracksAnswer>),
-    /// The tracks, the hostile swarms and who observes what.
-    GetAirPicture(RpcReplyPort<AirPictureAnswer>),
     /// Point the gimbals of the vehicles (default: all with a gimbal) at a track or swarm
     /// and keep them on it, and with `stations` fly them to the stations that fix it
     /// best; answers the observing vehicles.
@@ -34,15 +32,6 @@ impl CoordinatorState {
         match msg {
             TrackingMsg::GetTracks(reply) => {
                 let _ = reply.send((self.tracking.shared().tracks(), self.observations()));
-            }
-            TrackingMsg::GetAirPicture(reply) => {
-                let shared = self.tracking.shared();
-                let _ = reply.send(AirPictureAnswer {
-                    tracks: shared.tracks(),
-                    swarms: shared.swarms(),
-                    observing: self.observations(),
-                    stations: self.station_views(),
-                });
             }
             TrackingMsg::Observe(spec, reply) => {
                 let _ = reply.send(self.observe(spec));

@@ -86,6 +86,7 @@ impl CoordinatorState {
         self.vehicles
             .insert(id.clone(), VehicleProxy::local(shared));
         self.metrics.vehicles.set(self.vehicles.len() as i64);
+        self.publish_vehicles();
         self.start_child(myself, Node::Vehicle(id.clone())).await?;
         tracing::info!("{id} joined (sysid {}, {})", d.sysid, endpoint.address());
         self.emit(SwarmEvent::VehicleJoined {

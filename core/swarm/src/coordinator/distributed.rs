@@ -147,6 +147,7 @@ impl CoordinatorState {
             VehicleProxy::remote(r.port, r.snapshots, r.reports),
         );
         self.metrics.vehicles.set(self.vehicles.len() as i64);
+        self.publish_vehicles();
         tracing::info!("{} joined (sysid {sysid}, agent `{}`)", r.id, r.agent);
         self.emit(SwarmEvent::VehicleJoined {
             id: r.id,

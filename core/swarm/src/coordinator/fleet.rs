@@ -25,8 +25,6 @@ pub enum FleetMsg {
     FromVehicle(FromVehicle),
     /// All vehicles, sorted by id.
     ListVehicles(RpcReplyPort<Vec<VehicleSnapshot>>),
-    /// One vehicle.
-    GetVehicle(String, RpcReplyPort<Option<VehicleSnapshot>>),
     /// A local vehicle's `Px4Link` actor (parameters); `Err` says why there is none.
     GetLink(
         String,
@@ -54,9 +52,6 @@ impl CoordinatorState {
             FleetMsg::ListVehicles(reply) => {
                 let list = self.vehicles.values().map(|v| v.snapshot()).collect();
                 let _ = reply.send(list);
-            }
-            FleetMsg::GetVehicle(id, reply) => {
-                let _ = reply.send(self.vehicles.get(&id).map(|v| v.snapshot()));
             }
             FleetMsg::GetLink(id, reply) => self.get_link(id, reply),
             FleetMsg::LinkStats(reply) => {

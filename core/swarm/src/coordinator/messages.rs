@@ -70,19 +70,6 @@ pub struct Health {
 /// The tracks now, and which vehicle observes which track (vehicle id, track id).
 pub type TracksAnswer = (Vec<crate::tracks::TrackView>, Vec<(String, String)>);
 
-/// The air picture (`GET /api/v1/tracks`, `GET /api/v1/swarms`).
-#[derive(Debug, Clone, Default)]
-pub struct AirPictureAnswer {
-    /// The tracks, with their forecasts and swarms.
-    pub tracks: Vec<crate::tracks::TrackView>,
-    /// The hostile swarms.
-    pub swarms: Vec<crate::tracks::SwarmView>,
-    /// Which vehicle observes which track or swarm (vehicle id, target id).
-    pub observing: Vec<(String, String)>,
-    /// The observations flown on stations.
-    pub stations: Vec<super::stations::StationsView>,
-}
-
 /// Why a formation request was refused: the field and the reason.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FieldError {

@@ -5,7 +5,7 @@
 //! It reaches vehicles only through the swarm protocol ([`crate::protocol`]): each
 //! vehicle is a [`VehicleProxy`] (a port for [`ToVehicle`](crate::protocol::ToVehicle)
 //! messages and the vehicle's latest report). Commands fan out to every target at once
-//! and are answered from the acknowledgements as they come ([`commands`]); nothing in
+//! and are answered from the acknowledgements as they come ([`fan_out`]); nothing in
 //! `handle` waits for a vehicle.
 //!
 //! A failed Vehicle actor is restarted by policy on the same persistent part, so its FSM
@@ -20,28 +20,33 @@
 //! | Variant | Enum | Module |
 //! |---|---|---|
 //! | `Fleet` | [`FleetMsg`] | [`fleet`]: vehicles, links, the ground-station forwarder |
-//! | `Command` | [`CommandMsg`] | [`commands`]: commands for one vehicle or all |
+//! | `Command` | [`CommandMsg`] | [`fan_out`]: commands for one vehicle or all |
 //! | `Formation` | [`FormationMsg`] | [`formation_control`]: formation requests, its tick |
 //! | `Geofence` | [`GeofenceMsg`] | [`geofence`]: the fence in force, changes to it |
 //! | `Payload` | [`PayloadMsg`] | [`payloads`]: payloads and payload plugins |
-//! | `Tracking` | [`TrackingMsg`] | [`tracking`]: tracks, swarms, observation |
+//! | `Tracking` | [`TrackingMsg`] | [`counter_uas`]: tracks, swarms, observation |
 //! | `Admin` | [`AdminMsg`] | [`admin`]: supervision, faults, health, metrics, load |
-//! | `Distributed` | [`DistributedMsg`] | [`remote`]: the distributed roles' carrier |
+//! | `Distributed` | [`DistributedMsg`] | [`distributed`]: the distributed roles' carrier |
 //!
 //! A new operation adds a variant to its concept's enum and an arm to its handler.
+//!
+//! The API's pure reads (vehicles, formation, supervision, air picture) do not go through
+//! the mailbox: the coordinator publishes them after each message that may change them
+//! ([`published`], [`SwarmReads`]).
 //!
 //! - [`messages`]: what the API and vehicles tell the coordinator, and the answers' shapes;
 //! - [`discovery`]: vehicles joining from their first heartbeat;
 //! - [`proxy`]: the coordinator's view of a vehicle;
-//! - [`commands`]: fan-out of commands and payload requests;
+//! - [`fan_out`]: fan-out of commands and payload requests;
 //! - [`formation_control`]: formation and leader-motion requests;
 //! - [`formation_loop`]: the formation tick;
 //! - [`hazards`]: lost vehicles the formation plans around;
 //! - [`validation`]: formation and leader-motion requests, checked;
 //! - [`geofence`]: changing the geofence, tried on every autopilot, then committed;
-//! - [`children`]: supervision of vehicles and services, fault routing;
+//! - [`supervisor`]: supervision of vehicles and services, fault routing;
 //! - [`escalation`]: what happens to a vehicle whose actor keeps failing;
-//! - [`remote`]: vehicles of other processes, and an agent's carrier;
+//! - [`distributed`]: vehicles of other processes, and an agent's carrier;
+//! - [`published`]: what it publishes for reads that do not wait in its mailbox;
 //! - [`swarm`]: starting and stopping it all;
 //! - [`status`]: health, metrics and link counters it reports.
 
@@ -60,6 +65,7 @@ pub mod messages;
 pub mod observe;
 pub mod payloads;
 pub mod proxy;
+pub mod published;
 pub mod stations;
 pub mod status;
 pub mod supervisor;
@@ -71,11 +77,12 @@ pub use discovery::{EndpointSpec, VehicleSpec};
 pub use distributed::{DistributedMsg, RemoteVehicle};
 pub use fan_out::{CommandOutcome, Refused};
 pub use messages::{
-    AdminMsg, AirPictureAnswer, CommandMsg, CoordinatorMsg, EndpointStats, FaultError, FieldError,
-    FleetMsg, FormationMsg, GeofenceMsg, Health, PayloadMsg, ServiceMsg, ServiceSpawner,
-    ServiceSpec, TrackingMsg,
+    AdminMsg, CommandMsg, CoordinatorMsg, EndpointStats, FaultError, FieldError, FleetMsg,
+    FormationMsg, GeofenceMsg, Health, PayloadMsg, ServiceMsg, ServiceSpawner, ServiceSpec,
+    TrackingMsg,
 };
-pub use proxy::VehicleProxy;
+pub use proxy::{VehicleProxy, VehicleReadout};
+pub use published::{AirPicture, Observations, SwarmReads};
 pub use supervisor::Node;
 pub use swarm::{StartError, Swarm};
 
@@ -150,6 +157,8 @@ pub struct CoordinatorState {
     watch_gate: TickGate,
     /// A geofence change waiting for its vehicles' uploads ([`geofence`]).
     fence_change: Option<geofence::PendingFence>,
+    /// What the API reads without asking ([`published`]).
+    published: published::Publisher,
 }
 
 /// The `Coordinator` actor (see module docs).
@@ -158,6 +167,27 @@ pub struct Coordinator;
 impl CoordinatorState {
     fn emit(&self, ev: SwarmEvent) {
         let _ = self.events.send(ev);
+    }
+
+    /// Publishes the formation and the observations for the API's reads ([`published`]).
+    fn publish(&self) {
+        self.published.state(
+            self.formation_status(),
+            published::Observations {
+                observing: self.observations(),
+                stations: self.station_views(),
+            },
+        );
+    }
+
+    /// Publishes the list of vehicles, after one joined ([`published`]).
+    fn publish_vehicles(&self) {
+        let list = self
+            .vehicles
+            .iter()
+            .map(|(id, v)| (id.clone(), v.readout().clone()))
+            .collect();
+        self.published.vehicles(list);
     }
 
     fn formation_changed(&self) {
@@ -217,7 +247,13 @@ impl Actor for Coordinator {
             args.events.clone(),
             args.metrics.clone(),
         );
+        let published = published::Publisher::new(
+            formation.status_with(&[], &BTreeMap::new()),
+            supervision.clone(),
+            tracking.shared().clone(),
+        );
         Ok(CoordinatorState {
+            published,
             context,
             fleet,
             neighbours: NeighbourBoard::new(control_period),
@@ -251,6 +287,7 @@ impl Actor for Coordinator {
         msg: Self::Msg,
         state: &mut Self::State,
     ) -> Result<(), ActorProcessingErr> {
+        let publish = msg.may_change_reads();
         match msg {
             CoordinatorMsg::Fleet(msg) => state.handle_fleet(&myself, msg).await?,
             CoordinatorMsg::Command(msg) => state.handle_command(&myself, msg),
@@ -260,6 +297,9 @@ impl Actor for Coordinator {
             CoordinatorMsg::Tracking(msg) => state.handle_tracking(msg),
             CoordinatorMsg::Admin(msg) => state.handle_admin(&myself, msg).await?,
             CoordinatorMsg::Distributed(msg) => state.on_distributed(msg),
+        }
+        if publish {
+            state.publish();
         }
         Ok(())
     }

@@ -31,55 +31,29 @@ pub struct LocalVehicle {
 /// One vehicle as the coordinator sees it.
 pub struct VehicleProxy {
     port: Arc<dyn VehiclePort>,
-    snapshots: watch::Receiver<VehicleSnapshot>,
-    reports: watch::Receiver<VehicleReport>,
+    readout: VehicleReadout,
     /// Its actor kept failing and it was commanded to HOLD/LAND: it gets no commands.
     pub failed: bool,
     /// The local part, for a vehicle of this process.
     pub local: Option<LocalVehicle>,
 }
 
-impl VehicleProxy {
-    /// A proxy for a vehicle of this process.
-    pub fn local(shared: Arc<VehicleShared>) -> Self {
-        let port = LocalPort::new();
-        VehicleProxy {
-            port: port.clone(),
-            snapshots: shared.subscribe_snapshots(),
-            reports: shared.subscribe_reports(),
-            failed: false,
-            local: Some(LocalVehicle {
-                shared,
-                port,
-                safe_link: None,
-            }),
-        }
-    }
+/// Where a vehicle's latest snapshot and report are read: its vehicle actor (or its
+/// agent's carrier) writes them, anyone reads them without asking the coordinator (the
+/// API's vehicle reads, see [`super::published`]). Cheap to clone.
+#[derive(Clone)]
+pub struct VehicleReadout {
+    snapshots: watch::Receiver<VehicleSnapshot>,
+    reports: watch::Receiver<VehicleReport>,
+    /// A vehicle of another process (silent for [`REMOTE_SILENCE`]: `Lost`).
+    remote: bool,
+}
 
-    /// A proxy for a vehicle of another process (an agent's, see [`super::distributed`]).
-    pub fn remote(
-        port: Arc<dyn VehiclePort>,
-        snapshots: watch::Receiver<VehicleSnapshot>,
-        reports: watch::Receiver<VehicleReport>,
-    ) -> Self {
-        VehicleProxy {
-            port,
-            snapshots,
-            reports,
-            failed: false,
-            local: None,
-        }
-    }
-
-    /// Sends a protocol message; `Err` says why the vehicle cannot be reached.
-    pub fn send(&self, msg: ToVehicle) -> Result<(), String> {
-        self.port.send(msg)
-    }
-
+impl VehicleReadout {
     /// True when this is a remote vehicle not reported for [`REMOTE_SILENCE`] (its agent
     /// or the network is down).
     fn remote_silent(&self) -> Option<Duration> {
-        if self.local.is_some() {
+        if !self.remote {
             return None;
         }
         let age = crate::protocol::age_of(self.reports.borrow().stamp_us);
@@ -98,14 +72,77 @@ impl VehicleProxy {
         s
     }
 
-    /// The latest report; a silent remote vehicle's state is `Lost` (so the formation
-    /// plans around it as a hazard, as around a local vehicle whose link is silent).
+    /// The latest report; a silent remote vehicle's state is `Lost`.
     pub fn report(&self) -> VehicleReport {
         let mut r = *self.reports.borrow();
         if self.remote_silent().is_some() {
             r.state = VehicleState::Lost;
         }
         r
+    }
+}
+
+impl VehicleProxy {
+    /// A proxy for a vehicle of this process.
+    pub fn local(shared: Arc<VehicleShared>) -> Self {
+        let port = LocalPort::new();
+        VehicleProxy {
+            port: port.clone(),
+            readout: VehicleReadout {
+                snapshots: shared.subscribe_snapshots(),
+                reports: shared.subscribe_reports(),
+                remote: false,
+            },
+            failed: false,
+            local: Some(LocalVehicle {
+                shared,
+                port,
+                safe_link: None,
+            }),
+        }
+    }
+
+    /// A proxy for a vehicle of another process (an agent's, see [`super::distributed`]).
+    pub fn remote(
+        port: Arc<dyn VehiclePort>,
+        snapshots: watch::Receiver<VehicleSnapshot>,
+        reports: watch::Receiver<VehicleReport>,
+    ) -> Self {
+        VehicleProxy {
+            port,
+            readout: VehicleReadout {
+                snapshots,
+                reports,
+                remote: true,
+            },
+            failed: false,
+            local: None,
+        }
+    }
+
+    /// Sends a protocol message; `Err` says why the vehicle cannot be reached.
+    pub fn send(&self, msg: ToVehicle) -> Result<(), String> {
+        self.port.send(msg)
+    }
+
+    /// Where its snapshot and report are read (cheap to clone).
+    pub fn readout(&self) -> &VehicleReadout {
+        &self.readout
+    }
+
+    fn remote_silent(&self) -> Option<Duration> {
+        self.readout.remote_silent()
+    }
+
+    /// The latest snapshot (see [`VehicleReadout::snapshot`]).
+    pub fn snapshot(&self) -> VehicleSnapshot {
+        self.readout.snapshot()
+    }
+
+    /// The latest report; a silent remote vehicle's state is `Lost` (so the formation
+    /// plans around it as a hazard, as around a local vehicle whose link is silent).
+    pub fn report(&self) -> VehicleReport {
+        self.readout.report()
     }
 
     /// FSM state as last reported (`Lost` for a silent remote vehicle).
@@ -118,7 +155,7 @@ impl VehicleProxy {
     /// agent flies it on its slot meanwhile, see
     /// [`crate::formation::Member::ride_through`]). `None` for any other.
     pub fn formation_report(&self) -> Option<VehicleReport> {
-        let r = *self.reports.borrow();
+        let r = *self.readout.reports.borrow();
         if r.state != VehicleState::InFormation {
             return None;
         }
@@ -137,7 +174,8 @@ impl VehicleProxy {
     /// How long a silent member flies its slot on its own: its agent's ride-through, or
     /// [`crate::formation::LEADER_SILENCE`] for a vehicle of this process.
     pub fn ride_through(&self) -> Duration {
-        self.reports
+        self.readout
+            .reports
             .borrow()
             .ride_through_s
             .filter(|s| s.is_finite() && *s >= 0.0)
@@ -146,6 +184,9 @@ impl VehicleProxy {
 
     /// Swarm-frame position now (the report's, moved on by its age).
     pub fn position(&self) -> Option<Ned> {
-        self.reports.borrow().position_now(REPORT_EXTRAPOLATION)
+        self.readout
+            .reports
+            .borrow()
+            .position_now(REPORT_EXTRAPOLATION)
     }
 }

@@ -2,7 +2,7 @@
 //! metrics.
 
 use super::discovery::EndpointSpec;
-use super::messages::{CoordinatorMsg, FleetMsg};
+use super::messages::{AdminMsg, CoordinatorMsg, FleetMsg};
 use super::{Coordinator, CoordinatorArgs};
 use crate::config::SwarmConfig;
 use crate::events::SwarmEvent;
@@ -26,6 +26,8 @@ pub struct Swarm {
     pub metrics: Arc<Metrics>,
     /// How late the process runs, and whether optional work is shed ([`crate::load`]).
     pub load: Arc<LoadMonitor>,
+    /// What the coordinator publishes for the API's pure reads ([`super::published`]).
+    pub reads: super::SwarmReads,
     handle: ractor::concurrency::JoinHandle<()>,
 }
 
@@ -83,12 +85,26 @@ impl Swarm {
         )
         .await
         .map_err(|e| StartError(format!("coordinator did not start: {e}")))?;
+        let reads = match coordinator
+            .call(
+                |r| AdminMsg::GetReads(r).into(),
+                Some(std::time::Duration::from_secs(10)),
+            )
+            .await
+        {
+            Ok(ractor::rpc::CallResult::Success(reads)) => reads,
+            _ => {
+                coordinator.stop(None);
+                return Err(StartError("the coordinator did not answer".into()));
+            }
+        };
         Ok(Swarm {
             coordinator,
             events,
             endpoints,
             metrics,
             load,
+            reads,
             handle,
         })
     }
