@@ -1,6 +1,7 @@
 //! The benchmarks end to end, small: `skein bench swarm` (20 vehicles at 50 Hz for 3 s, ten
 //! to a port, the simulator in its own process, then the same with the plain pymavlink loop), `skein bench formation` (8 vehicles), `skein bench
-//! restart` (40 panics) and `skein bench tracking` (15 s). Each checks the report's shape
+//! restart` (40 panics), `skein bench tracking` (15 s) and `skein bench api` (3 vehicles,
+//! 2 s a phase). Each checks the report's shape
 //! and that the swarm really flew; never its timing (that is what the benchmarks themselves are for, on a quiet machine).
 
 mod support;
@@ -312,4 +313,45 @@ fn bench_tracking_reports_detection_and_track_quality() {
     assert_eq!(r["replay"]["malformed_frames"], 0, "{replayed}");
     assert!(r["confirmed_tracks"].as_u64().unwrap() >= 1, "{replayed}");
     assert!(!r["rmse_m"].is_null(), "{replayed}");
+}
+
+/// `skein bench api`: three vehicles fly the line, and the reads are timed quiet and while
+/// two clients keep the coordinator busy; every figure present, every read answered, and
+/// the busy clients were answered too (the coordinator was busy).
+#[test]
+fn bench_api_times_the_reads_quiet_and_with_the_coordinator_busy() {
+    let report = bench_report(
+        &[
+            "api",
+            "--vehicles",
+            "3",
+            "--seconds",
+            "2",
+            "--busy-clients",
+            "2",
+        ],
+        "busy_clients",
+        Duration::from_secs(300),
+    );
+    for phase in ["quiet", "busy"] {
+        let r = &report[phase]["read_latency_ms"];
+        for key in ["p50", "p99", "max"] {
+            assert!(r[key].as_f64().is_some(), "{phase}.{key} missing: {report}");
+        }
+        assert!(
+            r["samples"].as_u64().is_some_and(|n| n >= 6),
+            "{phase}: too few reads: {report}"
+        );
+        assert_eq!(
+            report[phase]["by_route"].as_object().map(|m| m.len()),
+            Some(6),
+            "{phase}: {report}"
+        );
+    }
+    assert!(
+        report["busy"]["busy_requests_per_s"]
+            .as_f64()
+            .is_some_and(|r| r > 0.0),
+        "the busy clients were never answered: {report}"
+    );
 }
