@@ -38,6 +38,7 @@ from selenium import webdriver
 from selenium.common.exceptions import StaleElementReferenceException, TimeoutException, WebDriverException
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.action_chains import ActionChains
+from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select, WebDriverWait
 
@@ -93,6 +94,33 @@ def parse_args():
     return p.parse_args()
 
 
+FETCH_LOG_JS = """
+window.__skeinFetches = [];
+const skeinFetch = window.fetch;
+window.fetch = function (input, init) {
+  const e = { method: (init && init.method) || 'GET', url: String(input), t0: performance.now() };
+  window.__skeinFetches.push(e);
+  if (window.__skeinFetches.length > 400) window.__skeinFetches.shift();
+  return skeinFetch.apply(this, arguments).then(
+    (r) => { e.status = r.status; e.ms = Math.round(performance.now() - e.t0); return r; },
+    (err) => { e.status = 'error ' + err; e.ms = Math.round(performance.now() - e.t0); throw err; });
+};
+"""
+
+# On failure: the API requests still unanswered, the newest answered writes, and the
+# camera streams the page holds open (each an HTTP/1.1 connection of the browser's six).
+FAILURE_JS = """
+const f = window.__skeinFetches || [];
+const now = performance.now();
+const short = (e) => `${e.method} ${e.url.replace(location.origin, '')} ${e.status ?? 'pending'} ${e.ms ?? Math.round(now - e.t0)} ms`;
+return {
+  pending: f.filter((e) => e.status === undefined).map(short),
+  writes: f.filter((e) => e.method !== 'GET').slice(-5).map(short),
+  streams: [...document.querySelectorAll('img[src*="/stream"]')].map((i) => i.getAttribute('src').replace(location.origin, '')),
+};
+"""
+
+
 def make_driver(args):
     opts = webdriver.ChromeOptions()
     opts.binary_location = args.chromium
@@ -107,6 +135,9 @@ def make_driver(args):
     w, h = (int(x) for x in args.window.split(","))
     driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
                            {"width": w, "height": h, "deviceScaleFactor": 1, "mobile": False})
+    # Every API request the page makes, with its answer once it has one (a failure's
+    # report lists those still waiting: a request the browser never sent shows here).
+    driver.execute_cdp_cmd("Page.addScriptToEvaluateOnNewDocument", {"source": FETCH_LOG_JS})
     return driver
 
 
@@ -213,8 +244,11 @@ def run(args, driver, summary):
     new = round(old + 0.5, 1)
     value = ui.css(f'{row} [data-testid="param-value"]')
     value.clear()
-    value.send_keys(str(new))
-    ui.click(f'{row} [data-testid="param-write"]')
+    # Typed and sent with Enter, as an operator sets a value. A click on the row's Set
+    # button missed twice in CI: the row sat at the panel's bottom edge while the lists
+    # above it (state history, status texts, link counters) grew by a line between the
+    # scroll and the click (CI's failure screenshot: 3.0 typed, never sent, no request).
+    value.send_keys(str(new) + Keys.ENTER)
     ui.wait(f"{args.param} to read {new}", lambda d: abs(number(ui.text(f'{row} td[data-field="value"]')) - new) < 1e-3)
     summary["param"] = {"name": args.param, "from": old, "to": new}
     times["param_written"] = lap()
@@ -358,6 +392,7 @@ def main():
                     # What the dashboard told the operator: an API error shows as a toast.
                     summary["toasts"] = driver.execute_script(
                         "return [...document.querySelectorAll('#toasts .toast')].map(t => t.textContent.trim())")
+                    summary["requests"] = driver.execute_script(FAILURE_JS)
                     # And the event log's newest API notes (toasts fade; the log keeps them).
                     summary["api_log"] = driver.execute_script(
                         "return [...document.querySelectorAll('li[data-type=\"api\"]')].slice(0, 5)"
