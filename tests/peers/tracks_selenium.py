@@ -26,6 +26,7 @@ import time
 
 from selenium.common.exceptions import NoSuchElementException, StaleElementReferenceException
 from selenium.webdriver.common.by import By
+from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select
 
 from dashboard_selenium import Dashboard, Failure, add_browser_args, drive, no_console_errors
@@ -104,9 +105,12 @@ def run(args, driver, summary):
             raise Failure(f"three observed tracks ended before they were marked observed: "
                           f"{summary['observe_clicks'][:3]}")
         try:
+            # Pressed with the keyboard (focus, then Enter): the list moves as tracks come
+            # and go, and a mouse click aimed at a row that moved meanwhile lands beside
+            # it (as the ground-station test's Set button did in CI).
             driver.find_element(
                 By.CSS_SELECTOR,
-                f'li[data-track-id="{current["id"]}"] button[data-act="observe"]').click()
+                f'li[data-track-id="{current["id"]}"] button[data-act="observe"]').send_keys(Keys.ENTER)
         except (NoSuchElementException, StaleElementReferenceException):
             continue  # ended between the listing and the click: the next one
 
