@@ -10,8 +10,8 @@
 //!    from send to the last byte;
 //! 3. **busy**: the same, while `--busy-clients` clients keep the coordinator's mailbox
 //!    full with what still goes through it: `GET /metrics` (rendered by the coordinator
-//!    from its state) and `POST /api/v1/formation/leader/goto` re-sending the leader's
-//!    goal (a write, checked and applied by the coordinator);
+//!    from its state) and `PUT /api/v1/formation`, the line at 6 then 6.5 m spacing and
+//!    back (a formation change, checked and planned for every member by the coordinator);
 //! 4. prints one JSON object: `vehicles`, `seconds`, `busy_clients`, and for `quiet` and
 //!    `busy` each: `read_latency_ms` (`p50`, `p99`, `max`, `samples`, over every route),
 //!    `by_route` (each route's `p50` and `p99`), `busy_requests_per_s` (the busy
@@ -74,16 +74,20 @@ fn timed_get(agent: &ureq::Agent, url: &str) -> Result<f64, String> {
     Ok(t0.elapsed().as_secs_f64() * 1e3)
 }
 
-/// Keeps the coordinator busy until `stop`: `/metrics`, then the leader's goal again;
-/// counts the answered requests in `done`.
+/// Keeps the coordinator busy until `stop`: `/metrics`, then the line again at 6 or
+/// 6.5 m spacing (each a formation change the coordinator checks and plans for every
+/// member, as an operator's is); counts the answered requests in `done`.
 fn busy_client(base: String, stop: Arc<AtomicBool>, done: Arc<AtomicU64>) {
     let agent = client();
-    let goal = json!({"north_m": 400.0, "east_m": 0.0, "speed_m_s": 5.0});
+    let mut spacing_m = 6.0;
     while !stop.load(Ordering::Relaxed) {
         let metrics = agent.get(format!("{base}/metrics")).call();
+        spacing_m = if spacing_m > 6.2 { 6.0 } else { 6.5 };
+        let line = json!({"shape": "line", "spacing_m": spacing_m, "leader": "virtual",
+            "altitude_m": 12.0});
         let write = agent
-            .post(format!("{base}/api/v1/formation/leader/goto"))
-            .send_json(&goal);
+            .put(format!("{base}/api/v1/formation"))
+            .send_json(&line);
         done.fetch_add(
             u64::from(metrics.is_ok()) + u64::from(write.is_ok()),
             Ordering::Relaxed,
