@@ -30,10 +30,10 @@ pub(crate) async fn publish_telemetry(
     let mut round: u64 = 0;
     loop {
         tick.tick().await;
+        if coordinator.get_status() == ractor::ActorStatus::Stopped {
+            return; // the frames are read without asking it: nothing else would notice
+        }
         if tx.receiver_count() == 0 {
-            if coordinator.get_status() == ractor::ActorStatus::Stopped {
-                return;
-            }
             continue;
         }
         if load.is_none()
