@@ -187,11 +187,8 @@ impl CoordinatorMsg {
 
 #[cfg(test)]
 mod tests {
-    use crate::coordinator::{AdminMsg, EndpointSpec, Swarm};
-    use crate::{SwarmConfig, SwarmServices};
-    use skein_link::{ConnectionAddress, Identity};
-    use skein_mavlink::dialect::{HEARTBEAT_DATA, MavAutopilot, MavType};
-    use skein_mavlink::{Encoder, MavMessage};
+    use crate::coordinator::AdminMsg;
+    use crate::coordinator::swarm::tests::{px4_heartbeats, swarm_on_udp};
     use skein_model::supervision::FaultKind;
     use std::time::{Duration, Instant};
 
@@ -202,33 +199,13 @@ mod tests {
     /// Were a read an `ask`, it would hang with the coordinator.
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn reads_answer_what_was_published_while_the_coordinator_hangs() {
-        let local: std::net::SocketAddr = "127.0.0.1:0".parse().unwrap();
-        let swarm = Swarm::start(
-            SwarmConfig::default(),
-            SwarmServices::default(),
-            Identity::default(),
-            vec![EndpointSpec {
-                connection: ConnectionAddress::UdpIn(local),
-                vehicles: Vec::new(),
-                simulated: false,
-            }],
-        )
-        .await
-        .expect("swarm starts");
+        let swarm = swarm_on_udp().await;
         let reads = swarm.reads.clone();
         assert!(reads.vehicles().is_empty());
-        let port = swarm.endpoints[0].local_addr().expect("udp endpoint");
-        let px4 = std::net::UdpSocket::bind(local).unwrap();
-        let mut enc = Encoder::new(1, 1);
-        let heartbeat = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            mavtype: MavType::MAV_TYPE_QUADROTOR,
-            autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
-            ..Default::default()
-        });
+        let mut heartbeat = px4_heartbeats(&swarm);
         let deadline = Instant::now() + Duration::from_secs(10);
         while reads.vehicles().len() != 1 {
-            px4.send_to(enc.encode(&heartbeat).as_bytes(), port)
-                .unwrap();
+            heartbeat();
             assert!(Instant::now() < deadline, "the vehicle was never published");
             tokio::time::sleep(Duration::from_millis(50)).await;
         }

@@ -144,22 +144,18 @@ impl Swarm {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use skein_link::ConnectionAddress;
     use skein_mavlink::dialect::{HEARTBEAT_DATA, MavAutopilot, MavType};
     use skein_mavlink::{Encoder, MavMessage};
     use std::time::{Duration, Instant};
 
-    /// A stopped swarm lets go of everything its vehicles held: their setpoint streams
-    /// stop and their endpoints' ports are free again. Each vehicle's payload sink lives
-    /// in its endpoint's route, which the vehicle's link keeps; a sink holding the
-    /// vehicle strongly made a cycle, and a stopped swarm went on streaming its last
-    /// setpoints, unsupervised, from ports nobody could bind again.
-    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-    async fn a_stopped_swarm_frees_its_vehicles_and_their_ports() {
+    /// A swarm of defaults on one `udpin` endpoint of a free loopback port (the tests of
+    /// the coordinator's start, stop and reads).
+    pub(crate) async fn swarm_on_udp() -> Swarm {
         let local: std::net::SocketAddr = "127.0.0.1:0".parse().unwrap();
-        let swarm = Swarm::start(
+        Swarm::start(
             SwarmConfig::default(),
             SwarmServices::default(),
             Identity::default(),
@@ -170,20 +166,39 @@ mod tests {
             }],
         )
         .await
-        .expect("swarm starts");
+        .expect("swarm starts")
+    }
+
+    /// A PX4 of sysid 1 for `swarm`'s first endpoint: each call sends one `HEARTBEAT`.
+    pub(crate) fn px4_heartbeats(swarm: &Swarm) -> impl FnMut() + use<> {
         let port = swarm.endpoints[0].local_addr().expect("udp endpoint");
-        // A PX4 that announces itself until the coordinator has made its vehicle.
-        let px4 = std::net::UdpSocket::bind(local).unwrap();
+        let px4 = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
         let mut enc = Encoder::new(1, 1);
         let heartbeat = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
             mavtype: MavType::MAV_TYPE_QUADROTOR,
             autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
             ..Default::default()
         });
-        let deadline = Instant::now() + Duration::from_secs(10);
-        loop {
+        move || {
             px4.send_to(enc.encode(&heartbeat).as_bytes(), port)
                 .unwrap();
+        }
+    }
+
+    /// A stopped swarm lets go of everything its vehicles held: their setpoint streams
+    /// stop and their endpoints' ports are free again. Each vehicle's payload sink lives
+    /// in its endpoint's route, which the vehicle's link keeps; a sink holding the
+    /// vehicle strongly made a cycle, and a stopped swarm went on streaming its last
+    /// setpoints, unsupervised, from ports nobody could bind again.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_stopped_swarm_frees_its_vehicles_and_their_ports() {
+        let swarm = swarm_on_udp().await;
+        let port = swarm.endpoints[0].local_addr().expect("udp endpoint");
+        // A PX4 that announces itself until the coordinator has made its vehicle.
+        let mut heartbeat = px4_heartbeats(&swarm);
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            heartbeat();
             let listed = swarm
                 .coordinator
                 .call(
