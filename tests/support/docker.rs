@@ -206,6 +206,7 @@ impl Follower {
     /// Prints the last 200 lines under `label` if the test panics while this follower
     /// lives (a container's log is gone once the test's compose project is removed).
     pub fn dumped_on_failure(mut self, label: &str) -> Follower {
+        super::failure::keep_panic_messages();
         self.label = Some(label.to_string());
         self
     }
@@ -232,6 +233,7 @@ impl Drop for Follower {
             for line in tail {
                 eprintln!("{label}: {line}");
             }
+            super::failure::repeat_failure();
         }
         let _ = self.child.kill();
         let _ = self.child.wait();

@@ -11,6 +11,7 @@ pub mod cpu;
 pub mod distributed;
 pub mod docker;
 mod events;
+mod failure;
 pub mod formation;
 pub mod lens;
 pub mod map_tiles;

@@ -48,6 +48,7 @@ impl Process {
     /// Starts `command` (a program and its arguments: another build of skein, one under
     /// an emulator) with `env` added to the environment.
     pub fn start_command(command: &[&str], env: &[(&str, &str)]) -> Process {
+        super::failure::keep_panic_messages();
         let (program, args) = command.split_first().expect("a program");
         let mut child = Command::new(program)
             .args(args)
@@ -173,17 +174,19 @@ impl Process {
 }
 
 impl Drop for Process {
-    /// Kills the process; when a test is failing, prints its last warnings and errors, so
-    /// that a CI log tells what the process saw.
+    /// Kills the process; when a test is failing, prints its last warnings and errors (runs
+    /// of one message collapsed), so that a CI log tells what the process saw, and the
+    /// failure's message again after them.
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
         if std::thread::panicking() {
             let lines = self.stderr.lock().unwrap_or_else(|e| e.into_inner());
-            let notable: Vec<&String> = lines
-                .iter()
-                .filter(|l| l.contains("WARN") || l.contains("ERROR"))
-                .collect();
+            let notable = super::failure::collapsed(
+                lines
+                    .iter()
+                    .filter(|l| l.contains("WARN") || l.contains("ERROR")),
+            );
             let from = notable.len().saturating_sub(30);
             eprintln!(
                 "--- last {} warnings and errors of the process under test ---",
@@ -192,6 +195,7 @@ impl Drop for Process {
             for l in &notable[from..] {
                 eprintln!("{l}");
             }
+            super::failure::repeat_failure();
         }
     }
 }
