@@ -19,7 +19,8 @@
 //!   the wedge orbits; the standby is active within 2 s and flies the formation on from
 //!   its mirror, at speed, the agents having flown it on meanwhile: the RMS never passes
 //!   2 m and is back under 0.5 m within 3.5 s, no two members closer than the separation.
-//!   The killed one starts again and takes the role back by handover, never two active.
+//!   The killed one starts again and takes the role back by handover, never two active;
+//!   the one that handed over flies no formation of its own (it mirrors the active one's).
 //! - **An outage longer than the ride-through** (agent-1, 6 s): its agent holds the
 //!   vehicle, the coordinator lists it absent, and after the link returns it is back on
 //!   its slot.
@@ -515,6 +516,14 @@ fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
         );
         let settled = swarm.watch_truth(Duration::from_secs(2));
         assert_whole("after a handover", &settled);
+        // The one that handed over flies no formation of its own: it mirrors the active
+        // one's, to resume that one should it claim the role again (a formation it kept
+        // would tick on unheard, drift, and be flown at the next failover instead).
+        let stood_down = swarm.gcs[standby].as_ref().unwrap().formation();
+        assert_eq!(
+            stood_down["active"], false,
+            "the coordinator that handed over still flies a formation: {stood_down}"
+        );
     }
     report.insert("failovers".into(), json!(kills));
 

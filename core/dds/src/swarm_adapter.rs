@@ -19,6 +19,7 @@ use ractor::rpc::CallResult;
 use skein_model::geo::{GeoPoint, NedFrame};
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::SwarmContext;
+use skein_swarm::election::CoordinatorRole;
 use skein_swarm::formation::FormationMirror;
 use skein_swarm::load::{LoadMonitor, ShedWork};
 use skein_swarm::metrics::Metrics;
@@ -117,6 +118,10 @@ impl FrameSource for SwarmAdapter {
 
 impl ElectionContext for SwarmAdapter {
     fn role_changed(&self, change: RoleChange) {
+        if change.role == CoordinatorRole::Standby {
+            let reason = change.reason.clone().unwrap_or_default();
+            self.distributed(DistributedMsg::SteppedDown(reason));
+        }
         let _ = self.events.send(SwarmEvent::CoordinatorRoleChanged {
             coordinator_id: change.coordinator_id,
             role: change.role,

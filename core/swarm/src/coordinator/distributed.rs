@@ -11,7 +11,8 @@
 //!   ([`DistributedMsg::TapUplink`]), reads their reports, and gives it the other
 //!   agents' vehicles as neighbours to keep separation from.
 //! - A **standby** coordinator mirrors the active one's formation and, once it holds the
-//!   role, flies it on ([`DistributedMsg::ResumeFormation`]).
+//!   role, flies it on ([`DistributedMsg::ResumeFormation`]); one that steps down lets
+//!   its own go ([`DistributedMsg::SteppedDown`]).
 
 use super::CoordinatorState;
 use super::proxy::VehicleProxy;
@@ -62,6 +63,13 @@ pub enum DistributedMsg {
     /// Coordinator that just took the role: fly on the formation of the one it replaces
     /// (its id), as mirrored (positions in this process's frame), unless it flies one.
     ResumeFormation(FormationMirror, String),
+    /// Coordinator that lost the role (a handover, or the loser of two actives after a
+    /// partition; the reason): it flies no formation of its own from now on. The active
+    /// one flies it and this one mirrors it, to resume it should it claim the role again;
+    /// a formation kept would go on ticking unheard, drift from the flown one (paced to a
+    /// stop by members that follow another reference) and be flown instead of the mirror
+    /// at the next claim.
+    SteppedDown(String),
 }
 
 /// How often hovering remote vehicles are joined to an active formation again.
@@ -128,6 +136,16 @@ impl CoordinatorState {
                 self.join_hovering();
                 self.formation_changed();
             }
+            DistributedMsg::SteppedDown(reason) => {
+                if self.formation.is_active() {
+                    tracing::warn!(
+                        "the formation is left to the active coordinator: this one stepped \
+                         down ({reason})"
+                    );
+                    self.formation.deactivate();
+                    self.formation_changed();
+                }
+            }
         }
     }
 
@@ -186,5 +204,92 @@ impl CoordinatorState {
         {
             let _ = tap.send(msg.clone());
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::DistributedMsg;
+    use crate::coordinator::swarm::tests::swarm_on_udp;
+    use crate::formation::{FormationMirror, LeaderMotion, Reference};
+    use crate::protocol::wall_us;
+    use skein_model::geo::Ned;
+    use std::time::Duration;
+
+    /// A line orbiting the swarm origin at 5 m/s, its reference at `north_m` now.
+    fn orbiting(north_m: f64) -> FormationMirror {
+        FormationMirror {
+            spec: serde_json::from_value(serde_json::json!({
+                "shape": "line", "spacing_m": 6.0, "leader": "virtual", "altitude_m": 12.0,
+                "heading_deg": 0.0, "frame": "world", "offsets": []
+            }))
+            .unwrap(),
+            reference: Reference {
+                position: Ned::new(north_m, 0.0, -12.0),
+                velocity: Ned::new(0.0, 5.0, 0.0),
+                heading_rad: 0.0,
+                heading_rate_rad_s: 0.0,
+                motion: LeaderMotion::Orbit {
+                    centre: Ned::new(0.0, 0.0, -12.0),
+                    radius_m: north_m,
+                    speed_m_s: 5.0,
+                    clockwise: true,
+                },
+            },
+            leader: None,
+            pattern_heading_rad: None,
+            assignment: Default::default(),
+            stamp_us: wall_us(),
+        }
+    }
+
+    /// The formation the coordinator would mirror now.
+    async fn mirrored(swarm: &crate::Swarm) -> Option<FormationMirror> {
+        swarm
+            .coordinator
+            .call(
+                |r| DistributedMsg::GetFormationMirror(r).into(),
+                Some(Duration::from_secs(5)),
+            )
+            .await
+            .expect("the coordinator answers")
+            .success_or(())
+            .ok()
+            .expect("an answer")
+    }
+
+    /// A coordinator that steps down lets its formation go, so that when it claims the
+    /// role again it resumes the formation the active one flew meanwhile (its mirror),
+    /// not its own, left ticking unheard while it stood by (which had drifted, paced to
+    /// a stop, 18 m from where the members flew, in a test of five failovers).
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_coordinator_that_stepped_down_resumes_the_mirror_not_its_own_formation() {
+        let swarm = swarm_on_udp().await;
+        let cast = |m: DistributedMsg| swarm.coordinator.cast(m.into()).expect("cast");
+        cast(DistributedMsg::ResumeFormation(
+            orbiting(40.0),
+            "gcs-b".into(),
+        ));
+        let own = mirrored(&swarm)
+            .await
+            .expect("the resumed formation is flown");
+        assert!(
+            (own.reference.position.north_m - 40.0).abs() < 1.0,
+            "{own:?}"
+        );
+
+        cast(DistributedMsg::SteppedDown("handed over to gcs-a".into()));
+        assert_eq!(mirrored(&swarm).await, None, "a standby flies no formation");
+
+        cast(DistributedMsg::ResumeFormation(
+            orbiting(60.0),
+            "gcs-a".into(),
+        ));
+        let resumed = mirrored(&swarm).await.expect("the mirror is flown");
+        assert!(
+            (resumed.reference.position.north_m - 60.0).abs() < 1.0,
+            "the old formation was flown on, not the mirror: {resumed:?}"
+        );
+        swarm.coordinator.stop(None);
     }
 }
