@@ -1,8 +1,9 @@
 //! The arm64 image for the companions (Raspberry Pi 4, Jetson Orin NX), made on this
 //! amd64 machine: skein and its plugins cross-compiled by `deploy/docker/cross-build.sh`
-//! (aarch64-unknown-linux-gnu, Debian's cross gcc; the test profile, in `target/arm64`),
-//! the image built by `build-image.sh --arch arm64` on the arm64 base `make-base.sh` makes
-//! from Debian's arm64 packages (kept for the next run), under 75 MB, labelled arm64.
+//! (aarch64-unknown-linux-gnu, Debian's cross gcc; the root `Cargo.toml`'s `arm64-test`
+//! profile, in `target/arm64`), the image built by `build-image.sh --arch arm64` on the
+//! arm64 base `make-base.sh` makes from Debian's arm64 packages (kept for the next run),
+//! under 75 MB, labelled arm64.
 //! Its files are then run under qemu-user (Debian's `qemu-aarch64`, the image's own
 //! loader and libraries by `-L`):
 //!
@@ -41,7 +42,7 @@ fn rootfs() -> &'static Rootfs {
         let ws = support::workspace();
         let started = Instant::now();
         let out = Command::new(ws.join("deploy/docker/cross-build.sh"))
-            .args(["--profile", "dev", "--target-dir"])
+            .args(["--profile", "arm64-test", "--target-dir"])
             .arg(ws.join("target/arm64"))
             .output()
             .expect("run cross-build.sh");

@@ -43,7 +43,7 @@ cargo test --workspace --locked --no-run
 # builds again and says why.
 arm64_log=target/arm64-build.log
 mkdir -p target
-setsid chrt --idle 0 nice -n 19 deploy/docker/cross-build.sh --profile dev --target-dir "$PWD/target/arm64" \
+setsid chrt --idle 0 nice -n 19 deploy/docker/cross-build.sh --profile arm64-test --target-dir "$PWD/target/arm64" \
   >"$arm64_log" 2>&1 &
 pid_arm64=$!
 # The fuzz targets' build (tests/fuzz.sh runs them after this script; cargo-fuzz's install

@@ -3,7 +3,7 @@
 # Jetson Orin NX): target aarch64-unknown-linux-gnu, linked by Debian's cross gcc
 # (.cargo/config.toml), on this machine.
 #
-#   deploy/docker/cross-build.sh [--profile release|dev] [--target-dir DIR]
+#   deploy/docker/cross-build.sh [--profile release|dev|arm64-test] [--target-dir DIR]
 #
 # Needs `rustup target add aarch64-unknown-linux-gnu`, Debian's gcc-aarch64-linux-gnu and,
 # for the camera plugin's OpenH264 (C++), g++-aarch64-linux-gnu (tests/run.sh installs
