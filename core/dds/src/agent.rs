@@ -317,15 +317,23 @@ pub async fn run<C: AgentContext>(agent: Arc<Agent>, ctx: Arc<C>) {
 /// One tick of the ride-through: slot targets for the local vehicles that ride, and
 /// the silent members of other agents predicted on their slots (see [`crate::ride`]).
 fn ride(agent: &Agent, ctx: &impl AgentContext) {
-    let tick = agent.riding().tick(wall_us());
+    let now = wall_us();
+    let tick = agent.riding().tick(now);
     let me = &agent.config.agent_id;
     for id in &tick.started {
-        let (reference, motion) = agent.riding().describe();
+        let riding = agent.riding();
+        let (reference, motion) = riding.describe();
+        let slot = riding.describe_slot(id, now);
+        drop(riding);
         tracing::warn!(
             "agent `{me}`: no slot target for {id} for {} ms: it rides through on its slot \
-             from the formation's mirror ({motion}, reference at {reference})",
+             from the formation's mirror ({motion}, reference at {reference}; {slot})",
             crate::ride::RIDE_AFTER.as_millis()
         );
+    }
+    for id in &tick.predicting {
+        let silent = agent.riding().describe_neighbour(id, now);
+        tracing::warn!("agent `{me}`: {id} predicted on its slot for separation ({silent})");
     }
     for id in &tick.ended {
         tracing::warn!("agent `{me}`: {id} no longer rides through");

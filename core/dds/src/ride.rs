@@ -61,6 +61,8 @@ pub struct Riding {
     neighbours: BTreeMap<String, Neighbour>,
     /// The local vehicles riding as of the last tick.
     riding: std::collections::BTreeSet<String>,
+    /// The other agents' vehicles predicted as of the last tick.
+    predicted: std::collections::BTreeSet<String>,
 }
 
 impl Riding {
@@ -72,6 +74,7 @@ impl Riding {
             slots: BTreeMap::new(),
             neighbours: BTreeMap::new(),
             riding: Default::default(),
+            predicted: Default::default(),
         }
     }
 
@@ -137,7 +140,48 @@ impl Riding {
         out.started = now.difference(&self.riding).cloned().collect();
         out.ended = self.riding.difference(&now).cloned().collect();
         self.riding = now;
+        let predicted: std::collections::BTreeSet<String> =
+            out.neighbours.iter().map(|(id, _)| id.clone()).collect();
+        out.predicting = predicted.difference(&self.predicted).cloned().collect();
+        self.predicted = predicted;
         out
+    }
+
+    /// What a ride of local vehicle `id` flies at `now_us`, for the log: its offset from
+    /// the reference (pattern frame, forward/right/down m) once taken, and the age of the
+    /// mirror it rides from, ms (this process's clock).
+    pub fn describe_slot(&self, id: &str, now_us: u64) -> String {
+        let offset = self.slots.get(id).and_then(|s| s.offset);
+        let age_ms = self
+            .ride
+            .as_ref()
+            .map(|r| now_us.saturating_sub(r.mirror().stamp_us) as f64 / 1e3);
+        match (offset, age_ms) {
+            (Some(o), Some(a)) => format!(
+                "offset ({:.2}, {:.2}, {:.2}) m, mirror {a:.0} ms old",
+                o.north_m, o.east_m, o.down_m
+            ),
+            (None, Some(a)) => format!("no offset, mirror {a:.0} ms old"),
+            _ => "no mirror".into(),
+        }
+    }
+
+    /// How long other agent's vehicle `id` has been silent at `now_us` (its last report's
+    /// age, this process's clock), ms, and its offset (pattern frame), for the log.
+    pub fn describe_neighbour(&self, id: &str, now_us: u64) -> String {
+        match self.neighbours.get(id) {
+            Some(n) => {
+                let silent_ms = now_us.saturating_sub(n.report.stamp_us) as f64 / 1e3;
+                match n.offset {
+                    Some(o) => format!(
+                        "silent {silent_ms:.0} ms, offset ({:.2}, {:.2}) m",
+                        o.north_m, o.east_m
+                    ),
+                    None => format!("silent {silent_ms:.0} ms, no offset"),
+                }
+            }
+            None => "never heard".into(),
+        }
     }
 
     fn tick_rides(&mut self, now_us: u64) -> RideTick {
@@ -249,6 +293,8 @@ pub struct RideTick {
     /// Local vehicles that stopped riding at this tick (heard again, commanded, or
     /// their ride-through over).
     pub ended: Vec<String>,
+    /// Other agents' vehicles predicted from this tick on (not at the one before).
+    pub predicting: Vec<String>,
 }
 
 #[cfg(test)]
@@ -325,6 +371,10 @@ mod tests {
         assert!((s.velocity - Ned::new(5.0, 0.0, 0.0)).norm() < 1e-6);
         assert_eq!(s.slot, 1);
         assert_eq!(s.stamp_us, T0 + 2_000_000);
+        assert_eq!(
+            r.describe_slot("uav-2", T0 + 2_000_000),
+            "offset (-4.24, 4.24, 0.00) m, mirror 2000 ms old"
+        );
         // Past the ride-through after its last target: no more.
         assert!(r.tick(T0 + 4_100_000).targets.is_empty());
         // A command (or a dropped slot) ends it at once.
@@ -377,6 +427,15 @@ mod tests {
         );
         let t = r.tick(T0 + 3_000_000);
         assert_eq!(t.neighbours.len(), 1, "{t:?}");
+        assert_eq!(
+            t.predicting,
+            vec!["uav-3".to_string()],
+            "first predicted now"
+        );
+        assert!(
+            r.describe_neighbour("uav-3", T0 + 3_000_000)
+                .starts_with("silent 3000 ms")
+        );
         let (id, p) = &t.neighbours[0];
         assert_eq!(id, "uav-3");
         assert!((p.position.unwrap() - Ned::new(111.26, -4.24, -12.0)).norm() < 0.01);
@@ -387,6 +446,7 @@ mod tests {
         assert_eq!(p.stamp_us, T0 + 3_000_000);
         // Past its ride-through its agent held it: it stays there, at rest.
         let t = r.tick(T0 + 6_000_000);
+        assert!(t.predicting.is_empty(), "already predicted: {t:?}");
         let (_, p) = &t.neighbours[0];
         assert!((p.position.unwrap() - Ned::new(116.26, -4.24, -12.0)).norm() < 0.01);
         assert_eq!(p.velocity, Ned::ZERO);
