@@ -151,15 +151,20 @@ const READER: &str = "rustdds::rtps::reader";
 /// RustDDS 0.15.1's message receiver phrases of a secured message or submessage that did
 /// not authenticate: a submessage (`error`); a whole message whose MAC failed, or a
 /// payload (`error`, the plugin's `SecurityError` as is: ring says only "Unspecified");
-/// a receiver-specific MAC that failed (`trace`).
+/// a message whose receiver-specific MAC failed (`trace`; checked before its common
+/// MAC, so a forgery may end there).
 /// (Not "No matching message decode keys found" nor "No participant crypto handle
-/// found": every handshake makes some, see the module's documentation.)
+/// found": every handshake makes some, see the module's documentation. Nor "No endpoints
+/// passed the receiver-specific MAC validation for the submessage": RustDDS says it only
+/// after the submessage's common MAC verified (or it decrypted), so the submessage is
+/// authentic, addressed to readers or writers of another participant at this address.
+/// A peer restarted on its port gets one a second from every peer's heartbeats to its
+/// previous incarnation until that one's lease runs out: counted, it was a "refusal" a
+/// second after every coordinator failover.)
 const RECEIVER_PHRASES: [&str; 3] = [
     "Submessage decoding failed",
     "SecurityError",
-    // "Failed to validate the receiver-specif MAC for the rtps message", "No endpoints
-    // passed the receiver-specific MAC validation for the submessage".
-    "receiver-specif",
+    "Failed to validate the receiver-specif MAC for the rtps message",
 ];
 
 /// RustDDS 0.15.1's reader phrases: the DATA it handles (with its topic), and a DATA
@@ -459,9 +464,11 @@ mod tests {
                 "Failed to validate the receiver-specif MAC for the rtps message.",
                 true,
             ),
+            // Authentic (its common MAC verified first), for another participant's
+            // endpoints at this address: not counted.
             (
                 "No endpoints passed the receiver-specific MAC validation for the submessage.",
-                true,
+                false,
             ),
             // Every handshake makes these: not counted.
             (
