@@ -1,5 +1,6 @@
 //! The benchmarks end to end, small: `skein bench swarm` (20 vehicles at 50 Hz for 3 s, ten
-//! to a port, the simulator in its own process, then the same with the plain pymavlink loop), `skein bench formation` (8 vehicles), `skein bench
+//! to a port, the simulator in its own process, then the same with the plain pymavlink loop;
+//! 3 vehicles with the floor controller), `skein bench formation` (8 vehicles), `skein bench
 //! restart` (40 panics), `skein bench tracking` (15 s) and `skein bench api` (3 vehicles,
 //! 2 s a phase). Each checks the report's shape
 //! and that the swarm really flew; never its timing (that is what the benchmarks themselves are for, on a quiet machine).
@@ -93,6 +94,50 @@ fn bench_swarm_reports_every_field_with_all_vehicles_offboard_and_the_pymavlink_
             assert!(report[key].is_number(), "{key}: {report}");
         }
     }
+}
+
+/// `skein bench swarm --peer floor`, 3 vehicles for 3 s: the floor controller (datagrams
+/// only: one `sendmmsg` a period, `recvmmsg` drains) holds the same swarm against its own
+/// simulator, and its CPU is measured and compared.
+#[test]
+fn bench_swarm_floor_holds_every_vehicle_offboard_and_reports_its_cpu() {
+    let report = bench_report(
+        &[
+            "swarm",
+            "--vehicles",
+            "3",
+            "--rate-hz",
+            "50",
+            "--seconds",
+            "3",
+            "--peer",
+            "floor",
+        ],
+        "vehicles",
+        Duration::from_secs(300),
+    );
+    let peer = &report["peer"];
+    assert_eq!(peer["peer"], "floor", "{report}");
+    assert_eq!(peer["all_offboard"], true, "{report}");
+    assert_eq!(peer["offboard_loss_failsafes"], 0, "{report}");
+    assert!(
+        peer["setpoints_received"].as_u64().unwrap_or(0) > 0,
+        "{report}"
+    );
+    assert!(
+        peer["telemetry_datagrams"].as_u64().unwrap_or(0) > 0,
+        "{report}"
+    );
+    if cfg!(target_os = "linux") {
+        assert!(
+            peer["cpu_ms_per_vehicle_second"]
+                .as_f64()
+                .is_some_and(|c| c > 0.0),
+            "{report}"
+        );
+        assert!(report["cpu_ratio_to_peer"].is_number(), "{report}");
+    }
+    assert_eq!(report["all_offboard"], true, "{report}");
 }
 
 /// `skein bench formation`, 8 vehicles: every field present and, the rehearsal being

@@ -91,7 +91,10 @@ pub struct SwarmBenchArgs {
     /// After skein, fly the same swarm with this baseline against a fresh simulator in
     /// the same run and compare CPU per vehicle-second: `pymavlink` (a plain pymavlink
     /// loop, `tests/peers/pymavlink_loop.py`, run by `SKEIN_PYTHON`, the repository's
-    /// `.venv`, or `python3`).
+    /// `.venv`, or `python3`; a port per vehicle) or `floor` (a minimal controller on a
+    /// thread of this process that only moves datagrams: frames encoded once, one
+    /// `sendmmsg` per period for every vehicle, `recvmmsg` drains of the telemetry without
+    /// decoding, CPU from the thread's schedstat; the run's ports per vehicle).
     #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(crate::peer::PEERS))]
     pub peer: Option<String>,
     /// The baseline's script, instead of the repository's.
@@ -101,7 +104,7 @@ pub struct SwarmBenchArgs {
     /// SITL's first instances have; more share one `udpin` endpoint per group, as PX4's
     /// instances from the 10th on share port 14549 (frames told apart by sysid, the
     /// setpoints of a group handed to the socket in one `sendmmsg`). The pymavlink
-    /// baseline keeps a port per vehicle.
+    /// baseline keeps a port per vehicle; the floor shares ports as skein does.
     #[arg(long, default_value_t = 1)]
     pub vehicles_per_port: usize,
 }

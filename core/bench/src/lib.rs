@@ -70,6 +70,14 @@
 //! over the loop's. `setpoint_thread_ratio_to_peer` is skein's setpoint thread alone over
 //! the loop's whole CPU: mostly the kernel's cost of the setpoint datagrams, which the loop
 //! sends as well, so no change to the rest of skein takes `cpu_ratio_to_peer` below it.
+//!
+//! With `--peer floor` the baseline is instead the floor of issue 47 (`src/floor.rs`): a
+//! minimal controller on a thread of this process that holds the same simulated vehicles
+//! (fresh simulator, same `--vehicles-per-port`) with nothing but the datagrams: frames
+//! encoded once, one `sendmmsg` per period for every vehicle's setpoint, `recvmmsg` drains
+//! of the telemetry without decoding, its CPU the thread's `schedstat` over the window.
+//! `cpu_ratio_to_peer` is then skein's CPU per vehicle-second over the least any controller
+//! could spend on the same setpoint path (issue 47's `cpu_ratio_to_floor`).
 
 #![warn(missing_docs)]
 
@@ -78,6 +86,7 @@ mod cli;
 mod dds;
 mod distributed;
 mod exe;
+mod floor;
 mod formation;
 mod peer;
 mod plugins;

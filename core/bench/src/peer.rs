@@ -2,7 +2,8 @@
 //! (`tests/peers/pymavlink_loop.py`), against a fresh simulator process of the same
 //! profile, in the same run, so that skein's CPU per vehicle-second is compared with the
 //! baseline a user would write, measured minutes apart on the same machine, not against a
-//! number from another day.
+//! number from another day. `--peer floor` flies it with the least any controller could
+//! spend instead (see `crate::floor`); [`fly_peer`] picks the baseline by name.
 
 use crate::SwarmBenchArgs;
 use crate::round;
@@ -16,7 +17,26 @@ use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio::process::Command;
 
 /// The baselines `--peer` accepts.
-pub const PEERS: &[&str] = &["pymavlink"];
+pub const PEERS: &[&str] = &["pymavlink", "floor"];
+
+/// Flies the swarm of `args` with the baseline `name` (one of [`PEERS`]) and returns its
+/// figures (see [`peer_report`]).
+///
+/// # Errors
+/// An unknown baseline, or the baseline failing.
+pub(crate) async fn fly_peer(args: &SwarmBenchArgs, name: &str) -> Result<Value, String> {
+    match name {
+        "pymavlink" => {
+            eprintln!("bench: the same swarm with a plain pymavlink loop");
+            pymavlink(args, args.peer_script.clone()).await
+        }
+        "floor" => {
+            eprintln!("bench: the same swarm with the floor controller (datagrams only)");
+            crate::floor::floor(args).await
+        }
+        other => Err(format!("--peer {other}: one of {}", PEERS.join(", "))),
+    }
+}
 
 /// The Python interpreter with pymavlink: `SKEIN_PYTHON`, else the repository's `.venv`
 /// (what `tests/run.sh` prepares), else `python3`.
@@ -131,7 +151,14 @@ async fn fly(
         (Some(a), Some(b)) => json!(round(b - a, 2)),
         _ => Value::Null,
     };
-    Ok(peer_report(args, pid, &peer, &summary?, sim_cpu_s))
+    Ok(peer_report(
+        "pymavlink",
+        args,
+        pid,
+        &peer,
+        &summary?,
+        sim_cpu_s,
+    ))
 }
 
 /// Starts the pymavlink loop `script` on the ports from `base`, its stdio piped.
@@ -168,9 +195,12 @@ async fn read_all(stderr: tokio::process::ChildStderr) -> String {
     text
 }
 
-/// The loop's figures: its own report `peer`, the simulator's `summary` of the window,
-/// and the simulator's CPU meanwhile.
-fn peer_report(
+/// The figures of baseline `name` (process `pid`): from its own report `peer` (`cpu_s`
+/// over the window, s; `setpoints_sent`), the simulator's `summary` of the window
+/// (lateness over 1.25 periods, intervals in ms, setpoints received, failsafes, modes),
+/// and the simulator's CPU meanwhile (`sim_cpu_s`, s).
+pub(crate) fn peer_report(
+    name: &str,
     args: &SwarmBenchArgs,
     pid: Option<u32>,
     peer: &Value,
@@ -184,7 +214,7 @@ fn peer_report(
     let cpu = peer["cpu_s"].as_f64().unwrap_or(f64::NAN);
     let n = args.vehicles as f64;
     json!({
-        "peer": "pymavlink",
+        "peer": name,
         "pid": pid,
         "cpu_s": cpu,
         "cpu_ms_per_vehicle_second": round(cpu * 1e3 / (n * args.seconds), 3),

@@ -97,14 +97,13 @@ pub async fn swarm(args: SwarmBenchArgs) -> Result<Value, String> {
     swarm.stop().await;
     let mut report = result?;
     report["setup_s"] = json!(round(report["setup_s"].as_f64().unwrap_or(0.0), 1));
-    if args.peer.is_some() {
-        eprintln!("bench: the same swarm with a plain pymavlink loop");
-        let peer = crate::peer::pymavlink(&args, args.peer_script.clone()).await?;
+    if let Some(name) = args.peer.as_deref() {
+        let peer = crate::peer::fly_peer(&args, name).await?;
         let ours = report["cpu_ms_per_vehicle_second"].as_f64();
         let theirs = peer["cpu_ms_per_vehicle_second"].as_f64();
         report["cpu_ratio_to_peer"] = ratio(ours, theirs);
-        // The setpoint thread is mostly the kernel sending the datagrams the loop sends
-        // too: the part of the ratio no change to the rest of skein can remove.
+        // The setpoint thread is mostly the kernel sending the datagrams the baseline
+        // sends too: the part of the ratio no change to the rest of skein can remove.
         let setpoints = report["coordinator_threads_cpu_s"]["skein-setpoints"].as_f64();
         report["setpoint_thread_ratio_to_peer"] = ratio(setpoints, peer["cpu_s"].as_f64());
         report["peer"] = peer;
