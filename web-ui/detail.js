@@ -46,10 +46,10 @@ export class VehicleDetail {
         <h4>Status texts</h4>
         <ol class="mini-log" data-testid="status-texts"></ol>
         <h4>Link counters <span class="hint" data-field="conn"></span></h4>
-        <table class="links" data-testid="link-counters"><thead><tr><th>endpoint</th><th title="frames decoded">ok</th>
+        <div class="links-box"><table class="links" data-testid="link-counters"><thead><tr><th>endpoint</th><th title="frames decoded">ok</th>
           <th title="bad CRC">crc</th><th title="unknown message ids">unkn.</th><th title="parse errors, truncated, bad flags, garbage bytes">malf.</th>
           <th title="rejected datagrams (other sources)">rej.</th><th title="frames sent">sent</th><th title="send errors, no route">s.err</th>
-          <th title="MAVLink 2 signing: frames dropped unsigned, badly signed or replayed (– when the link does not sign)">sig.</th></tr></thead><tbody></tbody></table>
+          <th title="MAVLink 2 signing: frames dropped unsigned, badly signed or replayed (– when the link does not sign)">sig.</th></tr></thead><tbody></tbody></table></div>
         <h4>Parameters</h4>
         <div data-testid="params"></div>
       </div>`;

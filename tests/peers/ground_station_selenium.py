@@ -232,6 +232,12 @@ def run(args, driver, summary):
     ui.click(f'tr[data-vehicle-id="{cam}"] th')
     ui.wait(f"the Vehicle view to show {cam}", lambda d: ui.css('[data-testid="detail"]').get_attribute("data-vehicle-id") == cam
             and ui.css('[data-view="vehicle"]').is_displayed())
+    # Where the Parameters section sits in the panel now, before the link counters' first
+    # poll fills their table: it must not move while telemetry streams in (lists growing
+    # above it once moved Read and Set between an operator's aim and click).
+    params_top = ("const d = document.querySelector('[data-testid=\"detail\"]').getBoundingClientRect().top;"
+                  " return document.querySelector('[data-testid=\"params\"]').getBoundingClientRect().top - d;")
+    top0 = ui.js(params_top)
     ui.wait("the state history to reach Hovering",
             lambda d: ui.js("return [...document.querySelectorAll('[data-testid=\"state-history\"] li')].map(l => l.dataset.to)").count("Hovering") >= 1)
     ui.wait("the detail's mode", lambda d: ui.text('[data-testid="detail"] dd[data-field="mode"]') not in (None, "", "–"))
@@ -254,6 +260,12 @@ def run(args, driver, summary):
     value.send_keys(str(new) + Keys.ENTER)
     ui.wait(f"{args.param} to read {new}", lambda d: abs(number(ui.text(f'{row} td[data-field="value"]')) - new) < 1e-3)
     summary["param"] = {"name": args.param, "from": old, "to": new}
+    ui.wait("the link counters", lambda d: ui.js(
+        "return document.querySelectorAll('[data-testid=\"link-counters\"] tbody tr').length") > 0)
+    top1 = ui.js(params_top)
+    summary["params_section_moved_px"] = round(top1 - top0, 1)
+    if abs(top1 - top0) > 0.5:
+        raise Failure(f"the Parameters section moved {top1 - top0:.1f} px while the panel filled in")
     times["param_written"] = lap()
     ui.js("document.querySelector('[data-view=\"vehicle\"]').scrollTop = 0")
     ui.shot("vehicle")
