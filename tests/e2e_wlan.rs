@@ -214,6 +214,30 @@ fn holds(a: &Skein) -> usize {
 #[test]
 fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
     let _one = support::one_at_a_time();
+    let (mut swarm, _keystore_dir) = start();
+    orbit(&swarm);
+    let mut report = Report::new();
+    clean(&swarm, &mut report);
+    bad_wlan(&swarm, &mut report);
+    fades(&swarm, &mut report);
+    outage_3_s(&swarm, &mut report);
+    failovers(&mut swarm, &mut report);
+    outage_6_s(&swarm, &mut report);
+    let mut worst_gap = 0.0f64;
+    for a in &swarm.agents {
+        worst_gap = worst_gap.max(assert_no_failsafe_and_no_gap(&a.sim_stats_addr()));
+    }
+    report.insert("worst_setpoint_gap_ms".into(), json!(worst_gap));
+    report.insert("relay".into(), json!(swarm.lan.relay_stats()));
+    eprintln!("{}", Value::Object(report));
+}
+
+/// What the test prints at the end: each phase's figures.
+type Report = serde_json::Map<String, Value>;
+
+/// The LAN, the keystore (its directory lives as long as the returned guard), the three
+/// agents and both candidates, gcs-a active and gcs-b standby.
+fn start() -> (Swarm, tempfile::TempDir) {
     let lan = Lan::wlan('w', 5);
     // DDS Security enforced on every participant.
     let dir = tempfile::tempdir().unwrap();
@@ -251,32 +275,35 @@ fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
         swarm.gcs[1].as_ref().unwrap(),
         Duration::from_secs(30),
     );
+    (swarm, dir)
+}
 
-    // A wedge behind the virtual leader, orbiting.
-    {
-        let c = swarm.active(Duration::from_secs(5));
-        wedge(c);
-        let (status, body) = c.post(
-            "/api/v1/formation/leader/orbit",
-            json!({"north_m": 45.0, "east_m": 0.0, "radius_m": 45.0, "speed_m_s": SPEED_M_S}),
-        );
-        assert_eq!(status, 200, "{body}");
-        steady_for(
-            "the orbit at speed, every member on its slot",
-            Duration::from_secs(3),
-            Duration::from_secs(60),
-            || {
-                let s = swarm.sample();
-                if s.speed > SPEED_M_S - 0.1 && s.rms < 0.5 {
-                    Ok(())
-                } else {
-                    Err(format!("{s:?}"))
-                }
-            },
-        );
-    }
-    let mut report = serde_json::Map::new();
+/// A wedge behind the virtual leader, orbiting at speed with every member on its slot.
+fn orbit(swarm: &Swarm) {
+    let c = swarm.active(Duration::from_secs(5));
+    wedge(c);
+    let (status, body) = c.post(
+        "/api/v1/formation/leader/orbit",
+        json!({"north_m": 45.0, "east_m": 0.0, "radius_m": 45.0, "speed_m_s": SPEED_M_S}),
+    );
+    assert_eq!(status, 200, "{body}");
+    steady_for(
+        "the orbit at speed, every member on its slot",
+        Duration::from_secs(3),
+        Duration::from_secs(60),
+        || {
+            let s = swarm.sample();
+            if s.speed > SPEED_M_S - 0.1 && s.rms < 0.5 {
+                Ok(())
+            } else {
+                Err(format!("{s:?}"))
+            }
+        },
+    );
+}
 
+/// Clean: the fast-clock agent's member flies as well as the others; secured, the clocks found.
+fn clean(swarm: &Swarm, report: &mut Report) {
     // Clean: the fast-clock agent's member flies as well as the others.
     let clean = swarm.watch_truth(Duration::from_secs(10));
     assert_whole("clean", &clean);
@@ -330,7 +357,10 @@ fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
                "fast_clock_member_mean_m": skewed, "other_members_mean_m": others,
                "agent_3_clock_offset_ms": offset, "uncertainty_ms": uncertainty}),
     );
+}
 
+/// A bad WLAN on every agent's link costs nothing.
+fn bad_wlan(swarm: &Swarm, report: &mut Report) {
     // A bad WLAN on every agent's link.
     for h in [AGENT_1, AGENT_2, AGENT_2 + 1] {
         swarm.lan.profile(h, "wlan_bad");
@@ -350,7 +380,10 @@ fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
         "wlan_bad".into(),
         json!({"rms_mean_m": mean(&rms), "rms_p95_m": quantile(&rms, 0.95)}),
     );
+}
 
+/// Fades of agent-1's link: it rides through, never holds, the formation never slows.
+fn fades(swarm: &Swarm, report: &mut Report) {
     // Fades: agent-1's link down 1.2 s every 10 s for 45 s.
     let held_before = holds(&swarm.agents[0]);
     swarm.lan.flap(AGENT_1, 1.2, 10.0);
@@ -395,7 +428,10 @@ fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
                "others_p95_m": quantile(&others, 0.95), "slowest_m_s": slowest,
                "uav_1_silent_max_s": silent_seen, "holds": 0}),
     );
+}
 
+/// A 3 s outage of agent-2: it rides through and is back on its slot within 2 s.
+fn outage_3_s(swarm: &Swarm, report: &mut Report) {
     // A 3 s outage of agent-2.
     let held_before = holds(&swarm.agents[1]);
     let rides_before = rides_ended(&swarm.agents[1]);
@@ -445,7 +481,10 @@ fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
         json!({"slowest_m_s": slowest, "back_under_0_5_m_after_s": back.as_secs_f64(),
                "agent_obeys_again_after_s": hears.as_secs_f64()}),
     );
+}
 
+/// Five failovers and the handovers back (see the module docs).
+fn failovers(swarm: &mut Swarm, report: &mut Report) {
     // Five failovers: kill the active candidate, then start it again.
     let mut kills = Vec::new();
     for _ in 0..5 {
@@ -526,7 +565,10 @@ fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
         );
     }
     report.insert("failovers".into(), json!(kills));
+}
 
+/// An outage longer than the ride-through: agent-1 holds, is listed absent, then returns.
+fn outage_6_s(swarm: &Swarm, report: &mut Report) {
     // An outage longer than the ride-through: agent-1 holds, then returns.
     swarm.lan.cut(AGENT_1);
     let cut = Instant::now();
@@ -568,12 +610,4 @@ fn a_swarm_flies_through_wlan_fades_outages_and_coordinator_failovers() {
         json!({"absent_after_s": absent_after.as_secs_f64(), "absent": absent,
                "back_on_its_slot_after_s": returned.as_secs_f64()}),
     );
-
-    let mut worst_gap = 0.0f64;
-    for a in &swarm.agents {
-        worst_gap = worst_gap.max(assert_no_failsafe_and_no_gap(&a.sim_stats_addr()));
-    }
-    report.insert("worst_setpoint_gap_ms".into(), json!(worst_gap));
-    report.insert("relay".into(), json!(swarm.lan.relay_stats()));
-    eprintln!("{}", Value::Object(report));
 }
