@@ -48,8 +48,6 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 use tokio::sync::oneshot;
 
-/// `type_mask` of the setpoints: position + yaw (`skein_model::px4::type_mask`).
-const POSITION_YAW: u16 = 2552;
 /// PX4's offboard main mode (`custom_mode >> 16`).
 const PX4_OFFBOARD_MAIN_MODE: u32 = 6;
 /// Most datagrams one `sendmmsg(2)` takes (the kernel's `UIO_MAXIOV`).
@@ -255,7 +253,9 @@ fn setpoint(sysid: u8, hold: [f32; 3]) -> MavMessage {
         afz: 0.0,
         yaw: 0.0,
         yaw_rate: 0.0,
-        type_mask: PositionTargetTypemask::from_bits_truncate(POSITION_YAW),
+        type_mask: PositionTargetTypemask::from_bits_truncate(
+            skein_model::px4::type_mask::POSITION_YAW,
+        ),
         target_system: sysid,
         target_component: 1,
         coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
