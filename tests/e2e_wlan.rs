@@ -20,7 +20,8 @@
 //!   its mirror, at speed, the agents having flown it on meanwhile: the RMS never passes
 //!   2 m and is back under 0.5 m within 3.5 s, no two members closer than the separation.
 //!   The killed one starts again and takes the role back by handover, never two active;
-//!   the one that handed over flies no formation of its own (it mirrors the active one's).
+//!   the one that takes it back flies the formation on, and the one that handed over
+//!   flies no formation of its own (it mirrors the active one's).
 //! - **An outage longer than the ride-through** (agent-1, 6 s): its agent holds the
 //!   vehicle, the coordinator lists it absent, and after the link returns it is back on
 //!   its slot.
@@ -552,6 +553,18 @@ fn failovers(swarm: &mut Swarm, report: &mut Report) {
             swarm.gcs[0].as_ref().unwrap(),
             swarm.gcs[1].as_ref().unwrap(),
             Duration::from_secs(30),
+        );
+        // The one that took the role back flies the formation on: it resumed the mirror
+        // of the one that handed over (a `null` mirror heard last would leave none flown).
+        eventually(
+            "the formation flown after the handover",
+            Duration::from_secs(5),
+            || {
+                let s = swarm.sample();
+                (s.members.len() == 3)
+                    .then_some(())
+                    .ok_or_else(|| format!("{s:?}"))
+            },
         );
         let settled = swarm.watch_truth(Duration::from_secs(2));
         assert_whole("after a handover", &settled);

@@ -55,7 +55,8 @@ pub struct RoleChange {
 
 /// What the election needs from this process.
 pub trait ElectionContext: Send + Sync + 'static {
-    /// This candidate took the role or stepped down.
+    /// This candidate took the role or stepped down; [`ElectionLink::subscribe`]'s status
+    /// already shows the change when this is called.
     fn role_changed(&self, change: RoleChange);
 }
 
@@ -145,10 +146,15 @@ impl ElectionLink {
                 }
                 None => None,
             };
+            // The status first, then the coordinator: whoever asks the coordinator after
+            // it heard of the change sees the change in the status too (the mirror
+            // relies on it).
+            let role = status.role;
+            self.status.send_replace(status);
             if transition.is_some() {
                 ctx.role_changed(RoleChange {
                     coordinator_id: lease.coordinator_id.clone(),
-                    role: status.role,
+                    role,
                     epoch: lease.epoch,
                     reason,
                 });
@@ -158,7 +164,6 @@ impl ElectionLink {
                 let _ = self.writer.publish(to_msg(&lease));
                 last_sent = Some(now);
             }
-            self.status.send_replace(status);
         }
     }
 }

@@ -126,11 +126,23 @@ pub async fn run<C: MirrorContext>(
         was_active = active;
         if active
             && let Some(formation) = ctx.formation().await
+            && still_active(&election, epoch)
             && let Ok(m) = Envelope::message("", &me, epoch, frame.frame(), &formation)
         {
             let _ = mirror.writer.publish(m);
         }
     }
+}
+
+/// Whether this candidate still holds the role in `epoch`, after asking its coordinator
+/// for the formation. The election updates its status before it tells the coordinator
+/// of a step-down ([`crate::lease`]); so when the answer came after the step-down (the
+/// formation let go: `null`), the status already says standby here, and that `null` is
+/// not published. Published, it would be the last mirror the new active coordinator
+/// heard from this one, and it would fly no formation.
+fn still_active(election: &watch::Receiver<ElectionStatus>, epoch: u64) -> bool {
+    let s = election.borrow();
+    s.role == CoordinatorRole::Active && s.this.epoch == epoch
 }
 
 /// The formation mirror `env` carries (`None`: no formation), in this process's `frame`

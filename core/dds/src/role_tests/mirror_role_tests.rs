@@ -183,3 +183,108 @@ async fn a_standby_takes_over_within_1_25_s_of_the_active_ones_silence_and_flies
     assert_eq!(from, "gcs-a");
     assert_in_b_frame(&m, 5.0);
 }
+
+/// A coordinator that hands the role over while the mirror asks it for its formation:
+/// it flies `wedge(5.0)` for its first three answers; at the fourth the step-down has
+/// landed first (the status says standby, the formation is let go: `null`).
+struct HandingOver {
+    process: Arc<Process>,
+    role: watch::Sender<ElectionStatus>,
+    asks: std::sync::atomic::AtomicUsize,
+}
+
+impl crate::reframe::FrameSource for HandingOver {
+    async fn swarm_frame(&self) -> Option<Arc<dyn crate::reframe::SwarmFrame>> {
+        self.process.swarm_frame().await
+    }
+}
+
+impl mirror::MirrorContext for HandingOver {
+    async fn formation(&self) -> Option<Option<FormationMirror>> {
+        if self.asks.fetch_add(1, std::sync::atomic::Ordering::SeqCst) < 3 {
+            return Some(Some(wedge(5.0)));
+        }
+        self.role
+            .send_replace(status("gcs-b", CoordinatorRole::Standby, 3));
+        Some(None)
+    }
+
+    fn resume(&self, mirror: FormationMirror, from: String) {
+        mirror::MirrorContext::resume(self.process.as_ref(), mirror, from);
+    }
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_coordinator_that_steps_down_during_an_ask_publishes_no_null_mirror_for_its_successor() {
+    let bus = MemoryBus::new();
+    let counters = Arc::new(DdsCounters::default());
+    let (b, _b_calls) = Process::new(Some(origin_a()));
+    let (role, b_election) = watch::channel(status("gcs-b", CoordinatorRole::Active, 3));
+    let handing_over = Arc::new(HandingOver {
+        process: b,
+        role,
+        asks: Default::default(),
+    });
+    let b_mirror = Arc::new(Mirror::open(bus.as_ref(), &counters).unwrap());
+    let _b = tokio::spawn(mirror::run(b_mirror, b_election, handing_over.clone()));
+    let (a, mut a_calls) = Process::new(Some(origin_b()));
+    let a_mirror = Arc::new(Mirror::open(bus.as_ref(), &counters).unwrap());
+    let (a_role, a_election) = watch::channel(status("gcs-a", CoordinatorRole::Standby, 3));
+    let _a = tokio::spawn(mirror::run(a_mirror, a_election, a));
+
+    // gcs-b has stepped down (its fourth ask) and gcs-a has heard all there was to hear.
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    assert!(handing_over.asks.load(std::sync::atomic::Ordering::SeqCst) >= 4);
+    a_role.send_replace(status("gcs-a", CoordinatorRole::Active, 4));
+    let (m, from) = resumed(&mut a_calls, Duration::from_millis(250)).await;
+    assert_eq!(from, "gcs-b");
+    assert_in_b_frame(&m, 5.0);
+}
+
+/// An election context that records whether the status already showed each change.
+struct StatusFirst {
+    status: std::sync::OnceLock<watch::Receiver<ElectionStatus>>,
+    seen: std::sync::Mutex<Vec<(CoordinatorRole, CoordinatorRole)>>,
+}
+
+impl crate::lease::ElectionContext for StatusFirst {
+    fn role_changed(&self, change: crate::lease::RoleChange) {
+        let shown = self.status.get().expect("subscribed").borrow().role;
+        self.seen.lock().unwrap().push((change.role, shown));
+    }
+}
+
+#[tokio::test(start_paused = true)]
+async fn the_election_status_shows_a_change_of_role_before_the_coordinator_hears_of_it() {
+    let bus = MemoryBus::new();
+    let c = Candidate {
+        coordinator_id: "gcs-b".into(),
+        priority: 1,
+        api_url: String::new(),
+        timing: ElectionConfig::default(),
+    };
+    let election =
+        Arc::new(ElectionLink::open(bus.as_ref(), c, &Arc::new(DdsCounters::default())).unwrap());
+    let ctx = Arc::new(StatusFirst {
+        status: std::sync::OnceLock::new(),
+        seen: Default::default(),
+    });
+    ctx.status.set(election.subscribe()).unwrap();
+    let _run = tokio::spawn(election.run(ctx.clone()));
+    // gcs-b claims the role alone, then gcs-x holds it in a higher epoch: it steps down.
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    let leases = Peer::leases(&bus);
+    let mut period = tokio::time::interval(Duration::from_millis(200));
+    for _ in 0..5 {
+        period.tick().await;
+        leases.lease("gcs-x", 9, true);
+    }
+    let seen = ctx.seen.lock().unwrap().clone();
+    assert_eq!(
+        seen,
+        vec![
+            (CoordinatorRole::Active, CoordinatorRole::Active),
+            (CoordinatorRole::Standby, CoordinatorRole::Standby)
+        ]
+    );
+}
