@@ -5,7 +5,7 @@ mod support;
 
 use serde_json::{Value, json};
 use std::time::Duration;
-use support::{Process, Skein, eventually, free_udp_range, summary};
+use support::{EventLog, Process, Skein, eventually, free_udp_range, summary};
 
 fn alt(v: &Value) -> f64 {
     v["position"]["relative_alt_m"].as_f64().unwrap_or(f64::NAN)
@@ -322,6 +322,7 @@ fn px4_parameters_through_the_api() {
     );
     let (status, _) = skein.get("/api/v1/vehicles/uav-9/params/MIS_TAKEOFF_ALT");
     assert_eq!(status, 404);
+    refused_arming_carries_px4s_reasons(&skein);
     // Emergency disarm needs an explicit confirmation.
     let (status, body) = skein.post(
         "/api/v1/vehicles/uav-1/commands",
@@ -332,6 +333,60 @@ fn px4_parameters_through_the_api() {
         (400, Some("confirm")),
         "{body}"
     );
+}
+
+/// With `COM_ARM_ODID` = 2 PX4 refuses to arm without a Remote ID transmitter: the
+/// command's outcome carries what PX4 said (two `STATUSTEXT`s, the second longer than one
+/// message), and the texts are on the stream; with 0 it arms.
+fn refused_arming_carries_px4s_reasons(skein: &Skein) {
+    skein.wait_all(
+        "uav-1 landed with a home",
+        1,
+        Duration::from_secs(30),
+        |v| v["state"] == "Landed" && v["home"].is_object(),
+    );
+    let events = EventLog::connect(&skein.base);
+    let put_odid = |value: i64| {
+        let (status, p) = skein.put(
+            "/api/v1/vehicles/uav-1/params/COM_ARM_ODID",
+            json!({ "value": value }),
+        );
+        assert_eq!(status, 200, "{p}");
+    };
+    let arm = || {
+        let (status, body) =
+            skein.post("/api/v1/vehicles/uav-1/commands", json!({"command": "arm"}));
+        assert_eq!(status, 202, "{body}");
+        let id = body["command_id"].as_u64().unwrap();
+        eventually("the arm's outcome", Duration::from_secs(20), || {
+            events
+                .of_type("command_result")
+                .into_iter()
+                .find(|e| e["command_id"] == id)
+                .ok_or_else(|| format!("{:?}", events.of_type("command_result")))
+        })
+    };
+    put_odid(2);
+    let refused = arm();
+    assert_eq!(refused["ok"], false, "{refused}");
+    let error = refused["error"].as_str().unwrap_or_default();
+    for said in [
+        "Preflight Fail: Open Drone ID system missing",
+        "Arming denied: Resolve system health failures first",
+    ] {
+        assert!(error.contains(said), "{error}");
+        assert!(
+            events
+                .of_type("status_text")
+                .iter()
+                .any(|e| e["id"] == "uav-1" && e["text"] == said && e["severity"] == 2),
+            "{said} not on the stream: {:?}",
+            events.of_type("status_text")
+        );
+    }
+    put_odid(0);
+    let armed = arm();
+    assert_eq!(armed["ok"], true, "{armed}");
 }
 
 #[test]

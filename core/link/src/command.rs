@@ -175,6 +175,12 @@ pub enum LinkError {
         command: String,
         /// `MAV_RESULT` name, e.g. `"TEMPORARILY_REJECTED"`, `"DENIED"`, `"UNSUPPORTED"`.
         result: String,
+        /// What the vehicle said about it: its warning and error `STATUSTEXT`s while the
+        /// command was in flight, oldest first (PX4: `"Preflight Fail: …"`, `"Arming
+        /// denied: …"`); empty when it said nothing, or for a refusal that is no command
+        /// (a parameter or a mission transfer).
+        #[serde(skip_serializing_if = "Vec::is_empty")]
+        statustexts: Vec<String>,
     },
     /// No ACK after every resend.
     Timeout {
@@ -199,8 +205,16 @@ pub enum LinkError {
 impl std::fmt::Display for LinkError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            LinkError::Rejected { command, result } => {
-                write!(f, "{command} rejected by the vehicle: {result}")
+            LinkError::Rejected {
+                command,
+                result,
+                statustexts,
+            } => {
+                write!(f, "{command} rejected by the vehicle: {result}")?;
+                if !statustexts.is_empty() {
+                    write!(f, " ({})", statustexts.join("; "))?;
+                }
+                Ok(())
             }
             LinkError::Timeout { command, attempts } => {
                 write!(

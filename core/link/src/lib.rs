@@ -9,6 +9,7 @@
 //! - [`mission`]: the mission protocol (upload and download of fence and rally plans).
 //! - [`fence`], [`fence_sync`]: skein's geofence as PX4 mission items, and keeping every
 //!   autopilot on it (uploaded, read back, `GF_ACTION` and `GF_MAX_VER_DIST` set).
+//! - [`statustext`]: PX4's chunked `STATUSTEXT`s joined into whole texts.
 //! - [`setup`]: what is configured at connect: telemetry rates, parameters.
 //! - [`setpoint`]: the offboard setpoint streams, one clock per rate on a thread of their
 //!   own, outliving actor restarts; [`priority`]: that thread's scheduling priority.
@@ -35,6 +36,7 @@ pub mod priority;
 pub mod px4link;
 pub mod setpoint;
 pub mod setup;
+pub mod statustext;
 pub mod telemetry;
 
 pub use address::ConnectionAddress;

@@ -187,6 +187,7 @@ impl ParamClient {
                 (Some(w), Some(seen)) => LinkError::Rejected {
                     command: format!("param_set {name}"),
                     result: format!("the vehicle keeps reporting {seen:?}, not {w:?}"),
+                    statustexts: Vec::new(),
                 },
                 _ => LinkError::Timeout {
                     command: format!(

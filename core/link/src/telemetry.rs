@@ -121,8 +121,6 @@ pub enum Change {
     None,
     /// Armed flag, mode or landed state changed (or first heartbeat).
     Observed(Observed),
-    /// A `STATUSTEXT` (severity, text).
-    StatusText(u8, String),
     /// The vehicle's boot time went backwards: it rebooted.
     Rebooted,
 }
@@ -194,10 +192,6 @@ impl Telemetry {
             }
             MavMessage::EXTENDED_SYS_STATE(s) => {
                 self.landed_state = LandedState::from_mavlink(s.landed_state as u8);
-            }
-            MavMessage::STATUSTEXT(t) => {
-                let text = t.text.to_str().unwrap_or("<invalid utf-8>").to_string();
-                return Change::StatusText(t.severity as u8, text);
             }
             msg => self.apply_state(msg, now),
         }

@@ -349,12 +349,19 @@ async fn command_results_map_to_errors_and_silence_times_out() {
     // OFFBOARD without a setpoint stream: PX4's second ACK refuses it.
     let r = v.command(LinkCommand::SetMode(Px4Mode::Offboard)).await;
     assert!(matches!(r, Err(LinkError::Rejected { .. })), "{r:?}");
-    // Arming is refused in LAND.
+    // Arming is refused in LAND, with PX4's reason.
     v.command(LinkCommand::SetMode(Px4Mode::Land))
         .await
         .unwrap();
     let r = v.command(LinkCommand::Arm).await;
-    assert!(matches!(r, Err(LinkError::Rejected { .. })), "{r:?}");
+    let Err(LinkError::Rejected { statustexts, .. }) = &r else {
+        panic!("{r:?}");
+    };
+    assert_eq!(
+        statustexts,
+        &["Arming denied: Land mode does not allow arming"],
+        "{r:?}"
+    );
     // Mode changes are confirmed from the heartbeat.
     v.command(LinkCommand::SetMode(Px4Mode::Hold))
         .await

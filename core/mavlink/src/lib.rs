@@ -12,6 +12,7 @@
 //!   place for the link, the simulator's clients and the plugins.
 //! - [`param`]: parameter values in PX4's bytewise wire encoding.
 //! - [`signing`]: MAVLink 2 message signing (keys, signing, replay protection).
+//! - [`statustext`]: `STATUSTEXT` chunks as PX4 sends a long text.
 //!
 //! Only the common dialect is compiled (one feature set for the whole workspace).
 #![warn(missing_docs)]
@@ -19,6 +20,7 @@
 pub mod command;
 pub mod param;
 pub mod signing;
+pub mod statustext;
 
 /// Per-message constants (`ID`, `EXTRA_CRC`) of the dialect's message structs.
 pub use command::{CommandPosition, CommandTarget, command_int, command_long};

@@ -161,7 +161,7 @@ pub struct SimVehicleStats {
     pub bytes_sent: u64,
     /// Datagrams dropped because the socket buffer was full.
     pub send_drops: u64,
-    /// STATUSTEXT frames sent.
+    /// Texts sent as STATUSTEXT (a text longer than 50 characters is several frames).
     pub statustexts_sent: u64,
     /// STATUSTEXTs not sent because no GCS heartbeat arrived in the last 2.5 s.
     pub statustexts_suppressed: u64,

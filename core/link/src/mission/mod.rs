@@ -320,6 +320,7 @@ impl MissionClient {
             Err(LinkError::Rejected {
                 command: format!("{} {what}", type_name(a.mission_type)),
                 result: result_name(a.mavtype),
+                statustexts: Vec::new(),
             })
         };
         self.finish(a.mission_type, result, target)

@@ -94,7 +94,8 @@ fn an_error_ack_fails_the_upload_naming_the_result() {
         rx.try_recv().unwrap(),
         Err(LinkError::Rejected {
             command: "fence upload".into(),
-            result: "MAV_MISSION_NO_SPACE".into()
+            result: "MAV_MISSION_NO_SPACE".into(),
+            statustexts: vec![],
         })
     );
 }

@@ -5,7 +5,8 @@
 //! heartbeat, watches liveness (lost after [`LINK_TIMEOUT`] of silence), and runs the
 //! command protocol: one command per id in flight, ACK matched by command id, resent with
 //! `confirmation + 1` every [`ACK_TIMEOUT`] up to [`MAX_ATTEMPTS`] transmissions,
-//! `IN_PROGRESS` waited out, mode changes confirmed from `HEARTBEAT.custom_mode`.
+//! `IN_PROGRESS` waited out, mode changes confirmed from `HEARTBEAT.custom_mode`, a
+//! refusal answered with what the vehicle said about it (`statustexts`).
 //!
 //! It also runs the mission protocol ([`crate::mission`]) and keeps the autopilot on
 //! skein's geofence (`missions`, [`crate::fence_sync`]).
@@ -17,8 +18,10 @@
 mod fence_autopilot;
 mod missions;
 mod route;
+mod statustexts;
 mod vehicle_link;
 
+pub use statustexts::REASON_GRACE;
 pub use vehicle_link::VehicleLink;
 
 use crate::command::{LinkCommand, LinkError, result_name};
@@ -26,6 +29,7 @@ use crate::fence::FencePlan;
 use crate::mission::{DownloadReply, MissionClient, MissionItem, UploadReply};
 use crate::param_client::{ParamClient, ParamOp, ParamReply, Transmit};
 use crate::setup::interval_us;
+use crate::statustext::StatusTextAssembler;
 use crate::telemetry::Change;
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use skein_mavlink::dialect::{
@@ -39,7 +43,7 @@ use skein_model::px4::Px4Mode;
 use std::collections::{HashMap, VecDeque};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Silence after which a vehicle is Lost.
 pub const LINK_TIMEOUT: Duration = Duration::from_secs(3);
@@ -112,6 +116,9 @@ pub enum Px4LinkMsg {
     AckDeadline(u32, u64),
     /// The mode-confirmation deadline of the command in flight with this generation.
     ModeDeadline(u64),
+    /// The end of [`REASON_GRACE`] after the vehicle refused the command in flight with
+    /// this id and generation.
+    ReasonDeadline(u32, u64),
     /// Read a parameter.
     ParamGet(String, ParamReply),
     /// Write a parameter, given as a number, in its own type.
@@ -155,6 +162,11 @@ struct Pending {
     in_progress: bool,
     /// For `SetMode`: ACK accepted, waiting for the heartbeat to show the mode.
     awaiting_mode: Option<Px4Mode>,
+    /// The `MAV_RESULT` name of the vehicle's refusal, waiting [`REASON_GRACE`] for
+    /// what it says about it.
+    refused: Option<String>,
+    /// The warnings and errors the vehicle sent (`STATUSTEXT`) while this was in flight.
+    statustexts: Vec<String>,
 }
 
 /// State of [`Px4Link`].
@@ -168,6 +180,7 @@ pub struct Px4LinkState {
     greeted: bool,
     params: ParamClient,
     missions: MissionClient,
+    statustexts: StatusTextAssembler,
 }
 
 impl Px4LinkState {
@@ -214,6 +227,8 @@ impl Px4LinkState {
                 generation,
                 in_progress: false,
                 awaiting_mode: None,
+                refused: None,
+                statustexts: Vec::new(),
             },
         );
         myself.send_after(ACK_TIMEOUT, move || Px4LinkMsg::AckDeadline(id, generation));
@@ -237,6 +252,9 @@ impl Px4LinkState {
         let Some(p) = self.pending.get_mut(&id) else {
             return; // e.g. PX4's second DO_SET_MODE ACK after confirmation
         };
+        if p.refused.is_some() {
+            return; // refused already: a resent command's ACK
+        }
         match result {
             MavResult::MAV_RESULT_ACCEPTED => {
                 if let LinkCommand::SetMode(mode) = p.command {
@@ -267,15 +285,13 @@ impl Px4LinkState {
                 }
             }
             other => {
-                let command = p.command.describe();
-                self.finish(
-                    myself,
-                    id,
-                    Err(LinkError::Rejected {
-                        command,
-                        result: result_name(other),
-                    }),
-                );
+                // PX4 says why in STATUSTEXTs sent about when it acknowledges: wait for
+                // them a moment.
+                p.refused = Some(result_name(other));
+                let generation = p.generation;
+                myself.send_after(REASON_GRACE, move || {
+                    Px4LinkMsg::ReasonDeadline(id, generation)
+                });
             }
         }
     }
@@ -284,7 +300,7 @@ impl Px4LinkState {
         let Some(p) = self.pending.get_mut(&id) else {
             return;
         };
-        if p.generation != generation || p.awaiting_mode.is_some() {
+        if p.generation != generation || p.awaiting_mode.is_some() || p.refused.is_some() {
             return;
         }
         if p.in_progress || p.attempts >= MAX_ATTEMPTS {
@@ -403,6 +419,10 @@ impl Px4LinkState {
         if frame.compid != self.link.compid {
             return; // other components (camera, gimbal) are the payloads' business
         }
+        if let MavMessage::STATUSTEXT(t) = &frame.msg {
+            self.on_statustext(t, Instant::now());
+            return;
+        }
         self.on_mission_message(myself, &frame.msg);
         if let MavMessage::PARAM_VALUE(pv) = &frame.msg
             && let Some(value) = ParamValue::from_wire(pv.param_value, pv.param_type)
@@ -440,9 +460,6 @@ impl Px4LinkState {
                 self.check_mode_confirmations(myself, o.mode);
                 (self.events)(LinkEvent::Observed(o));
             }
-            Change::StatusText(severity, text) => {
-                (self.events)(LinkEvent::StatusText { severity, text });
-            }
             Change::Rebooted => {
                 (self.events)(LinkEvent::Rebooted);
                 self.greet(myself);
@@ -452,6 +469,7 @@ impl Px4LinkState {
 
     fn on_tick(&mut self, myself: &ActorRef<Px4LinkMsg>) {
         self.send_heartbeat();
+        self.flush_statustext(Instant::now());
         if self.greeted && self.link.fence().retry_due() {
             let _ = myself.cast(Px4LinkMsg::SyncFence {
                 only_if_changed: true,
@@ -492,6 +510,7 @@ impl Actor for Px4Link {
             greeted,
             params: ParamClient::default(),
             missions: MissionClient::default(),
+            statustexts: StatusTextAssembler::default(),
         })
     }
 
@@ -527,6 +546,9 @@ impl Actor for Px4Link {
             Px4LinkMsg::Tick => state.on_tick(&myself),
             Px4LinkMsg::AckDeadline(id, generation) => {
                 state.on_ack_deadline(&myself, id, generation)
+            }
+            Px4LinkMsg::ReasonDeadline(id, generation) => {
+                state.on_reason_deadline(&myself, id, generation)
             }
             Px4LinkMsg::ModeDeadline(generation) => {
                 let id = MavCmd::MAV_CMD_DO_SET_MODE as u32;

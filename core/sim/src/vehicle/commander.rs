@@ -69,9 +69,18 @@ impl Vehicle {
         }
     }
 
+    /// The health check that fails arming in every mode, as PX4's
+    /// `HealthAndArmingChecks` logs it: with `COM_ARM_ODID` = 2 (enforce), a vehicle
+    /// without an Open Drone ID transmitter (the simulator has none) may not arm
+    /// (`checks/openDroneIDCheck.cpp`).
+    pub(super) fn health_failure(&self) -> Option<&'static str> {
+        (self.params.get(Param::COM_ARM_ODID) as i32 == 2)
+            .then_some("Preflight Fail: Open Drone ID system missing")
+    }
+
     /// True when PX4's pre-arm checks pass in the current state (SYS_STATUS PREARM_CHECK).
     pub fn prearm_ok(&self, now: Instant) -> bool {
-        self.armed || self.arming_denied_reason(now).is_none()
+        self.armed || (self.health_failure().is_none() && self.arming_denied_reason(now).is_none())
     }
 
     pub(super) fn mode_denied_reason(&self, now: Instant, mode: Px4Mode) -> Option<&'static str> {
@@ -117,6 +126,17 @@ impl Vehicle {
         if arm {
             if self.armed {
                 return MavResult::MAV_RESULT_ACCEPTED;
+            }
+            if !force && let Some(failure) = self.health_failure() {
+                // PX4's arming checks: the failed check, then the commander's verdict.
+                self.statustext(now, MavSeverity::MAV_SEVERITY_CRITICAL, failure, out);
+                self.statustext(
+                    now,
+                    MavSeverity::MAV_SEVERITY_CRITICAL,
+                    "Arming denied: Resolve system health failures first",
+                    out,
+                );
+                return MavResult::MAV_RESULT_TEMPORARILY_REJECTED;
             }
             if !force && let Some(reason) = self.arming_denied_reason(now) {
                 self.statustext(now, MavSeverity::MAV_SEVERITY_CRITICAL, reason, out);

@@ -7,6 +7,7 @@
 #![allow(deprecated)]
 
 use super::*;
+use skein_mavlink::statustext;
 
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Command {
@@ -46,13 +47,12 @@ impl Vehicle {
             self.counters.statustexts_suppressed += 1;
             return;
         }
+        // PX4 gives every text an id of its own and sends a long one in chunks.
+        let id = self.counters.statustexts_sent as u16;
         self.counters.statustexts_sent += 1;
-        out.push(&MavMessage::STATUSTEXT(STATUSTEXT_DATA {
-            severity,
-            text: text.into(),
-            id: 0,
-            chunk_seq: 0,
-        }));
+        for chunk in statustext::chunks(severity, text, id) {
+            out.push(&MavMessage::STATUSTEXT(chunk));
+        }
     }
 
     pub(super) fn ack(&self, cmd: &Command, result: MavResult, out: &mut Outbox) {
