@@ -5,7 +5,7 @@ mod support;
 
 use serde_json::{Value, json};
 use std::time::Duration;
-use support::{EventLog, Process, Skein, eventually, free_udp_range, summary};
+use support::{EventLog, Process, Skein, eventually, free_udp_range, run_peer, summary};
 
 fn alt(v: &Value) -> f64 {
     v["position"]["relative_alt_m"].as_f64().unwrap_or(f64::NAN)
@@ -387,6 +387,77 @@ fn refused_arming_carries_px4s_reasons(skein: &Skein) {
     put_odid(0);
     let armed = arm();
     assert_eq!(armed["ok"], true, "{armed}");
+}
+
+/// Remote ID: with `[remote_id]` every vehicle hears the operator's identity and
+/// location (`OPEN_DRONE_ID_SYSTEM`, `OPEN_DRONE_ID_OPERATOR_ID`) at 1 Hz, as a fleet of
+/// pymavlink autopilots with transmitters records them, and the API shows what each
+/// transmitter says of itself (`OPEN_DRONE_ID_ARM_STATUS`).
+#[test]
+fn remote_id_reaches_every_vehicle_at_1_hz() {
+    let port = free_udp_range(3);
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("fleet.toml");
+    let mut text = String::from(
+        "[remote_id]\noperator_id = \"FIN87astrdge12k8\"\ncategory_eu = \"open\"\nclass_eu = 1\n\
+         operator_location = { lat_deg = 60.1699, lon_deg = 24.9384, alt_amsl_m = 25.0 }\n",
+    );
+    for i in 0..3 {
+        text += &format!(
+            "\n[[vehicles]]\nconnection = \"udpin:127.0.0.1:{}\"\nsysid = {}\n",
+            port + i,
+            i + 1
+        );
+    }
+    std::fs::write(&cfg, text).unwrap();
+    let skein = Skein::up(&["--config", cfg.to_str().unwrap()]);
+    let fleet = std::thread::spawn(move || {
+        let port = port.to_string();
+        let args = ["--port", port.as_str(), "--vehicles", "3", "--seconds", "6"];
+        run_peer("remote_id_pymavlink.py", &args, Duration::from_secs(90))
+    });
+    // A transmitter is ready once it has the operator's id, and the API says so.
+    let v = eventually(
+        "uav-1's transmitter good to arm",
+        Duration::from_secs(30),
+        || {
+            let (_, v) = skein.get("/api/v1/vehicles/uav-1");
+            if v["remote_id"]["transmitter"]["good_to_arm"] == true {
+                Ok(v)
+            } else {
+                Err(v["remote_id"].to_string())
+            }
+        },
+    );
+    assert_eq!(v["remote_id"]["operator_sent"], true, "{}", v["remote_id"]);
+    let (code, out, err) = fleet.join().unwrap();
+    assert_eq!(code, Some(0), "remote_id_pymavlink.py\n{out}\n{err}");
+    let heard: Value = serde_json::from_str(out.trim()).unwrap();
+    for sysid in ["1", "2", "3"] {
+        for kind in ["system", "operator_id"] {
+            let r = &heard[sysid][kind];
+            let rate = r["rate_hz"].as_f64().unwrap();
+            assert!(
+                r["count"].as_u64().unwrap() >= 5 && (0.8..=1.25).contains(&rate),
+                "vehicle {sysid} {kind}: {r}"
+            );
+        }
+        let system = &heard[sysid]["system"]["last"];
+        // FIXED location, EU classification, category open, class C1 (MAV_ODID enums).
+        for (field, value) in [
+            ("operator_latitude", 601_699_000),
+            ("operator_longitude", 249_384_000),
+            ("operator_location_type", 2),
+            ("classification_type", 1),
+            ("category_eu", 1),
+            ("class_eu", 2),
+        ] {
+            assert_eq!(system[field], value, "vehicle {sysid} {field}: {system}");
+        }
+        let operator = &heard[sysid]["operator_id"]["last"];
+        assert_eq!(operator["operator_id"], "FIN87astrdge12k8", "{operator}");
+        assert_eq!(operator["operator_id_type"], 0, "{operator}");
+    }
 }
 
 #[test]

@@ -20,8 +20,17 @@ const FIELDS = [
   ['state', 'state'], ['mode', 'PX4 mode'], ['armed', 'armed'], ['landed', 'landed state'],
   ['ned', 'N / E / D m'], ['alt', 'height m'], ['amsl', 'AMSL m'], ['latlon', 'lat / lon'],
   ['speed', 'ground m/s'], ['vz', 'climb m/s'], ['heading', 'heading °'], ['battery', 'battery'],
-  ['link', 'link'], ['formation', 'formation'], ['model', 'model / sysid'],
+  ['link', 'link'], ['formation', 'formation'], ['model', 'model / sysid'], ['remote_id', 'Remote ID'],
 ];
+
+/** The vehicle's Remote ID: what skein sends, what its transmitter says (OPEN_DRONE_ID_ARM_STATUS). */
+function remoteId(r) {
+  if (!r) return 'off';
+  const sent = r.operator_sent ? 'operator sent' : 'operator not sent';
+  const t = r.transmitter;
+  if (!t) return `${sent} · no transmitter heard`;
+  return `${sent} · ${t.good_to_arm ? 'transmitter ready' : `transmitter: ${t.error || 'not ready'}`}`;
+}
 
 export class VehicleDetail {
   /** deps: {controls, toasts, log, history, plan, tabs, connectionOf(id)}. */
@@ -148,6 +157,7 @@ export class VehicleDetail {
     put('link', `${link.connected ? 'up' : 'LOST'} · seen ${fmtAge(link.last_seen_ms)} ago`);
     put('formation', f ? `slot ${f.slot}${f.leader ? ' (leader)' : ''} · error ${fmt(f.error_m, 2)} m` : '–');
     put('model', `${v.model || '–'} / ${v.sysid ?? '–'}`);
+    put('remote_id', remoteId(v.remote_id));
     this.renderLists();
   }
 

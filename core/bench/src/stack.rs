@@ -43,6 +43,7 @@ pub(crate) fn bench_config(args: &SwarmBenchArgs) -> SwarmConfig {
         link_setup: LinkSetup {
             telemetry: TelemetryProfile::Swarm,
             params: Vec::new(),
+            remote_id: None,
         },
         ..SwarmConfig::default()
     };

@@ -13,6 +13,7 @@
 //! - [`setup`]: what is configured at connect: telemetry rates, parameters.
 //! - [`setpoint`]: the offboard setpoint streams, one clock per rate on a thread of their
 //!   own, outliving actor restarts; [`priority`]: that thread's scheduling priority.
+//! - [`remote_id`]: the operator's part of each vehicle's Remote ID broadcast.
 //! - [`px4link`]: the `Px4Link` actor tying these together per vehicle.
 //! - [`fault`]: fault injection shared by every supervised actor.
 //! - [`gcs`]: forwarding to a ground station (QGroundControl) and back, setpoints refused.
@@ -34,6 +35,7 @@ pub mod mission;
 pub mod param_client;
 pub mod priority;
 pub mod px4link;
+pub mod remote_id;
 pub mod setpoint;
 pub mod setup;
 pub mod statustext;

@@ -66,6 +66,10 @@ pub struct LinkSetup {
     /// Parameters to set, by PX4 name, as numbers (written in the parameter's own type),
     /// e.g. `("COM_OF_LOSS_T", 1.0)`, `("COM_OBL_RC_ACT", 5.0)`, `("NAV_DLL_ACT", 0.0)`.
     pub params: Vec<(String, f64)>,
+    /// Remote ID: the operator's identity and location sent to the vehicle at 1 Hz
+    /// (`[remote_id]`); none: nothing sent.
+    #[serde(default)]
+    pub remote_id: Option<crate::remote_id::RemoteIdConfig>,
 }
 
 /// `MAV_CMD_SET_MESSAGE_INTERVAL` param2 for a rate: microseconds, or -1 to disable.

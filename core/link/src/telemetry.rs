@@ -105,6 +105,9 @@ pub struct Telemetry {
     pub gps_fix_type: Option<u8>,
     /// `GPS_RAW_INT.satellites_visible`.
     pub satellites: Option<u8>,
+    /// The vehicle's Remote ID transmitter's last `OPEN_DRONE_ID_ARM_STATUS`, whichever
+    /// of its components sent it.
+    pub remote_id: Option<skein_model::vehicle::RemoteIdArmStatus>,
     /// The vehicle's boot clock in the last message that carried one, ms.
     pub boot_ms: Option<u32>,
     /// Messages applied.
@@ -276,6 +279,12 @@ impl Telemetry {
             MavMessage::GPS_RAW_INT(g) => {
                 self.gps_fix_type = Some(g.fix_type as u8);
                 self.satellites = Some(g.satellites_visible);
+            }
+            MavMessage::OPEN_DRONE_ID_ARM_STATUS(s) => {
+                self.remote_id = Some(skein_model::vehicle::RemoteIdArmStatus {
+                    good_to_arm: s.status as u8 == 0,
+                    error: s.error.to_str().unwrap_or("<invalid utf-8>").to_string(),
+                });
             }
             _ => {}
         }

@@ -244,6 +244,7 @@ async fn parameters_read_and_write_with_bytewise_integers() {
             ("COM_OBL_RC_ACT".into(), 5.0),
             ("COM_OF_LOSS_T".into(), 0.8),
         ],
+        remote_id: None,
     };
     let (_sim, _endpoint, vehicles) = swarm_on_one_port(1, setup).await;
     let v = &vehicles[0];
@@ -405,6 +406,7 @@ async fn the_swarm_profile_cuts_telemetry_to_what_skein_uses() {
     let setup = LinkSetup {
         telemetry: TelemetryProfile::Swarm,
         params: vec![],
+        remote_id: None,
     };
     let (_sim2, _e2, reduced) = swarm_on_one_port(1, setup).await;
     eventually("streaming", Duration::from_secs(10), || {

@@ -27,6 +27,26 @@ pub struct LinkStatus {
     pub last_seen_ms: u64,
 }
 
+/// Remote ID on this vehicle (ASTM F3411 through MAVLink's Open Drone ID messages).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct RemoteIdStatus {
+    /// skein sends the operator's part (`OPEN_DRONE_ID_SYSTEM` and
+    /// `OPEN_DRONE_ID_OPERATOR_ID`, 1 Hz) to this vehicle (`[remote_id]` configured).
+    pub operator_sent: bool,
+    /// The vehicle's transmitter's last `OPEN_DRONE_ID_ARM_STATUS`; `null` until one
+    /// arrives (no transmitter, or one that does not say).
+    pub transmitter: Option<RemoteIdArmStatus>,
+}
+
+/// What a Remote ID transmitter says of itself (`OPEN_DRONE_ID_ARM_STATUS`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct RemoteIdArmStatus {
+    /// `status` is `MAV_ODID_ARM_STATUS_GOOD_TO_ARM`.
+    pub good_to_arm: bool,
+    /// Why not (`error`; empty when good to arm).
+    pub error: String,
+}
+
 /// The vehicle's place in the formation.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct FormationSlot {
@@ -85,6 +105,9 @@ pub struct VehicleSnapshot {
     /// kept (a vehicle of another process before it reports one).
     #[serde(default)]
     pub fence: Option<crate::geofence::FenceStatus>,
+    /// Remote ID; `null` where skein sends none and no transmitter reported.
+    #[serde(default)]
+    pub remote_id: Option<RemoteIdStatus>,
 }
 
 impl VehicleSnapshot {
@@ -118,6 +141,7 @@ impl VehicleSnapshot {
             formation: None,
             payloads: vec![],
             fence: None,
+            remote_id: None,
         }
     }
 }
@@ -155,6 +179,7 @@ mod tests {
             formation: None,
             payloads: vec![],
             fence: None,
+            remote_id: None,
         };
         let v = serde_json::to_value(&snap).unwrap();
         assert_eq!(v["state"], "InFormation");

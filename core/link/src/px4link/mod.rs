@@ -332,6 +332,23 @@ impl Px4LinkState {
         }
     }
 
+    /// The operator's part of the vehicle's Remote ID ([`crate::remote_id`]), once the
+    /// vehicle has been heard.
+    fn send_remote_id(&self) {
+        let Some(rid) = &self.link.setup.remote_id else {
+            return;
+        };
+        let Some(home) = self
+            .link
+            .with_telemetry(|t| t.heartbeat.is_some().then(|| t.home.map(|h| h.geo)))
+        else {
+            return;
+        };
+        for m in rid.messages(self.link.sysid, home, std::time::SystemTime::now()) {
+            let _ = self.link.endpoint.send(self.link.sysid, &m);
+        }
+    }
+
     fn send_heartbeat(&self) {
         let identity = self.link.endpoint.identity();
         let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
@@ -416,6 +433,11 @@ impl Px4LinkState {
             }
             return;
         }
+        if let MavMessage::OPEN_DRONE_ID_ARM_STATUS(_) = &frame.msg {
+            // From the Remote ID transmitter, a component of its own.
+            self.link.apply(&frame.msg);
+            return;
+        }
         if frame.compid != self.link.compid {
             return; // other components (camera, gimbal) are the payloads' business
         }
@@ -469,6 +491,7 @@ impl Px4LinkState {
 
     fn on_tick(&mut self, myself: &ActorRef<Px4LinkMsg>) {
         self.send_heartbeat();
+        self.send_remote_id();
         self.flush_statustext(Instant::now());
         if self.greeted && self.link.fence().retry_due() {
             let _ = myself.cast(Px4LinkMsg::SyncFence {

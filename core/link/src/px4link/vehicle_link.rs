@@ -77,6 +77,11 @@ impl VehicleLink {
         &self.fence
     }
 
+    /// What is applied at every (re)connection, and sent meanwhile (Remote ID).
+    pub fn setup(&self) -> &LinkSetup {
+        &self.setup
+    }
+
     /// A copy of the latest telemetry.
     pub fn telemetry(&self) -> Telemetry {
         self.telemetry.read().expect("telemetry lock").clone()

@@ -307,6 +307,9 @@ pub struct ConfigFile {
     pub supervision: Option<skein_swarm::supervision::SupervisionConfig>,
     /// `[hazards]`.
     pub hazards: Option<skein_swarm::formation::HazardConfig>,
+    /// `[remote_id]`: the operator's identity and location sent to every vehicle's
+    /// Remote ID transmitter (see `skein_link::remote_id`).
+    pub remote_id: Option<skein_link::remote_id::RemoteIdConfig>,
     /// `[models.NAME]`.
     #[serde(default)]
     pub models: BTreeMap<String, ModelEntry>,
@@ -487,6 +490,7 @@ impl ConfigFile {
                 .flatten()
                 .map(|(k, v)| (k.clone(), *v))
                 .collect(),
+            remote_id: self.remote_id.clone(),
         };
         if let Some(sup) = &self.supervision {
             c.supervision = sup.clone();

@@ -16,7 +16,7 @@ use skein_model::geo::{FrameTransform, Ned, NedFrame, wrap_deg_360};
 use skein_model::geofence::FenceStatus;
 use skein_model::safety::{FenceViolation, SetpointShaper};
 use skein_model::vehicle::{
-    Battery, FormationSlot, LinkStatus, Position, VehicleSnapshot, Velocity,
+    Battery, FormationSlot, LinkStatus, Position, RemoteIdStatus, VehicleSnapshot, Velocity,
 };
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError, RwLock};
@@ -147,6 +147,7 @@ impl VehicleShared {
             formation: None,
             payloads: vec![],
             fence: None,
+            remote_id: None,
         };
         Arc::new(VehicleShared {
             id,
@@ -432,6 +433,7 @@ impl VehicleShared {
                 formation: slot,
                 payloads,
                 fence: Some(fence),
+                remote_id: remote_id_status(link.setup().remote_id.is_some(), t),
             }
         });
         self.snapshot.send_replace(snap);
@@ -469,6 +471,15 @@ impl VehicleShared {
 }
 
 /// Velocity, NED m/s: `LOCAL_POSITION_NED`'s, else `GLOBAL_POSITION_INT`'s.
+/// Remote ID on the vehicle: whether skein sends the operator's part (`sent`) and what
+/// its transmitter said; `None` when neither.
+fn remote_id_status(sent: bool, t: &Telemetry) -> Option<RemoteIdStatus> {
+    (sent || t.remote_id.is_some()).then(|| RemoteIdStatus {
+        operator_sent: sent,
+        transmitter: t.remote_id.clone(),
+    })
+}
+
 fn velocity_of(t: &Telemetry) -> Option<Ned> {
     t.local
         .map(|l| l.velocity_m_s)
