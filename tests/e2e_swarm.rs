@@ -367,6 +367,23 @@ fn refused_arming_carries_px4s_reasons(skein: &Skein) {
         })
     };
     put_odid(2);
+    // PX4's arming checks fail (SYS_STATUS), and the fleet's pre-flight view says so.
+    let check = |state: &'static str| {
+        eventually("uav-1's PX4 arming checks", Duration::from_secs(10), || {
+            let (_, p) = skein.get("/api/v1/preflight");
+            let c = p["vehicles"][0]["checks"]
+                .as_array()
+                .and_then(|cs| cs.iter().find(|c| c["check"] == "px4_arming_checks"))
+                .cloned()
+                .unwrap_or_default();
+            if c["state"] == state {
+                Ok(c)
+            } else {
+                Err(p.to_string())
+            }
+        })
+    };
+    check("fail");
     let refused = arm();
     assert_eq!(refused["ok"], false, "{refused}");
     let error = refused["error"].as_str().unwrap_or_default();
@@ -384,7 +401,32 @@ fn refused_arming_carries_px4s_reasons(skein: &Skein) {
             events.of_type("status_text")
         );
     }
+    // What PX4 said is the vehicle's, and the pre-flight check's detail.
+    let c = check("fail");
+    assert!(
+        c["detail"]
+            .as_str()
+            .unwrap_or_default()
+            .contains("Open Drone ID system missing"),
+        "{c}"
+    );
+    let (_, v) = skein.get("/api/v1/vehicles/uav-1");
+    assert!(
+        v["px4_messages"]
+            .as_array()
+            .is_some_and(|m| m.iter().any(|m| m["text"]
+                == "Arming denied: Resolve system health failures first"
+                && m["severity"] == 2)),
+        "{}",
+        v["px4_messages"]
+    );
+    assert!(
+        v["gps"]["fix_type"].as_u64() >= Some(3) && v["gps"]["eph_m"].is_number(),
+        "{}",
+        v["gps"]
+    );
     put_odid(0);
+    check("ok");
     let armed = arm();
     assert_eq!(armed["ok"], true, "{armed}");
 }

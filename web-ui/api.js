@@ -148,6 +148,7 @@ export const payloadCommand = (id, slot, body) =>
 export const payloadVideoUrl = (id, slot, snapshot = false) =>
   withToken(`${API}/vehicles/${enc(id)}/payloads/${enc(slot)}/${snapshot ? 'snapshot' : 'stream'}`);
 export const getSupervision = () => request('GET', '/supervision');
+export const getPreflight = () => request('GET', '/preflight');
 export const injectFault = (target, kind) => request('POST', '/faults', { target, kind });
 export const getPlugins = () => request('GET', '/plugins');
 /** op: load ({file}) | unload ({name}) | reload ({name}). */

@@ -1,7 +1,7 @@
 // skein ground station: wires the stream to the plan view (and the map under it), the
 // vehicle table, the event log, the header summary and the side panel's views (swarm
-// controls, the geofence, vehicle detail, payloads, supervision, plugins, charts), and
-// the controls to the HTTP API.
+// controls, the geofence, vehicle detail, payloads, supervision, plugins, charts, tracks,
+// pre-flight), and the controls to the HTTP API.
 
 import * as api from './api.js';
 import { initAuth } from './auth.js';
@@ -17,6 +17,7 @@ import { Tabs } from './tabs.js';
 import { VehicleDetail } from './detail.js';
 import { PayloadsView } from './payloads.js';
 import { SupervisionView } from './supervision.js';
+import { PreflightView } from './preflight.js';
 import { showLoad } from './load.js';
 import { PluginsView } from './plugins.js';
 import { ChartsView } from './charts.js';
@@ -75,6 +76,7 @@ const supervision = new SupervisionView($('view-supervision'), deps);
 new PluginsView($('view-plugins'), deps);
 new ChartsView($('view-charts'), deps);
 new TracksView($('view-tracks'), deps);
+new PreflightView($('view-preflight'), deps);
 const table = new VehicleTable($('vehicle-rows'), $('table-empty'), {
   onCommand: (id, command, button) => controls.vehicleCommand(id, command, button),
   onSelect: select,

@@ -213,6 +213,22 @@ def run(args, driver, summary):
     summary["timings_s"]["connected"] = lap()
     ui.wait("all vehicles Landed before takeoff", lambda d: ui.all_rows(n, lambda r: r.get("state") == "Landed"))
 
+    # 1b. The fleet's pre-flight checks: every vehicle ready, PX4's own checks passing.
+    ui.click("tab-preflight")
+
+    def preflight(d):
+        rows = d.execute_script(
+            "return [...document.querySelectorAll('[data-testid=\"preflight\"] tbody tr')].map(tr => ({"
+            "id: tr.dataset.vehicle, ready: tr.dataset.ready, checks: Object.fromEntries("
+            "[...tr.querySelectorAll('td[data-check]')].map(td => [td.dataset.check, td.dataset.state || null]))}))")
+        ready = len(rows) == n and all(
+            r["ready"] == "true" and r["checks"].get("px4_arming_checks") == "ok"
+            and r["checks"].get("gnss") == "ok" and r["checks"].get("link") == "ok" for r in rows)
+        return rows if ready else None
+
+    summary["preflight"] = ui.wait("the pre-flight tab to show every vehicle ready", preflight)
+    ui.click("tab-swarm")
+
     # 2. Take off.
     ui.set_input("takeoff-altitude", f"{args.altitude:g}")
     ui.click("takeoff")

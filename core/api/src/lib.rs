@@ -12,7 +12,7 @@
 //! in its role's router ([`openapi::routes`]); the router, the role table and the contract
 //! (`GET /api/v1/openapi.json`, OpenAPI 3.1, see [`openapi`]) are built from that, and
 //! docs/api.md lists them. The handlers, by concept: [`vehicles`] (vehicles and commands),
-//! [`px4_params`], [`formation_control`] (formation and leader motion), [`payloads`] and
+//! [`preflight`] (the fleet's pre-flight checks), [`px4_params`], [`formation_control`] (formation and leader motion), [`payloads`] and
 //! the camera's frames, [`plugins`], [`swarm_status`] (health, supervision, metrics,
 //! links), [`geofence`], [`map`] (the tiles under the plan), [`fault_injection`],
 //! [`tracks`], [`recording`], [`election`], the
@@ -32,6 +32,7 @@ pub mod openapi;
 pub mod path_params;
 pub mod payloads;
 pub mod plugins;
+pub mod preflight;
 pub mod px4_params;
 pub mod recording;
 pub mod replay_server;

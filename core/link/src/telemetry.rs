@@ -6,10 +6,14 @@
 
 use serde::Serialize;
 use skein_mavlink::MavMessage;
-use skein_mavlink::dialect::{HOME_POSITION_DATA, MavModeFlag, MavType};
+use skein_mavlink::dialect::{
+    HOME_POSITION_DATA, MavModeFlag, MavSeverity, MavSysStatusSensor, MavType,
+};
 use skein_model::fsm::Observed;
 use skein_model::geo::{GeoPoint, Ned, NedFrame};
 use skein_model::px4::{LandedState, Px4Mode};
+use skein_model::vehicle::{PX4_MESSAGES_KEPT, Px4Message};
+use std::collections::VecDeque;
 use std::time::Instant;
 
 /// From `HEARTBEAT`.
@@ -105,6 +109,16 @@ pub struct Telemetry {
     pub gps_fix_type: Option<u8>,
     /// `GPS_RAW_INT.satellites_visible`.
     pub satellites: Option<u8>,
+    /// `GPS_RAW_INT.eph` in metres (`None`: unknown, `UINT16_MAX`).
+    pub gps_eph_m: Option<f64>,
+    /// `GPS_RAW_INT.epv` in metres (`None`: unknown).
+    pub gps_epv_m: Option<f64>,
+    /// `SYS_STATUS`: PX4's arming checks pass (`MAV_SYS_STATUS_PREARM_CHECK` healthy);
+    /// `None` while no `SYS_STATUS` said (the bit not present).
+    pub prearm_ok: Option<bool>,
+    /// The vehicle's latest warnings and errors (`STATUSTEXT`, severity 4 or worse),
+    /// oldest first, at most [`PX4_MESSAGES_KEPT`] ([`Telemetry::keep_message`]).
+    pub px4_messages: VecDeque<Px4Message>,
     /// The vehicle's Remote ID transmitter's last `OPEN_DRONE_ID_ARM_STATUS`, whichever
     /// of its components sent it.
     pub remote_id: Option<skein_model::vehicle::RemoteIdArmStatus>,
@@ -264,6 +278,11 @@ impl Telemetry {
                 }
             }
             MavMessage::SYS_STATUS(s) => {
+                let prearm = MavSysStatusSensor::MAV_SYS_STATUS_PREARM_CHECK;
+                self.prearm_ok = s
+                    .onboard_control_sensors_present
+                    .contains(prearm)
+                    .then(|| s.onboard_control_sensors_health.contains(prearm));
                 let entry = self.battery.get_or_insert(BatteryTelemetry {
                     percent: None,
                     voltage_v: None,
@@ -279,6 +298,9 @@ impl Telemetry {
             MavMessage::GPS_RAW_INT(g) => {
                 self.gps_fix_type = Some(g.fix_type as u8);
                 self.satellites = Some(g.satellites_visible);
+                let metres = |cm: u16| (cm != u16::MAX).then(|| f64::from(cm) * 0.01);
+                self.gps_eph_m = metres(g.eph);
+                self.gps_epv_m = metres(g.epv);
             }
             MavMessage::OPEN_DRONE_ID_ARM_STATUS(s) => {
                 self.remote_id = Some(skein_model::vehicle::RemoteIdArmStatus {
@@ -288,6 +310,23 @@ impl Telemetry {
             }
             _ => {}
         }
+    }
+
+    /// Keeps a warning or error the vehicle sent (`STATUSTEXT`, chunks joined) at
+    /// `unix_ms`, dropping the oldest past [`PX4_MESSAGES_KEPT`]; texts of severity 5
+    /// (notice) and above are not kept.
+    pub fn keep_message(&mut self, severity: u8, text: &str, unix_ms: u64) {
+        if severity > MavSeverity::MAV_SEVERITY_WARNING as u8 {
+            return;
+        }
+        if self.px4_messages.len() == PX4_MESSAGES_KEPT {
+            self.px4_messages.pop_front();
+        }
+        self.px4_messages.push_back(Px4Message {
+            severity,
+            text: text.to_string(),
+            unix_ms,
+        });
     }
 
     /// A HOME_POSITION: PX4 repeats it (0.5 Hz here), the frame is worked out when it

@@ -13,6 +13,7 @@
 //! - [`obstacles`]: the other vehicles as the separation check sees them, asked by
 //!   distance.
 //! - [`payload`]: a vehicle model's payload slot (slot, kind, plugin, hosting).
+//! - [`preflight`]: a vehicle's pre-flight checks, from its snapshot.
 //! - [`safety`]: the setpoint shaper: geofence clamp, speed and acceleration limiting and
 //!   separation checks that every setpoint passes before it leaves skein.
 //! - [`supervision`]: restart policies, child kinds and statuses, injectable faults.
@@ -29,6 +30,7 @@ pub use skein_geo as geo;
 pub mod geofence;
 pub mod obstacles;
 pub mod payload;
+pub mod preflight;
 pub mod px4;
 pub mod safety;
 pub mod supervision;

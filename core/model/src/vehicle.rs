@@ -27,6 +27,36 @@ pub struct LinkStatus {
     pub last_seen_ms: u64,
 }
 
+/// GNSS as the autopilot reports it (`GPS_RAW_INT`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct GpsStatus {
+    /// MAVLink's `GPS_FIX_TYPE` number: 0-1 no fix, 2 2D, 3 3D, 4 DGPS, 5 RTK float,
+    /// 6 RTK fixed.
+    pub fix_type: u8,
+    /// Satellites visible (`satellites_visible`).
+    pub satellites: u8,
+    /// Horizontal dilution of position (`eph`, as PX4 fills it: the horizontal position
+    /// accuracy), metres; `null` when unknown.
+    pub eph_m: Option<f64>,
+    /// Vertical (`epv`), metres; `null` when unknown.
+    pub epv_m: Option<f64>,
+}
+
+/// A text the autopilot sent (`STATUSTEXT`, chunks joined).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct Px4Message {
+    /// `MAV_SEVERITY` (0 emergency … 4 warning … 7 debug).
+    pub severity: u8,
+    /// The text (`"Preflight Fail: Open Drone ID system missing"`).
+    pub text: String,
+    /// When it arrived, milliseconds since the Unix epoch (UTC).
+    pub unix_ms: u64,
+}
+
+/// How many of the autopilot's warnings a snapshot carries
+/// ([`VehicleSnapshot::px4_messages`]).
+pub const PX4_MESSAGES_KEPT: usize = 5;
+
 /// Remote ID on this vehicle (ASTM F3411 through MAVLink's Open Drone ID messages).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct RemoteIdStatus {
@@ -94,6 +124,17 @@ pub struct VehicleSnapshot {
     pub heading_deg: f64,
     /// Battery, once reported.
     pub battery: Option<Battery>,
+    /// GNSS fix, once reported (`GPS_RAW_INT`).
+    #[serde(default)]
+    pub gps: Option<GpsStatus>,
+    /// PX4's own arming checks pass in its current mode (`SYS_STATUS`'s
+    /// `MAV_SYS_STATUS_PREARM_CHECK` health bit); `null` until reported.
+    #[serde(default)]
+    pub prearm_ok: Option<bool>,
+    /// The autopilot's latest warnings and errors (`STATUSTEXT` of severity 4 or worse),
+    /// oldest first, at most [`PX4_MESSAGES_KEPT`].
+    #[serde(default)]
+    pub px4_messages: Vec<Px4Message>,
     /// Link health.
     pub link: LinkStatus,
     /// Formation slot, while in formation.
@@ -134,6 +175,9 @@ impl VehicleSnapshot {
             velocity: Velocity::default(),
             heading_deg: 0.0,
             battery: None,
+            gps: None,
+            prearm_ok: None,
+            px4_messages: vec![],
             link: LinkStatus {
                 connected: true,
                 last_seen_ms: 0,
@@ -172,6 +216,14 @@ mod tests {
                 percent: 87.0,
                 voltage_v: 15.9,
             }),
+            gps: Some(GpsStatus {
+                fix_type: 3,
+                satellites: 12,
+                eph_m: Some(0.8),
+                epv_m: None,
+            }),
+            prearm_ok: Some(true),
+            px4_messages: vec![],
             link: LinkStatus {
                 connected: true,
                 last_seen_ms: 12,
@@ -189,6 +241,11 @@ mod tests {
         assert_eq!(v["home"]["north_m"], 0.0);
         assert_eq!(v["battery"]["voltage_v"], 15.9);
         assert_eq!(v["link"]["connected"], true);
+        // The field day's contract: `gps` with `fix_type`, `satellites`, `eph_m`, `epv_m`.
+        assert_eq!(
+            v["gps"],
+            serde_json::json!({"fix_type": 3, "satellites": 12, "eph_m": 0.8, "epv_m": null})
+        );
         assert!(v["payloads"].as_array().unwrap().is_empty());
     }
 }

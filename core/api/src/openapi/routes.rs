@@ -11,7 +11,8 @@
 use crate::roles::{Access, Role};
 use crate::{
     ApiState, auth, election, fault_injection, formation_control, geofence, map, openapi, payloads,
-    plugins, px4_params, recording, stream, swarm_status, swarms, tracks, vehicles, video,
+    plugins, preflight, px4_params, recording, stream, swarm_status, swarms, tracks, vehicles,
+    video,
 };
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
@@ -39,6 +40,7 @@ fn viewer() -> OpenApiRouter<ApiState> {
         .routes(routes!(auth::whoami))
         .routes(routes!(vehicles::list_vehicles))
         .routes(routes!(vehicles::get_vehicle))
+        .routes(routes!(preflight::fleet_preflight))
         .routes(routes!(px4_params::list_params))
         .routes(routes!(px4_params::get_param))
         .routes(routes!(formation_control::get_formation))

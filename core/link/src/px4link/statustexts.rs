@@ -35,6 +35,7 @@ impl Px4LinkState {
     }
 
     fn heard_statustext(&mut self, t: StatusText) {
+        self.link.keep_message(t.severity, &t.text);
         if t.severity <= MavSeverity::MAV_SEVERITY_WARNING as u8 {
             for p in self.pending.values_mut() {
                 p.statustexts.push(t.text.clone());

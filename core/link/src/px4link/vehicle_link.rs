@@ -101,6 +101,17 @@ impl VehicleLink {
             .apply(msg, Instant::now())
     }
 
+    /// Keeps a text the vehicle sent ([`Telemetry::keep_message`]), stamped now.
+    pub(super) fn keep_message(&self, severity: u8, text: &str) {
+        let unix_ms = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_millis() as u64);
+        self.telemetry
+            .write()
+            .expect("telemetry lock")
+            .keep_message(severity, text, unix_ms);
+    }
+
     /// The offboard setpoint stream.
     pub fn stream(&self) -> &SetpointStream {
         &self.stream

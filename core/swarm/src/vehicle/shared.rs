@@ -16,7 +16,8 @@ use skein_model::geo::{FrameTransform, Ned, NedFrame, wrap_deg_360};
 use skein_model::geofence::FenceStatus;
 use skein_model::safety::{FenceViolation, SetpointShaper};
 use skein_model::vehicle::{
-    Battery, FormationSlot, LinkStatus, Position, RemoteIdStatus, VehicleSnapshot, Velocity,
+    Battery, FormationSlot, GpsStatus, LinkStatus, Position, RemoteIdStatus, VehicleSnapshot,
+    Velocity,
 };
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError, RwLock};
@@ -140,6 +141,9 @@ impl VehicleShared {
             velocity: Velocity::default(),
             heading_deg: 0.0,
             battery: None,
+            gps: None,
+            prearm_ok: None,
+            px4_messages: vec![],
             link: LinkStatus {
                 connected: false,
                 last_seen_ms: 0,
@@ -432,6 +436,14 @@ impl VehicleShared {
                 },
                 formation: slot,
                 payloads,
+                gps: t.gps_fix_type.map(|fix_type| GpsStatus {
+                    fix_type,
+                    satellites: t.satellites.unwrap_or(0),
+                    eph_m: t.gps_eph_m,
+                    epv_m: t.gps_epv_m,
+                }),
+                prearm_ok: t.prearm_ok,
+                px4_messages: t.px4_messages.iter().cloned().collect(),
                 fence: Some(fence),
                 remote_id: remote_id_status(link.setup().remote_id.is_some(), t),
             }
