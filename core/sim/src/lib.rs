@@ -8,6 +8,8 @@
 //! modes (`custom_mode` encoding), takeoff, land, RTL, hold, reposition, offboard control
 //! with PX4's `type_mask` semantics and offboard-loss failsafe, the command protocol
 //! (COMMAND_LONG/INT, ACKs, retransmissions) and parameters (bytewise integer encoding).
+//! Each armed flight is logged as a PX4 ULog, listed and downloaded over MAVLink's log
+//! protocol ([`FlightLog`], [`Simulator::flight_logs`]).
 //! Dynamics are a point mass per vehicle under a PX4-like position controller with speed
 //! and acceleration limits, wind and gusts, GPS noise, ground contact and a draining
 //! battery. Each vehicle spawns at its own place with its own local NED origin.
@@ -29,6 +31,7 @@ pub mod px4_params;
 mod report;
 mod runtime;
 mod signing;
+mod ulog;
 mod vehicle;
 pub mod virtual_vehicle;
 
@@ -41,7 +44,7 @@ pub use report::{
     SimSummary, SimTruth, SimVehicleInfo, SimVehicleStats, TelemetryStreamInfo, telemetry_streams,
 };
 use report::{decode_delta, truth_of};
-pub use vehicle::PX4_FLIGHT_SW_VERSION;
+pub use vehicle::{FLIGHT_LOG_STORAGE_BYTES, FLIGHT_LOGS_KEPT, FlightLog, PX4_FLIGHT_SW_VERSION};
 pub use virtual_vehicle::VirtualVehicle;
 
 use impairment::Impairment;
@@ -466,6 +469,15 @@ impl Simulator {
             slot.impair.set(loss_fraction, latency_ms);
             slot.impair.wake.notify_one();
         }
+    }
+
+    /// The flight logs of vehicle `sysid` as a ground station's `LOG_REQUEST_LIST` would
+    /// list them now: oldest first (the index is the `LOG_ENTRY` id), the flight being
+    /// logged last with what it holds so far. `None` when no vehicle has that sysid.
+    pub fn flight_logs(&self, sysid: u8) -> Option<Vec<FlightLog>> {
+        let cell = self.cell(sysid)?;
+        let slot = cell.lock();
+        Some(slot.vehicle.flight_logs.list())
     }
 
     /// Ground truth of vehicle `sysid`.

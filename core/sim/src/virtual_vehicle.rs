@@ -8,7 +8,7 @@
 use crate::client;
 use crate::config::{SimConfig, TelemetryProfile};
 use crate::report::{SimTruth, truth_of};
-use crate::vehicle::{Environment, Outbox, Vehicle};
+use crate::vehicle::{Environment, FlightLog, Outbox, Vehicle};
 use skein_mavlink::dialect::{MavCmd, MavMissionResult};
 use skein_mavlink::{Decoder, Encoder, Frame, MavMessage};
 use skein_model::geo::Ned;
@@ -204,6 +204,18 @@ impl VirtualVehicle {
     /// True while armed.
     pub fn armed(&self) -> bool {
         self.vehicle.armed
+    }
+
+    /// The vehicle's flight logs, as [`crate::Simulator::flight_logs`] gives them.
+    pub fn flight_logs(&self) -> Vec<FlightLog> {
+        self.vehicle.flight_logs.list()
+    }
+
+    /// Reboots the vehicle now, as [`crate::Simulator::reboot`] does (its flight logs
+    /// stay).
+    pub fn reboot(&mut self) {
+        self.vehicle.reboot(self.now);
+        self.encoder = Encoder::new(1, 1);
     }
 }
 

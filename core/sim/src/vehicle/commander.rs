@@ -1,7 +1,8 @@
 //! Commander (PX4 `commander`): arming and its pre-arm checks, mode switching with PX4's
 //! refusals, the offboard-signal check (`COM_OF_LOSS_T`), failsafes on offboard loss
 //! (`COM_OBL_RC_ACT`) and GCS link loss (`COM_DL_LOSS_T`, `NAV_DLL_ACT`), and auto-disarm
-//! (`COM_DISARM_PRFLT`, `COM_DISARM_LAND`).
+//! (`COM_DISARM_PRFLT`, `COM_DISARM_LAND`). Arming starts a flight log, disarming ends it
+//! (PX4's `SDLOG_MODE` 0, see `flight_log`).
 
 #![allow(deprecated)]
 
@@ -165,6 +166,7 @@ impl Vehicle {
     pub(super) fn arm(&mut self, now: Instant, out: &mut Outbox) {
         self.armed = true;
         self.armed_at = now;
+        self.start_flight_log(now);
         self.took_off = false;
         self.landed_at = None;
         self.pos_ctrl.reset();
@@ -195,6 +197,7 @@ impl Vehicle {
     pub(super) fn disarm(&mut self, now: Instant, reason: &str, out: &mut Outbox) {
         self.armed = false;
         self.failsafe = false;
+        self.finish_flight_log();
         self.statustext(now, MavSeverity::MAV_SEVERITY_INFO, reason, out);
     }
 

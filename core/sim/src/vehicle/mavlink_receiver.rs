@@ -1,8 +1,9 @@
 //! MAVLink message handling (PX4 `mavlink_receiver`): heartbeats per MAV_TYPE, the command
 //! protocol (COMMAND_LONG / COMMAND_INT, two ACKs for DO_SET_MODE, retransmission dedup),
 //! parameters (PARAM_* with PX4's bytewise integer encoding), the mission protocol's
-//! messages (handled in `mission`) and offboard setpoints
-//! (SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT with PX4's `type_mask` semantics).
+//! messages (handled in `mission`), the log protocol's (handled in `log_handler`) and
+//! offboard setpoints (SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT with PX4's `type_mask`
+//! semantics).
 
 #![allow(deprecated)]
 
@@ -97,7 +98,10 @@ impl Vehicle {
             self.on_command(now, cmd, out);
             return;
         }
-        if self.on_param_frame(now, frame, out) || self.on_mission_frame(now, frame, out) {
+        if self.on_param_frame(now, frame, out)
+            || self.on_mission_frame(now, frame, out)
+            || self.on_log_frame(frame)
+        {
             return;
         }
         match &frame.msg {
@@ -232,6 +236,33 @@ impl Vehicle {
                 if self.targets_me(c.target_system, c.target_component) =>
             {
                 self.on_mission_clear(from, c.mission_type, out);
+            }
+            _ => return false,
+        }
+        true
+    }
+
+    /// The log protocol's requests addressed to us (see `log_handler`: what is sent
+    /// goes out on the next steps); false for any other frame.
+    fn on_log_frame(&mut self, frame: &Frame) -> bool {
+        match &frame.msg {
+            MavMessage::LOG_REQUEST_LIST(r)
+                if self.targets_me(r.target_system, r.target_component) =>
+            {
+                self.on_log_request_list(r);
+            }
+            MavMessage::LOG_REQUEST_DATA(r)
+                if self.targets_me(r.target_system, r.target_component) =>
+            {
+                self.on_log_request_data(r);
+            }
+            MavMessage::LOG_REQUEST_END(r)
+                if self.targets_me(r.target_system, r.target_component) =>
+            {
+                self.on_log_request_end();
+            }
+            MavMessage::LOG_ERASE(r) if self.targets_me(r.target_system, r.target_component) => {
+                self.on_log_erase();
             }
             _ => return false,
         }

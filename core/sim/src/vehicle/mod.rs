@@ -1,6 +1,7 @@
 //! One simulated PX4 multicopter, without I/O: the MAVLink message handling (commands,
-//! parameters, setpoints, heartbeats), PX4's mode and arming logic, failsafes, a point-mass
-//! model with a PX4-like position controller, land detection and a battery.
+//! parameters, setpoints, heartbeats, the mission and log protocols), PX4's mode and
+//! arming logic, failsafes, a point-mass model with a PX4-like position controller, land
+//! detection, a battery and the flight log.
 //!
 //! Inputs arrive through [`Vehicle::handle_frame`]; the simulation advances with
 //! [`Vehicle::step`] at a fixed `dt`; everything the vehicle sends goes through an
@@ -30,8 +31,10 @@ pub use telemetry::PX4_FLIGHT_SW_VERSION;
 mod battery;
 mod commander;
 mod dynamics;
+mod flight_log;
 mod geofence;
 mod land_detector;
+mod log_handler;
 mod mavlink_receiver;
 mod mission;
 mod navigator;
@@ -40,6 +43,9 @@ mod position_control;
 mod tests;
 
 pub(crate) use battery::Battery;
+pub(crate) use flight_log::FlightLogStore;
+pub use flight_log::{FLIGHT_LOG_STORAGE_BYTES, FLIGHT_LOGS_KEPT, FlightLog};
+use log_handler::LogHandler;
 use mavlink_receiver::{Command, LastCommand};
 pub(crate) use mission::MissionStore;
 pub(crate) use navigator::RtlPhase;
@@ -302,6 +308,10 @@ pub(crate) struct Vehicle {
     /// Outside the fence since the last check (the breach action was taken).
     pub fence_breached: bool,
 
+    // Flight logs (PX4's SD card: kept across reboots) and the log protocol's state.
+    pub flight_logs: FlightLogStore,
+    log_handler: LogHandler,
+
     // Telemetry.
     pub streams: Streams,
     pub ping_seq: u32,
@@ -413,6 +423,8 @@ impl Vehicle {
             missions: MissionStore::default(),
             fence_areas: Vec::new(),
             fence_breached: false,
+            flight_logs: FlightLogStore::default(),
+            log_handler: LogHandler::default(),
             streams,
             ping_seq: 0,
             battery: Battery {
@@ -429,17 +441,21 @@ impl Vehicle {
         v
     }
 
-    /// PX4 reboot: everything but the counters and the stored plans (fence, rally: PX4's
-    /// dataman) starts over (state, boot time, streams).
+    /// PX4 reboot: everything but the counters, the stored plans (fence, rally: PX4's
+    /// dataman) and the flight logs (PX4's SD card; a flight being logged ends there)
+    /// starts over (state, boot time, streams, the log protocol).
     pub fn reboot(&mut self, now: Instant) {
         let counters = self.counters;
         let intervals = std::mem::take(&mut self.setpoint_intervals);
         let missions = std::mem::take(&mut self.missions);
+        let mut flight_logs = std::mem::take(&mut self.flight_logs);
+        flight_logs.finish();
         let fresh = Vehicle::new(self.sysid, self.origin.origin, self.env.clone(), now);
         *self = fresh;
         self.counters = counters;
         self.setpoint_intervals = intervals;
         self.missions = missions;
+        self.flight_logs = flight_logs;
         self.load_fence();
     }
 
@@ -525,6 +541,8 @@ impl Vehicle {
         self.auto_disarm(now, out);
         self.update_battery(dt_s);
         self.update_noise(dt_s);
+        self.record_flight_log(now);
+        self.log_handler_send(dt_s, out);
         self.link.update_rates(now);
     }
 }

@@ -2,11 +2,13 @@
 //! ([`GroundStation`]) over real UDP ([`Client`], its own socket and `skein_mavlink`'s
 //! encoder and decoder: what a ground station or skein's link would do, without sharing
 //! code with the simulator) or on the virtual clock ([`VirtualClient`]), the simulator
-//! started for `n` clients, setpoint messages, and polling with a deadline.
+//! started for `n` clients, setpoint messages, polling with a deadline, and a ULog reader
+//! ([`ULog`]).
 #![allow(dead_code, deprecated)]
 
 mod station;
 mod udp;
+mod ulog;
 mod virtual_station;
 
 // Each test binary uses its own part of these.
@@ -14,6 +16,8 @@ mod virtual_station;
 pub use station::{GroundStation, set_mode_msg};
 #[allow(unused_imports)]
 pub use udp::{Client, Streamer, clear_through};
+#[allow(unused_imports)]
+pub use ulog::{ULog, ULogField};
 #[allow(unused_imports)]
 pub use virtual_station::{VirtualClient, start_virtual};
 

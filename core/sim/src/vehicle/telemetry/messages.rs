@@ -13,8 +13,8 @@ use skein_model::geo::{Ned, wrap_pi};
 use skein_model::px4::Px4Mode;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
-/// Quaternion (w, x, y, z) of ZYX Euler angles.
-fn quaternion(roll: f64, pitch: f64, yaw: f64) -> [f32; 4] {
+/// Quaternion (w, x, y, z) of ZYX Euler angles (rad): body FRD to NED.
+pub(crate) fn quaternion(roll: f64, pitch: f64, yaw: f64) -> [f32; 4] {
     let (sr, cr) = (roll * 0.5).sin_cos();
     let (sp, cp) = (pitch * 0.5).sin_cos();
     let (sy, cy) = (yaw * 0.5).sin_cos();

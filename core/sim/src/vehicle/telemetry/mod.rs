@@ -6,6 +6,7 @@ mod messages;
 mod scheduler;
 mod sensors;
 
+pub(crate) use messages::quaternion;
 pub use scheduler::{STREAMS, Stream, Streams, is_known_message};
 
 /// `AUTOPILOT_VERSION` message id.
