@@ -122,18 +122,10 @@ fn payload_plugins_reach_the_running_swarm() {
     let t_built = t_start.elapsed();
     let cfg_dir = scratch("config");
     let cfg = write_config(&cfg_dir, CONFIG);
-    let skein = Skein::up(&[
-        "--sim",
-        "3",
-        "--sim-base-port",
-        "0",
-        "--sim-stats",
-        "127.0.0.1:0",
-        "--plugin-dir",
-        dir.to_str().unwrap(),
-        "--config",
-        &cfg,
-    ]);
+    let skein = Skein::sim_with_stats(
+        3,
+        &["--plugin-dir", dir.to_str().unwrap(), "--config", &cfg],
+    );
     let plugin_line = stdout_line(&skein, "skein: plugins from");
     assert!(
         plugin_line.contains("5 loaded") && plugin_line.contains("1 refused"),

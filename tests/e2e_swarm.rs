@@ -5,7 +5,7 @@ mod support;
 
 use serde_json::{Value, json};
 use std::time::Duration;
-use support::{EventLog, Process, Skein, eventually, free_udp_range, run_peer, summary};
+use support::{EventLog, Process, Skein, eventually, free_udp_range, run_peer, sim_stats, summary};
 
 fn alt(v: &Value) -> f64 {
     v["position"]["relative_alt_m"].as_f64().unwrap_or(f64::NAN)
@@ -22,7 +22,7 @@ fn ned(v: &Value) -> (f64, f64, f64) {
 
 #[test]
 fn three_vehicles_take_off_fly_a_line_and_land() {
-    let skein = Skein::sim(3);
+    let skein = Skein::sim_with_stats(3, &[]);
     let vs = skein.wait_all(
         "3 connected vehicles with positions and homes",
         3,
@@ -123,6 +123,22 @@ fn three_vehicles_take_off_fly_a_line_and_land() {
     skein.wait_all("all landed and disarmed", 3, Duration::from_secs(90), |v| {
         v["state"] == "Landed" && v["armed"] == false
     });
+    let flown: Vec<(String, (f64, f64))> = vs
+        .iter()
+        .map(|v| {
+            let (n, e, _) = ned(v);
+            let home = &v["home"];
+            let id = v["id"].as_str().unwrap().to_string();
+            (
+                id,
+                (
+                    n - home["north_m"].as_f64().unwrap(),
+                    e - home["east_m"].as_f64().unwrap(),
+                ),
+            )
+        })
+        .collect();
+    the_flight_logs_come_home(&skein, &flown);
 
     // PX4 stays in LAND after touchdown and refuses to arm there: a second takeoff must
     // still work.
@@ -139,6 +155,78 @@ fn three_vehicles_take_off_fly_a_line_and_land() {
             Err(v.to_string())
         }
     });
+}
+
+/// After the flight: the newest log of every vehicle fetched at once (uav-1's link cut
+/// for 3 s in the middle of its download), each read by pyulog: PX4's topics, the climb
+/// to the 10 m hover, and the place each vehicle held in the line (`flown`: north/east from its
+/// home, which is its local frame's origin).
+fn the_flight_logs_come_home(skein: &Skein, flown: &[(String, (f64, f64))]) {
+    let stats = skein.sim_stats_addr();
+    let (status, body) = skein.post("/api/v1/logs/fetch_latest", json!({}));
+    assert_eq!(status, 202, "{body}");
+    assert_eq!(
+        body["downloads"].as_array().map(Vec::len),
+        Some(3),
+        "{body}"
+    );
+    assert_eq!(sim_stats(&stats, "link 1 1 0")["ok"], true);
+    let cut = skein.get("/api/v1/logs").1;
+    let uav1 = cut
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|d| d["vehicle"] == "uav-1")
+        .cloned();
+    let uav1 = uav1.unwrap_or_default();
+    assert_eq!(
+        uav1["state"], "downloading",
+        "the cut came after the download: {cut}"
+    );
+    std::thread::sleep(Duration::from_secs(3)); // the outage itself, not a wait for an outcome
+    assert_eq!(sim_stats(&stats, "link 1 0 0")["ok"], true);
+    let done = eventually("every log downloaded", Duration::from_secs(120), || {
+        let (_, all) = skein.get("/api/v1/logs");
+        let list = all.as_array().cloned().unwrap_or_default();
+        if list.len() == 3 && list.iter().all(|d| d["state"] == "complete") {
+            Ok(list)
+        } else {
+            Err(all.to_string())
+        }
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for d in &done {
+        let (vehicle, log_id) = (
+            d["vehicle"].as_str().unwrap(),
+            d["log_id"].as_u64().unwrap(),
+        );
+        let (status, ctype, bytes) =
+            skein.get_bytes(&format!("/api/v1/vehicles/{vehicle}/logs/{log_id}/file"));
+        assert_eq!((status, ctype.as_str()), (200, "application/octet-stream"));
+        assert_eq!(bytes.len() as u64, d["size_bytes"].as_u64().unwrap(), "{d}");
+        let path = dir.path().join(format!("{vehicle}.ulg"));
+        std::fs::write(&path, bytes).unwrap();
+        files.push((vehicle.to_string(), path.display().to_string()));
+    }
+    let args: Vec<&str> = files.iter().map(|(_, p)| p.as_str()).collect();
+    let (code, out, err) = run_peer("read_ulog.py", &args, Duration::from_secs(60));
+    assert_eq!(code, Some(0), "read_ulog.py\n{out}\n{err}");
+    let read: Value = serde_json::from_str(out.trim()).unwrap();
+    for (vehicle, path) in &files {
+        let lp = &read[path]["vehicle_local_position"];
+        // Up to the 10 m hover at least (formation changes step members up and down).
+        let height = lp["max_height_m"].as_f64().unwrap();
+        assert!((9.0..20.0).contains(&height), "{vehicle}: {lp}");
+        let (_, (north, east)) = flown.iter().find(|(id, _)| id == vehicle).unwrap();
+        let within = |range: &Value, x: f64| {
+            range[0].as_f64().unwrap() - 1.0 <= x && x <= range[1].as_f64().unwrap() + 1.0
+        };
+        assert!(
+            within(&lp["north_m"], *north) && within(&lp["east_m"], *east),
+            "{vehicle} held ({north:.1}, {east:.1}) m from home; its log: {lp}"
+        );
+    }
 }
 
 #[test]

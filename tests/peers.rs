@@ -193,14 +193,7 @@ fn mavsdk_documented_offboard_start() {
 
 #[test]
 fn the_dashboard_flies_three_vehicles_in_chromium() {
-    let skein = support::Skein::up(&[
-        "--sim",
-        "3",
-        "--sim-base-port",
-        "0",
-        "--sim-stats",
-        "127.0.0.1:0",
-    ]);
+    let skein = support::Skein::sim_with_stats(3, &[]);
     let url = format!("{}/", skein.base);
     let stats = skein.sim_stats_addr();
     let shot = std::env::temp_dir().join(format!("skein-dashboard-{}.png", std::process::id()));

@@ -149,6 +149,8 @@ export const payloadVideoUrl = (id, slot, snapshot = false) =>
   withToken(`${API}/vehicles/${enc(id)}/payloads/${enc(slot)}/${snapshot ? 'snapshot' : 'stream'}`);
 export const getSupervision = () => request('GET', '/supervision');
 export const getPreflight = () => request('GET', '/preflight');
+export const getLogDownloads = () => request('GET', '/logs');
+export const fetchLatestLogs = () => request('POST', '/logs/fetch_latest');
 export const injectFault = (target, kind) => request('POST', '/faults', { target, kind });
 export const getPlugins = () => request('GET', '/plugins');
 /** op: load ({file}) | unload ({name}) | reload ({name}). */

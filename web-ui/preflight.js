@@ -1,11 +1,12 @@
 // Pre-flight tab: the fleet's checks before a flight (GET /api/v1/preflight, polled once a
 // second while shown): one row per vehicle, one cell per check (link, state, PX4's arming
 // checks with what PX4 said, home, GNSS, battery, the autopilot's geofence, Remote ID),
-// each ok / warn / fail with what was seen.
+// each ok / warn / fail with what was seen; below, the flight logs (flight_logs.js).
 // Test hooks: [data-testid=preflight] with data-ready, tr[data-vehicle=…] with data-ready,
 // td[data-check=…] with data-state.
 
 import * as api from './api.js';
+import { FlightLogsView } from './flight_logs.js';
 
 const CHECKS = [
   ['link', 'link'], ['state', 'state'], ['px4_arming_checks', 'PX4 checks'], ['home', 'home'],
@@ -14,7 +15,7 @@ const CHECKS = [
 const MARK = { ok: '✓', warn: '!', fail: '✗' };
 
 export class PreflightView {
-  /** deps: {tabs}. */
+  /** deps: {controls, tabs}. */
   constructor(root, deps) {
     Object.assign(this, deps);
     this.root = root;
@@ -23,8 +24,10 @@ export class PreflightView {
       <table class="preflight" data-testid="preflight">
         <thead><tr><th>vehicle</th>${CHECKS.map(([, l]) => `<th>${l}</th>`).join('')}</tr></thead>
         <tbody></tbody>
-      </table>`;
+      </table>
+      <section class="flight-logs-section"></section>`;
     this.body = root.querySelector('tbody');
+    this.logs = new FlightLogsView(root.querySelector('.flight-logs-section'), deps, 'preflight');
     this.poller = new api.Poller(() => this.refresh(), 1000, () => this.tabs.isOpen('preflight'));
     this.tabs.onOpen((name) => { if (name === 'preflight') this.poller.poke(); });
   }

@@ -304,6 +304,27 @@ def run(args, driver, summary):
     ui.wait("all rows Landed", lambda d: ui.all_rows(n, lambda r: r.get("state") == "Landed"), timeout=max(args.timeout, 60))
     summary["timings_s"]["landed"] = lap()
 
+    # 5b. Every vehicle's flight log brought home (Pre-flight & logs tab). A vehicle
+    # disarms about 2 s after touchdown, when its log ends: ask again until all three are
+    # there (a log fetched already is not fetched twice).
+    ui.click("tab-preflight")
+    asked = [0.0]
+
+    def logs_home(d):
+        rows = d.execute_script(
+            "return [...document.querySelectorAll('tr[data-log]')].map(tr => ({log: tr.dataset.log, "
+            "state: tr.dataset.state, file: !!tr.querySelector('a[data-testid=\"log-file\"]')}))")
+        if len(rows) == n and all(r["state"] == "complete" and r["file"] for r in rows):
+            return rows
+        if time.monotonic() - asked[0] > 5 and not any(r["state"] == "downloading" for r in rows):
+            asked[0] = time.monotonic()
+            ui.click("fetch-logs")
+        return None
+
+    summary["flight_logs"] = ui.wait("every vehicle's flight log downloaded", logs_home, timeout=max(args.timeout, 90))
+    summary["timings_s"]["logs_home"] = lap()
+    ui.click("tab-swarm")
+
     # 6. Event log and console.
     kinds = driver.execute_script(
         "return [...document.querySelectorAll('[data-testid=\"event-log\"] li')].map(li => li.dataset.type)")

@@ -12,7 +12,8 @@
 //! in its role's router ([`openapi::routes`]); the router, the role table and the contract
 //! (`GET /api/v1/openapi.json`, OpenAPI 3.1, see [`openapi`]) are built from that, and
 //! docs/api.md lists them. The handlers, by concept: [`vehicles`] (vehicles and commands),
-//! [`preflight`] (the fleet's pre-flight checks), [`px4_params`], [`formation_control`] (formation and leader motion), [`payloads`] and
+//! [`preflight`] (the fleet's pre-flight checks), [`flight_logs`] (the vehicles' ULogs
+//! brought home), [`px4_params`], [`formation_control`] (formation and leader motion), [`payloads`] and
 //! the camera's frames, [`plugins`], [`swarm_status`] (health, supervision, metrics,
 //! links), [`geofence`], [`map`] (the tiles under the plan), [`fault_injection`],
 //! [`tracks`], [`recording`], [`election`], the
@@ -25,6 +26,7 @@ pub mod auth;
 pub mod election;
 pub mod error;
 pub mod fault_injection;
+pub mod flight_logs;
 pub mod formation_control;
 pub mod geofence;
 pub mod map;
@@ -80,6 +82,8 @@ pub struct ApiState {
     auth: Arc<auth::Auth>,
     tls: Option<Arc<rustls::ServerConfig>>,
     recorder: Option<Arc<skein_record::Recorder>>,
+    /// The vehicles' flight logs brought home ([`flight_logs`]).
+    flight_logs: Arc<flight_logs::FlightLogs>,
     election: Option<tokio::sync::watch::Receiver<skein_swarm::election::ElectionStatus>>,
     clocks: Option<Arc<skein_swarm::clocks::PeerClocks>>,
     /// Under DDS Security, who the swarm link proves is speaking (a candidate only).
@@ -110,6 +114,9 @@ impl ApiState {
             auth: Arc::new(auth::Auth::disabled()),
             tls: None,
             recorder: None,
+            flight_logs: flight_logs::FlightLogs::new(std::path::PathBuf::from(
+                "recordings/flight-logs",
+            )),
             election: None,
             clocks: None,
             link_security: None,
@@ -126,6 +133,12 @@ impl ApiState {
     /// records the commands the API accepts while it records.
     pub fn with_recorder(mut self, recorder: Arc<skein_record::Recorder>) -> Self {
         self.recorder = Some(recorder);
+        self
+    }
+
+    /// Writes downloaded flight logs under `dir` (default `recordings/flight-logs`).
+    pub fn with_flight_logs_dir(mut self, dir: std::path::PathBuf) -> Self {
+        self.flight_logs = flight_logs::FlightLogs::new(dir);
         self
     }
 

@@ -34,6 +34,37 @@ pub struct VehicleParam {
     pub name: String,
 }
 
+/// `{id}` and `{log_id}` of `/api/v1/vehicles/{id}/logs/{log_id}…`.
+#[derive(Debug, Clone, Deserialize, IntoParams)]
+#[into_params(parameter_in = Path)]
+pub struct VehicleLog {
+    /// Vehicle id (`uav-1`).
+    #[param(min_length = 1, example = "uav-1")]
+    pub id: String,
+    /// The vehicle's log id (`LOG_ENTRY.id`, 0 to 65535; PX4 numbers from 0): read with
+    /// [`VehicleLog::log_id`], which refuses anything else naming `log_id`.
+    #[param(
+        pattern = "^(0|[1-9][0-9]{0,3}|[1-5][0-9]{4}|6[0-4][0-9]{3}|65[0-4][0-9]{2}|655[0-2][0-9]|6553[0-5])$",
+        example = "0"
+    )]
+    pub log_id: String,
+}
+
+impl VehicleLog {
+    /// The log id as a number.
+    ///
+    /// # Errors
+    /// 400 naming `log_id` when it is no number from 0 to 65535.
+    pub fn log_id(&self) -> Result<u16, crate::error::ApiError> {
+        self.log_id.parse().map_err(|_| {
+            crate::error::ApiError::field(
+                "log_id",
+                format!("`{}` is no log id (0 to 65535)", self.log_id),
+            )
+        })
+    }
+}
+
 /// Longest PX4 parameter name, bytes (MAVLink PARAM_VALUE `param_id`, `char[16]`): the
 /// `max_length` of [`VehicleParam::name`] in the contract.
 pub const PX4_PARAM_NAME_MAX: usize = 16;

@@ -21,7 +21,7 @@ use std::time::Duration;
 const PARAM_TIMEOUT: Duration = Duration::from_secs(15);
 
 /// The PX4 link of vehicle `id`: 404 for an unknown vehicle, 503 when it has none now.
-async fn link_of(s: &ApiState, id: &str) -> Result<ActorRef<Px4LinkMsg>, ApiError> {
+pub(crate) async fn link_of(s: &ApiState, id: &str) -> Result<ActorRef<Px4LinkMsg>, ApiError> {
     let id2 = id.to_string();
     match s.ask(move |r| FleetMsg::GetLink(id2, r).into()).await? {
         Ok(link) => Ok(link),
@@ -31,7 +31,7 @@ async fn link_of(s: &ApiState, id: &str) -> Result<ActorRef<Px4LinkMsg>, ApiErro
 }
 
 /// Asks vehicle `id`'s link; 503 when it does not answer within `timeout`.
-async fn ask_link<T: Send + 'static>(
+pub(crate) async fn ask_link<T: Send + 'static>(
     link: &ActorRef<Px4LinkMsg>,
     msg: impl FnOnce(ractor::RpcReplyPort<T>) -> Px4LinkMsg,
     timeout: Duration,

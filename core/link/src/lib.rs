@@ -6,6 +6,7 @@
 //! - [`telemetry`]: the latest state of a vehicle folded from PX4's streams.
 //! - [`command`]: the command protocol's operations and errors.
 //! - [`param_client`]: the parameter protocol (PX4's bytewise integers, duplicate answers).
+//! - [`log_transfer`]: the log protocol (a vehicle's flight logs listed and downloaded).
 //! - [`mission`]: the mission protocol (upload and download of fence and rally plans).
 //! - [`fence`], [`fence_sync`]: skein's geofence as PX4 mission items, and keeping every
 //!   autopilot on it (uploaded, read back, `GF_ACTION` and `GF_MAX_VER_DIST` set).
@@ -31,6 +32,7 @@ pub mod fault;
 pub mod fence;
 pub mod fence_sync;
 pub mod gcs;
+pub mod log_transfer;
 pub mod mission;
 pub mod param_client;
 pub mod priority;

@@ -107,6 +107,11 @@ impl Recorder {
         })
     }
 
+    /// The directory recordings go to.
+    pub fn dir(&self) -> &std::path::Path {
+        &self.dir
+    }
+
     /// Starts recording to `<dir>/<name>.mcap` (`name` default `skein-<unix seconds>`),
     /// or to `path` when given (`skein up --record FILE`). Must run inside the tokio
     /// runtime.

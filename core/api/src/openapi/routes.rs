@@ -10,9 +10,9 @@
 
 use crate::roles::{Access, Role};
 use crate::{
-    ApiState, auth, election, fault_injection, formation_control, geofence, map, openapi, payloads,
-    plugins, preflight, px4_params, recording, stream, swarm_status, swarms, tracks, vehicles,
-    video,
+    ApiState, auth, election, fault_injection, flight_logs, formation_control, geofence, map,
+    openapi, payloads, plugins, preflight, px4_params, recording, stream, swarm_status, swarms,
+    tracks, vehicles, video,
 };
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
@@ -41,6 +41,9 @@ fn viewer() -> OpenApiRouter<ApiState> {
         .routes(routes!(vehicles::list_vehicles))
         .routes(routes!(vehicles::get_vehicle))
         .routes(routes!(preflight::fleet_preflight))
+        .routes(routes!(flight_logs::list_logs))
+        .routes(routes!(flight_logs::log_file))
+        .routes(routes!(flight_logs::downloads))
         .routes(routes!(px4_params::list_params))
         .routes(routes!(px4_params::get_param))
         .routes(routes!(formation_control::get_formation))
@@ -69,6 +72,8 @@ fn operator() -> OpenApiRouter<ApiState> {
     OpenApiRouter::default()
         .routes(routes!(vehicles::vehicle_command))
         .routes(routes!(vehicles::swarm_command))
+        .routes(routes!(flight_logs::download_log))
+        .routes(routes!(flight_logs::fetch_latest))
         .routes(routes!(formation_control::put_formation))
         .routes(routes!(formation_control::delete_formation))
         .routes(routes!(formation_control::leader_goto))

@@ -16,11 +16,13 @@
 //! restarted actor picks it up and re-registers its route.
 
 mod fence_autopilot;
+mod logs;
 mod missions;
 mod route;
 mod statustexts;
 mod vehicle_link;
 
+pub use logs::{LOG_TICK, LogDownloadReply, LogListReply};
 pub use statustexts::REASON_GRACE;
 pub use vehicle_link::VehicleLink;
 
@@ -116,6 +118,18 @@ pub enum Px4LinkMsg {
     AckDeadline(u32, u64),
     /// The mode-confirmation deadline of the command in flight with this generation.
     ModeDeadline(u64),
+    /// List the vehicle's flight logs (`LOG_REQUEST_LIST`, see
+    /// [`crate::log_transfer`]).
+    LogList(LogListReply),
+    /// Download the vehicle's log of this id, its bytes so far counted into the counter;
+    /// the reply holds every byte (a gap is asked for again until filled).
+    LogDownload(
+        u16,
+        std::sync::Arc<std::sync::atomic::AtomicU64>,
+        LogDownloadReply,
+    ),
+    /// A tick of the log transfer of this generation.
+    LogTick(u64),
     /// The end of [`REASON_GRACE`] after the vehicle refused the command in flight with
     /// this id and generation.
     ReasonDeadline(u32, u64),
@@ -181,6 +195,8 @@ pub struct Px4LinkState {
     params: ParamClient,
     missions: MissionClient,
     statustexts: StatusTextAssembler,
+    logs: logs::LogOp,
+    log_generation: u64,
 }
 
 impl Px4LinkState {
@@ -446,6 +462,7 @@ impl Px4LinkState {
             return;
         }
         self.on_mission_message(myself, &frame.msg);
+        self.on_log_message(&frame.msg);
         if let MavMessage::PARAM_VALUE(pv) = &frame.msg
             && let Some(value) = ParamValue::from_wire(pv.param_value, pv.param_type)
         {
@@ -534,6 +551,8 @@ impl Actor for Px4Link {
             params: ParamClient::default(),
             missions: MissionClient::default(),
             statustexts: StatusTextAssembler::default(),
+            logs: logs::LogOp::Idle,
+            log_generation: 0,
         })
     }
 
@@ -570,6 +589,13 @@ impl Actor for Px4Link {
             Px4LinkMsg::AckDeadline(id, generation) => {
                 state.on_ack_deadline(&myself, id, generation)
             }
+            Px4LinkMsg::LogList(reply) => {
+                state.start_log_listing(&myself, logs::AfterListing::Reply(reply))
+            }
+            Px4LinkMsg::LogDownload(id, progress, reply) => {
+                state.start_log_listing(&myself, logs::AfterListing::Download(id, progress, reply))
+            }
+            Px4LinkMsg::LogTick(generation) => state.on_log_tick(&myself, generation),
             Px4LinkMsg::ReasonDeadline(id, generation) => {
                 state.on_reason_deadline(&myself, id, generation)
             }

@@ -124,7 +124,8 @@ impl ApiSettings {
         .with_plugins(plugins.manager, plugins.refused)
         .with_map(self.map)
         .with_auth(self.auth)
-        .with_recorder(recorder.clone());
+        .with_recorder(recorder.clone())
+        .with_flight_logs_dir(recorder.dir().join("flight-logs"));
         if let Some(dds) = dds {
             state = dds.extend_api(state);
         }
