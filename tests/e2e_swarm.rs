@@ -170,20 +170,39 @@ fn the_flight_logs_come_home(skein: &Skein, flown: &[(String, (f64, f64))]) {
         Some(3),
         "{body}"
     );
-    assert_eq!(sim_stats(&stats, "link 1 1 0")["ok"], true);
-    let cut = skein.get("/api/v1/logs").1;
-    let uav1 = cut
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|d| d["vehicle"] == "uav-1")
-        .cloned();
-    let uav1 = uav1.unwrap_or_default();
-    assert_eq!(
-        uav1["state"], "downloading",
-        "the cut came after the download: {cut}"
+    // Cut uav-1's link once its first bytes arrived (its 130 kB take the simulator about
+    // 1.8 s: the cut lands in the middle).
+    let started = eventually(
+        "uav-1's download under way",
+        Duration::from_secs(30),
+        || {
+            let (_, all) = skein.get("/api/v1/logs");
+            let uav1 = all
+                .as_array()
+                .into_iter()
+                .flatten()
+                .find(|d| d["vehicle"] == "uav-1");
+            match uav1 {
+                Some(d) if d["received_bytes"].as_u64() > Some(0) => Ok(d.clone()),
+                _ => Err(all.to_string()),
+            }
+        },
     );
+    assert_eq!(sim_stats(&stats, "link 1 1 0")["ok"], true);
     std::thread::sleep(Duration::from_secs(3)); // the outage itself, not a wait for an outcome
+    // Cut off, uav-1's download stood still, unfinished.
+    let (_, all) = skein.get("/api/v1/logs");
+    let uav1 = all
+        .as_array()
+        .into_iter()
+        .flatten()
+        .find(|d| d["vehicle"] == "uav-1");
+    let uav1 = uav1.cloned().unwrap_or_default();
+    assert!(
+        uav1["state"] == "downloading"
+            && uav1["received_bytes"].as_u64() < uav1["size_bytes"].as_u64(),
+        "uav-1's download was not cut in the middle (first bytes: {started}): {uav1}"
+    );
     assert_eq!(sim_stats(&stats, "link 1 0 0")["ok"], true);
     let done = eventually("every log downloaded", Duration::from_secs(120), || {
         let (_, all) = skein.get("/api/v1/logs");

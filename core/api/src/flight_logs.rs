@@ -29,8 +29,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
-/// How long a listing may take (its resends included).
-const LIST_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long a listing may take (its resends through a link cut included: the link gives
+/// up after 20 s).
+const LIST_TIMEOUT: Duration = Duration::from_secs(25);
 
 /// How long a download may take at most (a stalled one fails sooner, after 60 s
 /// without a byte).

@@ -26,10 +26,15 @@ pub const CHUNK_BYTES: usize = 90;
 /// milliseconds: its entries go out back to back).
 pub const LIST_TIMEOUT: Duration = Duration::from_millis(500);
 
-/// Transmissions of a listing before it ends: PX4 v1.16 answers a vehicle without logs
-/// with no `LOG_ENTRY` at all, so a vehicle that is heard but lists nothing after these
-/// has no log.
-pub const LIST_ATTEMPTS: u32 = 2;
+/// Listings a vehicle answers with nothing while it is heard (other messages arrive in
+/// the [`LIST_TIMEOUT`] after the request) before it is taken to have no log: PX4 v1.16
+/// answers a vehicle without logs with no `LOG_ENTRY` at all. A window in which nothing
+/// at all is heard (a link cut) does not count.
+pub const LIST_QUIET_ANSWERS: u32 = 2;
+
+/// Transmissions of a listing before it fails (20 s at [`LIST_TIMEOUT`]: a link cut for
+/// less is ridden out).
+pub const LIST_ATTEMPTS: u32 = 40;
 
 /// A download that received nothing for this long asks for its first gap again.
 pub const GAP_TIMEOUT: Duration = Duration::from_millis(300);

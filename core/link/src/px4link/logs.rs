@@ -4,7 +4,9 @@
 
 use super::{Px4LinkMsg, Px4LinkState};
 use crate::command::LinkError;
-use crate::log_transfer::{LIST_ATTEMPTS, LIST_TIMEOUT, LogDownload, LogEntry, LogListing};
+use crate::log_transfer::{
+    LIST_ATTEMPTS, LIST_QUIET_ANSWERS, LIST_TIMEOUT, LogDownload, LogEntry, LogListing,
+};
 use ractor::{ActorRef, RpcReplyPort};
 use skein_mavlink::MavMessage;
 use skein_mavlink::dialect::{LOG_REQUEST_DATA_DATA, LOG_REQUEST_END_DATA, LOG_REQUEST_LIST_DATA};
@@ -46,6 +48,8 @@ pub(super) enum LogOp {
     Listing {
         listing: LogListing,
         attempts: u32,
+        /// Listings the vehicle let pass without an entry while it was heard.
+        quiet_answers: u32,
         sent: Instant,
         then: AfterListing,
     },
@@ -70,6 +74,7 @@ impl Px4LinkState {
         self.logs = LogOp::Listing {
             listing: LogListing::default(),
             attempts: 1,
+            quiet_answers: 0,
             sent: Instant::now(),
             then,
         };
@@ -171,11 +176,17 @@ impl Px4LinkState {
             LogOp::Listing {
                 listing,
                 attempts,
+                quiet_answers,
                 sent,
                 ..
             } => {
-                if now.saturating_duration_since(*sent) >= LIST_TIMEOUT {
-                    if *attempts >= LIST_ATTEMPTS && listing.is_empty() && !self.link.is_lost() {
+                let waited = now.saturating_duration_since(*sent);
+                if waited >= LIST_TIMEOUT {
+                    let heard = self.link.silence().is_some_and(|s| s < waited);
+                    if heard && listing.is_empty() {
+                        *quiet_answers += 1;
+                    }
+                    if *quiet_answers >= LIST_QUIET_ANSWERS {
                         // Heard, but no entry: PX4 v1.16's way of saying "no log".
                         self.listing_done();
                         return;
