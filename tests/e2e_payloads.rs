@@ -122,7 +122,7 @@ fn payload_plugins_reach_the_running_swarm() {
     let t_built = t_start.elapsed();
     let cfg_dir = scratch("config");
     let cfg = write_config(&cfg_dir, CONFIG);
-    let skein = Skein::sim_with_stats(
+    let skein = Skein::up_sim(
         3,
         &["--plugin-dir", dir.to_str().unwrap(), "--config", &cfg],
     );

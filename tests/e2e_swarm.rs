@@ -5,7 +5,9 @@ mod support;
 
 use serde_json::{Value, json};
 use std::time::Duration;
-use support::{EventLog, Process, Skein, eventually, free_udp_range, run_peer, sim_stats, summary};
+use support::{
+    EventLog, Process, Skein, eventually, free_udp_range, run_peer, sim_stats, steady_for, summary,
+};
 
 fn alt(v: &Value) -> f64 {
     v["position"]["relative_alt_m"].as_f64().unwrap_or(f64::NAN)
@@ -22,7 +24,7 @@ fn ned(v: &Value) -> (f64, f64, f64) {
 
 #[test]
 fn three_vehicles_take_off_fly_a_line_and_land() {
-    let skein = Skein::sim_with_stats(3, &[]);
+    let skein = Skein::up_sim(3, &[]);
     let vs = skein.wait_all(
         "3 connected vehicles with positions and homes",
         3,
@@ -68,7 +70,51 @@ fn three_vehicles_take_off_fly_a_line_and_land() {
         "{body}"
     );
 
-    // Line abreast, 5 m spacing, led by uav-2.
+    let vs = line_abreast_led_by_uav_2(&skein);
+
+    // Land: everyone down and disarmed.
+    let (status, body) = skein.post("/api/v1/swarm/commands", json!({"command": "land"}));
+    assert_eq!(status, 202, "{body}");
+    skein.wait_all("all landed and disarmed", 3, Duration::from_secs(90), |v| {
+        v["state"] == "Landed" && v["armed"] == false
+    });
+    let flown: Vec<(String, (f64, f64))> = vs
+        .iter()
+        .map(|v| {
+            let (n, e, _) = ned(v);
+            let home = &v["home"];
+            let id = v["id"].as_str().unwrap().to_string();
+            (
+                id,
+                (
+                    n - home["north_m"].as_f64().unwrap(),
+                    e - home["east_m"].as_f64().unwrap(),
+                ),
+            )
+        })
+        .collect();
+    the_flight_logs_come_home(&skein, &flown);
+
+    // PX4 stays in LAND after touchdown and refuses to arm there: a second takeoff must
+    // still work.
+    let (status, body) = skein.post(
+        "/api/v1/vehicles/uav-1/commands",
+        json!({"command": "takeoff", "altitude_m": 4.0}),
+    );
+    assert_eq!(status, 202, "{body}");
+    eventually("uav-1 airborne again", Duration::from_secs(60), || {
+        let (_, v) = skein.get("/api/v1/vehicles/uav-1");
+        if v["state"] == "Hovering" && (alt(&v) - 4.0).abs() < 1.0 {
+            Ok(())
+        } else {
+            Err(v.to_string())
+        }
+    });
+}
+
+/// Line abreast, 5 m spacing, led by uav-2, checked independently of skein's own metric;
+/// returns the vehicles as they held it.
+fn line_abreast_led_by_uav_2(skein: &Skein) -> Vec<Value> {
     let (status, body) = skein.put(
         "/api/v1/formation",
         json!({"shape": "line", "spacing_m": 5.0, "leader": "uav-2"}),
@@ -117,44 +163,16 @@ fn three_vehicles_take_off_fly_a_line_and_land() {
     assert_eq!(pos[1].0, "uav-2", "leader in the middle: {pos:?}");
     assert!(f["min_separation_m"].as_f64().unwrap() > 3.0, "{f}");
 
-    // Land: everyone down and disarmed.
-    let (status, body) = skein.post("/api/v1/swarm/commands", json!({"command": "land"}));
-    assert_eq!(status, 202, "{body}");
-    skein.wait_all("all landed and disarmed", 3, Duration::from_secs(90), |v| {
-        v["state"] == "Landed" && v["armed"] == false
-    });
-    let flown: Vec<(String, (f64, f64))> = vs
-        .iter()
-        .map(|v| {
-            let (n, e, _) = ned(v);
-            let home = &v["home"];
-            let id = v["id"].as_str().unwrap().to_string();
-            (
-                id,
-                (
-                    n - home["north_m"].as_f64().unwrap(),
-                    e - home["east_m"].as_f64().unwrap(),
-                ),
-            )
-        })
-        .collect();
-    the_flight_logs_come_home(&skein, &flown);
+    vs
+}
 
-    // PX4 stays in LAND after touchdown and refuses to arm there: a second takeoff must
-    // still work.
-    let (status, body) = skein.post(
-        "/api/v1/vehicles/uav-1/commands",
-        json!({"command": "takeoff", "altitude_m": 4.0}),
-    );
-    assert_eq!(status, 202, "{body}");
-    eventually("uav-1 airborne again", Duration::from_secs(60), || {
-        let (_, v) = skein.get("/api/v1/vehicles/uav-1");
-        if v["state"] == "Hovering" && (alt(&v) - 4.0).abs() < 1.0 {
-            Ok(())
-        } else {
-            Err(v.to_string())
-        }
-    });
+/// Vehicle `vehicle`'s download as `GET /api/v1/logs` shows it.
+fn download_of(skein: &Skein, vehicle: &str) -> Option<Value> {
+    let (_, all) = skein.get("/api/v1/logs");
+    all.as_array()?
+        .iter()
+        .find(|d| d["vehicle"] == vehicle)
+        .cloned()
 }
 
 /// After the flight: the newest log of every vehicle fetched at once (uav-1's link cut
@@ -175,33 +193,26 @@ fn the_flight_logs_come_home(skein: &Skein, flown: &[(String, (f64, f64))]) {
     let started = eventually(
         "uav-1's download under way",
         Duration::from_secs(30),
-        || {
-            let (_, all) = skein.get("/api/v1/logs");
-            let uav1 = all
-                .as_array()
-                .into_iter()
-                .flatten()
-                .find(|d| d["vehicle"] == "uav-1");
-            match uav1 {
-                Some(d) if d["received_bytes"].as_u64() > Some(0) => Ok(d.clone()),
-                _ => Err(all.to_string()),
-            }
+        || match download_of(skein, "uav-1") {
+            Some(d) if d["received_bytes"].as_u64() > Some(0) => Ok(d),
+            d => Err(format!("{d:?}")),
         },
     );
     assert_eq!(sim_stats(&stats, "link 1 1 0")["ok"], true);
-    std::thread::sleep(Duration::from_secs(3)); // the outage itself, not a wait for an outcome
-    // Cut off, uav-1's download stood still, unfinished.
-    let (_, all) = skein.get("/api/v1/logs");
-    let uav1 = all
-        .as_array()
-        .into_iter()
-        .flatten()
-        .find(|d| d["vehicle"] == "uav-1");
-    let uav1 = uav1.cloned().unwrap_or_default();
-    assert!(
-        uav1["state"] == "downloading"
-            && uav1["received_bytes"].as_u64() < uav1["size_bytes"].as_u64(),
-        "uav-1's download was not cut in the middle (first bytes: {started}): {uav1}"
+    // For the 3 s of the outage, uav-1's download stands still, unfinished.
+    steady_for(
+        "uav-1's download cut off in the middle",
+        Duration::from_secs(3),
+        Duration::from_secs(10),
+        || match download_of(skein, "uav-1") {
+            Some(d)
+                if d["state"] == "downloading"
+                    && d["received_bytes"].as_u64() < d["size_bytes"].as_u64() =>
+            {
+                Ok(())
+            }
+            d => Err(format!("first bytes: {started}; now: {d:?}")),
+        },
     );
     assert_eq!(sim_stats(&stats, "link 1 0 0")["ok"], true);
     let done = eventually("every log downloaded", Duration::from_secs(120), || {

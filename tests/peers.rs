@@ -193,7 +193,7 @@ fn mavsdk_documented_offboard_start() {
 
 #[test]
 fn the_dashboard_flies_three_vehicles_in_chromium() {
-    let skein = support::Skein::sim_with_stats(3, &[]);
+    let skein = support::Skein::up_sim(3, &[]);
     let url = format!("{}/", skein.base);
     let stats = skein.sim_stats_addr();
     let shot = std::env::temp_dir().join(format!("skein-dashboard-{}.png", std::process::id()));

@@ -107,22 +107,6 @@ impl Skein {
         let n = n.to_string();
         Skein::up(&["--sim", &n, "--sim-base-port", "0"])
     }
-
-    /// `skein up --sim n` on free ports with the simulator's stats socket (ground truth,
-    /// link cuts: [`Skein::sim_stats_addr`]) and `extra` arguments.
-    pub fn sim_with_stats(n: usize, extra: &[&str]) -> Skein {
-        let n = n.to_string();
-        let mut args = vec![
-            "--sim",
-            &n,
-            "--sim-base-port",
-            "0",
-            "--sim-stats",
-            "127.0.0.1:0",
-        ];
-        args.extend_from_slice(extra);
-        Skein::up(&args)
-    }
 }
 
 impl Api {
