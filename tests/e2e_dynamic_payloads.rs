@@ -10,9 +10,7 @@ use serde_json::{Value, json};
 use std::time::{Duration, Instant};
 use support::payloads::{library, payload, plugins, try_payload, write_config};
 use support::plugins::{build_new_plugin, scratch};
-use support::{
-    Skein, assert_no_failsafe_and_no_gap, eventually, one_at_a_time, sim_stats, summary,
-};
+use support::{Skein, eventually, one_at_a_time, sim_stats, summary};
 
 /// The lamp model of the dynamic-payloads test: one slot of a kind no plugin provides
 /// at start. A small payload restart budget: waiting must not spend it.
@@ -310,7 +308,7 @@ fn a_plugin_loaded_at_run_time_reaches_waiting_slots_and_payloads_attach_in_flig
         "{}",
         summary(&vs)
     );
-    let worst = assert_no_failsafe_and_no_gap(&stats);
+    let worst = skein.assert_no_failsafe_and_no_gap(&stats);
     assert!(
         load_to_answer < Duration::from_secs(1),
         "load to both lamps answering took {load_to_answer:?}"

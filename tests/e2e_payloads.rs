@@ -17,9 +17,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 use support::payloads::{jpeg_size, library, payload, plugins, write_config};
 use support::plugins::{build_into, scratch};
-use support::{
-    Skein, assert_no_failsafe_and_no_gap, eventually, one_at_a_time, sim_stats, summary,
-};
+use support::{Skein, eventually, one_at_a_time, sim_stats, summary};
 
 const PACKAGES: [&str; 6] = [
     "skein-plugin-example",
@@ -395,7 +393,7 @@ fn payload_plugins_reach_the_running_swarm() {
         "{}",
         summary(&vs)
     );
-    let worst_faults = assert_no_failsafe_and_no_gap(&stats);
+    let worst_faults = skein.assert_no_failsafe_and_no_gap(&stats);
 
     // (g) Reload: a rebuilt example plugin replaces the old one; its instances come back
     // on the new generation, the vehicles fly on.
@@ -461,7 +459,7 @@ fn payload_plugins_reach_the_running_swarm() {
         "{}",
         summary(&vs)
     );
-    let worst_reload = assert_no_failsafe_and_no_gap(&stats);
+    let worst_reload = skein.assert_no_failsafe_and_no_gap(&stats);
 
     // (c) Radio: a poor link commanded on uav-2 really drops its MAVLink traffic.
     let before_rate = datagram_rate(&skein, &ports[1], 200);

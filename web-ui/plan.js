@@ -6,12 +6,14 @@
 // on requestAnimationFrame only while something changes.
 //
 // Under the drawing lies the map (plan-map.js), on a canvas of its own; the geofence and
-// its editor are plan-fence.js's.
+// its editor are plan-fence.js's. Further layers (`addLayer`: the mission's steps,
+// plan-mission.js) draw over the fence and may take clicks and drags after its editor.
 //
 // Test/ARIA hook: the <ul> mirror gets one <li data-vehicle-id> per drawn vehicle with
 // data-x / data-y (marker centre in CSS px inside the canvas), data-north / data-east
 // (swarm frame, m), data-heading and data-state, refreshed at up to 10 Hz and whenever
-// the picture settles.
+// the picture settles; the list itself the view (data-cn, data-ce, data-scale) and
+// data-moving ("false" once the picture settled).
 
 import { stateClass, CLASS_COLOUR, compareIds, fmt } from './model.js';
 import { drawHazards, drawMarks, drawScale, drawNorth, drawCursor } from './plan-overlays.js';
@@ -63,8 +65,9 @@ export class PlanView {
     // Map, geofence editor, swarm origin (plan-map.js, plan-fence.js).
     this.mapLayer = null;
     this.editor = null;
+    this.layers = [];        // addLayer: drawn over the fence, given clicks after the editor
     this.origin = null;      // {lat_deg, lon_deg} of the swarm frame's origin
-    this.dragged = false;    // the last mouse press moved a fence vertex
+    this.dragged = false;    // the last mouse press grabbed a vertex (the fence's, a layer's)
     this.swarms = [];        // hostile swarms (GET /api/v1/swarms)
     this.swarmPx = new Map(); // swarm id → {x, y, hull, cone, stations} as last drawn
     this.banner = document.createElement('div');
@@ -83,17 +86,17 @@ export class PlanView {
     canvas.addEventListener('click', (ev) => {
       if (this.picking) this.pickedPoint(ev);
       else if (this.dragged) this.dragged = false;
-      else if (!(this.editor && this.view && this.editor.click(this.eventPoint(ev)))) this.pick(ev);
+      else if (!(this.view && this.editors().some((e) => e.click && e.click(this.eventPoint(ev))))) this.pick(ev);
     });
-    // The fence editor's vertex drags.
+    // The editors' vertex drags (the fence's, then the layers').
     canvas.addEventListener('mousedown', (ev) => {
-      this.dragged = !!(this.editor && this.view && this.editor.down(this.eventPoint(ev)));
+      this.dragged = !!(this.view && this.editors().some((e) => e.down && e.down(this.eventPoint(ev))));
     });
-    canvas.addEventListener('mouseup', () => { if (this.editor) this.editor.up(); });
+    canvas.addEventListener('mouseup', () => { for (const e of this.editors()) if (e.up) e.up(); });
     canvas.addEventListener('mousemove', (ev) => {
       const r = canvas.getBoundingClientRect();
       this.cursor = { x: ev.clientX - r.left, y: ev.clientY - r.top };
-      if (this.editor && this.view) this.editor.move(this.eventPoint(ev));
+      if (this.view) for (const e of this.editors()) if (e.move) e.move(this.eventPoint(ev));
       this.kick();
     });
     canvas.addEventListener('mouseleave', () => { this.cursor = null; this.kick(); });
@@ -174,6 +177,21 @@ export class PlanView {
   /** The fence editor (a FenceEditor of plan-fence.js): it gets clicks and drags first. */
   setEditor(editor) {
     this.editor = editor;
+  }
+
+  /**
+   * A layer drawn over the fence: `draw(plan)`, and optionally `points()` (swarm-frame
+   * {n, e} the fit keeps in view), `click(pt)` / `down(pt)` (true when taken), `move(pt)`,
+   * `up()` and `mirror(dataset)` (its test hooks on the mirror list).
+   */
+  addLayer(layer) {
+    this.layers.push(layer);
+    this.kick();
+  }
+
+  /** What gets clicks and drags before a vehicle is picked: the fence editor, the layers. */
+  editors() {
+    return this.editor ? [this.editor, ...this.layers] : this.layers;
   }
 
   /** The swarm origin ({lat_deg, lon_deg}): the cursor's latitude / longitude, the map. */
@@ -297,7 +315,7 @@ export class PlanView {
       if (t.has && p) add(p.north_m, p.east_m);
     }
     for (const s of slots) add(s.n, s.e);
-    if (this.editor) for (const q of this.editor.points()) add(q.n, q.e);
+    for (const ed of this.editors()) if (ed.points) for (const q of ed.points()) add(q.n, q.e);
     for (const t of this.targets) {
       const p = t.position;
       if (t.status !== 'lost' && p && Number.isFinite(p.north_m) && Number.isFinite(p.east_m)) add(p.north_m, p.east_m);
@@ -361,7 +379,7 @@ export class PlanView {
     this.draw(slots);
     // The mirror follows at up to 10 Hz while moving and exactly once it settles.
     if (!moving || t - this.lastMirror >= MIRROR_PERIOD_MS) {
-      this.updateMirror();
+      this.updateMirror(moving);
       this.lastMirror = t;
     }
     if (moving) this.kick();
@@ -409,6 +427,7 @@ export class PlanView {
     ctx.stroke();
 
     drawFence(this);
+    for (const l of this.layers) l.draw(this);
     drawHazards(this);
     drawSwarms(this);
     drawTargets(this);
@@ -529,11 +548,16 @@ export class PlanView {
     drawCursor(this);
   }
 
-  /** Mirrors every drawn marker into the hidden list (ids, pixel and metric positions). */
-  updateMirror() {
+  /**
+   * Mirrors every drawn marker into the hidden list (ids, pixel and metric positions);
+   * `moving`: the picture is still easing (markers or view).
+   */
+  updateMirror(moving = false) {
     if (this.view) {
-      // The view itself: the canvas centre in the swarm frame and the scale (px per m).
+      // The view itself: the canvas centre in the swarm frame and the scale (px per m),
+      // and whether it is still easing towards its fit (data-moving).
       const md = this.mirror.dataset;
+      md.moving = moving ? 'true' : 'false';
       md.cn = this.view.cn.toFixed(2);
       md.ce = this.view.ce.toFixed(2);
       md.scale = this.view.s.toFixed(4);
@@ -542,6 +566,7 @@ export class PlanView {
       md.fenceEditing = d ? 'true' : 'false';
       md.fenceVertices = JSON.stringify((d || this.geofence || {}).polygon || []);
       if (this.mapLayer) this.mapLayer.mirror(md);
+      for (const l of this.layers) if (l.mirror) l.mirror(md);
     }
     const ids = [...this.tracks.keys()].sort(compareIds);
     let prev = null;

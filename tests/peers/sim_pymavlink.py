@@ -63,8 +63,8 @@ EXPECTED_RATES = {
     "VIBRATION": 0.5,
 }
 
-# Messages PX4 sends that pymavlink's dialects may not know: name and wire-order fields,
-# to compute CRC_EXTRA as mavgen does.
+# Messages PX4 sends that pymavlink's dialects may not know: name and wire-order fields
+# (an array's length third), to compute CRC_EXTRA as mavgen does.
 EXTRA_DEFINITIONS = {
     8: (
         "LINK_NODE_STATUS",
@@ -82,6 +82,20 @@ EXTRA_DEFINITIONS = {
             ("uint8_t", "rx_buf"),
         ],
     ),
+    # PX4's events interface (common.xml; older pymavlink dialects lack it).
+    410: (
+        "EVENT",
+        [
+            ("uint32_t", "id"),
+            ("uint32_t", "event_time_boot_ms"),
+            ("uint16_t", "sequence"),
+            ("uint8_t", "destination_component"),
+            ("uint8_t", "destination_system"),
+            ("uint8_t", "log_levels"),
+            ("uint8_t", "arguments", 40),
+        ],
+    ),
+    411: ("CURRENT_EVENT_SEQUENCE", [("uint16_t", "sequence"), ("uint8_t", "flags")]),
 }
 
 HOLD = 50593792
@@ -93,9 +107,11 @@ MAV_RESULT_ACCEPTED = 0
 
 def crc_extra(name, fields):
     crc = x25crc((name + " ").encode())
-    for ftype, fname in fields:
+    for ftype, fname, *array_length in fields:
         crc.accumulate_str(ftype + " ")
         crc.accumulate_str(fname + " ")
+        if array_length:
+            crc.accumulate(array_length)
     return (crc.crc & 0xFF) ^ (crc.crc >> 8)
 
 

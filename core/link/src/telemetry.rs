@@ -109,9 +109,12 @@ pub struct Telemetry {
     pub gps_fix_type: Option<u8>,
     /// `GPS_RAW_INT.satellites_visible`.
     pub satellites: Option<u8>,
-    /// `GPS_RAW_INT.eph` in metres (`None`: unknown, `UINT16_MAX`).
+    /// Horizontal position accuracy, metres: `GPS_RAW_INT.h_acc` (mm; PX4 fills it with
+    /// the receiver's estimate), or `eph` read as centimetres where `h_acc` is absent or 0
+    /// (`eph` is the HDOP × 100 as PX4 fills it, and the accuracy in cm for some older
+    /// autopilots); `None`: unknown.
     pub gps_eph_m: Option<f64>,
-    /// `GPS_RAW_INT.epv` in metres (`None`: unknown).
+    /// Vertical position accuracy, metres (`v_acc`, else `epv`, as above).
     pub gps_epv_m: Option<f64>,
     /// `SYS_STATUS`: PX4's arming checks pass (`MAV_SYS_STATUS_PREARM_CHECK` healthy);
     /// `None` while no `SYS_STATUS` said (the bit not present).
@@ -122,6 +125,11 @@ pub struct Telemetry {
     /// The vehicle's Remote ID transmitter's last `OPEN_DRONE_ID_ARM_STATUS`, whichever
     /// of its components sent it.
     pub remote_id: Option<skein_model::vehicle::RemoteIdArmStatus>,
+    /// PX4's last health and arming check report (its events), once one arrived.
+    #[serde(skip)]
+    pub arming_report: Option<crate::events::ArmingReport>,
+    /// The vehicle's events: their metadata, how they arrived.
+    pub px4_events: crate::events::EventsStatus,
     /// The vehicle's boot clock in the last message that carried one, ms.
     pub boot_ms: Option<u32>,
     /// Messages applied.
@@ -181,6 +189,16 @@ impl Telemetry {
             self.attitude
                 .map(|a| skein_model::geo::wrap_deg_360(a.yaw_rad.to_degrees()))
         })
+    }
+
+    /// PX4's checks that report a problem, as the last report has them in the current
+    /// mode (empty without a report: no events interface, or nothing fails).
+    pub fn px4_arming_checks(&self) -> Vec<skein_model::vehicle::Px4ArmingCheck> {
+        let mode = self.heartbeat.map(|h| h.mode.custom_mode());
+        self.arming_report
+            .as_ref()
+            .map(|r| r.checks_for(mode))
+            .unwrap_or_default()
     }
 
     /// Folds one message from the autopilot component into the telemetry.
@@ -298,9 +316,15 @@ impl Telemetry {
             MavMessage::GPS_RAW_INT(g) => {
                 self.gps_fix_type = Some(g.fix_type as u8);
                 self.satellites = Some(g.satellites_visible);
-                let metres = |cm: u16| (cm != u16::MAX).then(|| f64::from(cm) * 0.01);
-                self.gps_eph_m = metres(g.eph);
-                self.gps_epv_m = metres(g.epv);
+                let metres = |acc_mm: u32, cm: u16| {
+                    if acc_mm != 0 && acc_mm != u32::MAX {
+                        Some(f64::from(acc_mm) * 1e-3)
+                    } else {
+                        (cm != u16::MAX).then(|| f64::from(cm) * 0.01)
+                    }
+                };
+                self.gps_eph_m = metres(g.h_acc, g.eph);
+                self.gps_epv_m = metres(g.v_acc, g.epv);
             }
             MavMessage::OPEN_DRONE_ID_ARM_STATUS(s) => {
                 self.remote_id = Some(skein_model::vehicle::RemoteIdArmStatus {

@@ -4,12 +4,12 @@
 
 mod common;
 
+use common::vehicle::{Vehicle, attach};
 use common::{eventually, heartbeat};
-use ractor::{Actor, ActorRef};
 use skein_link::endpoint::Discovery;
 use skein_link::{
-    ConnectionAddress, Endpoint, Identity, LinkCommand, LinkError, LinkEvent, LinkSetup, Px4Link,
-    Px4LinkArgs, Px4LinkMsg, TelemetryProfile, VehicleLink,
+    ConnectionAddress, Endpoint, Identity, LinkCommand, LinkError, LinkEvent, LinkSetup,
+    Px4LinkMsg, TelemetryProfile,
 };
 use skein_mavlink::param::ParamValue;
 use skein_mavlink::signing::SigningKey;
@@ -19,53 +19,6 @@ use skein_sim::{SimConfig, SimVehicleConfig, Simulator};
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-
-struct Vehicle {
-    link: Arc<VehicleLink>,
-    actor: ActorRef<Px4LinkMsg>,
-    events: Arc<Mutex<Vec<LinkEvent>>>,
-}
-
-impl Vehicle {
-    fn saw(&self, pred: impl Fn(&LinkEvent) -> bool) -> bool {
-        self.events.lock().unwrap().iter().any(pred)
-    }
-
-    /// Waits (10 s at most) until the link knows the vehicle's home: its EKF has a
-    /// global position.
-    async fn home_known(&self) {
-        eventually("home known", Duration::from_secs(10), || {
-            self.link.with_telemetry(|t| t.home.is_some()).then_some(())
-        })
-        .await;
-    }
-
-    async fn command(&self, cmd: LinkCommand) -> Result<(), LinkError> {
-        ractor::call_t!(self.actor, Px4LinkMsg::Command, 15_000, cmd).expect("link actor answers")
-    }
-}
-
-async fn attach(endpoint: &Arc<Endpoint>, d: Discovery, setup: LinkSetup) -> Vehicle {
-    let link = VehicleLink::new(endpoint.clone(), d.sysid, d.compid, 20.0, setup);
-    let events = Arc::new(Mutex::new(Vec::new()));
-    let sink = events.clone();
-    let (actor, _) = Actor::spawn(
-        None,
-        Px4Link,
-        Px4LinkArgs {
-            link: link.clone(),
-            events: Arc::new(move |e| sink.lock().unwrap().push(e)),
-            components: None,
-        },
-    )
-    .await
-    .unwrap();
-    Vehicle {
-        link,
-        actor,
-        events,
-    }
-}
 
 /// `n` simulated vehicles all sending to one `udpin` endpoint; links attached as they are
 /// discovered.
@@ -122,7 +75,7 @@ async fn swarm_on_one_port_signed(
     .await;
     let mut vehicles = Vec::new();
     for d in discoveries {
-        vehicles.push(attach(&endpoint, d, setup.clone()).await);
+        vehicles.push(attach(&endpoint, &d, setup.clone()).await);
     }
     vehicles.sort_by_key(|v| v.link.sysid);
     (sim, endpoint, vehicles)
@@ -245,6 +198,9 @@ async fn parameters_read_and_write_with_bytewise_integers() {
             ("COM_OF_LOSS_T".into(), 0.8),
         ],
         remote_id: None,
+        operator_gnss: None,
+        metadata_cache_dir: None,
+        log_bandwidth: Default::default(),
     };
     let (_sim, _endpoint, vehicles) = swarm_on_one_port(1, setup).await;
     let v = &vehicles[0];
@@ -407,6 +363,9 @@ async fn the_swarm_profile_cuts_telemetry_to_what_skein_uses() {
         telemetry: TelemetryProfile::Swarm,
         params: vec![],
         remote_id: None,
+        operator_gnss: None,
+        metadata_cache_dir: None,
+        log_bandwidth: Default::default(),
     };
     let (_sim2, _e2, reduced) = swarm_on_one_port(1, setup).await;
     eventually("streaming", Duration::from_secs(10), || {

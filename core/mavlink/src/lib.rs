@@ -13,11 +13,15 @@
 //! - [`param`]: parameter values in PX4's bytewise wire encoding.
 //! - [`signing`]: MAVLink 2 message signing (keys, signing, replay protection).
 //! - [`statustext`]: `STATUSTEXT` chunks as PX4 sends a long text.
+//! - [`events`]: PX4's event ids and log levels (the events interface).
+//! - [`ftp`]: MAVLink FTP's payload and PX4's metadata CRC32.
 //!
 //! Only the common dialect is compiled (one feature set for the whole workspace).
 #![warn(missing_docs)]
 
 pub mod command;
+pub mod events;
+pub mod ftp;
 pub mod param;
 pub mod signing;
 pub mod statustext;

@@ -228,7 +228,9 @@ async fn locks_onto_first_sender_and_reboot_unlocks() {
         })
         .await
         .expect("heartbeat after reboot at the configured target");
-    assert!(hb < 5, "heartbeat sequence did not restart: {hb}");
+    // Before it, in the first step: the health report's three events and the event
+    // sequence.
+    assert!(hb < 10, "heartbeat sequence did not restart: {hb}");
     let boot_ms = a
         .wait_for(SECS(3), |f| match &f.msg {
             MavMessage::SYSTEM_TIME(t) => Some(t.time_boot_ms),
@@ -384,9 +386,28 @@ async fn identity_autopilot_version_home_ping_timesync() {
         MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_COMMAND_INT,
         MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED,
         MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE,
+        MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_FTP,
     ] {
         assert!(av.capabilities.contains(cap), "{cap:?}");
     }
+    // REQUEST_MESSAGE(COMPONENT_METADATA): PX4's general metadata, over MAVLink FTP.
+    let msg = c.command_long_msg(
+        MavCmd::MAV_CMD_REQUEST_MESSAGE,
+        [397.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        0,
+    );
+    let cm = c
+        .request(&msg, "COMPONENT_METADATA", |m| match m {
+            MavMessage::COMPONENT_METADATA(v) => Some(v.clone()),
+            _ => None,
+        })
+        .await;
+    assert_eq!(
+        cm.uri.to_str().unwrap_or_default(),
+        "mftp://etc/extras/component_general.json.xz"
+    );
+    let files = skein_sim::component_metadata::MetadataFiles::get();
+    assert_eq!(cm.file_crc, files.general_crc);
     assert_eq!(av.flight_sw_version, PX4_FLIGHT_SW_VERSION);
     assert_eq!(av.flight_sw_version >> 16, 0x0110, "v1.16");
 

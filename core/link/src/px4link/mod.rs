@@ -8,6 +8,9 @@
 //! `IN_PROGRESS` waited out, mode changes confirmed from `HEARTBEAT.custom_mode`, a
 //! refusal answered with what the vehicle said about it (`statustexts`).
 //!
+//! It reads the vehicle's component metadata and decodes PX4's events with it
+//! (`metadata`, `events`): the health and arming check report, the events as messages.
+//!
 //! It also runs the mission protocol ([`crate::mission`]) and keeps the autopilot on
 //! skein's geofence (`missions`, [`crate::fence_sync`]).
 //!
@@ -15,14 +18,17 @@
 //! the setpoint stream, the fence status) lives in the shared [`VehicleLink`]; a
 //! restarted actor picks it up and re-registers its route.
 
+mod events;
 mod fence_autopilot;
 mod logs;
+mod metadata;
 mod missions;
 mod route;
 mod statustexts;
 mod vehicle_link;
 
 pub use logs::{LOG_TICK, LogDownloadReply, LogListReply};
+pub use metadata::META_TICK;
 pub use statustexts::REASON_GRACE;
 pub use vehicle_link::VehicleLink;
 
@@ -31,7 +37,7 @@ use crate::fence::FencePlan;
 use crate::mission::{DownloadReply, MissionClient, MissionItem, UploadReply};
 use crate::param_client::{ParamClient, ParamOp, ParamReply, Transmit};
 use crate::setup::interval_us;
-use crate::statustext::StatusTextAssembler;
+use crate::statustext::{StatusText, StatusTextAssembler};
 use crate::telemetry::Change;
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use skein_mavlink::dialect::{
@@ -130,6 +136,8 @@ pub enum Px4LinkMsg {
     ),
     /// A tick of the log transfer of this generation.
     LogTick(u64),
+    /// A tick of the component metadata read of this generation.
+    MetaTick(u64),
     /// The end of [`REASON_GRACE`] after the vehicle refused the command in flight with
     /// this id and generation.
     ReasonDeadline(u32, u64),
@@ -197,6 +205,8 @@ pub struct Px4LinkState {
     statustexts: StatusTextAssembler,
     logs: logs::LogOp,
     log_generation: u64,
+    px4_events: events::EventsState,
+    metadata: metadata::MetadataFetch,
 }
 
 impl Px4LinkState {
@@ -360,9 +370,14 @@ impl Px4LinkState {
         else {
             return;
         };
-        for m in rid.messages(self.link.sysid, home, std::time::SystemTime::now()) {
+        // The receiver's state is a copy taken under a lock its task never holds across
+        // a wait: reading it does not wait on the receiver.
+        let gnss = self.link.setup.operator_gnss.as_ref().map(|g| g.state());
+        let location = rid.operator_location(gnss.as_ref(), home, Instant::now());
+        for m in rid.messages(self.link.sysid, &location, std::time::SystemTime::now()) {
             let _ = self.link.endpoint.send(self.link.sysid, &m);
         }
+        self.link.remote_id().sent(location);
     }
 
     fn send_heartbeat(&self) {
@@ -391,6 +406,7 @@ impl Px4LinkState {
             },
             None,
         );
+        self.request_component_metadata(myself);
         let setup = self.link.setup.clone();
         for (message_id, rate_hz) in setup.telemetry.rates() {
             self.start(
@@ -454,11 +470,28 @@ impl Px4LinkState {
             self.link.apply(&frame.msg);
             return;
         }
+        // MAVLink FTP: from the autopilot, or the component a metadata URI names.
+        if let MavMessage::FILE_TRANSFER_PROTOCOL(f) = &frame.msg {
+            let ours = self.link.endpoint.identity();
+            if f.target_system == ours.sysid
+                && let Ok(p) = skein_mavlink::ftp::FtpPayload::decode(&f.payload)
+            {
+                self.on_ftp_reply(myself, &p);
+            }
+            return;
+        }
         if frame.compid != self.link.compid {
             return; // other components (camera, gimbal) are the payloads' business
         }
         if let MavMessage::STATUSTEXT(t) = &frame.msg {
             self.on_statustext(t, Instant::now());
+            return;
+        }
+        if self.on_events_message(&frame.msg) {
+            return;
+        }
+        if let MavMessage::COMPONENT_METADATA(m) = &frame.msg {
+            self.on_component_metadata(myself, m);
             return;
         }
         self.on_mission_message(myself, &frame.msg);
@@ -500,6 +533,7 @@ impl Px4LinkState {
                 (self.events)(LinkEvent::Observed(o));
             }
             Change::Rebooted => {
+                self.events_rebooted();
                 (self.events)(LinkEvent::Rebooted);
                 self.greet(myself);
             }
@@ -510,6 +544,7 @@ impl Px4LinkState {
         self.send_heartbeat();
         self.send_remote_id();
         self.flush_statustext(Instant::now());
+        self.events_tick();
         if self.greeted && self.link.fence().retry_due() {
             let _ = myself.cast(Px4LinkMsg::SyncFence {
                 only_if_changed: true,
@@ -553,6 +588,8 @@ impl Actor for Px4Link {
             statustexts: StatusTextAssembler::default(),
             logs: logs::LogOp::Idle,
             log_generation: 0,
+            px4_events: events::EventsState::default(),
+            metadata: metadata::MetadataFetch::default(),
         })
     }
 
@@ -596,6 +633,7 @@ impl Actor for Px4Link {
                 state.start_log_listing(&myself, logs::AfterListing::Download(id, progress, reply))
             }
             Px4LinkMsg::LogTick(generation) => state.on_log_tick(&myself, generation),
+            Px4LinkMsg::MetaTick(generation) => state.on_meta_tick(&myself, generation),
             Px4LinkMsg::ReasonDeadline(id, generation) => {
                 state.on_reason_deadline(&myself, id, generation)
             }

@@ -7,9 +7,15 @@
 //! vehicle sent while the command was in flight ([`LinkError::Rejected`]'s
 //! `statustexts`). PX4 sends `STATUSTEXT` only while it hears a ground station's
 //! heartbeat (`px4.md`), which the link sends.
+//!
+//! PX4 ends a text it also sends as an event with a tab (`"Armed by external
+//! command\t"`, `mavlink_log_info(…, "…\t")` beside `events::send`): the tab is
+//! dropped, and once the vehicle's events are decoded ([`super::events`]) such a text is
+//! not shown at all, its event is. A refused arm's error also names the checks that
+//! prevent arming in PX4's last health and arming check report.
 
 use super::{Px4LinkMsg, Px4LinkState};
-use crate::command::LinkError;
+use crate::command::{LinkCommand, LinkError};
 use crate::statustext::{CHUNK_TIMEOUT, StatusText};
 use ractor::ActorRef;
 use skein_mavlink::dialect::{MavSeverity, STATUSTEXT_DATA};
@@ -35,6 +41,21 @@ impl Px4LinkState {
     }
 
     fn heard_statustext(&mut self, t: StatusText) {
+        let Some(text) = t.text.strip_suffix('\t') else {
+            return self.heard_text(t);
+        };
+        if self.px4_events.has_metadata() {
+            return; // its event says it
+        }
+        self.heard_text(StatusText {
+            severity: t.severity,
+            text: text.to_string(),
+        });
+    }
+
+    /// A text of the vehicle (a `STATUSTEXT`, or an event's message): kept, told to
+    /// the commands in flight (warnings and worse), sent on.
+    pub(super) fn heard_text(&mut self, t: StatusText) {
         self.link.keep_message(t.severity, &t.text);
         if t.severity <= MavSeverity::MAV_SEVERITY_WARNING as u8 {
             for p in self.pending.values_mut() {
@@ -66,10 +87,22 @@ impl Px4LinkState {
         let Some(result) = p.refused.take() else {
             return;
         };
+        let mut said = std::mem::take(&mut p.statustexts);
+        if p.command == LinkCommand::Arm {
+            // PX4's report names the checks that stop it: first, as PX4's own words.
+            let checks = self.link.with_telemetry(|t| t.px4_arming_checks());
+            let failing = checks
+                .into_iter()
+                .filter(|c| c.prevents_arming)
+                .map(|c| c.message);
+            let mut named: Vec<String> = failing.filter(|m| !said.contains(m)).collect();
+            named.append(&mut said);
+            said = named;
+        }
         let err = LinkError::Rejected {
             command: p.command.describe(),
             result,
-            statustexts: std::mem::take(&mut p.statustexts),
+            statustexts: said,
         };
         self.finish(myself, id, Err(err));
     }

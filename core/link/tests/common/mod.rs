@@ -3,6 +3,8 @@
 //! pseudo-terminal.
 #![allow(dead_code)]
 
+pub mod vehicle;
+
 use skein_link::{ConnectionAddress, Endpoint, Identity};
 use skein_mavlink::MavMessage;
 use skein_mavlink::dialect::*;

@@ -128,13 +128,20 @@ impl Vehicle {
             if self.armed {
                 return MavResult::MAV_RESULT_ACCEPTED;
             }
+            if !force {
+                // PX4 runs its checks and reports them (events) on every attempt.
+                self.force_health_report(now, out);
+            }
             if !force && let Some(failure) = self.health_failure() {
-                // PX4's arming checks: the failed check, then the commander's verdict.
+                // The failed check's own text (no tab: `openDroneIDCheck.cpp`), then the
+                // commander's verdict, as text and event.
                 self.statustext(now, MavSeverity::MAV_SEVERITY_CRITICAL, failure, out);
-                self.statustext(
+                self.say(
                     now,
                     MavSeverity::MAV_SEVERITY_CRITICAL,
+                    &crate::px4_events::ARM_DENIED_RESOLVE_FAILURES,
                     "Arming denied: Resolve system health failures first",
+                    [0; 40],
                     out,
                 );
                 return MavResult::MAV_RESULT_TEMPORARILY_REJECTED;
@@ -150,10 +157,12 @@ impl Vehicle {
                 return MavResult::MAV_RESULT_ACCEPTED;
             }
             if !self.landed && !force {
-                self.statustext(
+                self.say(
                     now,
                     MavSeverity::MAV_SEVERITY_CRITICAL,
+                    &crate::px4_events::DISARM_DENIED_NOT_LANDED,
                     "Disarming denied: not landed",
+                    [0; 40],
                     out,
                 );
                 return MavResult::MAV_RESULT_DENIED;
@@ -184,12 +193,15 @@ impl Vehicle {
                 | Px4Mode::Stabilized
                 | Px4Mode::Acro
         ) {
-            self.hold_pos = self.pos;
+            self.hold_pos = self.nav_pos();
         }
-        self.statustext(
+        let reason = crate::px4_events::arm_disarm_reason::COMMAND_EXTERNAL;
+        self.say(
             now,
             MavSeverity::MAV_SEVERITY_INFO,
+            &crate::px4_events::ARMED_BY,
             "Armed by external command",
+            events::args(&[&[reason]]),
             out,
         );
     }
@@ -198,13 +210,27 @@ impl Vehicle {
         self.armed = false;
         self.failsafe = false;
         self.finish_flight_log();
-        self.statustext(now, MavSeverity::MAV_SEVERITY_INFO, reason, out);
+        use crate::px4_events::arm_disarm_reason as why;
+        let code = match reason {
+            "Disarmed by external command" => Some(why::COMMAND_EXTERNAL),
+            "Disarmed by landing" => Some(why::AUTO_DISARM_LAND),
+            "Disarmed by auto preflight disarming" => Some(why::AUTO_DISARM_PREFLIGHT),
+            _ => None, // failsafes and termination: PX4's failsafe texts, not events here
+        };
+        match code {
+            Some(c) => {
+                let def = crate::px4_events::DISARMED_BY;
+                let a = events::args(&[&[c]]);
+                self.say(now, MavSeverity::MAV_SEVERITY_INFO, &def, reason, a, out);
+            }
+            None => self.statustext(now, MavSeverity::MAV_SEVERITY_INFO, reason, out),
+        }
     }
 
     pub(super) fn set_home_here(&mut self, now: Instant, out: &mut Outbox) {
         let _ = out;
-        self.home_local = self.pos;
-        self.home = self.origin.to_geo(self.pos);
+        self.home_local = self.nav_pos();
+        self.home = self.origin.to_geo(self.home_local);
         self.home_yaw_rad = self.yaw_rad;
         self.streams
             .force(crate::vehicle::telemetry::Stream::HomePosition, now);

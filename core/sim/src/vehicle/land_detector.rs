@@ -12,7 +12,14 @@ impl Vehicle {
                 self.took_off = true;
                 self.landed_at = None;
                 self.ground_contact_s = 0.0;
-                self.statustext(now, MavSeverity::MAV_SEVERITY_INFO, "Takeoff detected", out);
+                self.say(
+                    now,
+                    MavSeverity::MAV_SEVERITY_INFO,
+                    &crate::px4_events::TAKEOFF_DETECTED,
+                    "Takeoff detected",
+                    [0; 40],
+                    out,
+                );
             }
             return;
         }
@@ -34,7 +41,14 @@ impl Vehicle {
                 self.landed_at = Some(now);
                 self.ground_contact_s = 0.0;
                 self.vel = Ned::ZERO;
-                self.statustext(now, MavSeverity::MAV_SEVERITY_INFO, "Landing detected", out);
+                self.say(
+                    now,
+                    MavSeverity::MAV_SEVERITY_INFO,
+                    &crate::px4_events::LANDING_DETECTED,
+                    "Landing detected",
+                    [0; 40],
+                    out,
+                );
             }
         } else {
             self.ground_contact_s = 0.0;

@@ -3,7 +3,8 @@
 //! parameters (PARAM_* with PX4's bytewise integer encoding), the mission protocol's
 //! messages (handled in `mission`), the log protocol's (handled in `log_handler`) and
 //! offboard setpoints (SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT with PX4's `type_mask`
-//! semantics).
+//! semantics) and RTK corrections (GPS_RTCM_DATA, handed to the GNSS receiver as PX4's
+//! `handle_message_gps_rtcm_data` publishes them).
 
 #![allow(deprecated)]
 
@@ -104,10 +105,26 @@ impl Vehicle {
         {
             return;
         }
+        let from = (frame.sysid, frame.compid);
         match &frame.msg {
-            MavMessage::HEARTBEAT(hb) => self.on_heartbeat(now, hb),
+            MavMessage::HEARTBEAT(hb) => {
+                let gcs_was_connected = self.gcs_connected(now);
+                self.on_heartbeat(now, hb);
+                if hb.mavtype == MavType::MAV_TYPE_GCS && !gcs_was_connected {
+                    // PX4: a ground station connected gets the sequence and the report.
+                    self.send_current_sequence(now, out);
+                    self.force_health_report(now, out);
+                }
+            }
+            MavMessage::FILE_TRANSFER_PROTOCOL(m) => self.on_ftp(now, m, from, out),
+            MavMessage::REQUEST_EVENT(r)
+                if self.targets_me(r.target_system, r.target_component) =>
+            {
+                self.on_request_event(r, from, out)
+            }
             MavMessage::SET_POSITION_TARGET_LOCAL_NED(sp) => self.on_setpoint_local(now, sp),
             MavMessage::SET_POSITION_TARGET_GLOBAL_INT(sp) => self.on_setpoint_global(now, sp),
+            MavMessage::GPS_RTCM_DATA(d) => self.gnss.on_rtcm_data(d, &mut self.counters.rtcm),
             MavMessage::PING(p) if p.target_system == 0 && p.target_component == 0 => {
                 // A ping request: answer it, addressed to the requester.
                 out.push(&MavMessage::PING(PING_DATA {
@@ -354,11 +371,12 @@ impl Vehicle {
             field(type_mask::IGNORE_VY, sp.vy),
             field(type_mask::IGNORE_VZ, sp.vz),
         ];
+        let here = self.nav_pos();
         match sp.coordinate_frame {
             MavFrame::MAV_FRAME_LOCAL_NED => {}
             MavFrame::MAV_FRAME_LOCAL_OFFSET_NED => {
                 for (i, p) in pos.iter_mut().enumerate() {
-                    *p = p.map(|d| d + axis(&self.pos, i));
+                    *p = p.map(|d| d + axis(&here, i));
                 }
             }
             MavFrame::MAV_FRAME_BODY_NED | MavFrame::MAV_FRAME_BODY_OFFSET_NED => {
@@ -371,7 +389,7 @@ impl Vehicle {
                 vel = rot(vel);
                 pos = rot(pos);
                 for (i, p) in pos.iter_mut().enumerate() {
-                    *p = p.map(|d| d + axis(&self.pos, i));
+                    *p = p.map(|d| d + axis(&here, i));
                 }
             }
             _ => return, // PX4 ignores other frames for multicopters
@@ -511,8 +529,37 @@ impl Vehicle {
                 return (MAV_RESULT_ACCEPTED, Some(second), None);
             }
             MavCmd::MAV_CMD_NAV_TAKEOFF => self.takeoff(now, p[6], out),
-            MavCmd::MAV_CMD_NAV_LAND => self.mode_command(now, Px4Mode::Land, out),
-            MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => self.mode_command(now, Px4Mode::Rtl, out),
+            MavCmd::MAV_CMD_NAV_LAND => {
+                let r = self.mode_command(now, Px4Mode::Land, out);
+                if r == MAV_RESULT_ACCEPTED {
+                    let text = "Landing at current position";
+                    let def = crate::px4_events::LANDING_CURRENT_POS;
+                    self.say(
+                        now,
+                        MavSeverity::MAV_SEVERITY_INFO,
+                        &def,
+                        text,
+                        [0; 40],
+                        out,
+                    );
+                }
+                r
+            }
+            MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => {
+                let r = self.mode_command(now, Px4Mode::Rtl, out);
+                if r == MAV_RESULT_ACCEPTED {
+                    let def = crate::px4_events::RTL;
+                    self.say(
+                        now,
+                        MavSeverity::MAV_SEVERITY_INFO,
+                        &def,
+                        "Returning to launch",
+                        [0; 40],
+                        out,
+                    );
+                }
+                r
+            }
             MavCmd::MAV_CMD_NAV_LOITER_UNLIM => self.mode_command(now, Px4Mode::Hold, out),
             MavCmd::MAV_CMD_DO_REPOSITION => self.reposition(now, cmd, out),
             MavCmd::MAV_CMD_DO_CHANGE_SPEED => {

@@ -280,6 +280,9 @@ impl VehicleCore {
         let id = self.shared.id.clone();
         match ev {
             LinkEvent::Observed(o) => {
+                if leaving_for_offboard(&mem, &o) {
+                    return;
+                }
                 let event = if mem.state == VehicleState::Disconnected {
                     Event::Connected(o)
                 } else {
@@ -306,4 +309,18 @@ impl VehicleCore {
             }
         }
     }
+}
+
+/// PX4 still in the mode a hold or go-to is bringing it out of (a LAND, an RTL, a HOLD)
+/// while the procedure that switches it to OFFBOARD runs (the setpoint stream's warm-up,
+/// the mode command's acknowledgement): the state the command set stands; the procedure
+/// reports a failure itself.
+fn leaving_for_offboard(mem: &Memory, o: &Observed) -> bool {
+    mem.entering_offboard.is_some()
+        && matches!(
+            mem.state,
+            VehicleState::Hovering | VehicleState::GoTo | VehicleState::InFormation
+        )
+        && o.mode != Px4Mode::Offboard
+        && o.airborne()
 }

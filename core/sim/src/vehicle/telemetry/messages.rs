@@ -71,6 +71,8 @@ impl Vehicle {
         let caps = MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
             | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_INT
             | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+            // MAVLink FTP (PX4's `mavlink_main.cpp` always says so): the metadata.
+            | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_FTP
             | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
             | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
             | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED

@@ -13,6 +13,8 @@ pub use scheduler::{STREAMS, Stream, Streams, is_known_message};
 pub const AUTOPILOT_VERSION_ID: u32 = 148;
 /// `HOME_POSITION` message id.
 pub const HOME_POSITION_ID: u32 = 242;
+/// `COMPONENT_METADATA` message id (sent on request only).
+pub const COMPONENT_METADATA_ID: u32 = 397;
 /// `PROTOCOL_VERSION` message id.
 pub const PROTOCOL_VERSION_ID: u32 = 300;
 /// `flight_sw_version` of PX4 v1.16.0 (major, minor, patch, FIRMWARE_VERSION_TYPE_OFFICIAL).

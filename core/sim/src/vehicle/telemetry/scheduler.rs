@@ -4,7 +4,7 @@
 
 #![allow(deprecated)]
 
-use super::{AUTOPILOT_VERSION_ID, HOME_POSITION_ID, PROTOCOL_VERSION_ID};
+use super::{AUTOPILOT_VERSION_ID, COMPONENT_METADATA_ID, HOME_POSITION_ID, PROTOCOL_VERSION_ID};
 use crate::config::TelemetryProfile;
 use crate::vehicle::{Outbox, Vehicle};
 use skein_mavlink::MavMessage;
@@ -110,7 +110,11 @@ pub const STREAMS: [(Stream, u32, &str, f64, f64); 27] = [
 
 /// True for messages the simulator can send (streamed or on request).
 pub fn is_known_message(id: u32) -> bool {
-    stream_index(id).is_some() || matches!(id, AUTOPILOT_VERSION_ID | PROTOCOL_VERSION_ID)
+    stream_index(id).is_some()
+        || matches!(
+            id,
+            AUTOPILOT_VERSION_ID | PROTOCOL_VERSION_ID | COMPONENT_METADATA_ID
+        )
 }
 
 fn stream_index(id: u32) -> Option<usize> {
@@ -219,7 +223,7 @@ impl Vehicle {
     /// True when message `id` can be sent now (on request).
     pub(crate) fn can_send_message(&self, now: Instant, id: u32) -> bool {
         match id {
-            AUTOPILOT_VERSION_ID | PROTOCOL_VERSION_ID => true,
+            AUTOPILOT_VERSION_ID | PROTOCOL_VERSION_ID | COMPONENT_METADATA_ID => true,
             HOME_POSITION_ID => self.has_fix,
             33 => self.ekf_ok(now),
             _ => stream_index(id).is_some(),
@@ -230,6 +234,7 @@ impl Vehicle {
     pub(crate) fn send_message_now(&mut self, now: Instant, id: u32, out: &mut Outbox) {
         match id {
             AUTOPILOT_VERSION_ID => out.push(&self.autopilot_version()),
+            COMPONENT_METADATA_ID => out.push(&self.component_metadata(now)),
             PROTOCOL_VERSION_ID => out.push(&MavMessage::PROTOCOL_VERSION(PROTOCOL_VERSION_DATA {
                 version: 200,
                 min_version: 100,
