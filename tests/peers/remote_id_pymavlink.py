@@ -7,13 +7,20 @@ own, as PX4 does: a 1 Hz HEARTBEAT from its autopilot (compid 1), and, from its 
 ID transmitter (compid 236, MAV_COMP_ID_ODID_TXRX_1), a 1 Hz OPEN_DRONE_ID_ARM_STATUS
 that says PRE_ARM_FAIL_GENERIC "operator ID missing" until an OPEN_DRONE_ID_OPERATOR_ID
 for it arrived, then GOOD_TO_ARM. It records every OPEN_DRONE_ID_SYSTEM and
-OPEN_DRONE_ID_OPERATOR_ID addressed to it for --seconds after the first one.
+OPEN_DRONE_ID_OPERATOR_ID addressed to it for --seconds after the first one, and with
+--until-type T on until every vehicle's latest OPEN_DRONE_ID_SYSTEM has
+operator_location_type T (the ground station's operator location fell back to it).
 
-Prints one JSON line: {"<sysid>": {"system": {"count", "rate_hz", "last": {fields}},
-"operator_id": {"count", "rate_hz", "last": {fields}}}}; the rate is (count - 1) over the
-time between the first and the last. Exit code 0 only if every vehicle heard both.
+Prints one JSON line: {"<sysid>": {"system": {"count", "rate_hz", "last": {fields},
+"changes": [...]}, "operator_id": {"count", "rate_hz", "last": {fields}}}}; the rate is
+(count - 1) over the time between the first and the last; "changes" lists each
+OPEN_DRONE_ID_SYSTEM whose operator_location_type differs from the one before (the first
+included) as {"unix_s", "operator_location_type", "operator_latitude",
+"operator_longitude", "operator_altitude_geo"}. Exit code 0 only if every vehicle heard
+both (and, with --until-type, reached that type).
 
-    python3 tests/peers/remote_id_pymavlink.py --port PORT --vehicles 3 --seconds 6
+    python3 tests/peers/remote_id_pymavlink.py --port PORT --vehicles 3 --seconds 6 \
+        [--until-type 2]
 """
 
 import argparse
@@ -28,6 +35,12 @@ from pymavlink import mavutil  # noqa: E402
 
 ODID_COMPID = 236
 KINDS = {"OPEN_DRONE_ID_SYSTEM": "system", "OPEN_DRONE_ID_OPERATOR_ID": "operator_id"}
+LOCATION_FIELDS = (
+    "operator_location_type",
+    "operator_latitude",
+    "operator_longitude",
+    "operator_altitude_geo",
+)
 
 
 class Vehicle:
@@ -42,6 +55,7 @@ class Vehicle:
         )
         self.heard = {kind: [] for kind in KINDS.values()}
         self.last = {}
+        self.changes = []
         self.operator_heard = False
         self.next_beat = 0.0
 
@@ -78,6 +92,14 @@ class Vehicle:
                 self.operator_heard = True
                 fields["operator_id"] = fields["operator_id"].rstrip("\x00")
             fields["id_or_mac"] = list(fields["id_or_mac"])
+            if kind == "system" and (
+                not self.changes
+                or self.changes[-1]["operator_location_type"] != fields["operator_location_type"]
+            ):
+                change = {"unix_s": time.time()}
+                for key in LOCATION_FIELDS:
+                    change[key] = fields[key]
+                self.changes.append(change)
             self.last[kind] = fields
 
     def first(self):
@@ -93,7 +115,12 @@ class Vehicle:
                 "rate_hz": (len(times) - 1) / span if span > 0 else 0.0,
                 "last": self.last.get(kind),
             }
+        out["system"]["changes"] = self.changes
         return out
+
+    def location_type(self):
+        system = self.last.get("system")
+        return system["operator_location_type"] if system else None
 
 
 def main():
@@ -102,6 +129,7 @@ def main():
     ap.add_argument("--vehicles", type=int, default=3)
     ap.add_argument("--seconds", type=float, default=6.0)
     ap.add_argument("--timeout", type=float, default=60.0)
+    ap.add_argument("--until-type", type=int, default=None)
     args = ap.parse_args()
     vehicles = [Vehicle(args.port + i, i + 1) for i in range(args.vehicles)]
     deadline = time.monotonic() + args.timeout
@@ -111,13 +139,20 @@ def main():
             v.beat(now)
             v.read(now)
         firsts = [v.first() for v in vehicles]
-        if all(f is not None and now - f >= args.seconds for f in firsts):
+        long_enough = all(f is not None and now - f >= args.seconds for f in firsts)
+        reached = args.until_type is None or all(
+            v.location_type() == args.until_type for v in vehicles
+        )
+        if long_enough and reached:
             break
         time.sleep(0.01)
     report = {str(v.sysid): v.report() for v in vehicles}
     print(json.dumps(report))
     heard_all = all(r[k]["count"] > 0 for r in report.values() for k in KINDS.values())
-    sys.exit(0 if heard_all else 1)
+    reached = args.until_type is None or all(
+        v.location_type() == args.until_type for v in vehicles
+    )
+    sys.exit(0 if heard_all and reached else 1)
 
 
 if __name__ == "__main__":

@@ -360,7 +360,10 @@ pub(crate) async fn fetch_latest(State(s): State<ApiState>) -> Result<Response, 
     Ok((StatusCode::ACCEPTED, Json(out)).into_response())
 }
 
-async fn fetch_newest(s: &ApiState, vehicle: &str) -> Result<LogDownloadStatus, ApiError> {
+pub(crate) async fn fetch_newest(
+    s: &ApiState,
+    vehicle: &str,
+) -> Result<LogDownloadStatus, ApiError> {
     let link = link_of(s, vehicle).await?;
     let entries = list(&link, vehicle).await?;
     let Some(newest) = entries.iter().max_by_key(|e| (e.time_utc, e.id)).copied() else {

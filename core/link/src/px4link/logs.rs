@@ -1,9 +1,12 @@
 //! The `Px4Link` actor's log protocol ([`crate::log_transfer`]): one listing or download
 //! at a time, its `LOG_ENTRY` and `LOG_DATA` taken from the vehicle's frames, its
-//! resends and gap requests driven by a [`LOG_TICK`] while it runs.
+//! resends and gap requests driven by a [`LOG_TICK`] while it runs; a download under the
+//! process's log bandwidth cap asks for one window of the log per tick
+//! ([`crate::log_bandwidth`]).
 
 use super::{Px4LinkMsg, Px4LinkState};
 use crate::command::LinkError;
+use crate::log_bandwidth::LogShare;
 use crate::log_transfer::{
     LIST_ATTEMPTS, LIST_QUIET_ANSWERS, LIST_TIMEOUT, LogDownload, LogEntry, LogListing,
 };
@@ -56,6 +59,8 @@ pub(super) enum LogOp {
     Downloading {
         download: LogDownload,
         reply: LogDownloadReply,
+        /// Its part of the process's log bandwidth ([`crate::log_bandwidth`]).
+        share: LogShare,
     },
 }
 
@@ -141,9 +146,18 @@ impl Px4LinkState {
                     }));
                     return;
                 };
-                self.request_log_data(id, 0, u32::MAX);
-                let download = LogDownload::new(entry, progress, Instant::now());
-                self.logs = LogOp::Downloading { download, reply };
+                let share = self.link.setup.log_bandwidth.join();
+                let window = share.window_bytes(LOG_TICK).unwrap_or(u32::MAX);
+                let now = Instant::now();
+                let mut download = LogDownload::new(entry, progress, now);
+                let first = (0, window.min(entry.size_bytes));
+                download.requested(now, first);
+                self.request_log_data(id, first.0, first.1);
+                self.logs = LogOp::Downloading {
+                    download,
+                    reply,
+                    share,
+                };
                 if entry.size_bytes == 0 {
                     self.download_done();
                 }
@@ -152,7 +166,10 @@ impl Px4LinkState {
     }
 
     fn download_done(&mut self) {
-        let LogOp::Downloading { download, reply } = std::mem::take(&mut self.logs) else {
+        let LogOp::Downloading {
+            download, reply, ..
+        } = std::mem::take(&mut self.logs)
+        else {
             return;
         };
         let (target_system, target_component) = self.target();
@@ -204,7 +221,9 @@ impl Px4LinkState {
                     self.request_log_list();
                 }
             }
-            LogOp::Downloading { download, .. } => {
+            LogOp::Downloading {
+                download, share, ..
+            } => {
                 if download.stalled(now) {
                     let id = download.entry().id;
                     self.fail_log_transfer(LinkError::Timeout {
@@ -214,6 +233,7 @@ impl Px4LinkState {
                     return;
                 }
                 if let Some((ofs, count)) = download.gap_to_request(now) {
+                    let count = share.window_bytes(LOG_TICK).map_or(count, |w| count.min(w));
                     download.requested(now, (ofs, count));
                     let id = download.entry().id;
                     self.request_log_data(id, ofs, count);

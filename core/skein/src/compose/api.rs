@@ -40,6 +40,8 @@ pub(super) struct ApiSettings {
     auth: skein_api::auth::Auth,
     tls: Option<Arc<rustls::ServerConfig>>,
     map: skein_api::map::MapTiles,
+    /// `[logs] fetch_after_landing`.
+    fetch_logs_after_landing: bool,
 }
 
 /// The API's socket, bound.
@@ -81,6 +83,7 @@ impl ApiSettings {
             auth,
             tls,
             map,
+            fetch_logs_after_landing: file.logs.fetch_after_landing,
         })
     }
 
@@ -101,9 +104,9 @@ impl ApiSettings {
         Ok(Listener { listener, local })
     }
 
-    /// Has the coordinator serve the API on `listener`, with the plugins, the recorder and
-    /// what the DDS link adds (the election, peer clocks, link security), and prints the
-    /// dashboard's address.
+    /// Has the coordinator serve the API on `listener`, with the plugins, the recorder, the
+    /// RTK corrections and what the DDS link adds (the election, peer clocks, link
+    /// security), and prints the dashboard's address.
     ///
     /// # Errors
     /// The coordinator did not start the service.
@@ -112,6 +115,7 @@ impl ApiSettings {
         listener: Listener,
         plugins: Plugins,
         recorder: &Arc<skein_record::Recorder>,
+        rtk: Arc<skein_rtk::RtkService>,
         dds: Option<&Dds>,
         swarm: &Swarm,
     ) -> Result<(), String> {
@@ -125,12 +129,16 @@ impl ApiSettings {
         .with_map(self.map)
         .with_auth(self.auth)
         .with_recorder(recorder.clone())
+        .with_rtk(rtk)
         .with_flight_logs_dir(recorder.dir().join("flight-logs"));
         if let Some(dds) = dds {
             state = dds.extend_api(state);
         }
         if let Some(t) = self.tls {
             state = state.with_tls(t);
+        }
+        if self.fetch_logs_after_landing {
+            skein_api::log_autofetch::spawn(state.clone());
         }
         add_service(
             swarm,

@@ -8,6 +8,14 @@
 //! routes them to the transmitter). The transmitter answers with `OPEN_DRONE_ID_ARM_STATUS`
 //! (whether it is ready; PX4 refuses arming without it when `COM_ARM_ODID` = 2), kept in
 //! the telemetry (`skein_model::vehicle::RemoteIdArmStatus`).
+//!
+//! The operator's location is the ground station's own GNSS receiver's while it has a
+//! live fix (`operator_gnss`, `LIVE_GNSS`), else the configured one (`FIXED`), else the
+//! vehicle's takeoff point (`TAKEOFF`): [`operator_location`].
+
+mod operator_location;
+
+pub use operator_location::{LIVE_FIX_MAX_AGE, OperatorLocation, RemoteIdLink, live_fix};
 
 use serde::{Deserialize, Deserializer, Serialize};
 use skein_mavlink::MavMessage;
@@ -16,6 +24,7 @@ use skein_mavlink::dialect::{
     MavOdidOperatorLocationType, OPEN_DRONE_ID_OPERATOR_ID_DATA, OPEN_DRONE_ID_SYSTEM_DATA,
 };
 use skein_model::geo::GeoPoint;
+use skein_model::vehicle::OperatorLocationSource;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 /// Characters of an operator id (`OPEN_DRONE_ID_OPERATOR_ID.operator_id`).
@@ -41,9 +50,17 @@ pub struct RemoteIdConfig {
     pub operator_id: String,
     /// Where the operator stands (`operator_location_type` FIXED); absent: at each
     /// vehicle's takeoff point, its home (TAKEOFF; latitude and longitude 0, "unknown",
-    /// until the vehicle reports a home).
+    /// until the vehicle reports a home). With `operator_gnss`, what is sent while the
+    /// receiver has no live fix.
     #[serde(default)]
     pub operator_location: Option<GeoPoint>,
+    /// The ground station's own GNSS receiver (`gpsd://HOST[:PORT]`,
+    /// `serial:DEVICE:BAUD` or `tcp://HOST:PORT`, see [`skein_gnss::source`]): while its
+    /// latest report is a fix no older than [`LIVE_FIX_MAX_AGE`], the operator is there
+    /// (`operator_location_type` LIVE_GNSS). Read once per process
+    /// ([`crate::LinkSetup::operator_gnss`]).
+    #[serde(default)]
+    pub operator_gnss: Option<skein_gnss::GnssSource>,
     /// EU category of the operation (`open`, `specific`, `certified`; default
     /// `undeclared`); with a category or class the classification is EU.
     #[serde(default)]
@@ -103,11 +120,16 @@ fn operator_id<'de, D: Deserializer<'de>>(d: D) -> Result<String, D::Error> {
 
 impl RemoteIdConfig {
     /// The two messages for vehicle `sysid` at `now`: `OPEN_DRONE_ID_SYSTEM` (the
-    /// operator's location: configured, else `home`, the vehicle's takeoff point) and
+    /// operator at `location`, from [`RemoteIdConfig::operator_location`]) and
     /// `OPEN_DRONE_ID_OPERATOR_ID`, to every component of the vehicle.
-    pub fn messages(&self, sysid: u8, home: Option<GeoPoint>, now: SystemTime) -> [MavMessage; 2] {
+    pub fn messages(
+        &self,
+        sysid: u8,
+        location: &OperatorLocation,
+        now: SystemTime,
+    ) -> [MavMessage; 2] {
         [
-            MavMessage::OPEN_DRONE_ID_SYSTEM(self.system(sysid, home, now)),
+            MavMessage::OPEN_DRONE_ID_SYSTEM(self.system(sysid, location, now)),
             MavMessage::OPEN_DRONE_ID_OPERATOR_ID(self.operator(sysid)),
         ]
     }
@@ -115,19 +137,16 @@ impl RemoteIdConfig {
     fn system(
         &self,
         sysid: u8,
-        home: Option<GeoPoint>,
+        location: &OperatorLocation,
         now: SystemTime,
     ) -> OPEN_DRONE_ID_SYSTEM_DATA {
-        let (location_type, at) = match self.operator_location {
-            Some(p) => (
-                MavOdidOperatorLocationType::MAV_ODID_OPERATOR_LOCATION_TYPE_FIXED,
-                Some(p),
-            ),
-            None => (
-                MavOdidOperatorLocationType::MAV_ODID_OPERATOR_LOCATION_TYPE_TAKEOFF,
-                home,
-            ),
+        use MavOdidOperatorLocationType::*;
+        let location_type = match location.source {
+            OperatorLocationSource::LiveGnss => MAV_ODID_OPERATOR_LOCATION_TYPE_LIVE_GNSS,
+            OperatorLocationSource::Fixed => MAV_ODID_OPERATOR_LOCATION_TYPE_FIXED,
+            OperatorLocationSource::Takeoff => MAV_ODID_OPERATOR_LOCATION_TYPE_TAKEOFF,
         };
+        let at = location.lat_lon_deg;
         let declared = self.category_eu != CategoryEu::Undeclared || self.class_eu.is_some();
         OPEN_DRONE_ID_SYSTEM_DATA {
             target_system: sysid,
@@ -139,9 +158,9 @@ impl RemoteIdConfig {
             } else {
                 MavOdidClassificationType::MAV_ODID_CLASSIFICATION_TYPE_UNDECLARED
             },
-            operator_latitude: at.map_or(0, |p| (p.lat_deg * 1e7).round() as i32),
-            operator_longitude: at.map_or(0, |p| (p.lon_deg * 1e7).round() as i32),
-            operator_altitude_geo: at.map_or(UNKNOWN_ALTITUDE_M, |p| p.alt_amsl_m as f32),
+            operator_latitude: at.map_or(0, |(lat, _)| (lat * 1e7).round() as i32),
+            operator_longitude: at.map_or(0, |(_, lon)| (lon * 1e7).round() as i32),
+            operator_altitude_geo: location.altitude_m.map_or(UNKNOWN_ALTITUDE_M, |a| a as f32),
             area_count: 1,
             area_radius: 0,
             area_ceiling: UNKNOWN_ALTITUDE_M,
@@ -196,6 +215,7 @@ fn odid_timestamp(now: SystemTime) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::Instant;
 
     fn config(toml_text: &str) -> Result<RemoteIdConfig, String> {
         toml::from_str(toml_text).map_err(|e| e.to_string())
@@ -211,10 +231,11 @@ mod tests {
         )
         .unwrap();
         let at = UNIX_EPOCH + Duration::from_secs(ODID_EPOCH_UNIX_S + 100);
+        let location = c.operator_location(None, None, Instant::now());
         let [
             MavMessage::OPEN_DRONE_ID_SYSTEM(s),
             MavMessage::OPEN_DRONE_ID_OPERATOR_ID(o),
-        ] = c.messages(3, None, at)
+        ] = c.messages(3, &location, at)
         else {
             panic!()
         };
@@ -243,7 +264,8 @@ mod tests {
     fn without_a_location_the_operator_is_at_the_takeoff_point() {
         let c = config(r#"operator_id = "OP1""#).unwrap();
         let home = GeoPoint::new(47.397742, 8.545594, 488.0);
-        let [MavMessage::OPEN_DRONE_ID_SYSTEM(s), _] = c.messages(1, Some(home), SystemTime::now())
+        let location = c.operator_location(None, Some(home), Instant::now());
+        let [MavMessage::OPEN_DRONE_ID_SYSTEM(s), _] = c.messages(1, &location, SystemTime::now())
         else {
             panic!()
         };
@@ -256,7 +278,8 @@ mod tests {
             s.classification_type,
             MavOdidClassificationType::MAV_ODID_CLASSIFICATION_TYPE_UNDECLARED
         );
-        let [MavMessage::OPEN_DRONE_ID_SYSTEM(s), _] = c.messages(1, None, SystemTime::now())
+        let location = c.operator_location(None, None, Instant::now());
+        let [MavMessage::OPEN_DRONE_ID_SYSTEM(s), _] = c.messages(1, &location, SystemTime::now())
         else {
             panic!()
         };
@@ -278,5 +301,12 @@ mod tests {
         assert!(e.contains("category_eu") || e.contains("fun"), "{e}");
         let e = config("operator_id = \"OP1\"\noperator = 1").unwrap_err();
         assert!(e.contains("operator"), "{e}");
+        let e = config("operator_id = \"OP1\"\noperator_gnss = \"gps://x\"").unwrap_err();
+        assert!(e.contains("expected gpsd://"), "{e}");
+        let c = config("operator_id = \"OP1\"\noperator_gnss = \"gpsd://localhost\"").unwrap();
+        assert_eq!(
+            c.operator_gnss.unwrap().to_string(),
+            "gpsd://localhost:2947"
+        );
     }
 }
