@@ -10,6 +10,10 @@
 //!   takeoff's outcome and its state changes, reach the coordinator's stream), flies a
 //!   wedge behind a virtual leader cruising at 5 m/s, with the steady RMS slot error of
 //!   single-process mode (under 0.3 m), never closer than the separation;
+//! - RTK corrections from the coordinator's one source (RTCM3 datagrams to a UDP port,
+//!   given through its API) reach every agent's vehicle relayed over DDS
+//!   (`/skein/rtcm`): each reaches RTK float or fixed, and each agent's `GET
+//!   /api/v1/rtk` shows the topic as its source, streaming;
 //!
 //! then the coordinator is killed (SIGKILL) mid-formation, and through each agent's own
 //! loopback API:
@@ -31,6 +35,7 @@ use std::time::{Duration, Instant};
 use support::bench::bench_report;
 use support::distributed::{AgentOptions, agent_on, cyclone_intruder, role};
 use support::formation::{cruise, wedge_north};
+use support::rtk::UdpBase;
 use support::{EventLog, Skein, assert_no_failsafe_and_no_gap, eventually, summary};
 
 /// DDS domain `k` (0 to 2) of this test process's own, apart from `e2e_dds`' 100–179,
@@ -71,6 +76,47 @@ fn ground(d: &str) -> Skein {
     ])
 }
 
+/// A base station 600 m north-east of the simulator's home (PX4 SITL's, Zurich).
+const BASE: (f64, f64, f64) = (47.4021, 8.5512, 535.0);
+
+/// Gives the coordinator `base`'s corrections as its source.
+fn corrections_to(coordinator: &Skein, base: &UdpBase) {
+    let (status, r) = coordinator.put("/api/v1/rtk", json!({"source": base.source()}));
+    assert_eq!(status, 200, "{r}");
+}
+
+/// Every agent's vehicle in RTK float or fixed, on corrections relayed from the
+/// coordinator; returns how long it was waited for, seconds (measured 0.003–0.006 s: the
+/// takeoff and the cruise since the corrections started take longer than the 5 s the
+/// simulated receivers need to float).
+fn relayed_rtk_everywhere(coordinator: &Skein, agents: &[Skein]) -> f64 {
+    let waited = Instant::now();
+    for a in agents {
+        let r = eventually(
+            "RTK float from relayed corrections",
+            Duration::from_secs(30),
+            || {
+                let (code, r) = a.get("/api/v1/rtk");
+                let fix = r["vehicles"][0]["fix_type"].as_u64();
+                if code == 200 && r["state"] == "streaming" && fix >= Some(5) {
+                    Ok(r)
+                } else {
+                    Err(r.to_string())
+                }
+            },
+        );
+        assert_eq!(r["source"], "dds:/skein/rtcm", "{r}");
+        assert_eq!(r["relay"]["role"], "receiving", "{r}");
+        assert!(r["message_types"]["1074"].as_u64() > Some(0), "{r}");
+        assert_eq!(r["base"]["station_id"], 7, "{r}");
+        assert!(r["vehicles"][0]["messages"].as_u64() > Some(0), "{r}");
+    }
+    let (_, c) = coordinator.get("/api/v1/rtk");
+    assert_eq!(c["relay"]["role"], "publishing", "{c}");
+    assert!(c["relay"]["published"].as_u64() > Some(0), "{c}");
+    waited.elapsed().as_secs_f64()
+}
+
 /// The one vehicle of an agent, from its own API.
 fn own_vehicle(a: &Skein) -> Value {
     let (code, v) = a.get("/api/v1/vehicles");
@@ -102,6 +148,9 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
             Err(r.to_string())
         }
     });
+    // One corrections source for the swarm, at the coordinator (no vehicle of its own).
+    let base = UdpBase::start(BASE);
+    corrections_to(&coordinator, &base);
 
     // Each agent spawned its vehicle at its own grid point (sysid - 1, 4 columns): the
     // coordinator, whose frame is the first agent's, sees them apart, none at another's.
@@ -148,6 +197,7 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
     for a in &agents {
         assert_eq!(own_vehicle(a)["state"], "InFormation", "{}", own_vehicle(a));
     }
+    let rtk_wait_s = relayed_rtk_everywhere(&coordinator, &agents);
 
     // The coordinator dies with no goodbye. Each agent flies its vehicle on its slot for
     // the ride-through (the wedge goes on north at 5 m/s), then holds it.
@@ -224,7 +274,8 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
     eprintln!(
         "{}",
         json!({"formation_mean_rms_m": mean_rms, "formation_worst_rms_m": worst_rms,
-               "min_separation_m": min_sep, "after_the_coordinator_died": times})
+               "min_separation_m": min_sep, "after_the_coordinator_died": times,
+               "relayed_rtk_wait_s": rtk_wait_s})
     );
 }
 

@@ -15,8 +15,10 @@
 //!   name their reason; arm, takeoff to 8 m, goto and land are obeyed; `/tf` looked up at
 //!   a pose's stamp is the pose; `--dds-tf-parent map` makes `/tf_static` the identity
 //!   `map → skein_swarm`;
-//! - a node sees the vehicles of every agent of a distributed swarm, and Kilted's rclpy
-//!   (Fast DDS 3.2) reads the standard topics as Jazzy's does;
+//! - a node sees the vehicles of every agent of a distributed swarm, and the RTK
+//!   corrections its coordinator relays on `/skein/rtcm` (`rtcm_msgs/Message`, built
+//!   from `tests/peers/ros2/rtcm_msgs`), every frame whole with a good CRC; Kilted's
+//!   rclpy (Fast DDS 3.2) reads the standard topics as Jazzy's does;
 //! - every message type serialises to the same bytes in skein (Rust) and with the
 //!   rosidl-generated Python type.
 //!
@@ -28,6 +30,7 @@ mod support;
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
 use support::ros2::{Distro, ros2_peer, ros2_peer_on};
+use support::rtk::UdpBase;
 use support::{Skein, eventually};
 
 /// DDS domain `k` (0 to 2) of this test process's own: 180–218, apart from
@@ -329,6 +332,17 @@ fn an_rclpy_node_sees_every_agent_s_vehicles_of_a_distributed_swarm() {
         agents[0].process.pid(),
         agents[1].process.pid()
     );
+    // An RTK source at the coordinator (a base 600 m north-east of the home), relayed on
+    // /skein/rtcm once the coordinator is active (a standby refuses the PUT).
+    let base = UdpBase::start((47.4021, 8.5512, 535.0));
+    eventually(
+        "the coordinator takes the RTK source",
+        Duration::from_secs(20),
+        || match coordinator.put("/api/v1/rtk", json!({"source": base.source()})) {
+            (200, _) => Ok(()),
+            (_, r) => Err(r.to_string()),
+        },
+    );
     let shed_before: u64 = agents.iter().map(dds_shed).sum();
     let started = Instant::now();
     let r = ros2_peer(
@@ -343,6 +357,7 @@ fn an_rclpy_node_sees_every_agent_s_vehicles_of_a_distributed_swarm() {
             &nodes,
             "--seconds",
             "3",
+            "--rtcm",
         ],
         Duration::from_secs(90),
     );
@@ -365,6 +380,13 @@ fn an_rclpy_node_sees_every_agent_s_vehicles_of_a_distributed_swarm() {
     );
     assert!(f(&r, "worst_tf_vs_pose_m") < 0.05, "{r}");
     assert!(f(&r, "anchor_error_m") < 0.01, "{r}");
+    // The base's epochs (a 1005 and a 1074 a second), whole, as ROS 2 types them.
+    let rtcm = &r["rtcm"];
+    assert_eq!(rtcm["bad"], 0, "{r}");
+    for t in ["1005", "1074"] {
+        assert!(rtcm["types"][t].as_u64() >= Some(2), "{t}: {r}");
+    }
+    drop(base);
     drop(agents);
     drop(coordinator);
     let _ = std::fs::remove_dir_all(&dir);
@@ -415,6 +437,7 @@ fn every_message_type_serialises_to_the_same_bytes_in_skein_and_rclpy() {
         "sensor_msgs/msg/NavSatFix",
         "sensor_msgs/msg/BatteryState",
         "tf2_msgs/msg/TFMessage",
+        "rtcm_msgs/msg/Message",
     ] {
         assert!(compared.contains_key(ty), "{ty} not compared: {r}");
     }

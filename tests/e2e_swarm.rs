@@ -22,9 +22,63 @@ fn ned(v: &Value) -> (f64, f64, f64) {
     )
 }
 
+/// `id` lands, then holds half-way: PX4 leaves LAND for OFFBOARD and the vehicle hovers
+/// (and rejoins its formation), never taken for a failsafe while the mode changes.
+fn a_landing_is_broken_off_by_a_hold(skein: &Skein, id: &str) {
+    let path = format!("/api/v1/vehicles/{id}/commands");
+    let (status, body) = skein.post(&path, json!({"command": "land"}));
+    assert_eq!(status, 202, "{body}");
+    let one = || {
+        skein
+            .vehicles()
+            .into_iter()
+            .find(|v| v["id"] == id)
+            .expect("the vehicle")
+    };
+    let from_m = eventually("landing", Duration::from_secs(10), || {
+        let v = one();
+        if v["state"] == "Landing" {
+            Ok(alt(&v))
+        } else {
+            Err(v.to_string())
+        }
+    });
+    eventually("on its way down", Duration::from_secs(20), || {
+        let v = one();
+        if alt(&v) < from_m - 1.0 {
+            Ok(())
+        } else {
+            Err(v.to_string())
+        }
+    });
+    let (status, body) = skein.post(&path, json!({"command": "hold"}));
+    assert_eq!(status, 202, "{body}");
+    steady_for(
+        "hovering after the hold",
+        Duration::from_secs(2),
+        Duration::from_secs(20),
+        || {
+            let v = one();
+            assert_ne!(v["state"], "Failsafe", "{v}");
+            // (Back in its slot: the formation flown before takes in a hovering vehicle.)
+            if (v["state"] == "Hovering" || v["state"] == "InFormation") && alt(&v) > 2.0 {
+                Ok(())
+            } else {
+                Err(v.to_string())
+            }
+        },
+    );
+}
+
 #[test]
 fn three_vehicles_take_off_fly_a_line_and_land() {
-    let skein = Skein::up_sim(3, &[]);
+    // Logs come home by themselves after landing, all three under one cap.
+    let dir = tempfile::tempdir().unwrap();
+    let config = support::payloads::write_config(
+        dir.path(),
+        &format!("[logs]\nfetch_after_landing = true\nmax_bytes_s = {LOG_CAP_BYTES_S}\n"),
+    );
+    let skein = Skein::up_sim(3, &["--config", &config]);
     let vs = skein.wait_all(
         "3 connected vehicles with positions and homes",
         3,
@@ -71,6 +125,7 @@ fn three_vehicles_take_off_fly_a_line_and_land() {
     );
 
     let vs = line_abreast_led_by_uav_2(&skein);
+    a_landing_is_broken_off_by_a_hold(&skein, "uav-1");
 
     // Land: everyone down and disarmed.
     let (status, body) = skein.post("/api/v1/swarm/commands", json!({"command": "land"}));
@@ -112,12 +167,12 @@ fn three_vehicles_take_off_fly_a_line_and_land() {
     });
 }
 
-/// Line abreast, 5 m spacing, led by uav-2, checked independently of skein's own metric;
+/// Line abreast, 7 m spacing, led by uav-2, checked independently of skein's own metric;
 /// returns the vehicles as they held it.
 fn line_abreast_led_by_uav_2(skein: &Skein) -> Vec<Value> {
     let (status, body) = skein.put(
         "/api/v1/formation",
-        json!({"shape": "line", "spacing_m": 5.0, "leader": "uav-2"}),
+        json!({"shape": "line", "spacing_m": 7.0, "leader": "uav-2"}),
     );
     assert_eq!(status, 200, "{body}");
     let formed = eventually(
@@ -142,7 +197,7 @@ fn line_abreast_led_by_uav_2(skein: &Skein) -> Vec<Value> {
     let (vs, f) = formed;
     assert_eq!(f["leader_id"], "uav-2");
     assert_eq!(f["shape"], "line");
-    // Independently of skein's own metric: a line across north (heading 0), 5 m apart,
+    // Independently of skein's own metric: a line across north (heading 0), 7 m apart,
     // at one altitude, the leader in the middle.
     let mut pos: Vec<(String, (f64, f64, f64))> = vs
         .iter()
@@ -158,7 +213,7 @@ fn line_abreast_led_by_uav_2(skein: &Skein) -> Vec<Value> {
     assert!(spread(&downs) < 1.5, "not level: {pos:?}");
     for w in pos.windows(2) {
         let gap = w[1].1.1 - w[0].1.1;
-        assert!((gap - 5.0).abs() < 1.5, "spacing {gap} m: {pos:?}");
+        assert!((gap - 7.0).abs() < 1.5, "spacing {gap} m: {pos:?}");
     }
     assert_eq!(pos[1].0, "uav-2", "leader in the middle: {pos:?}");
     assert!(f["min_separation_m"].as_f64().unwrap() > 3.0, "{f}");
@@ -175,19 +230,35 @@ fn download_of(skein: &Skein, vehicle: &str) -> Option<Value> {
         .cloned()
 }
 
-/// After the flight: the newest log of every vehicle fetched at once (uav-1's link cut
-/// for 3 s in the middle of its download), each read by pyulog: PX4's topics, the climb
-/// to the 10 m hover, and the place each vehicle held in the line (`flown`: north/east from its
-/// home, which is its local frame's origin).
+/// `[logs] max_bytes_s` of the flight: the three downloads share it (about 130 kB each,
+/// which the simulator alone sends at 72 kB/s each).
+const LOG_CAP_BYTES_S: f64 = 90_000.0;
+
+/// Every byte of every download so far.
+fn log_bytes(skein: &Skein) -> u64 {
+    let (_, all) = skein.get("/api/v1/logs");
+    all.as_array()
+        .map(|l| l.iter().filter_map(|d| d["received_bytes"].as_u64()).sum())
+        .unwrap_or(0)
+}
+
+/// After the flight: the newest log of every vehicle fetched by itself on landing, all at
+/// once under one cap (uav-1's link cut for 3 s in the middle of its download), each read
+/// by pyulog: PX4's topics, the climb to the 10 m hover, and the place each vehicle held
+/// in the line (`flown`: north/east from its home, which is its local frame's origin).
 fn the_flight_logs_come_home(skein: &Skein, flown: &[(String, (f64, f64))]) {
     let stats = skein.sim_stats_addr();
-    let (status, body) = skein.post("/api/v1/logs/fetch_latest", json!({}));
-    assert_eq!(status, 202, "{body}");
-    assert_eq!(
-        body["downloads"].as_array().map(Vec::len),
-        Some(3),
-        "{body}"
+    eventually(
+        "three downloads after landing",
+        Duration::from_secs(30),
+        || {
+            let (_, all) = skein.get("/api/v1/logs");
+            (all.as_array().map(Vec::len) == Some(3))
+                .then_some(())
+                .ok_or(all.to_string())
+        },
     );
+    let (t0, b0) = (std::time::Instant::now(), log_bytes(skein));
     // Cut uav-1's link once its first bytes arrived (its 130 kB take the simulator about
     // 1.8 s: the cut lands in the middle).
     let started = eventually(
@@ -224,6 +295,13 @@ fn the_flight_logs_come_home(skein: &Skein, flown: &[(String, (f64, f64))]) {
             Err(all.to_string())
         }
     });
+    // Under the cap (a tenth over, for the polls' own timing, and a window in flight).
+    let rate = (log_bytes(skein) - b0) as f64 / t0.elapsed().as_secs_f64();
+    assert!(
+        rate < 1.1 * LOG_CAP_BYTES_S + 3000.0,
+        "{rate:.0} B/s over the cap"
+    );
+    eprintln!("three logs at {rate:.0} B/s together (cap {LOG_CAP_BYTES_S})");
     let dir = tempfile::tempdir().unwrap();
     let mut files = Vec::new();
     for d in &done {
@@ -454,8 +532,9 @@ fn px4_parameters_through_the_api() {
 }
 
 /// With `COM_ARM_ODID` = 2 PX4 refuses to arm without a Remote ID transmitter: the
-/// command's outcome carries what PX4 said (two `STATUSTEXT`s, the second longer than one
-/// message), and the texts are on the stream; with 0 it arms.
+/// command's outcome names PX4's check (its events' report) and carries what PX4 said
+/// (a `STATUSTEXT` and the commander's verdict, an event, longer than one message), the
+/// texts are on the stream, the pre-flight view names the check; with 0 it arms.
 fn refused_arming_carries_px4s_reasons(skein: &Skein) {
     skein.wait_all(
         "uav-1 landed with a home",
@@ -502,9 +581,25 @@ fn refused_arming_carries_px4s_reasons(skein: &Skein) {
         })
     };
     check("fail");
+    // PX4's own check, by name (its events' report, decoded with the metadata the
+    // vehicle served over MAVLink FTP).
+    let named = eventually("uav-1's check by name", Duration::from_secs(10), || {
+        let c = check("fail");
+        let detail = c["detail"].as_str().unwrap_or_default();
+        if detail.starts_with("fail: Open Drone ID system missing (error)") {
+            Ok(c)
+        } else {
+            Err(c.to_string())
+        }
+    });
+    assert_eq!(named["state"], "fail", "{named}");
     let refused = arm();
     assert_eq!(refused["ok"], false, "{refused}");
     let error = refused["error"].as_str().unwrap_or_default();
+    assert!(
+        error.contains("(Open Drone ID system missing; "),
+        "PX4's check named first: {error}"
+    );
     for said in [
         "Preflight Fail: Open Drone ID system missing",
         "Arming denied: Resolve system health failures first",
@@ -529,6 +624,16 @@ fn refused_arming_carries_px4s_reasons(skein: &Skein) {
         "{c}"
     );
     let (_, v) = skein.get("/api/v1/vehicles/uav-1");
+    assert_eq!(
+        v["px4_arming_checks"],
+        json!([{
+            "message": "Open Drone ID system missing",
+            "description": "Open Drone ID system failed to report. Make sure it it setup and installed properly.",
+            "severity": "error",
+            "prevents_arming": true
+        }]),
+        "{v}"
+    );
     assert!(
         v["px4_messages"]
             .as_array()
@@ -545,22 +650,44 @@ fn refused_arming_carries_px4s_reasons(skein: &Skein) {
     );
     put_odid(0);
     check("ok");
+    let (_, v) = skein.get("/api/v1/vehicles/uav-1");
+    assert_eq!(v["px4_arming_checks"], json!([]), "nothing fails now: {v}");
     let armed = arm();
     assert_eq!(armed["ok"], true, "{armed}");
+}
+
+/// Where the ground station's receiver is in the NMEA log: 60°10.27404' N,
+/// 24°56.74068' E (60.171234, 24.945678), 25.0 m above mean sea level, geoid separation
+/// 17.5 m; OPEN_DRONE_ID_SYSTEM's units are 1e-7 degrees.
+const OPERATOR_GNSS_E7: (i64, i64) = (601_712_340, 249_456_780);
+
+/// One epoch of a receiver with a 3D fix there: `GGA` and `RMC`.
+fn operator_nmea() -> Vec<String> {
+    use skein_gnss::nmea0183::sentence;
+    vec![
+        sentence("GPGGA,120000.00,6010.27404,N,02456.74068,E,1,09,0.9,25.0,M,17.5,M,,"),
+        sentence("GPRMC,120000.00,A,6010.27404,N,02456.74068,E,0.0,0.0,010126,,,A"),
+    ]
 }
 
 /// Remote ID: with `[remote_id]` every vehicle hears the operator's identity and
 /// location (`OPEN_DRONE_ID_SYSTEM`, `OPEN_DRONE_ID_OPERATOR_ID`) at 1 Hz, as a fleet of
 /// pymavlink autopilots with transmitters records them, and the API shows what each
-/// transmitter says of itself (`OPEN_DRONE_ID_ARM_STATUS`).
+/// transmitter says of itself (`OPEN_DRONE_ID_ARM_STATUS`). The operator's location is
+/// the ground station's GNSS (Debian's gpsd fed by gpsfake, `operator_gnss`: LIVE_GNSS)
+/// until gpsd is killed; then, within the live fix's age limit and one message, the
+/// configured location (FIXED), and each vehicle's status says why.
 #[test]
 fn remote_id_reaches_every_vehicle_at_1_hz() {
+    let mut gps = support::gpsd::FakeGps::start(&operator_nmea());
     let port = free_udp_range(3);
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("fleet.toml");
-    let mut text = String::from(
+    let mut text = format!(
         "[remote_id]\noperator_id = \"FIN87astrdge12k8\"\ncategory_eu = \"open\"\nclass_eu = 1\n\
-         operator_location = { lat_deg = 60.1699, lon_deg = 24.9384, alt_amsl_m = 25.0 }\n",
+         operator_location = {{ lat_deg = 60.1699, lon_deg = 24.9384, alt_amsl_m = 25.0 }}\n\
+         operator_gnss = \"gpsd://127.0.0.1:{}\"\n",
+        gps.port
     );
     for i in 0..3 {
         text += &format!(
@@ -573,7 +700,17 @@ fn remote_id_reaches_every_vehicle_at_1_hz() {
     let skein = Skein::up(&["--config", cfg.to_str().unwrap()]);
     let fleet = std::thread::spawn(move || {
         let port = port.to_string();
-        let args = ["--port", port.as_str(), "--vehicles", "3", "--seconds", "6"];
+        // On until every vehicle heard the FIXED location (type 2) after the receiver stopped.
+        let args = [
+            "--port",
+            port.as_str(),
+            "--vehicles",
+            "3",
+            "--seconds",
+            "6",
+            "--until-type",
+            "2",
+        ];
         run_peer("remote_id_pymavlink.py", &args, Duration::from_secs(90))
     });
     // A transmitter is ready once it has the operator's id, and the API says so.
@@ -590,6 +727,7 @@ fn remote_id_reaches_every_vehicle_at_1_hz() {
         },
     );
     assert_eq!(v["remote_id"]["operator_sent"], true, "{}", v["remote_id"]);
+    let stopped_unix_s = live_gnss_then_the_receiver_stops(&skein, &mut gps);
     let (code, out, err) = fleet.join().unwrap();
     assert_eq!(code, Some(0), "remote_id_pymavlink.py\n{out}\n{err}");
     let heard: Value = serde_json::from_str(out.trim()).unwrap();
@@ -602,6 +740,7 @@ fn remote_id_reaches_every_vehicle_at_1_hz() {
                 "vehicle {sysid} {kind}: {r}"
             );
         }
+        live_then_fixed(sysid, &heard[sysid]["system"]["changes"], stopped_unix_s);
         let system = &heard[sysid]["system"]["last"];
         // FIXED location, EU classification, category open, class C1 (MAV_ODID enums).
         for (field, value) in [
@@ -618,6 +757,135 @@ fn remote_id_reaches_every_vehicle_at_1_hz() {
         assert_eq!(operator["operator_id"], "FIN87astrdge12k8", "{operator}");
         assert_eq!(operator["operator_id_type"], 0, "{operator}");
     }
+}
+
+/// Waits until every vehicle's status says its operator location is the live GNSS
+/// one, kills gpsd, and waits until every status says it fell back to the fixed
+/// location and why; returns when gpsd was killed (Unix seconds).
+fn live_gnss_then_the_receiver_stops(skein: &Skein, gps: &mut support::gpsd::FakeGps) -> f64 {
+    let rid = |id: &str| skein.get(&format!("/api/v1/vehicles/{id}")).1["remote_id"].clone();
+    for id in ["uav-1", "uav-2", "uav-3"] {
+        let r = eventually(&format!("{id}: live GNSS"), Duration::from_secs(20), || {
+            let r = rid(id);
+            (r["operator_location_source"] == "live_gnss")
+                .then_some(r.clone())
+                .ok_or(r.to_string())
+        });
+        let g = &r["operator_gnss"];
+        assert_eq!(g["source"], format!("gpsd://127.0.0.1:{}", gps.port), "{r}");
+        assert_eq!(
+            (&g["connected"], &g["no_fix"], &g["malformed"]),
+            (&json!(true), &json!(false), &json!(0)),
+            "{r}"
+        );
+        // gpsd's eph from the GGA's HDOP 0.9.
+        assert!(g["eph_m"].as_f64().is_some_and(|e| e > 0.0), "{r}");
+        assert!(r["operator_location_age_s"].as_f64().unwrap() < 3.0, "{r}");
+        assert_eq!(r["operator_location_fallback"], Value::Null, "{r}");
+    }
+    let stopped = std::time::SystemTime::now();
+    gps.stop();
+    let limit_s = skein_link::remote_id::LIVE_FIX_MAX_AGE.as_secs_f64();
+    for id in ["uav-1", "uav-2", "uav-3"] {
+        let r = eventually(
+            &format!("{id}: fixed after gpsd stopped"),
+            Duration::from_secs(10),
+            || {
+                let r = rid(id);
+                (r["operator_location_source"] == "fixed")
+                    .then_some(r.clone())
+                    .ok_or(r.to_string())
+            },
+        );
+        let why = r["operator_location_fallback"].as_str().unwrap_or_default();
+        let says = format!("no fix from gpsd://127.0.0.1:{} for", gps.port);
+        assert!(
+            why.starts_with(&says) && why.contains("(the limit is 3 s)"),
+            "{r}"
+        );
+        assert_eq!(r["operator_location_age_s"], Value::Null, "{r}");
+        assert!(
+            r["operator_gnss"]["fix_age_s"].as_f64().unwrap() > limit_s,
+            "{r}"
+        );
+    }
+    let (_, p) = skein.get("/api/v1/preflight");
+    let check = p["vehicles"][0]["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["check"] == "remote_id")
+        .cloned();
+    let check = check.expect("a remote_id check");
+    assert_eq!(check["state"], "warn", "{check}");
+    assert!(
+        check["detail"]
+            .as_str()
+            .unwrap()
+            .contains("operator at the fixed location, not live GNSS: no fix from gpsd://"),
+        "{check}"
+    );
+    stopped
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64()
+}
+
+/// Vehicle `sysid` heard the live GNSS location (type 1), within 1e-6 degrees of the
+/// NMEA log's, at its ellipsoid height (25.0 m above mean sea level + 17.5 m), then the
+/// fixed location (type 2) within the live fix's age limit and one message period
+/// (1 s, with 1 s for a loaded machine) of gpsd's end.
+fn live_then_fixed(sysid: &str, changes: &Value, stopped_unix_s: f64) {
+    let changes = changes.as_array().unwrap();
+    let live = changes
+        .iter()
+        .position(|c| c["operator_location_type"] == 1);
+    let live = live.unwrap_or_else(|| panic!("vehicle {sysid}: no LIVE_GNSS: {changes:?}"));
+    let c = &changes[live];
+    let (lat, lon) = OPERATOR_GNSS_E7;
+    let e7 = |k: &str| c[k].as_i64().unwrap();
+    assert!(
+        (e7("operator_latitude") - lat).abs() <= 10,
+        "vehicle {sysid}: {c}"
+    );
+    assert!(
+        (e7("operator_longitude") - lon).abs() <= 10,
+        "vehicle {sysid}: {c}"
+    );
+    assert_eq!(c["operator_altitude_geo"], 42.5, "vehicle {sysid}: {c}");
+    let fixed = changes[live..]
+        .iter()
+        .find(|c| c["operator_location_type"] == 2);
+    let fixed = fixed.unwrap_or_else(|| panic!("vehicle {sysid}: no FIXED after: {changes:?}"));
+    let after_s = fixed["unix_s"].as_f64().unwrap() - stopped_unix_s;
+    let limit_s = skein_link::remote_id::LIVE_FIX_MAX_AGE.as_secs_f64();
+    println!("vehicle {sysid}: FIXED {after_s:.2} s after gpsd was killed");
+    assert!(
+        after_s > 0.0 && after_s <= limit_s + 2.0,
+        "vehicle {sysid}: {after_s} s: {changes:?}"
+    );
+}
+
+/// An agent runs on an aircraft's companion computer: its GNSS receiver is the
+/// aircraft's, so it refuses `operator_gnss` (the operator's live location) at start.
+#[test]
+fn an_agent_refuses_the_operator_gnss() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("agent.toml");
+    let text = format!(
+        "[remote_id]\noperator_id = \"OP1\"\noperator_gnss = \"gpsd://127.0.0.1\"\n\n\
+         [[vehicles]]\nconnection = \"udpin:127.0.0.1:{}\"\nsysid = 1\n",
+        free_udp_range(1)
+    );
+    std::fs::write(&cfg, text).unwrap();
+    let mut p = Process::start(&["agent", "--config", cfg.to_str().unwrap()]);
+    assert_eq!(p.wait_exit(Duration::from_secs(30)), Some(1));
+    let err = p.stderr_text();
+    assert!(
+        err.contains("remote_id.operator_gnss = \"gpsd://127.0.0.1:2947\"")
+            && err.contains("the aircraft's, not the operator's"),
+        "{err}"
+    );
 }
 
 #[test]

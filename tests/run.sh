@@ -8,6 +8,9 @@
 #   - Debian's openssl for the HTTPS test's certificate
 #   - cargo-fuzz, for the fuzz smoke run (tests/fuzz.sh: each target 45 s) after the tests
 #   - Debian's ffmpeg, the RTSP/H.264 camera of e2e_video (tests/peers/rtsp_server.py)
+#   - Debian's rtklib, whose str2str serves the NTRIP caster of e2e_rtk
+#   - Debian's gpsd and gpsd-clients (gpsfake): the ground station's GNSS receiver of
+#     e2e_swarm's Remote ID test
 #   - for the deployment tests (deploy_*): Debian's gcc-aarch64-linux-gnu (the arm64 cross
 #     linker), g++-aarch64-linux-gnu (OpenH264's C++) and qemu-user (runs the arm64 image's files), systemd (systemd-analyze),
 #     docker-compose when Docker has no Compose v2, and the Rust target
@@ -64,6 +67,12 @@ prepare() {
   command -v openssl >/dev/null 2>&1 || missing+=(openssl)
   # The RTSP camera of e2e_video: Debian's ffmpeg encodes H.264 (libx264).
   command -v ffmpeg >/dev/null 2>&1 || missing+=(ffmpeg)
+  # The NTRIP caster of e2e_rtk: RTKLIB's str2str.
+  command -v str2str >/dev/null 2>&1 || missing+=(rtklib)
+  # The ground station's GNSS receiver of e2e_swarm's Remote ID test: Debian's gpsd fed
+  # by its own gpsfake (in gpsd-clients on Debian 12).
+  [ -x /usr/sbin/gpsd ] || command -v gpsd >/dev/null 2>&1 || missing+=(gpsd)
+  command -v gpsfake >/dev/null 2>&1 || missing+=(gpsd-clients)
   # The deployment tests: the arm64 cross-build and its qemu smoke test, the units,
   # compose. The camera plugin's H.264 decoder (OpenH264) is C++: its arm64 build needs
   # the cross g++.

@@ -150,6 +150,10 @@ export const payloadVideoUrl = (id, slot, snapshot = false) =>
 export const getSupervision = () => request('GET', '/supervision');
 export const getPreflight = () => request('GET', '/preflight');
 export const getLogDownloads = () => request('GET', '/logs');
+export const getRtk = () => request('GET', '/rtk');
+/** config: {source, max_bytes_s?, stall_timeout_s?, send_gga?}. */
+export const putRtk = (config) => request('PUT', '/rtk', config);
+export const stopRtk = () => request('DELETE', '/rtk');
 export const fetchLatestLogs = () => request('POST', '/logs/fetch_latest');
 export const injectFault = (target, kind) => request('POST', '/faults', { target, kind });
 export const getPlugins = () => request('GET', '/plugins');

@@ -8,7 +8,7 @@
 import * as api from './api.js';
 import { ParamsView } from './params.js';
 import { confirmAction } from './confirm.js';
-import { displayState, stateClass, fmt, fmtAge, fmtTime, groundSpeed } from './model.js';
+import { displayState, stateClass, fmt, fmtAge, fmtTime, groundSpeed, gnssText } from './model.js';
 
 const COMMANDS = [
   ['arm', 'Arm'], ['disarm', 'Disarm'], ['takeoff', 'Take off'], ['hold', 'Hold'],
@@ -20,13 +20,23 @@ const FIELDS = [
   ['state', 'state'], ['mode', 'PX4 mode'], ['armed', 'armed'], ['landed', 'landed state'],
   ['ned', 'N / E / D m'], ['alt', 'height m'], ['amsl', 'AMSL m'], ['latlon', 'lat / lon'],
   ['speed', 'ground m/s'], ['vz', 'climb m/s'], ['heading', 'heading °'], ['battery', 'battery'],
-  ['link', 'link'], ['formation', 'formation'], ['model', 'model / sysid'], ['remote_id', 'Remote ID'],
+  ['gnss', 'GNSS'], ['link', 'link'], ['formation', 'formation'], ['model', 'model / sysid'], ['remote_id', 'Remote ID'],
 ];
+
+const OPERATOR_AT = { live_gnss: 'live GNSS', fixed: 'fixed location', takeoff: 'takeoff point' };
+
+/** Where the operator location last sent came from, and why not live GNSS when configured. */
+function operatorAt(r) {
+  const source = r.operator_location_source;
+  if (!source) return '';
+  const why = r.operator_location_fallback ? ` (not live GNSS: ${r.operator_location_fallback})` : '';
+  return ` at ${OPERATOR_AT[source] ?? source}${why}`;
+}
 
 /** The vehicle's Remote ID: what skein sends, what its transmitter says (OPEN_DRONE_ID_ARM_STATUS). */
 function remoteId(r) {
   if (!r) return 'off';
-  const sent = r.operator_sent ? 'operator sent' : 'operator not sent';
+  const sent = r.operator_sent ? `operator sent${operatorAt(r)}` : 'operator not sent';
   const t = r.transmitter;
   if (!t) return `${sent} · no transmitter heard`;
   return `${sent} · ${t.good_to_arm ? 'transmitter ready' : `transmitter: ${t.error || 'not ready'}`}`;
@@ -154,6 +164,7 @@ export class VehicleDetail {
     put('vz', fmt(Number.isFinite(vel.down_m_s) ? -vel.down_m_s : NaN));
     put('heading', fmt(v.heading_deg, 0));
     put('battery', `${fmt(b.percent, 0)} % · ${fmt(b.voltage_v, 2)} V`);
+    put('gnss', gnssText(v.gps));
     put('link', `${link.connected ? 'up' : 'LOST'} · seen ${fmtAge(link.last_seen_ms)} ago`);
     put('formation', f ? `slot ${f.slot}${f.leader ? ' (leader)' : ''} · error ${fmt(f.error_m, 2)} m` : '–');
     put('model', `${v.model || '–'} / ${v.sysid ?? '–'}`);

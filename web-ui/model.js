@@ -83,3 +83,15 @@ export function groundSpeed(vel) {
   if (!vel) return NaN;
   return Math.hypot(vel.north_m_s || 0, vel.east_m_s || 0);
 }
+
+/** MAVLink's GPS_FIX_TYPE in words (GPS_RAW_INT.fix_type). */
+export const FIX_NAMES = ['no GPS', 'no fix', '2D fix', '3D fix', 'DGPS', 'RTK float', 'RTK fixed', 'static', 'PPP'];
+
+/** A vehicle's GNSS in one line: fix, satellites, accuracy and RTK corrections' age. */
+export function gnssText(g) {
+  if (!g) return '–';
+  const fix = FIX_NAMES[g.fix_type] || `fix ${g.fix_type}`;
+  const acc = Number.isFinite(g.eph_m) ? ` · ±${fmt(g.eph_m, g.eph_m < 0.1 ? 3 : 2)} m` : '';
+  const age = Number.isFinite(g.correction_age_s) ? ` · corrections ${fmt(g.correction_age_s, 1)} s` : '';
+  return `${fix} · ${g.satellites} sats${acc}${age}`;
+}

@@ -3,9 +3,11 @@
 chromedriver) against a fresh `skein up --sim 3`:
 
 1. load the page, wait for the connection indicator `connected`, the load indicator and 3
-   vehicle rows;
+   vehicle rows; the Pre-flight tab shows every vehicle ready, and its RTK form takes a UDP
+   corrections source (this script sends pyrtcm's RTCM3 base station frames to it): the
+   source streams, the base station and every vehicle's corrections show, Stop idles it;
 2. Take off (10 m): all rows `Hovering` at 10 +- 1 m;
-3. Line (5 m): all rows `InFormation`; the plan view's markers are distinct and on a line
+3. Line (7 m): all rows `InFormation`; the plan view's markers are distinct and on a line
    along east (equal north / equal pixel y within tolerance);
 4. every shape is offered; Wedge behind the `virtual` leader, then the leader's Go to 15 m
    north: the formation status names both, and the markers follow the leader;
@@ -64,7 +66,7 @@ def parse_args():
     p.add_argument("--sim-stats", help="host:port of the simulator's stats socket: cut a link")
     p.add_argument("--vehicles", type=int, default=3, help="expected number of vehicles")
     p.add_argument("--altitude", type=float, default=10.0, help="takeoff altitude, m")
-    p.add_argument("--spacing", type=float, default=5.0, help="line spacing, m")
+    p.add_argument("--spacing", type=float, default=7.0, help="line spacing, m")
     p.add_argument("--timeout", type=float, default=45.0, help="deadline of each step, s")
     add_browser_args(p)
     return p.parse_args()
@@ -227,6 +229,7 @@ def run(args, driver, summary):
         return rows if ready else None
 
     summary["preflight"] = ui.wait("the pre-flight tab to show every vehicle ready", preflight)
+    summary["rtk"] = rtk_from_the_form(ui, n)
     ui.click("tab-swarm")
 
     # 2. Take off.
@@ -336,6 +339,39 @@ def run(args, driver, summary):
     summary["console_errors"] = [e.get("message") for e in errors]
     if errors:
         raise Failure(f"{len(errors)} console error(s): {summary['console_errors']}")
+
+
+def rtk_from_the_form(ui, n):
+    """Sets a UDP corrections source in the Pre-flight tab's RTK form, sends RTCM3 base
+    station frames (1005, made with pyrtcm by rtcm_base.py) to it until the page shows the
+    source streaming with the base station and corrections sent to all n vehicles; then
+    Stop: idle again. Returns what the page showed."""
+    import socket
+    from rtcm_base import ecef, frame, msg_1005
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    base = frame(msg_1005(7, ecef(47.3980, 8.5460, 520.0)), 1005)
+    ui.set_input("rtk-source", f"udp://127.0.0.1:{port}")
+    ui.d.find_element(By.CSS_SELECTOR, '[data-testid="rtk-form"] button[type="submit"]').click()
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+
+    def streaming(d):
+        tx.sendto(base, ("127.0.0.1", port))
+        shown = d.execute_script(
+            "return {state: document.querySelector('[data-testid=\"rtk-state\"]').dataset.state,"
+            " base: document.querySelector('[data-field=\"rtk-base\"]').textContent,"
+            " rows: [...document.querySelectorAll('tr[data-rtk-vehicle]')].map(tr => tr.cells[2].textContent)}")
+        ui.last = shown
+        fresh = len(shown["rows"]) == n and all(r.endswith("s old") for r in shown["rows"])
+        return shown if shown["state"] == "streaming" and "base station 7" in shown["base"] and fresh else None
+
+    shown = ui.wait("the RTK source streaming to every vehicle", streaming)
+    ui.click("rtk-stop")
+    ui.wait("the RTK source idle after Stop", lambda d: d.find_element(
+        By.CSS_SELECTOR, '[data-testid="rtk-state"]').get_attribute("data-state") == "idle")
+    return shown
 
 
 def sim_link(addr, sysid, loss):

@@ -3,7 +3,7 @@ from ros2/skein_msgs by ROS 2's own generators (tests/peers/ros2/setup.sh), run 
 .venv-ros2 with the environment of .venv-ros2/skein.env.
 
 Usage: ros2_peer.py read --api URL --vehicles uav-1,uav-2 --node NAME[,NAME] [--seconds S]
-                          [--standard-only]
+                          [--standard-only] [--rtcm]
        ros2_peer.py command --api URL --vehicle uav-1
        ros2_peer.py serialise --samples FILE
 
@@ -14,7 +14,10 @@ counts each topic's samples over S seconds, compares what it read with skein's H
 (poses, fixes, batteries, states; /tf against the poses; /tf_static against the swarm
 origin), and checks that nothing reads /skein/<vehicle>/command (skein without
 --dds-commands). With --standard-only, only the topics of ROS 2's standard messages
-(pose, navsat, battery): a distribution without skein_msgs and tf2_msgs built.
+(pose, navsat, battery): a distribution without skein_msgs and tf2_msgs built. With
+--rtcm, also the RTK corrections on /skein/rtcm (rtcm_msgs/Message, default QoS), each
+sample checked as an RTCM3 frame (preamble, length, CRC-24Q) and counted by message
+number.
 
 `command` commands one vehicle through skein_msgs/Command and its CommandResult: an
 unknown command and a land on the ground (both refused, with the reason), then arm,
@@ -113,6 +116,42 @@ class Seen:
         return (self.count - 1) / (self.last_at - self.first)
 
 
+def crc24q(data):
+    """RTCM 10403's CRC-24Q of `data`."""
+    crc = 0
+    for b in data:
+        crc ^= b << 16
+        for _ in range(8):
+            crc <<= 1
+            if crc & 0x1000000:
+                crc ^= 0x1864CFB
+    return crc & 0xFFFFFF
+
+
+class Rtcm:
+    """The RTCM3 frames of /skein/rtcm: how many, by message number, and how many are no
+    whole frame with a good CRC."""
+
+    def __init__(self):
+        self.count = 0
+        self.types = {}
+        self.bad = 0
+
+    def __call__(self, msg):
+        frame = bytes(msg.message)
+        self.count += 1
+        length = ((frame[1] & 0x03) << 8 | frame[2]) if len(frame) >= 3 else -1
+        if (len(frame) < 8 or frame[0] != 0xD3 or len(frame) != length + 6
+                or crc24q(frame[:-3]) != int.from_bytes(frame[-3:], "big")):
+            self.bad += 1
+            return
+        t = str(frame[3] << 4 | frame[4] >> 4)
+        self.types[t] = self.types.get(t, 0) + 1
+
+    def report(self):
+        return {"count": self.count, "types": self.types, "bad": self.bad}
+
+
 def ecef(lat_deg, lon_deg, alt_m):
     """WGS84 geodetic to ECEF, metres."""
     a, f = 6378137.0, 1 / 298.257223563
@@ -176,6 +215,13 @@ def read(args):
         node.create_subscription(TFMessage, "/tf", on_tf, TF_QOS)
         commands = node.create_publisher(
             Command, f"/skein/{ros_name(vehicles[0])}/command", 10)
+    rtcm = Rtcm()
+    if args.rtcm:
+        from rtcm_msgs.msg import Message
+
+        sub(Message, "/skein/rtcm", 10)
+        node.create_subscription(Message, "/skein/rtcm", rtcm, 10)
+        expected_types["/skein/rtcm"] = "rtcm_msgs/msg/Message"
 
     # 1. The graph: skein's nodes, and every topic with its type (the graph names the
     # types of skein_msgs even where they are not built).
@@ -261,6 +307,8 @@ def read(args):
             # stays unmatched though skein's other endpoints were found seconds ago.
             "command_readers": commands.get_subscription_count(),
         })
+    if args.rtcm:
+        report["rtcm"] = rtcm.report()
     print(json.dumps(report), flush=True)
 
 
@@ -511,6 +559,7 @@ def main():
     r.add_argument("--seconds", type=float, default=4.0)
     r.add_argument("--timeout", type=float, default=60.0)
     r.add_argument("--standard-only", action="store_true")
+    r.add_argument("--rtcm", action="store_true")
     c = sub.add_parser("command")
     c.add_argument("--api", required=True)
     c.add_argument("--vehicle", required=True)

@@ -14,7 +14,8 @@
 //!   election on `/skein/coordinator`, `skein coordinator`), [`remote`] (a coordinator's
 //!   remote vehicles), [`mirror`] (the formation a standby resumes) and [`agent`] (an
 //!   agent's vehicles obeying the active coordinator, `skein agent`, riding through its
-//!   silences with [`ride`]);
+//!   silences with [`ride`]), [`rtcm`] (RTK corrections relayed from the active
+//!   coordinator to the agents on `/skein/rtcm`);
 //! - [`clocks`]: the clock exchange, so that stamps from another host are aged in this
 //!   process's clock;
 //! - [`envelope`] and [`reframe`]: the swarm protocol's envelope between coordinators
@@ -56,6 +57,7 @@ pub mod remote;
 pub mod ride;
 #[cfg(test)]
 mod role_tests;
+pub mod rtcm;
 pub mod security;
 pub mod swarm_adapter;
 pub mod tf;

@@ -4,10 +4,12 @@
 //! [`DdsRoles::new`] joins the domain ([`Ros2Carrier`]) and opens each role's topics:
 //! every process publishes its vehicles ([`crate::vehicles`]) and their TF frames
 //! ([`crate::tf`]); a candidate runs the election ([`crate::lease`]), steers the agents'
-//! vehicles ([`crate::remote`]) and mirrors the formation ([`crate::mirror`]); an agent
-//! obeys the active coordinator ([`crate::agent`]); candidates and agents exchange clock
-//! samples ([`crate::clocks`]). Each role gets its own topics and the [`SwarmAdapter`] as
-//! its context; the roles share nothing else but the counters and the peers' clocks
+//! vehicles ([`crate::remote`]), mirrors the formation ([`crate::mirror`]) and, while
+//! active, relays its RTK corrections ([`crate::rtcm`], as `skein up --dds` does); an
+//! agent obeys the active coordinator ([`crate::agent`]) and takes the relayed
+//! corrections; candidates and agents exchange clock samples ([`crate::clocks`]). Each
+//! role gets its own topics and the [`SwarmAdapter`] (the relay: the process's
+//! corrections service) as its context; the roles share nothing else but the counters and the peers' clocks
 //! (estimated by the clock exchange, used to age the others' stamps). What outlives a restart of
 //! the service (`coordinator/dds`, restart policy `[supervision.dds]`) is the roles'
 //! state: the participant (so peers need not rediscover it), the topics, the election,
@@ -30,11 +32,13 @@ use crate::interfaces;
 use crate::lease::{Candidate, ElectionLink};
 use crate::mirror::{self, Mirror};
 use crate::remote::{self, Remotes};
+use crate::rtcm::{self, RtcmPublisher, RtcmReceiver};
 use crate::swarm_adapter::SwarmAdapter;
 use crate::tf::{self, Tf, TfConfig};
 use crate::vehicles::{self, Vehicles};
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
 use skein_model::supervision::ChildKind;
+use skein_rtk::RtkService;
 use skein_swarm::clocks::PeerClocks;
 use skein_swarm::election::ElectionStatus;
 use skein_swarm::link_security::LinkSecurity;
@@ -77,12 +81,13 @@ pub struct DdsConfig {
 }
 
 /// A candidate's roles: the election, the remote vehicles, the formation mirror, the
-/// clock exchange.
+/// clock exchange, the corrections relay.
 struct CandidateRoles {
     election: Arc<ElectionLink>,
     remotes: Arc<Remotes>,
     mirror: Arc<Mirror>,
     clocks: Arc<Clocks>,
+    rtcm: Option<Arc<RtcmPublisher>>,
 }
 
 /// The roles of this process, with their topics on one DDS participant (see the module
@@ -103,20 +108,60 @@ pub struct DdsRoles {
     peer_clocks: Arc<PeerClocks>,
     /// Under DDS Security, a candidate's record of who its remote vehicles' agents are.
     link_security: Option<Arc<LinkSecurity>>,
+    /// This process's RTK corrections, relayed by [`crate::rtcm`].
+    rtk: Arc<RtkService>,
 }
 
 /// The roles on a participant that may be replaced: this process's vehicles and their
-/// TF frames, and an agent's obedience to the active coordinator and clock exchange.
+/// TF frames, an agent's obedience to the active coordinator, clock exchange and relayed
+/// corrections, and the corrections relay of `skein up --dds`.
 struct LocalRoles {
     vehicles: Arc<Vehicles<Ros2Carrier>>,
     tf: Arc<Tf>,
     agent: Option<Arc<Agent>>,
     clocks: Option<Arc<Clocks>>,
+    rtcm_in: Option<Arc<RtcmReceiver>>,
+    rtcm_out: Option<Arc<RtcmPublisher>>,
+}
+
+/// The corrections relay's local side: an agent takes the relayed corrections (a
+/// receiver); `skein up --dds`, no candidate, always relays its own (a publisher); a
+/// candidate relays them while active (`CandidateRoles`).
+type LocalRtcm = (Option<Arc<RtcmReceiver>>, Option<Arc<RtcmPublisher>>);
+
+/// Opens the local side of the corrections relay (see [`LocalRtcm`]).
+fn open_rtcm(carrier: &Ros2Carrier, config: &DdsConfig, counters: &Arc<DdsCounters>) -> LocalRtcm {
+    match (&config.agent, &config.candidate) {
+        (Some(_), _) => (
+            without_relay(RtcmReceiver::open(carrier, counters)).map(Arc::new),
+            None,
+        ),
+        (None, None) => (
+            None,
+            without_relay(RtcmPublisher::open(carrier, counters)).map(Arc::new),
+        ),
+        (None, Some(_)) => (None, None),
+    }
+}
+
+/// The corrections relay's side `opened`, or `None`, said in the log, when it could not
+/// be: the rest of the link runs without it. Under DDS Security that is an enclave made
+/// before skein relayed corrections, whose permissions do not grant `/skein/rtcm`.
+fn without_relay<T>(opened: Result<T, DdsError>) -> Option<T> {
+    opened
+        .map_err(|e| {
+            tracing::error!(
+                "dds: no RTK corrections relay on {}: {e} (under DDS Security: make this \
+                 enclave again, its permissions predate the topic)",
+                crate::topics::rtcm()
+            );
+        })
+        .ok()
 }
 
 impl LocalRoles {
-    /// Opens the vehicles', their TF frames' and the agent's topics on `carrier`; the
-    /// agent's stamps are aged with `peer_clocks`.
+    /// Opens the vehicles', their TF frames', the agent's and the corrections relay's
+    /// topics on `carrier`; the agent's stamps are aged with `peer_clocks`.
     fn open(
         carrier: Arc<Ros2Carrier>,
         config: &DdsConfig,
@@ -151,6 +196,7 @@ impl LocalRoles {
             },
             Box::new(move |id: &str| remotes_tf.as_ref().is_some_and(|r| r.contains(id))),
         )?;
+        let (rtcm_in, rtcm_out) = open_rtcm(carrier.as_ref(), config, counters);
         let vehicles = Vehicles::open(
             carrier,
             counters,
@@ -163,11 +209,13 @@ impl LocalRoles {
             tf: Arc::new(tf),
             agent,
             clocks,
+            rtcm_in,
+            rtcm_out,
         })
     }
 
-    /// Spawns their tasks into `tasks`.
-    fn spawn(&self, tasks: &mut JoinSet<()>, swarm: &Arc<SwarmAdapter>) {
+    /// Spawns their tasks into `tasks`; the relayed corrections go to and come from `rtk`.
+    fn spawn(&self, tasks: &mut JoinSet<()>, swarm: &Arc<SwarmAdapter>, rtk: &Arc<RtkService>) {
         tasks.spawn(vehicles::run(self.vehicles.clone(), swarm.clone()));
         tasks.spawn(tf::run(self.tf.clone(), swarm.clone()));
         if let Some(a) = &self.agent {
@@ -176,12 +224,19 @@ impl LocalRoles {
         if let Some(c) = &self.clocks {
             tasks.spawn(clocks::run(c.clone()));
         }
+        if let Some(r) = &self.rtcm_in {
+            tasks.spawn(rtcm::receive(r.clone(), rtk.clone()));
+        }
+        if let Some(p) = &self.rtcm_out {
+            tasks.spawn(rtcm::publish(p.clone(), None, rtk.clone()));
+        }
     }
 }
 
 impl DdsRoles {
     /// Joins the domain and opens the roles' topics; the roles reach `coordinator`, its
-    /// `metrics` and its event bus `events` through the [`SwarmAdapter`].
+    /// `metrics` and its event bus `events` through the [`SwarmAdapter`], and this
+    /// process's RTK corrections `rtk` ([`crate::rtcm`]).
     ///
     /// # Errors
     /// The participant, node or a topic could not be created (sockets, names).
@@ -190,6 +245,7 @@ impl DdsRoles {
         coordinator: ActorRef<CoordinatorMsg>,
         metrics: Arc<Metrics>,
         events: broadcast::Sender<SwarmEvent>,
+        rtk: Arc<RtkService>,
     ) -> Result<Arc<DdsRoles>, DdsError> {
         let carrier = Arc::new(Ros2Carrier::join(
             config.domain_id,
@@ -226,6 +282,7 @@ impl DdsRoles {
                     peer_clocks.clone(),
                     &counters,
                 )?),
+                rtcm: without_relay(RtcmPublisher::open(carrier.as_ref(), &counters)).map(Arc::new),
             }),
             None => None,
         };
@@ -241,6 +298,7 @@ impl DdsRoles {
             local: Mutex::new(Arc::new(local)),
             peer_clocks,
             link_security,
+            rtk,
         }))
     }
 
@@ -289,8 +347,11 @@ impl DdsRoles {
                 status.clone(),
                 swarm.clone(),
             ));
-            tasks.spawn(mirror::run(c.mirror.clone(), status, swarm.clone()));
+            tasks.spawn(mirror::run(c.mirror.clone(), status.clone(), swarm.clone()));
             tasks.spawn(clocks::run(c.clocks.clone()));
+            if let Some(p) = &c.rtcm {
+                tasks.spawn(rtcm::publish(p.clone(), Some(status), self.rtk.clone()));
+            }
         }
         let (swarm, counters) = (swarm.clone(), self.counters.clone());
         let period = self.publish_period;
@@ -315,7 +376,7 @@ impl DdsRoles {
                 .unwrap_or_else(PoisonError::into_inner)
                 .clone();
             let mut tasks = JoinSet::new();
-            local.spawn(&mut tasks, &self.swarm);
+            local.spawn(&mut tasks, &self.swarm, &self.rtk);
             let now = loop {
                 tokio::time::sleep(INTERFACE_POLL).await;
                 let first = interfaces::current_on(&self.networks);

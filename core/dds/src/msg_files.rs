@@ -1,10 +1,11 @@
 //! The Rust message types checked against the `.msg` files of `ros2/skein_msgs/msg/`,
-//! where skein's messages are defined once: every `skein_msgs` sample of
-//! [`crate::msg_samples`] is walked by a recording serde serializer (field names, CDR
-//! primitive types, arrays and sequences, nested messages in order) and compared with
-//! its `.msg` file, read at test time. A field added, removed, renamed, retyped or moved
-//! on one side only fails here, without ROS installed; `tests/e2e_ros2.rs` compares the
-//! bytes with the rosidl-generated types.
+//! where skein's messages are defined once, and against those of the standard packages
+//! the repository carries for the ROS 2 peers (`tests/peers/ros2/<package>/msg/`:
+//! `tf2_msgs`, `rtcm_msgs`): every such sample of [`crate::msg_samples`] is walked by a
+//! recording serde serializer (field names, CDR primitive types, arrays and sequences,
+//! nested messages in order) and compared with its `.msg` file, read at test time. A
+//! field added, removed, renamed, retyped or moved on one side only fails here, without
+//! ROS installed; `tests/e2e_ros2.rs` compares the bytes with the rosidl-generated types.
 
 use crate::msg_samples::{SampleVisitor, visit_all};
 use crate::msgs::RosMessage;
@@ -246,9 +247,9 @@ impl ser::SerializeStruct for Compound {
     }
 }
 
-/// The definitions of the standard messages `skein_msgs` uses (ROS 2 Jazzy's
+/// The definitions of the standard messages the checked ones use (ROS 2 Jazzy's
 /// `common_interfaces` and `rcl_interfaces`): no ROS installation is needed here.
-const STANDARD: [(&str, &str); 4] = [
+const STANDARD: [(&str, &str); 7] = [
     ("builtin_interfaces/Time", "int32 sec\nuint32 nanosec"),
     (
         "std_msgs/Header",
@@ -256,26 +257,61 @@ const STANDARD: [(&str, &str); 4] = [
     ),
     ("geometry_msgs/Point", "float64 x\nfloat64 y\nfloat64 z"),
     ("geometry_msgs/Vector3", "float64 x\nfloat64 y\nfloat64 z"),
+    (
+        "geometry_msgs/Quaternion",
+        "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1",
+    ),
+    (
+        "geometry_msgs/Transform",
+        "Vector3 translation\nQuaternion rotation",
+    ),
+    (
+        "geometry_msgs/TransformStamped",
+        "std_msgs/Header header\nstring child_frame_id\nTransform transform",
+    ),
 ];
 
-/// `ros2/skein_msgs/msg/`.
-fn msg_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../ros2/skein_msgs/msg")
+/// The repository's root.
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// Every definition by `package/Type`: the `.msg` files of `skein_msgs` and [`STANDARD`].
+/// The standard packages carried for the ROS 2 peers, by name: `tests/peers/ros2/<name>/`.
+fn carried_packages() -> Vec<String> {
+    let dir = root().join("tests/peers/ros2");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .expect("tests/peers/ros2")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.join("msg").is_dir())
+        .map(|p| p.file_name().unwrap().to_string_lossy().to_string())
+        .collect();
+    names.sort();
+    names
+}
+
+/// Adds the `.msg` files of `dir` to `defs` as `package/Type`.
+fn read_msg_dir(defs: &mut BTreeMap<String, String>, package: &str, dir: &std::path::Path) {
+    for entry in std::fs::read_dir(dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())) {
+        let path = entry.expect("a directory entry").path();
+        if path.extension().is_some_and(|e| e == "msg") {
+            let name = path.file_stem().unwrap().to_string_lossy().to_string();
+            let text = std::fs::read_to_string(&path).expect("a .msg file");
+            defs.insert(format!("{package}/{name}"), text);
+        }
+    }
+}
+
+/// Every definition by `package/Type`: the `.msg` files of `ros2/skein_msgs`, those of
+/// the carried packages, and [`STANDARD`].
 fn definitions() -> BTreeMap<String, String> {
     let mut defs: BTreeMap<String, String> = STANDARD
         .iter()
         .map(|(k, v)| (k.to_string(), v.to_string()))
         .collect();
-    for entry in std::fs::read_dir(msg_dir()).expect("ros2/skein_msgs/msg") {
-        let path = entry.expect("a directory entry").path();
-        if path.extension().is_some_and(|e| e == "msg") {
-            let name = path.file_stem().unwrap().to_string_lossy().to_string();
-            let text = std::fs::read_to_string(&path).expect("a .msg file");
-            defs.insert(format!("skein_msgs/{name}"), text);
-        }
+    read_msg_dir(&mut defs, "skein_msgs", &root().join("ros2/skein_msgs/msg"));
+    for package in carried_packages() {
+        let dir = root().join("tests/peers/ros2").join(&package).join("msg");
+        read_msg_dir(&mut defs, &package, &dir);
     }
     defs
 }
@@ -360,37 +396,43 @@ fn compare(
     diffs
 }
 
-/// Collects each `skein_msgs` sample's shape.
-#[derive(Default)]
-struct Shapes(Vec<(String, Result<Shape, String>)>);
+/// Collects the shape of each sample of package `.0`.
+struct Shapes(String, Vec<(String, Result<Shape, String>)>);
 
 impl SampleVisitor for Shapes {
     fn sample<M: RosMessage>(&mut self, m: &M) {
         let (pkg, ty) = M::TYPE;
-        if pkg == "skein_msgs" {
+        if pkg == self.0 {
             let shape = m.serialize(Recorder).map_err(|e| e.to_string());
-            self.0.push((ty.to_string(), shape));
+            self.1.push((ty.to_string(), shape));
         }
+    }
+}
+
+impl Shapes {
+    fn of(package: &str) -> Self {
+        let mut shapes = Shapes(package.to_string(), vec![]);
+        visit_all(&mut shapes);
+        shapes
     }
 }
 
 #[test]
 fn every_skein_msgs_type_matches_its_msg_file() {
     let defs = definitions();
-    let mut shapes = Shapes::default();
-    visit_all(&mut shapes);
+    let shapes = Shapes::of("skein_msgs");
     let files: Vec<&str> = defs
         .keys()
         .filter_map(|k| k.strip_prefix("skein_msgs/"))
         .collect();
-    let checked: Vec<&str> = shapes.0.iter().map(|(t, _)| t.as_str()).collect();
+    let checked: Vec<&str> = shapes.1.iter().map(|(t, _)| t.as_str()).collect();
     let mut sorted = checked.clone();
     sorted.sort();
     assert_eq!(
         sorted, files,
         "a sample for every .msg file, and a file for every sample"
     );
-    for (ty, shape) in &shapes.0 {
+    for (ty, shape) in &shapes.1 {
         let shape = shape.as_ref().unwrap_or_else(|e| panic!("{ty}: {e}"));
         let diffs = compare(&defs, "skein_msgs", ty, shape, ty);
         assert!(diffs.is_empty(), "{}", diffs.join("\n"));
@@ -398,11 +440,33 @@ fn every_skein_msgs_type_matches_its_msg_file() {
 }
 
 #[test]
+fn every_type_of_a_carried_package_matches_its_msg_file() {
+    let defs = definitions();
+    let packages = carried_packages();
+    assert_eq!(packages, ["rtcm_msgs", "tf2_msgs"]);
+    for package in &packages {
+        let shapes = Shapes::of(package);
+        let prefix = format!("{package}/");
+        let files: Vec<&str> = defs
+            .keys()
+            .filter_map(|k| k.strip_prefix(&prefix))
+            .collect();
+        let mut checked: Vec<&str> = shapes.1.iter().map(|(t, _)| t.as_str()).collect();
+        checked.sort();
+        assert_eq!(checked, files, "{package}: a sample for every .msg file");
+        for (ty, shape) in &shapes.1 {
+            let shape = shape.as_ref().unwrap_or_else(|e| panic!("{ty}: {e}"));
+            let diffs = compare(&defs, package, ty, shape, &format!("{package}/{ty}"));
+            assert!(diffs.is_empty(), "{}", diffs.join("\n"));
+        }
+    }
+}
+
+#[test]
 fn a_drifted_field_is_named() {
     let defs = definitions();
-    let mut shapes = Shapes::default();
-    visit_all(&mut shapes);
-    let (_, shape) = shapes.0.iter().find(|(t, _)| t == "Command").unwrap();
+    let shapes = Shapes::of("skein_msgs");
+    let (_, shape) = shapes.1.iter().find(|(t, _)| t == "Command").unwrap();
     let Ok(Shape::Msg(mut f)) = shape.clone() else {
         panic!("Command is a message")
     };

@@ -44,7 +44,7 @@ fn track() -> Track {
 }
 
 /// Hands `v` one sample of every type: skein's own (`skein_msgs/*`, every one of
-/// `ros2/skein_msgs/msg/`) and the standard ones skein publishes.
+/// `ros2/skein_msgs/msg/`) and the standard ones skein publishes or reads.
 pub fn visit_all(v: &mut impl SampleVisitor) {
     v.sample(&VehicleState {
         header: header("skein_swarm"),
@@ -163,5 +163,11 @@ pub fn visit_all(v: &mut impl SampleVisitor) {
                 },
             },
         }],
+    });
+    v.sample(&RtcmMessage {
+        header: header(""),
+        // An RTCM3 frame's head (preamble, length 19, message 1005) and a made-up tail:
+        // the bytes are data to the message type.
+        message: vec![0xD3, 0x00, 0x13, 0x3E, 0xD0, 0x07, 0xFF, 0x80, 0x01, 0x02],
     });
 }

@@ -5,7 +5,9 @@
 //! - ROS 2 standard messages skein publishes: `std_msgs/Header`,
 //!   `geometry_msgs/{Point, Vector3, Quaternion, Pose, PoseStamped, Transform,
 //!   TransformStamped}`, `sensor_msgs/{NavSatStatus, NavSatFix, BatteryState}`,
-//!   `tf2_msgs/TFMessage` (Jazzy definitions).
+//!   `tf2_msgs/TFMessage` (Jazzy definitions), and `rtcm_msgs/Message` (RTK corrections,
+//!   the type ROS 2's `ntrip_client` publishes; its definition is carried in
+//!   `tests/peers/ros2/rtcm_msgs/`).
 //! - skein's own messages (`skein_msgs/*`), defined by the `.msg` files of the ROS 2
 //!   interface package `ros2/skein_msgs/msg/`: [`VehicleState`], [`Command`],
 //!   [`CommandResult`], [`Track`], [`Tracks`], [`CoordinatorLease`], [`SwarmMessage`]. A
@@ -386,4 +388,18 @@ pub struct TfMessage {
 
 impl RosMessage for TfMessage {
     const TYPE: (&'static str, &'static str) = ("tf2_msgs", "TFMessage");
+}
+
+/// `rtcm_msgs/Message` (rtcm_msgs 1.1, `msg/Message.msg`): one RTCM3 message, on
+/// `/skein/rtcm` ([`crate::rtcm`]); what ROS 2's `ntrip_client` publishes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RtcmMessage {
+    /// When it left the source; frame_id empty (an RTCM message has no frame).
+    pub header: Header,
+    /// The whole RTCM3 frame: preamble `0xD3`, length, message, CRC-24Q.
+    pub message: Vec<u8>,
+}
+
+impl RosMessage for RtcmMessage {
+    const TYPE: (&'static str, &'static str) = ("rtcm_msgs", "Message");
 }

@@ -17,6 +17,7 @@
 //! | `/skein/swarm/events` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | per vehicle event |
 //! | `/skein/formation` | `skein_msgs/SwarmMessage` | reliable, transient-local, keep-last 1 | 5 Hz from the active coordinator |
 //! | `/skein/swarm/clock` | `skein_msgs/SwarmMessage` | best-effort, volatile, keep-last 64 | 2 Hz per coordinator and agent |
+//! | `/skein/rtcm` | `rtcm_msgs/Message` | reliable, volatile, keep-last 16 | every RTCM frame of the active coordinator's source (a base: 5–15 a second) |
 //! | `/tf` | `tf2_msgs/TFMessage` | reliable, volatile, keep-last 1 | publish rate |
 //! | `/tf_static` | `tf2_msgs/TFMessage` | reliable, transient-local, keep-last 1 | once the swarm frame is anchored |
 //!
@@ -51,6 +52,19 @@
 //! Those skein-to-skein topics, and the leases, stay best-effort: a ROS 2 tool reads them
 //! with a best-effort subscriber (`ros2 topic echo` picks one by itself), a default
 //! reliable one gets nothing.
+//!
+//! `/skein/rtcm` carries RTK corrections from the active coordinator to the agents
+//! ([`crate::rtcm`]), one RTCM3 frame a sample. Reliable, so that a frame lost on a WLAN
+//! is repaired (a lost observation frame costs every receiver that epoch of one
+//! constellation), and so that it interoperates both ways with ROS 2's own tools: a
+//! default `rclpy`/`rclcpp` subscriber (reliable) reads it, and ROS 2's `ntrip_client`
+//! (a default reliable publisher, keep-last 10) feeds the agents when remapped onto it
+//! (a best-effort writer would match neither default readers nor skein's). Keep-last 16,
+//! about one second of a four-constellation base (1005, four MSM, 1230, 1033 …): a frame
+//! is repaired while it is among the newest 16 and given up after, for corrections are
+//! stale after seconds and a frame of the next epoch supersedes it; a queue of older
+//! frames would only delay the fresh ones. Volatile: an agent that joins late wants the
+//! next epoch, not the last ones.
 //!
 //! Each row is a [`TopicSpec`] made by one function here ([`pose`], [`swarm_report`] …);
 //! the roles open their topics from these, on DDS or on the in-memory carrier of the
@@ -172,6 +186,11 @@ pub fn formation() -> TopicSpec {
     TopicSpec::new(NAMESPACE, "formation", formation_mirror())
 }
 
+/// `/skein/rtcm`: the active coordinator's RTK corrections, for the agents ([`crate::rtcm`]).
+pub fn rtcm() -> TopicSpec {
+    TopicSpec::new(NAMESPACE, "rtcm", corrections())
+}
+
 /// `/tf`: the vehicles' frames in the swarm frame ([`crate::tf`]).
 pub fn tf() -> TopicSpec {
     TopicSpec::new("/", "tf", latest_state())
@@ -265,6 +284,15 @@ pub fn formation_mirror() -> QosProfile {
         .history(History::KeepLast { depth: 1 })
 }
 
+/// RTK corrections (`/skein/rtcm`): reliable, volatile, keep-last 16 (see the module
+/// docs).
+pub fn corrections() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Wait(std::time::Duration::from_millis(20)))
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 16 })
+}
+
 /// Commands and their results: reliable, volatile, keep-last 16.
 pub fn commands() -> QosProfile {
     QosProfile::publisher_default()
@@ -287,6 +315,7 @@ mod tests {
         assert_eq!(swarm_report().to_string(), "/skein/swarm/report");
         assert_eq!(tf().to_string(), "/tf");
         assert_eq!(tf_static().to_string(), "/tf_static");
+        assert_eq!(rtcm().to_string(), "/skein/rtcm");
         assert_eq!(same_ros_name(["uav-1", "uav-2"], "uav.1"), Some("uav-1"));
         assert_eq!(same_ros_name(["uav-1", "uav-2"], "uav-1"), None);
         assert_eq!(same_ros_name(["uav-1"], "uav-3"), None);

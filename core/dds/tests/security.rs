@@ -3,13 +3,14 @@
 //! commands, reports; a lease from an unenrolled coordinator: `tests/e2e_dds_security.rs`); a participant
 //! without a certificate, or with one from another keystore's CA, neither reaches them
 //! nor reads them, and each is counted as refused; a viewer reads targets and poses; an expired enclave does
-//! not join; a role's permissions refuse a writer its role does not grant.
+//! not join; a role's permissions refuse a writer its role does not grant (an agent's of
+//! RTK corrections too, which it may read).
 
 use ros2_client::builtin_interfaces::Time;
 use skein_dds::carrier::ros2::Ros2Carrier;
 use skein_dds::carrier::{Carrier, Reader, Writer};
 use skein_dds::envelope::Envelope;
-use skein_dds::msgs::{Header, Point, Pose, PoseStamped, Quaternion, SwarmMessage};
+use skein_dds::msgs::{Header, Point, Pose, PoseStamped, Quaternion, RtcmMessage, SwarmMessage};
 use skein_dds::security::keystore::{Validity, create_enclave, create_keystore};
 use skein_dds::security::refusals::{self, Reason};
 use skein_dds::security::{DdsSecurity, Role, identity_of};
@@ -292,6 +293,17 @@ fn enrolled_participants_talk_and_nobody_else_reaches_or_reads_them() {
     assert!(
         v.reader::<SwarmMessage>(&topics::swarm_target()).is_ok(),
         "viewers read"
+    );
+    // RTK corrections: the coordinator writes them, an agent only reads them.
+    let rtcm = topics::rtcm();
+    match a.writer::<RtcmMessage>(&rtcm) {
+        Ok(_) => panic!("an agent's writer of {rtcm} was allowed"),
+        Err(e) => assert!(e.to_string().contains("not allowed"), "{e}"),
+    }
+    assert!(a.reader::<RtcmMessage>(&rtcm).is_ok(), "agents read {rtcm}");
+    assert!(
+        c.writer::<RtcmMessage>(&rtcm).is_ok(),
+        "coordinators write {rtcm}"
     );
 }
 

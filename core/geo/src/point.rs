@@ -51,6 +51,14 @@ impl GeoPoint {
         [x, y, z]
     }
 
+    /// The point at earth-centred, earth-fixed `[x, y, z]` metres (WGS84; RTCM's
+    /// reference station coordinates); the altitude is the ellipsoid height.
+    pub fn from_ecef(ecef_m: [f64; 3]) -> Self {
+        let (lat, lon, alt) =
+            map_3d::ecef2geodetic(ecef_m[0], ecef_m[1], ecef_m[2], map_3d::Ellipsoid::WGS84);
+        Self::new(lat.to_degrees(), lon.to_degrees(), alt)
+    }
+
     /// The MAVLink integer encoding `(lat degE7, lon degE7, alt mm)`.
     pub fn to_mavlink(&self) -> (i32, i32, i32) {
         (
@@ -83,6 +91,15 @@ mod tests {
         let [x, y, z] = GeoPoint::new(90.0, 0.0, 100.0).to_ecef();
         assert!(x.abs() < 1e-6 && y.abs() < 1e-6, "{x} {y}");
         assert!((z - 6_356_852.314_245).abs() < 1e-3, "{z}");
+    }
+
+    #[test]
+    fn ecef_round_trips() {
+        let base = GeoPoint::new(-33.868_82, 151.209_29, 58.3);
+        let back = GeoPoint::from_ecef(base.to_ecef());
+        assert!((back.lat_deg - base.lat_deg).abs() < 1e-9, "{back:?}");
+        assert!((back.lon_deg - base.lon_deg).abs() < 1e-9, "{back:?}");
+        assert!((back.alt_amsl_m - base.alt_amsl_m).abs() < 1e-4, "{back:?}");
     }
 
     #[test]

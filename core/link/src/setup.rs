@@ -70,6 +70,20 @@ pub struct LinkSetup {
     /// (`[remote_id]`); none: nothing sent.
     #[serde(default)]
     pub remote_id: Option<crate::remote_id::RemoteIdConfig>,
+    /// The process's reader of `remote_id`'s `operator_gnss` (one per process, shared by
+    /// every vehicle's link, which reads its latest fix without waiting); none: no live
+    /// operator location.
+    #[serde(skip)]
+    pub operator_gnss: Option<skein_gnss::GnssReader>,
+    /// Where PX4's component metadata (the events metadata) is cached, by CRC: a vehicle
+    /// whose firmware's metadata is there is not asked for it again; none: read from
+    /// every vehicle at every connection.
+    #[serde(default)]
+    pub metadata_cache_dir: Option<std::path::PathBuf>,
+    /// The byte-rate cap shared by every flight-log download of the process (`[logs]
+    /// max_bytes_s`; see [`crate::log_bandwidth`]); default none.
+    #[serde(default)]
+    pub log_bandwidth: crate::log_bandwidth::LogBandwidth,
 }
 
 /// `MAV_CMD_SET_MESSAGE_INTERVAL` param2 for a rate: microseconds, or -1 to disable.

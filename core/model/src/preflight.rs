@@ -5,7 +5,7 @@
 
 use crate::fsm::VehicleState;
 use crate::geofence::FenceSyncState;
-use crate::vehicle::VehicleSnapshot;
+use crate::vehicle::{OperatorLocationSource, RemoteIdStatus, VehicleSnapshot};
 use serde::Serialize;
 
 /// PX4's `BAT_LOW_THR` default (15 %): below it PX4 warns of a low battery, and a
@@ -14,6 +14,10 @@ pub const BATTERY_LOW_PERCENT: f64 = 15.0;
 
 /// The `GPS_FIX_TYPE` a flight needs: 3 (3D fix).
 pub const FIX_3D: u8 = 3;
+
+/// RTK corrections older than this are stale (a receiver drops from RTK fixed to float
+/// within seconds of losing them): the `gnss` check warns.
+pub const CORRECTIONS_STALE_S: f64 = 10.0;
 
 /// The outcome of one check.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, utoipa::ToSchema)]
@@ -102,8 +106,12 @@ fn state(v: &VehicleSnapshot) -> PreflightCheck {
     )
 }
 
-/// PX4's arming checks (`SYS_STATUS` `PREARM_CHECK`), with what PX4 last said.
+/// PX4's arming checks: each by name from its events' report where PX4 sends one
+/// ([`px4_arming_by_name`]), else `SYS_STATUS`'s `PREARM_CHECK` with what PX4 last said.
 fn px4_arming(v: &VehicleSnapshot) -> PreflightCheck {
+    if !v.px4_arming_checks.is_empty() {
+        return px4_arming_by_name(v);
+    }
     let said: Vec<&str> = v.px4_messages.iter().map(|m| m.text.as_str()).collect();
     let said = if said.is_empty() {
         String::new()
@@ -121,6 +129,43 @@ fn px4_arming(v: &VehicleSnapshot) -> PreflightCheck {
     }
 }
 
+/// PX4's checks by name: those that prevent arming in the current mode fail
+/// (`"fail: Open Drone ID system missing"`), the others are listed after them; only
+/// warnings or worse that prevent nothing warn.
+fn px4_arming_by_name(v: &VehicleSnapshot) -> PreflightCheck {
+    let (failing, other): (Vec<_>, Vec<_>) =
+        v.px4_arming_checks.iter().partition(|c| c.prevents_arming);
+    let names = |cs: &[&crate::vehicle::Px4ArmingCheck]| {
+        cs.iter()
+            .map(|c| format!("{} ({})", c.message, c.severity))
+            .collect::<Vec<_>>()
+            .join("; ")
+    };
+    let serious = |c: &&crate::vehicle::Px4ArmingCheck| {
+        matches!(
+            c.severity.as_str(),
+            "emergency" | "alert" | "critical" | "error" | "warning"
+        )
+    };
+    if !failing.is_empty() {
+        let mut detail = format!("fail: {}", names(&failing));
+        if !other.is_empty() {
+            detail.push_str(&format!("; also: {}", names(&other)));
+        }
+        return check("px4_arming_checks", CheckState::Fail, detail);
+    }
+    let state = if other.iter().any(serious) {
+        CheckState::Warn
+    } else {
+        CheckState::Ok
+    };
+    check(
+        "px4_arming_checks",
+        state,
+        format!("pass; reported: {}", names(&other)),
+    )
+}
+
 fn home(v: &VehicleSnapshot) -> PreflightCheck {
     match &v.home {
         Some(h) => check(
@@ -136,22 +181,30 @@ fn gnss(v: &VehicleSnapshot) -> PreflightCheck {
     let Some(g) = v.gps else {
         return check("gnss", CheckState::Fail, "no GPS_RAW_INT yet");
     };
-    let fix = match g.fix_type {
-        0 | 1 => "no fix",
-        2 => "2D fix",
-        3 => "3D fix",
-        4 => "DGPS",
-        5 => "RTK float",
-        6 => "RTK fixed",
-        _ => "other fix",
-    };
     let eph = g
         .eph_m
         .map_or("eph unknown".into(), |e| format!("eph {e:.2} m"));
+    let stale = g.correction_age_s.filter(|age| *age > CORRECTIONS_STALE_S);
+    let corrections = match (g.correction_age_s, stale) {
+        (_, Some(age)) => format!(", RTK corrections {age:.0} s old"),
+        (Some(age), None) => format!(", RTK corrections {age:.1} s old"),
+        (None, _) => String::new(),
+    };
+    let state = if g.fix_type < FIX_3D {
+        CheckState::Fail
+    } else if stale.is_some() {
+        CheckState::Warn
+    } else {
+        CheckState::Ok
+    };
     check(
         "gnss",
-        pass_or(g.fix_type < FIX_3D, CheckState::Fail),
-        format!("{fix}, {} satellites, {eph}", g.satellites),
+        state,
+        format!(
+            "{}, {} satellites, {eph}{corrections}",
+            g.fix_name(),
+            g.satellites
+        ),
     )
 }
 
@@ -186,10 +239,33 @@ fn geofence(v: &VehicleSnapshot) -> PreflightCheck {
     )
 }
 
-/// Remote ID, where skein sends it or a transmitter reported.
+/// Remote ID, where skein sends it or a transmitter reported: the transmitter's
+/// verdict, then where the operator location comes from; it warns when the ground
+/// station's live GNSS is configured but another location is sent.
 fn remote_id(v: &VehicleSnapshot) -> Option<PreflightCheck> {
     let r = v.remote_id.as_ref()?;
-    Some(match (&r.transmitter, r.operator_sent) {
+    let mut c = remote_id_transmitter(r);
+    let source = match r.operator_location_source {
+        Some(OperatorLocationSource::LiveGnss) => "live GNSS",
+        Some(OperatorLocationSource::Fixed) => "the fixed location",
+        Some(OperatorLocationSource::Takeoff) => "the takeoff point",
+        None => return Some(c),
+    };
+    match (&r.operator_location_fallback, r.operator_location_age_s) {
+        (Some(why), _) => {
+            if c.state == CheckState::Ok {
+                c.state = CheckState::Warn;
+            }
+            c.detail += &format!("; operator at {source}, not live GNSS: {why}");
+        }
+        (None, Some(age)) => c.detail += &format!("; operator at {source} ({age:.1} s old)"),
+        (None, None) => c.detail += &format!("; operator at {source}"),
+    }
+    Some(c)
+}
+
+fn remote_id_transmitter(r: &RemoteIdStatus) -> PreflightCheck {
+    match (&r.transmitter, r.operator_sent) {
         (Some(t), _) if !t.good_to_arm => check(
             "remote_id",
             CheckState::Fail,
@@ -210,7 +286,7 @@ fn remote_id(v: &VehicleSnapshot) -> Option<PreflightCheck> {
             CheckState::Warn,
             "operator sent, no transmitter heard",
         ),
-    })
+    }
 }
 
 #[cfg(test)]
@@ -230,6 +306,7 @@ mod tests {
             satellites: 12,
             eph_m: Some(0.8),
             epv_m: Some(1.2),
+            correction_age_s: None,
         });
         v.battery = Some(Battery {
             percent: 90.0,
@@ -280,6 +357,37 @@ mod tests {
     }
 
     #[test]
+    fn px4s_own_checks_are_named_and_fail_only_where_they_prevent_arming() {
+        use crate::vehicle::Px4ArmingCheck;
+        let odid = |prevents| Px4ArmingCheck {
+            message: "Open Drone ID system missing".into(),
+            description: String::new(),
+            severity: "error".into(),
+            prevents_arming: prevents,
+        };
+        let mut v = ready_vehicle();
+        v.prearm_ok = Some(false);
+        v.px4_arming_checks = vec![odid(true)];
+        let c = preflight(&v)
+            .checks
+            .into_iter()
+            .find(|c| c.check == "px4_arming_checks")
+            .unwrap();
+        assert_eq!(c.state, CheckState::Fail);
+        assert_eq!(c.detail, "fail: Open Drone ID system missing (error)");
+        // COM_ARM_ODID 1: PX4 reports it but arms.
+        v.prearm_ok = Some(true);
+        v.px4_arming_checks = vec![odid(false)];
+        let c = preflight(&v)
+            .checks
+            .into_iter()
+            .find(|c| c.check == "px4_arming_checks")
+            .unwrap();
+        assert_eq!(c.state, CheckState::Warn, "{c:?}");
+        assert!(c.detail.contains("Open Drone ID system missing"), "{c:?}");
+    }
+
+    #[test]
     fn no_fix_a_low_battery_a_failed_fence_or_a_transmitter_not_ready_fail() {
         type Spoil = fn(&mut VehicleSnapshot);
         let cases: [(&str, Spoil); 4] = [
@@ -295,6 +403,7 @@ mod tests {
                         good_to_arm: false,
                         error: "operator ID missing".into(),
                     }),
+                    ..RemoteIdStatus::default()
                 })
             }),
         ];
@@ -305,6 +414,62 @@ mod tests {
             assert!(!p.ready, "{name}: {p:?}");
             assert_eq!(state_of(&p, name), Some(CheckState::Fail), "{name}: {p:?}");
         }
+    }
+
+    #[test]
+    fn live_gnss_configured_without_a_fix_warns_naming_the_location_sent() {
+        let mut v = ready_vehicle();
+        let ready = Some(RemoteIdArmStatus {
+            good_to_arm: true,
+            error: String::new(),
+        });
+        v.remote_id = Some(RemoteIdStatus {
+            operator_sent: true,
+            transmitter: ready.clone(),
+            operator_location_source: Some(OperatorLocationSource::LiveGnss),
+            operator_location_age_s: Some(0.42),
+            ..RemoteIdStatus::default()
+        });
+        let p = preflight(&v);
+        let c = p.checks.iter().find(|c| c.check == "remote_id").unwrap();
+        assert_eq!(c.state, CheckState::Ok, "{c:?}");
+        assert!(
+            c.detail.ends_with("operator at live GNSS (0.4 s old)"),
+            "{c:?}"
+        );
+        v.remote_id = Some(RemoteIdStatus {
+            operator_sent: true,
+            transmitter: ready,
+            operator_location_source: Some(OperatorLocationSource::Fixed),
+            operator_location_fallback: Some("no fix from gpsd://127.0.0.1:2947".into()),
+            ..RemoteIdStatus::default()
+        });
+        let p = preflight(&v);
+        assert!(p.ready, "a warning: {p:?}");
+        let c = p.checks.iter().find(|c| c.check == "remote_id").unwrap();
+        assert_eq!(c.state, CheckState::Warn, "{c:?}");
+        assert!(
+            c.detail
+                .contains("operator at the fixed location, not live GNSS: no fix from gpsd://"),
+            "{c:?}"
+        );
+    }
+
+    #[test]
+    fn stale_rtk_corrections_warn_and_fresh_ones_are_shown() {
+        let mut v = ready_vehicle();
+        let g = v.gps.as_mut().unwrap();
+        g.fix_type = 6;
+        g.correction_age_s = Some(0.4);
+        let p = preflight(&v);
+        let c = p.checks.iter().find(|c| c.check == "gnss").unwrap();
+        assert_eq!(c.state, CheckState::Ok);
+        assert!(c.detail.starts_with("RTK fixed, 12 satellites"), "{c:?}");
+        assert!(c.detail.ends_with("RTK corrections 0.4 s old"), "{c:?}");
+        v.gps.as_mut().unwrap().correction_age_s = Some(42.0);
+        let p = preflight(&v);
+        assert!(p.ready);
+        assert_eq!(state_of(&p, "gnss"), Some(CheckState::Warn));
     }
 
     #[test]

@@ -35,11 +35,33 @@ pub struct GpsStatus {
     pub fix_type: u8,
     /// Satellites visible (`satellites_visible`).
     pub satellites: u8,
-    /// Horizontal dilution of position (`eph`, as PX4 fills it: the horizontal position
-    /// accuracy), metres; `null` when unknown.
+    /// Horizontal position accuracy, metres (`h_acc`, the receiver's estimate, which PX4
+    /// fills; `eph` as centimetres where an autopilot leaves `h_acc` out); `null` when
+    /// unknown.
     pub eph_m: Option<f64>,
-    /// Vertical (`epv`), metres; `null` when unknown.
+    /// Vertical position accuracy, metres (`v_acc`, else `epv`); `null` when unknown.
     pub epv_m: Option<f64>,
+    /// Seconds since skein last sent the vehicle RTK corrections (`GPS_RTCM_DATA`);
+    /// `null` when it never did.
+    #[serde(default)]
+    pub correction_age_s: Option<f64>,
+}
+
+impl GpsStatus {
+    /// The fix in words (`"3D fix"`, `"RTK float"`, `"RTK fixed"`, ...).
+    pub fn fix_name(&self) -> &'static str {
+        match self.fix_type {
+            0 | 1 => "no fix",
+            2 => "2D fix",
+            3 => "3D fix",
+            4 => "DGPS",
+            5 => "RTK float",
+            6 => "RTK fixed",
+            7 => "static",
+            8 => "PPP",
+            _ => "other fix",
+        }
+    }
 }
 
 /// A text the autopilot sent (`STATUSTEXT`, chunks joined).
@@ -53,12 +75,27 @@ pub struct Px4Message {
     pub unix_ms: u64,
 }
 
+/// One of PX4's health and arming checks that reports a problem (PX4's events
+/// interface: the check's event in its health and arming check report).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct Px4ArmingCheck {
+    /// PX4's message (`"Open Drone ID system missing"`).
+    pub message: String,
+    /// PX4's longer description (may be empty).
+    pub description: String,
+    /// The event's log level: `emergency`, `alert`, `critical`, `error`, `warning`,
+    /// `notice`, `info`, `debug`.
+    pub severity: String,
+    /// The check stops arming in the vehicle's current mode.
+    pub prevents_arming: bool,
+}
+
 /// How many of the autopilot's warnings a snapshot carries
 /// ([`VehicleSnapshot::px4_messages`]).
 pub const PX4_MESSAGES_KEPT: usize = 5;
 
 /// Remote ID on this vehicle (ASTM F3411 through MAVLink's Open Drone ID messages).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct RemoteIdStatus {
     /// skein sends the operator's part (`OPEN_DRONE_ID_SYSTEM` and
     /// `OPEN_DRONE_ID_OPERATOR_ID`, 1 Hz) to this vehicle (`[remote_id]` configured).
@@ -66,6 +103,58 @@ pub struct RemoteIdStatus {
     /// The vehicle's transmitter's last `OPEN_DRONE_ID_ARM_STATUS`; `null` until one
     /// arrives (no transmitter, or one that does not say).
     pub transmitter: Option<RemoteIdArmStatus>,
+    /// Where the operator location of the last `OPEN_DRONE_ID_SYSTEM` sent came from;
+    /// `null` before the first.
+    #[serde(default)]
+    pub operator_location_source: Option<OperatorLocationSource>,
+    /// The age of that location now, seconds: for `live_gnss` the time since its fix
+    /// arrived from the ground station's receiver; `null` for `fixed` and `takeoff`.
+    #[serde(default)]
+    pub operator_location_age_s: Option<f64>,
+    /// Why the ground station's live GNSS location was not the one sent, while
+    /// `[remote_id] operator_gnss` is configured (`"no fix from gpsd://127.0.0.1:2947 for
+    /// 3.2 s (the limit is 3 s); the source closed the connection"`); `null` when it was, or
+    /// without `operator_gnss`.
+    #[serde(default)]
+    pub operator_location_fallback: Option<String>,
+    /// The ground station's GNSS receiver (`[remote_id] operator_gnss`), one per
+    /// process; `null` without one.
+    #[serde(default)]
+    pub operator_gnss: Option<OperatorGnssStatus>,
+}
+
+/// Where Remote ID's operator location comes from
+/// (`OPEN_DRONE_ID_SYSTEM.operator_location_type`, `MAV_ODID_OPERATOR_LOCATION_TYPE_*`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum OperatorLocationSource {
+    /// The ground station's own GNSS receiver, live (`LIVE_GNSS`).
+    LiveGnss,
+    /// The configured `[remote_id] operator_location` (`FIXED`).
+    Fixed,
+    /// The vehicle's takeoff point, its home (`TAKEOFF`).
+    Takeoff,
+}
+
+/// The ground station's GNSS receiver as the process reads it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct OperatorGnssStatus {
+    /// The source (`gpsd://127.0.0.1:2947`, `serial:/dev/ttyACM0:9600`,
+    /// `tcp://HOST:PORT`).
+    pub source: String,
+    /// A connection to it is open.
+    pub connected: bool,
+    /// Seconds since its last valid fix arrived; `null` before the first.
+    pub fix_age_s: Option<f64>,
+    /// That fix's estimated horizontal error, metres (gpsd's `eph`); `null` when not
+    /// given (NMEA).
+    pub eph_m: Option<f64>,
+    /// The receiver's latest report says it has no fix.
+    pub no_fix: bool,
+    /// Why the last connection ended or could not open; `null` once it reports.
+    pub error: Option<String>,
+    /// Lines dropped as malformed (a bad checksum or field, JSON that does not parse).
+    pub malformed: u64,
 }
 
 /// What a Remote ID transmitter says of itself (`OPEN_DRONE_ID_ARM_STATUS`).
@@ -135,6 +224,10 @@ pub struct VehicleSnapshot {
     /// oldest first, at most [`PX4_MESSAGES_KEPT`].
     #[serde(default)]
     pub px4_messages: Vec<Px4Message>,
+    /// PX4's failing health and arming checks (its events' report, in the current
+    /// mode); empty for an autopilot without the events interface, or all passing.
+    #[serde(default)]
+    pub px4_arming_checks: Vec<Px4ArmingCheck>,
     /// Link health.
     pub link: LinkStatus,
     /// Formation slot, while in formation.
@@ -178,6 +271,7 @@ impl VehicleSnapshot {
             gps: None,
             prearm_ok: None,
             px4_messages: vec![],
+            px4_arming_checks: vec![],
             link: LinkStatus {
                 connected: true,
                 last_seen_ms: 0,
@@ -221,9 +315,11 @@ mod tests {
                 satellites: 12,
                 eph_m: Some(0.8),
                 epv_m: None,
+                correction_age_s: None,
             }),
             prearm_ok: Some(true),
             px4_messages: vec![],
+            px4_arming_checks: vec![],
             link: LinkStatus {
                 connected: true,
                 last_seen_ms: 12,
@@ -244,7 +340,8 @@ mod tests {
         // The field day's contract: `gps` with `fix_type`, `satellites`, `eph_m`, `epv_m`.
         assert_eq!(
             v["gps"],
-            serde_json::json!({"fix_type": 3, "satellites": 12, "eph_m": 0.8, "epv_m": null})
+            serde_json::json!({"fix_type": 3, "satellites": 12, "eph_m": 0.8, "epv_m": null,
+                "correction_age_s": null})
         );
         assert!(v["payloads"].as_array().unwrap().is_empty());
     }

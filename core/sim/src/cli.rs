@@ -18,6 +18,8 @@
 //!   aircraft (`--intruders M`, see [`crate::intruders`])
 //! - `intruders restart` → `{"ok":true}`: their paths start again from their beginning
 //!   now ([`Simulator::restart_intruders`]); an error when there are none
+//! - `intruders leave` → `{"ok":true}`: they leave the world (no camera sees one) until
+//!   the next restart ([`Simulator::intruders_leave`])
 //!
 //! Commands taking a sysid act on the first vehicle with it (sysids repeat beyond 255
 //! vehicles).
@@ -96,6 +98,12 @@ pub struct SimArgs {
     /// --seed). Off by default.
     #[arg(long)]
     pub estimator_noise: bool,
+    /// The GNSS receiver's position error: metres of slow wander with a 3D fix,
+    /// decimetres in RTK float, centimetres in RTK fixed (seed from --seed); PX4's EKF
+    /// follows it, so a hovering vehicle's true position wanders by it. Off by default:
+    /// exact positions, the fix type and accuracy still following the RTK corrections.
+    #[arg(long)]
+    pub gnss_wander: bool,
     /// Parameter override for every vehicle, NAME=VALUE (repeatable).
     #[arg(long = "param", value_parser = parse_param)]
     pub params: Vec<(String, f64)>,
@@ -186,6 +194,7 @@ impl SimArgs {
         cfg.telemetry = self.profile;
         cfg.offboard_min_stream_s = self.offboard_min_stream_s;
         cfg.estimator_noise = self.estimator_noise;
+        cfg.gnss_wander = self.gnss_wander;
         cfg.params = self.params.clone();
         if let Some(path) = &self.signing_key_file {
             cfg.signing_key =
@@ -241,7 +250,12 @@ pub fn stats_command(sim: &Simulator, line: &str) -> String {
             Some("restart") => sim
                 .restart_intruders()
                 .map(|()| serde_json::json!({ "ok": true })),
-            Some(other) => Err(format!("intruders: nothing or restart, got {other:?}")),
+            Some("leave") => sim
+                .intruders_leave()
+                .map(|()| serde_json::json!({ "ok": true })),
+            Some(other) => Err(format!(
+                "intruders: nothing, restart or leave, got {other:?}"
+            )),
         },
         "link" => link_command(sim, &mut words),
         "mission_fault" => sysid(words.next()).and_then(|id| {
@@ -433,6 +447,7 @@ mod tests {
             .expect("start");
         assert_eq!(stats_command(&sim, "intruders"), r#"{"intruders":[]}"#);
         assert!(stats_command(&sim, "intruders restart").contains("no intruders"));
+        assert!(stats_command(&sim, "intruders leave").contains("no intruders"));
         sim.start_intruders(cli.sim.intruders.config(cli.sim.seed))
             .expect("intruders");
         let reply: serde_json::Value =
@@ -476,6 +491,11 @@ mod tests {
         let d = from_start(&sim);
         assert!(d < 2.0, "{d} m from where they started after a restart");
         assert!(stats_command(&sim, "intruders again").contains("error"));
+        // Gone until the next restart.
+        assert_eq!(stats_command(&sim, "intruders leave"), r#"{"ok":true}"#);
+        assert_eq!(stats_command(&sim, "intruders"), r#"{"intruders":[]}"#);
+        assert_eq!(stats_command(&sim, "intruders restart"), r#"{"ok":true}"#);
+        assert!(from_start(&sim) < 2.0);
         sim.shutdown().await;
     }
 }

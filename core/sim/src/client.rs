@@ -1,6 +1,7 @@
 //! What a ground station sends to a simulated vehicle, built for
 //! [`crate::VirtualVehicle::send`] or a socket (target 1/1, frame MAV_FRAME_LOCAL_NED):
-//! heartbeats, commands, offboard setpoints with PX4's `type_mask` values.
+//! heartbeats, commands, offboard setpoints with PX4's `type_mask` values, RTK
+//! corrections in GPS_RTCM_DATA fragments.
 
 use skein_mavlink::MavMessage;
 use skein_mavlink::dialect::*;
@@ -57,6 +58,52 @@ pub fn setpoint(type_mask: u16, p: Ned, v: Ned, a: Ned, yaw_rad: f64) -> MavMess
         target_component: 1,
         coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
     })
+}
+
+/// Most fragments of one GPS_RTCM_DATA sequence (2-bit fragment id).
+pub const GPS_RTCM_MAX_FRAGMENTS: usize = 4;
+
+/// The GPS_RTCM_DATA messages carrying `rtcm` (a chunk of the RTCM3 byte stream, usually
+/// one RTCM message) with sequence id `sequence` (its low 5 bits), by MAVLink's rules as
+/// QGroundControl applies them: under 180 bytes one unfragmented message (`flags` =
+/// sequence << 3); otherwise 180-byte fragments, `flags` = 1 | fragment id << 1 |
+/// sequence << 3, and when the last fragment is full and fewer than 4 were sent, an
+/// empty one after it (a reassembling receiver takes a sequence as complete at its first
+/// short fragment).
+///
+/// # Errors
+/// More than 4 × 180 = 720 bytes: one sequence cannot carry them.
+pub fn gps_rtcm_data(rtcm: &[u8], sequence: u8) -> Result<Vec<MavMessage>, String> {
+    const LEN: usize = 180;
+    let max = GPS_RTCM_MAX_FRAGMENTS * LEN;
+    if rtcm.len() > max {
+        return Err(format!(
+            "{} bytes of RTCM: one GPS_RTCM_DATA sequence carries at most {max}",
+            rtcm.len()
+        ));
+    }
+    let seq = (sequence & 0x1F) << 3;
+    let message = |flags: u8, chunk: &[u8]| {
+        let mut data = [0u8; LEN];
+        data[..chunk.len()].copy_from_slice(chunk);
+        MavMessage::GPS_RTCM_DATA(GPS_RTCM_DATA_DATA {
+            flags,
+            len: chunk.len() as u8,
+            data,
+        })
+    };
+    if rtcm.len() < LEN {
+        return Ok(vec![message(seq, rtcm)]);
+    }
+    let mut out: Vec<MavMessage> = rtcm
+        .chunks(LEN)
+        .enumerate()
+        .map(|(id, chunk)| message(1 | ((id as u8) << 1) | seq, chunk))
+        .collect();
+    if rtcm.len().is_multiple_of(LEN) && out.len() < GPS_RTCM_MAX_FRAGMENTS {
+        out.push(message(1 | ((out.len() as u8) << 1) | seq, &[]));
+    }
+    Ok(out)
 }
 
 /// The last LOCAL_POSITION_NED in `msgs`: (time s, position m, velocity m/s).

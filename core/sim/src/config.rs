@@ -1,6 +1,8 @@
 //! Simulator configuration: vehicles and their UDP endpoints, spawn geometry, environment
-//! (wind, GPS noise), telemetry profile and parameter overrides.
+//! (wind, GPS noise, the GNSS receiver's RTK timing and error model), telemetry profile
+//! and parameter overrides.
 
+use crate::vehicle::gnss::RtkTiming;
 use serde::{Deserialize, Serialize};
 use skein_model::geo::GeoPoint;
 use std::net::{IpAddr, SocketAddr};
@@ -121,6 +123,18 @@ pub struct SimConfig {
     /// Seeded estimator noise reproducing PX4 SIH's hover wander (about 0.2 m and
     /// 0.2 m/s); the seed is [`SimConfig::seed`]. Off by default.
     pub estimator_noise: bool,
+    /// The GNSS receiver's RTK timing: how long corrections take to give RTK float and
+    /// fixed, how long fixed and float outlive them (see `docs/simulator.md`, "GNSS and
+    /// RTK").
+    #[serde(default)]
+    pub rtk: RtkTiming,
+    /// The GNSS receiver's position error (`--gnss-wander`): metres of slow wander with a
+    /// 3D fix, decimetres in RTK float, centimetres in RTK fixed, seeded by
+    /// [`SimConfig::seed`]; PX4's EKF follows it, so the estimate carries it and a
+    /// hovering vehicle's true position wanders by it. Off by default: positions are
+    /// then exact (the fix type and the reported accuracy still follow the RTK state).
+    #[serde(default)]
+    pub gnss_wander: bool,
     /// Parameter overrides applied to every vehicle at boot (`("MIS_TAKEOFF_ALT", 5.0)`);
     /// integer parameters are rounded.
     pub params: Vec<(String, f64)>,
@@ -146,6 +160,8 @@ impl Default for SimConfig {
             telemetry: TelemetryProfile::Px4Onboard,
             offboard_min_stream_s: 0.0,
             estimator_noise: false,
+            rtk: RtkTiming::default(),
+            gnss_wander: false,
             params: Vec::new(),
             vehicles: Vec::new(),
             signing_key: None,

@@ -9,10 +9,16 @@
 //! with PX4's `type_mask` semantics and offboard-loss failsafe, the command protocol
 //! (COMMAND_LONG/INT, ACKs, retransmissions) and parameters (bytewise integer encoding).
 //! Each armed flight is logged as a PX4 ULog, listed and downloaded over MAVLink's log
-//! protocol ([`FlightLog`], [`Simulator::flight_logs`]).
+//! protocol ([`FlightLog`], [`Simulator::flight_logs`]). PX4's events interface (`EVENT`,
+//! the health and arming check report, [`px4_events`]) and its component metadata
+//! served over MAVLink FTP ([`component_metadata`], [`ftp_server`]) are there as PX4
+//! v1.16 has them.
 //! Dynamics are a point mass per vehicle under a PX4-like position controller with speed
 //! and acceleration limits, wind and gusts, GPS noise, ground contact and a draining
-//! battery. Each vehicle spawns at its own place with its own local NED origin.
+//! battery. Each vehicle spawns at its own place with its own local NED origin. Its GNSS
+//! receiver takes RTK corrections (GPS_RTCM_DATA) as PX4 does and goes from a 3D fix to
+//! RTK float and fixed, with an optional position error of each state
+//! ([`SimConfig::gnss_wander`]).
 //!
 //! The simulator is also skein's test peer: [`Simulator`] exposes ground truth, counters
 //! and fault injection (link cut, reboot, kill) in-process, and [`cli`] exposes the same
@@ -23,10 +29,13 @@
 mod arrival;
 pub mod cli;
 pub mod client;
+pub mod component_metadata;
 mod config;
+pub mod ftp_server;
 mod histogram;
 mod impairment;
 pub mod intruders;
+pub mod px4_events;
 pub mod px4_params;
 mod report;
 mod runtime;
@@ -44,6 +53,10 @@ pub use report::{
     SimSummary, SimTruth, SimVehicleInfo, SimVehicleStats, TelemetryStreamInfo, telemetry_streams,
 };
 use report::{decode_delta, truth_of};
+pub use vehicle::gnss::{
+    CONVERGE_TAU_S, EKF_GNSS_LAG_S, FixFigures, GPS_DRIVER_CYCLE, GPS_RTCM_DATA_LEN, GnssFix,
+    GnssTruth, INJECT_QUEUE_LENGTH, RTK_MAX_BASELINE_M, RtcmCounts, RtkTiming,
+};
 pub use vehicle::{FLIGHT_LOG_STORAGE_BYTES, FLIGHT_LOGS_KEPT, FlightLog, PX4_FLIGHT_SW_VERSION};
 pub use virtual_vehicle::VirtualVehicle;
 
@@ -196,14 +209,19 @@ fn vehicle_cell(
 /// Spawn point of vehicle `index` on a grid around `home`: `cols` columns east, rows
 /// north, `spacing_m` apart.
 fn spawn_point(home: GeoPoint, index: usize, cols: usize, spacing_m: f64) -> GeoPoint {
+    NedFrame::new(home).to_geo(spawn_offset(index, cols, spacing_m))
+}
+
+/// Where vehicle `index` of a simulator's grid spawns from its `home`, NED metres:
+/// `cols` columns (at least 1) going east, rows going north, `spacing_m` apart (see
+/// [`SimConfig::spacing_m`], [`SimConfig::grid_columns`]).
+pub fn spawn_offset(index: usize, cols: usize, spacing_m: f64) -> Ned {
     let cols = cols.max(1);
-    let row = index / cols;
-    let col = index % cols;
-    NedFrame::new(home).to_geo(Ned::new(
-        row as f64 * spacing_m,
-        col as f64 * spacing_m,
+    Ned::new(
+        (index / cols) as f64 * spacing_m,
+        (index % cols) as f64 * spacing_m,
         0.0,
-    ))
+    )
 }
 
 impl Simulator {
@@ -240,16 +258,7 @@ impl Simulator {
     /// taking a `sysid` then address the first vehicle with it.
     pub async fn start(cfg: SimConfig) -> std::io::Result<Simulator> {
         check_vehicles(&cfg)?;
-        let env = Environment {
-            wind: cfg.wind,
-            gps_noise_m: cfg.gps_noise_m.max(0.0),
-            ekf_fix_delay: Duration::from_secs_f64(cfg.ekf_fix_delay_s.max(0.0)),
-            params: cfg.params.clone(),
-            seed: cfg.seed,
-            profile: cfg.telemetry,
-            offboard_min_stream: Duration::from_secs_f64(cfg.offboard_min_stream_s.max(0.0)),
-            estimator_noise: cfg.estimator_noise,
-        };
+        let env = Environment::of(&cfg);
         let now = Instant::now();
         let mut cells = Vec::with_capacity(cfg.vehicles.len());
         let mut sockets = Vec::with_capacity(cfg.vehicles.len());
@@ -354,6 +363,7 @@ impl Simulator {
                     send_drops: slot.net.send_drops,
                     statustexts_sent: v.counters.statustexts_sent,
                     statustexts_suppressed: v.counters.statustexts_suppressed,
+                    rtcm: v.counters.rtcm,
                     gcs_connected: v.gcs_connected(now),
                     signing: slot.signing.counts(),
                     signing_key_installed: slot.signing.current.is_some(),
@@ -402,6 +412,7 @@ impl Simulator {
             s.offboard_loss_failsafes += v.counters.offboard_loss_failsafes;
             s.gcs_loss_failsafes += v.counters.gcs_loss_failsafes;
             s.geofence_breaches += v.counters.geofence_breaches;
+            s.rtcm.add(&v.counters.rtcm);
             s.malformed_frames += decode_delta(decode_now, slot.decode_baseline).errors();
             s.datagrams_received += slot.net.datagrams_received;
             s.datagrams_sent += slot.net.datagrams_sent;
@@ -515,7 +526,23 @@ impl Simulator {
         Ok(())
     }
 
-    /// Ground truth of every intruder now (empty without intruders).
+    /// Every intruder leaves the world until the next restart (see
+    /// [`intruders::Intruders::leave`]).
+    ///
+    /// # Errors
+    /// No intruders were started.
+    pub fn intruders_leave(&self) -> Result<(), String> {
+        let ints = self
+            .inner
+            .intruders
+            .get()
+            .ok_or("no intruders were started")?;
+        ints.leave();
+        Ok(())
+    }
+
+    /// Ground truth of every intruder now (empty without intruders, or while they are
+    /// away).
     pub fn intruders(&self) -> Vec<intruders::IntruderTruth> {
         self.inner
             .intruders
@@ -553,6 +580,20 @@ impl Simulator {
     pub fn reboot(&self, sysid: u8) {
         if let Some(cell) = self.cell(sysid) {
             cell.lock().reboot(Instant::now());
+        }
+    }
+
+    /// MAVLink FTP requests vehicle `sysid` handled since it last booted.
+    pub fn ftp_requests(&self, sysid: u8) -> u64 {
+        self.cell(sysid)
+            .map_or(0, |c| c.lock().vehicle.ftp_requests())
+    }
+
+    /// Loses the vehicle's next `n` `EVENT`s on the way (they stay in its buffer and
+    /// are answered when requested by sequence): a lossy link, deterministically.
+    pub fn drop_next_events(&self, sysid: u8, n: u32) {
+        if let Some(cell) = self.cell(sysid) {
+            cell.lock().vehicle.drop_next_events = n;
         }
     }
 

@@ -4,6 +4,7 @@
 
 use crate::histogram::{IntervalBucket, IntervalSummary};
 use crate::vehicle::Vehicle;
+use crate::vehicle::gnss::{GnssTruth, RtcmCounts};
 use crate::vehicle::telemetry;
 use serde::Serialize;
 use skein_mavlink::DecodeCounts;
@@ -88,6 +89,8 @@ pub struct SimTruth {
     pub local_origin: GeoPoint,
     /// Seconds since the vehicle (re)booted.
     pub uptime_s: f64,
+    /// The GNSS receiver: fix type, corrections' age, position error.
+    pub gnss: GnssTruth,
 }
 
 /// Counters of one vehicle (since start or the last [`Simulator::reset_stats`]) and its
@@ -165,6 +168,10 @@ pub struct SimVehicleStats {
     pub statustexts_sent: u64,
     /// STATUSTEXTs not sent because no GCS heartbeat arrived in the last 2.5 s.
     pub statustexts_suppressed: u64,
+    /// The RTK corrections' path to the GNSS receiver: GPS_RTCM_DATA accepted, malformed
+    /// and lost in PX4's inject queue, RTCM3 frames good, with observations, with a base
+    /// position, failing their CRC, garbage bytes.
+    pub rtcm: RtcmCounts,
     /// A GCS heartbeat arrived in the last 1.5 s.
     pub gcs_connected: bool,
     /// MAVLink 2 signing: frames accepted signed, dropped (unsigned, bad signature,
@@ -205,6 +212,8 @@ pub struct SimSummary {
     pub gcs_loss_failsafes: u64,
     /// Geofence breaches that took `GF_ACTION`.
     pub geofence_breaches: u64,
+    /// The RTK corrections of every vehicle together.
+    pub rtcm: RtcmCounts,
     /// Malformed input dropped.
     pub malformed_frames: u64,
     /// Datagrams received.
@@ -255,5 +264,22 @@ pub(crate) fn truth_of(v: &Vehicle, now: Instant) -> SimTruth {
         home: v.home,
         local_origin: v.origin.origin,
         uptime_s: now.saturating_duration_since(v.boot).as_secs_f64(),
+        gnss: gnss_truth(v, now),
+    }
+}
+
+/// The receiver's fix type as GPS_RAW_INT reports it now, the corrections' age and the
+/// receiver's error.
+fn gnss_truth(v: &Vehicle, now: Instant) -> GnssTruth {
+    let fix_type = if v.ekf_ok(now) {
+        v.gnss.fix().fix_type()
+    } else {
+        skein_mavlink::dialect::GpsFixType::GPS_FIX_TYPE_NO_FIX
+    };
+    let e = v.gnss.error();
+    GnssTruth {
+        fix_type: fix_type as u8,
+        corrections_age_s: v.gnss.corrections_age(now).map(|d| d.as_secs_f64()),
+        error_ned_m: [e.north_m, e.east_m, e.down_m],
     }
 }

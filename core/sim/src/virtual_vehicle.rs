@@ -35,6 +35,8 @@ pub struct VirtualStats {
     pub onboard_controller_connected: bool,
     /// Geofence breaches that took `GF_ACTION`.
     pub geofence_breaches: u64,
+    /// The RTK corrections' path to the GNSS receiver (GPS_RTCM_DATA, RTCM3 frames).
+    pub rtcm: crate::RtcmCounts,
 }
 
 /// A simulated vehicle (sysid 1) driven by a virtual clock.
@@ -51,19 +53,10 @@ pub struct VirtualVehicle {
 
 impl VirtualVehicle {
     /// A freshly booted vehicle with `cfg`'s environment (wind, GPS and estimator noise,
-    /// seed, parameters, telemetry profile), stepped at the profile's tick rate (100 Hz
+    /// the GNSS receiver's RTK timing and wander, seed, parameters, telemetry profile), stepped at the profile's tick rate (100 Hz
     /// for PX4's onboard profile). Its clock starts at 0 s.
     pub fn new(cfg: &SimConfig) -> VirtualVehicle {
-        let env = Environment {
-            wind: cfg.wind,
-            gps_noise_m: cfg.gps_noise_m.max(0.0),
-            ekf_fix_delay: Duration::from_secs_f64(cfg.ekf_fix_delay_s.max(0.0)),
-            params: cfg.params.clone(),
-            seed: cfg.seed,
-            profile: cfg.telemetry,
-            offboard_min_stream: Duration::from_secs_f64(cfg.offboard_min_stream_s.max(0.0)),
-            estimator_noise: cfg.estimator_noise,
-        };
+        let env = Environment::of(cfg);
         let start = Instant::now();
         let tick_hz = match cfg.telemetry {
             TelemetryProfile::Px4Onboard => TelemetryProfile::Px4Onboard.tick_rate_hz(),
@@ -186,6 +179,7 @@ impl VirtualVehicle {
             gcs_connected: v.gcs_connected(self.now),
             onboard_controller_connected: v.onboard_controller_connected(self.now),
             geofence_breaches: v.counters.geofence_breaches,
+            rtcm: v.counters.rtcm,
         }
     }
 

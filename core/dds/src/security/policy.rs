@@ -14,12 +14,14 @@ use std::fmt::Write as _;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Role {
     /// `skein agent`: writes its vehicles' reports, events, command results, clock
-    /// exchanges, per-vehicle ROS 2 topics and its cameras' tracks; reads the leases, targets, commands and
-    /// formation mirror. Cannot write a lease, a target or a swarm command.
+    /// exchanges, per-vehicle ROS 2 topics and its cameras' tracks; reads the leases, targets, commands,
+    /// formation mirror and relayed RTK corrections. Cannot write a lease, a target, a
+    /// swarm command or corrections.
     Agent,
     /// `skein coordinator` or `skein up --dds`: writes leases, targets, swarm commands,
-    /// clock exchanges, the formation mirror, tracks and (its own vehicles') per-vehicle
-    /// topics; reads every skein topic. Cannot write an agent's report, event or result.
+    /// clock exchanges, the formation mirror, RTK corrections (`/skein/rtcm`), tracks and
+    /// (its own vehicles') per-vehicle topics; reads every skein topic. Cannot write an
+    /// agent's report, event or result.
     Coordinator,
     /// A ground-station or ROS 2 tool that only watches: reads every skein topic, writes none.
     Viewer,
@@ -55,6 +57,7 @@ impl Role {
                 "rt/skein/swarm/target",
                 "rt/skein/swarm/command",
                 "rt/skein/swarm/clock",
+                "rt/skein/rtcm",
             ],
             Role::Viewer => &[],
         };
@@ -71,6 +74,7 @@ impl Role {
             Role::Agent => &[
                 "rt/skein/coordinator",
                 "rt/skein/formation",
+                "rt/skein/rtcm",
                 "rt/skein/swarm/*",
                 "rt/skein/*/command",
             ],
@@ -229,6 +233,19 @@ mod tests {
         }
         assert!(writes(Role::Agent, "rt/skein/swarm/report"));
         assert!(!writes(Role::Coordinator, "rt/skein/swarm/report"));
+    }
+
+    #[test]
+    fn only_coordinators_write_rtk_corrections_and_agents_read_them() {
+        let rtcm = "rt/skein/rtcm";
+        assert!(Role::Coordinator.publishes().contains(&rtcm));
+        assert!(!Role::Agent.publishes().contains(&rtcm));
+        assert!(!Role::Viewer.publishes().contains(&rtcm));
+        assert!(Role::Agent.subscribes().contains(&rtcm));
+        // Coordinators and viewers read every skein topic.
+        for r in [Role::Coordinator, Role::Viewer] {
+            assert!(r.subscribes().contains(&"rt/skein/*"), "{r}");
+        }
     }
 
     #[test]

@@ -2,8 +2,10 @@
 //! endpoint route, the latest telemetry, the setpoint stream, liveness, the connect-time
 //! setup and the vehicle's side of the fence.
 
+use crate::corrections::CorrectionsLink;
 use crate::endpoint::{Endpoint, Peer};
 use crate::fence_sync::{FenceLink, FencePlans};
+use crate::remote_id::RemoteIdLink;
 use crate::setpoint::SetpointStream;
 use crate::setup::LinkSetup;
 use crate::telemetry::{Change, Telemetry};
@@ -29,6 +31,8 @@ pub struct VehicleLink {
     pub(super) lost: AtomicBool,
     pub(super) setup: LinkSetup,
     fence: FenceLink,
+    corrections: CorrectionsLink,
+    remote_id: RemoteIdLink,
 }
 
 impl std::fmt::Debug for VehicleLink {
@@ -62,6 +66,8 @@ impl VehicleLink {
             lost: AtomicBool::new(false),
             setup,
             fence: FenceLink::default(),
+            corrections: CorrectionsLink::default(),
+            remote_id: RemoteIdLink::default(),
         })
     }
 
@@ -75,6 +81,18 @@ impl VehicleLink {
     /// The vehicle's side of the fence (its status: [`FenceLink::status`]).
     pub fn fence(&self) -> &FenceLink {
         &self.fence
+    }
+
+    /// GNSS corrections to the vehicle: their rate budget and what was sent
+    /// ([`crate::corrections`]).
+    pub fn corrections(&self) -> &CorrectionsLink {
+        &self.corrections
+    }
+
+    /// The vehicle's side of Remote ID: the operator location last sent
+    /// ([`crate::remote_id`]).
+    pub fn remote_id(&self) -> &RemoteIdLink {
+        &self.remote_id
     }
 
     /// What is applied at every (re)connection, and sent meanwhile (Remote ID).
@@ -99,6 +117,11 @@ impl VehicleLink {
             .write()
             .expect("telemetry lock")
             .apply(msg, Instant::now())
+    }
+
+    /// Changes the telemetry in place under the lock.
+    pub(super) fn with_telemetry_mut<R>(&self, f: impl FnOnce(&mut Telemetry) -> R) -> R {
+        f(&mut self.telemetry.write().expect("telemetry lock"))
     }
 
     /// Keeps a text the vehicle sent ([`Telemetry::keep_message`]), stamped now.

@@ -1,7 +1,7 @@
 //! One simulated PX4 multicopter, without I/O: the MAVLink message handling (commands,
 //! parameters, setpoints, heartbeats, the mission and log protocols), PX4's mode and
 //! arming logic, failsafes, a point-mass model with a PX4-like position controller, land
-//! detection, a battery and the flight log.
+//! detection, a battery, the GNSS receiver with its RTK corrections and the flight log.
 //!
 //! Inputs arrive through [`Vehicle::handle_frame`]; the simulation advances with
 //! [`Vehicle::step`] at a fixed `dt`; everything the vehicle sends goes through an
@@ -22,6 +22,7 @@ use skein_mavlink::dialect::*;
 use skein_mavlink::{Encoder, Frame, MavMessage};
 use skein_model::geo::{GeoPoint, Ned, NedFrame, wrap_pi};
 use skein_model::px4::{FORCE_ARM_DISARM_MAGIC, LandedState, Px4Mode, type_mask};
+use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 use telemetry::Streams;
 
@@ -31,14 +32,22 @@ pub use telemetry::PX4_FLIGHT_SW_VERSION;
 mod battery;
 mod commander;
 mod dynamics;
+mod events;
+#[cfg(test)]
+mod events_tests;
 mod flight_log;
+mod ftp;
 mod geofence;
+pub(crate) mod gnss;
+mod health_report;
 mod land_detector;
 mod log_handler;
 mod mavlink_receiver;
 mod mission;
 mod navigator;
 mod position_control;
+#[cfg(test)]
+mod test_harness;
 #[cfg(test)]
 mod tests;
 
@@ -63,6 +72,9 @@ const OFFBOARD_MAX_GAP: Duration = Duration::from_millis(500);
 /// A resend (`confirmation` > 0) of the last command within this window is answered
 /// again without executing it twice.
 const COMMAND_DEDUP_WINDOW: Duration = Duration::from_secs(5);
+/// Mixed into a vehicle's seed for its GNSS receiver's generators (distinct from its
+/// physics generator, so the wander leaves the gusts' and the estimator's draws alone).
+const GNSS_SEED_MIX: u64 = 0x6E55_0000_0000_0000;
 /// Gust and estimator-noise time constants, s.
 const GUST_TAU_S: f64 = 2.0;
 const EST_NOISE_TAU_S: f64 = 5.0;
@@ -84,6 +96,28 @@ pub(crate) struct Environment {
     pub offboard_min_stream: Duration,
     /// Seeded estimator noise (PX4 SIH's hover wander) on.
     pub estimator_noise: bool,
+    /// The GNSS receiver's RTK timing.
+    pub rtk: gnss::RtkTiming,
+    /// The GNSS receiver's error model on (`--gnss-wander`).
+    pub gnss_wander: bool,
+}
+
+impl Environment {
+    /// The environment `cfg` describes.
+    pub fn of(cfg: &crate::config::SimConfig) -> Environment {
+        Environment {
+            wind: cfg.wind,
+            gps_noise_m: cfg.gps_noise_m.max(0.0),
+            ekf_fix_delay: Duration::from_secs_f64(cfg.ekf_fix_delay_s.max(0.0)),
+            params: cfg.params.clone(),
+            seed: cfg.seed,
+            profile: cfg.telemetry,
+            offboard_min_stream: Duration::from_secs_f64(cfg.offboard_min_stream_s.max(0.0)),
+            estimator_noise: cfg.estimator_noise,
+            rtk: cfg.rtk,
+            gnss_wander: cfg.gnss_wander,
+        }
+    }
 }
 
 /// Collects the frames a vehicle sends during one input or tick (batched into datagrams by
@@ -163,6 +197,8 @@ pub(crate) struct Counters {
     pub commands_received: u64,
     pub statustexts_sent: u64,
     pub statustexts_suppressed: u64,
+    /// The RTK corrections' path to the GNSS receiver.
+    pub rtcm: gnss::RtcmCounts,
 }
 
 /// Link counters, fed by the runtime, shown in LINK_NODE_STATUS.
@@ -249,6 +285,8 @@ pub(crate) struct Vehicle {
     /// Slow bias of the estimated vertical velocity (NED, positive = reads descending),
     /// m/s; not integrated into the position estimate.
     pub est_vz_bias_m_s: f64,
+    /// The GNSS receiver: RTK corrections, fix, position error.
+    pub gnss: gnss::Gnss,
 
     // Controller.
     /// Auto-mode trajectory: velocity of the moving setpoint, NED m/s.
@@ -312,6 +350,13 @@ pub(crate) struct Vehicle {
     pub flight_logs: FlightLogStore,
     log_handler: LogHandler,
 
+    // PX4's events interface, health report and MAVLink FTP (the component metadata).
+    events: events::EventLog,
+    health: health_report::HealthReporter,
+    ftp: ftp::FtpLink,
+    /// `EVENT`s still to lose on the way (a test's loss; they stay in the buffer).
+    pub drop_next_events: u32,
+
     // Telemetry.
     pub streams: Streams,
     pub ping_seq: u32,
@@ -363,6 +408,12 @@ impl Vehicle {
             .wrapping_mul(0x9E37_79B9_7F4A_7C15)
             .wrapping_add(u64::from(sysid));
         let streams = Streams::new(env.profile, now);
+        let gnss = gnss::Gnss::new(
+            env.rtk,
+            env.gnss_wander,
+            spawn.to_ecef(),
+            seed ^ GNSS_SEED_MIX,
+        );
         let mut v = Vehicle {
             sysid,
             origin: NedFrame::new(spawn),
@@ -383,6 +434,7 @@ impl Vehicle {
             est_noise: Ned::ZERO,
             est_vel_noise: Ned::ZERO,
             est_vz_bias_m_s: 0.0,
+            gnss,
             vel_sp_smooth: Ned::ZERO,
             traj_pos: Ned::ZERO,
             traj_valid: false,
@@ -425,6 +477,10 @@ impl Vehicle {
             fence_breached: false,
             flight_logs: FlightLogStore::default(),
             log_handler: LogHandler::default(),
+            events: events::EventLog::default(),
+            health: health_report::HealthReporter::default(),
+            ftp: ftp::FtpLink::default(),
+            drop_next_events: 0,
             streams,
             ping_seq: 0,
             battery: Battery {
@@ -474,9 +530,26 @@ impl Vehicle {
         now.saturating_duration_since(self.boot) >= self.env.ekf_fix_delay
     }
 
-    /// The estimated (reported) local position: truth plus estimator noise.
+    /// The estimated (reported) local position: truth plus estimator noise, plus the
+    /// GNSS receiver's error as the EKF follows it (with `gnss_wander`).
     pub fn est_pos(&self) -> Ned {
-        self.pos + self.est_noise
+        let est = self.pos + self.est_noise;
+        if self.gnss.wanders() {
+            est + self.gnss.est_error()
+        } else {
+            est
+        }
+    }
+
+    /// The position PX4's navigator and commander work with (holds, take-off, land,
+    /// RTL, home, offset setpoints): the truth plus the GNSS receiver's error as the EKF
+    /// carries it (with `gnss_wander`; the estimator noise is left out, as it always was).
+    pub fn nav_pos(&self) -> Ned {
+        if self.gnss.wanders() {
+            self.pos + self.gnss.est_error()
+        } else {
+            self.pos
+        }
     }
 
     /// The estimated (reported) velocity, NED m/s: truth plus the estimator's velocity
@@ -492,7 +565,7 @@ impl Vehicle {
 
     /// Height above home, m (positive up).
     pub fn height_above_home_m(&self) -> f64 {
-        self.home_local.down_m - self.pos.down_m
+        self.home_local.down_m - self.nav_pos().down_m
     }
 
     /// `MAV_LANDED_STATE` as PX4 reports it.
@@ -541,8 +614,12 @@ impl Vehicle {
         self.auto_disarm(now, out);
         self.update_battery(dt_s);
         self.update_noise(dt_s);
+        self.gnss.step(now, dt_s, &mut self.counters.rtcm);
         self.record_flight_log(now);
         self.log_handler_send(dt_s, out);
+        self.health_tick(now, out);
+        self.events_tick(now, out);
+        self.ftp_send(now, dt_s, out);
         self.link.update_rates(now);
     }
 }

@@ -15,43 +15,47 @@ pub(crate) enum RtlPhase {
 
 impl Vehicle {
     pub(super) fn braking_point(&self) -> Ned {
+        let here = self.nav_pos();
         if self.landed {
-            return self.pos;
+            return here;
         }
         let acc_h = self.params.get(Param::MPC_ACC_HOR).max(0.5);
         let vh = self.vel.horizontal_norm();
         let k = vh / (2.0 * acc_h);
         let vz = self.vel.down_m;
         let dz = vz * vz.abs() / (2.0 * 3.0);
+        // The ground, where the navigator sees it (0 without the GNSS error).
+        let ground = here.down_m - self.pos.down_m;
         Ned::new(
-            self.pos.north_m + self.vel.north_m * k,
-            self.pos.east_m + self.vel.east_m * k,
-            (self.pos.down_m + dz).min(0.0),
+            here.north_m + self.vel.north_m * k,
+            here.east_m + self.vel.east_m * k,
+            (here.down_m + dz).min(ground),
         )
     }
 
     pub(super) fn enter_mode(&mut self, mode: Px4Mode) {
+        let here = self.nav_pos();
         self.mode = mode;
         self.traj_valid = false;
         match mode {
             Px4Mode::Takeoff => {
                 self.takeoff_z = self.home_local.down_m - self.params.get(Param::MIS_TAKEOFF_ALT);
-                self.hold_pos = self.pos;
+                self.hold_pos = here;
                 self.hold_yaw = YawGoal::Heading(self.yaw_rad);
             }
             Px4Mode::Land | Px4Mode::Precland => {
-                self.land_xy = (self.pos.north_m, self.pos.east_m);
+                self.land_xy = (here.north_m, here.east_m);
                 self.hold_yaw = YawGoal::Heading(self.yaw_rad);
             }
             Px4Mode::Rtl => {
                 self.rtl_phase = RtlPhase::Climb;
                 let return_z = self.home_local.down_m - self.params.get(Param::RTL_RETURN_ALT);
-                self.rtl_z = return_z.min(self.pos.down_m);
-                self.rtl_start = self.pos;
+                self.rtl_z = return_z.min(here.down_m);
+                self.rtl_start = here;
                 self.hold_yaw = YawGoal::Heading(self.yaw_rad);
             }
             Px4Mode::Offboard => {
-                self.hold_pos = self.pos;
+                self.hold_pos = here;
                 self.hold_yaw = YawGoal::Heading(self.yaw_rad);
             }
             _ => {
@@ -86,7 +90,8 @@ impl Vehicle {
             return MavResult::MAV_RESULT_TEMPORARILY_REJECTED;
         }
         let p = cmd.params;
-        let current = self.origin.to_geo(self.pos);
+        let here = self.nav_pos();
+        let current = self.origin.to_geo(here);
         let (lat, lon, alt) = match cmd.int_xy {
             Some((frame, x, y)) => {
                 let alt = match frame {
@@ -138,7 +143,7 @@ impl Vehicle {
         if self.armed && !self.landed {
             self.hold_pos = local;
             self.auto_speed_m_s = (p[0] > 0.0 && p[0].is_finite()).then_some(f64::from(p[0]));
-            let to = local - self.pos;
+            let to = local - here;
             self.hold_yaw = if p[3].is_finite() {
                 YawGoal::Heading(f64::from(p[3]).to_radians())
             } else if to.horizontal_norm() > 2.0 {
@@ -154,10 +159,10 @@ impl Vehicle {
         if !self.armed || self.landed {
             return;
         }
+        let here = self.nav_pos();
         match self.mode {
             Px4Mode::Takeoff
-                if (self.pos.down_m - self.takeoff_z).abs() < 0.2
-                    || self.pos.down_m < self.takeoff_z =>
+                if (here.down_m - self.takeoff_z).abs() < 0.2 || here.down_m < self.takeoff_z =>
             {
                 let target = Ned::new(self.hold_pos.north_m, self.hold_pos.east_m, self.takeoff_z);
                 let yaw = self.hold_yaw;
@@ -168,16 +173,16 @@ impl Vehicle {
             }
             Px4Mode::Rtl => match self.rtl_phase {
                 RtlPhase::Climb => {
-                    if self.pos.down_m <= self.rtl_z + 0.5 {
+                    if here.down_m <= self.rtl_z + 0.5 {
                         self.rtl_phase = RtlPhase::Return;
-                        let to = self.home_local - self.pos;
+                        let to = self.home_local - here;
                         if to.horizontal_norm() > 2.0 {
                             self.hold_yaw = YawGoal::Heading(to.east_m.atan2(to.north_m));
                         }
                     }
                 }
                 RtlPhase::Return => {
-                    let to = self.home_local - self.pos;
+                    let to = self.home_local - here;
                     if to.horizontal_norm() < 1.0 && self.vel.horizontal_norm() < 1.0 {
                         self.rtl_phase = RtlPhase::Land;
                         self.land_xy = (self.home_local.north_m, self.home_local.east_m);
@@ -213,7 +218,7 @@ impl Vehicle {
         let Some(sp) = self.setpoint else {
             return false;
         };
-        sp.pos[2].is_some_and(|z| z < self.pos.down_m - TAKEOFF_DETECT_M)
+        sp.pos[2].is_some_and(|z| z < self.nav_pos().down_m - TAKEOFF_DETECT_M)
             || sp.vel[2].is_some_and(|vz| vz < -0.05)
     }
 
@@ -228,7 +233,7 @@ impl Vehicle {
             };
         }
         let wants_takeoff = match self.mode {
-            Px4Mode::Takeoff => self.takeoff_z < self.pos.down_m - TAKEOFF_DETECT_M,
+            Px4Mode::Takeoff => self.takeoff_z < self.nav_pos().down_m - TAKEOFF_DETECT_M,
             Px4Mode::Offboard => self.offboard_wants_takeoff(),
             _ => false,
         };

@@ -2,16 +2,19 @@
 //! ([`GroundStation`]) over real UDP ([`Client`], its own socket and `skein_mavlink`'s
 //! encoder and decoder: what a ground station or skein's link would do, without sharing
 //! code with the simulator) or on the virtual clock ([`VirtualClient`]), the simulator
-//! started for `n` clients, setpoint messages, polling with a deadline, and a ULog reader
-//! ([`ULog`]).
+//! started for `n` clients, setpoint messages, polling with a deadline, a ULog reader
+//! ([`ULog`]) and RTK corrections as a caster sends them ([`Caster`]).
 #![allow(dead_code, deprecated)]
 
+mod rtcm;
 mod station;
 mod udp;
 mod ulog;
 mod virtual_station;
 
 // Each test binary uses its own part of these.
+#[allow(unused_imports)]
+pub use rtcm::{Caster, base_position_1005, crc24q, frame_number, msm7_payload, rtcm_frame};
 #[allow(unused_imports)]
 pub use station::{GroundStation, set_mode_msg};
 #[allow(unused_imports)]

@@ -47,6 +47,9 @@ pub struct AgentArgs {
     /// With --sim: seed of the simulator's random processes.
     #[arg(long, default_value_t = 0)]
     sim_seed: u64,
+    /// With --sim: the simulated GNSS receivers wander (as `skein up --sim-gnss-wander`).
+    #[arg(long)]
+    sim_gnss_wander: bool,
     /// With --sim: the simulator's stats socket (as `skein up --sim-stats`).
     #[arg(long, value_name = "ADDR:PORT")]
     sim_stats: Option<SocketAddr>,
@@ -154,6 +157,7 @@ fn up_args(args: AgentArgs) -> Result<UpArgs, String> {
     up_args.sim = args.sim;
     up_args.sim_base_port = args.sim_base_port;
     up_args.sim_seed = args.sim_seed;
+    up_args.sim_gnss_wander = args.sim_gnss_wander;
     up_args.sim_model = args.sim_model;
     up_args.sim_stats = args.sim_stats;
     up_args.plugin_dir = args.plugin_dir;

@@ -21,7 +21,8 @@ pub(super) struct Dds {
 }
 
 /// Joins the DDS domain when the role or the options ask for it (`None` otherwise).
-/// `api_scheme` and `api_local` are where the API listens (a candidate advertises it).
+/// `api_scheme` and `api_local` are where the API listens (a candidate advertises it);
+/// `rtk` is the process's corrections service, relayed on `/skein/rtcm`.
 ///
 /// # Errors
 /// A DDS option without DDS, a bad domain id, rate or frame, DDS that cannot start.
@@ -32,6 +33,7 @@ pub(super) fn prepare(
     api_scheme: &str,
     api_local: SocketAddr,
     swarm: &Swarm,
+    rtk: &Arc<skein_rtk::RtkService>,
 ) -> Result<Option<Dds>, String> {
     let Some(config) = dds_config(role, args, file, api_scheme, api_local)? else {
         return Ok(None);
@@ -50,6 +52,7 @@ pub(super) fn prepare(
         swarm.coordinator.clone(),
         swarm.metrics.clone(),
         swarm.events.clone(),
+        rtk.clone(),
     )
     .map_err(|e| format!("--dds: {e}"))?;
     Ok(Some(Dds { roles, summary }))

@@ -13,6 +13,8 @@
 //! | ground-station forward | [`gcs`] | `--gcs-forward`, `[gcs]` | `[gcs]` | `[gcs]` |
 //! | simulator, intruders, stats socket | [`simulator`] | `--sim N` | `--sim N`, on the agents' grid | – |
 //! | recording | [`recording`] | `--record`, on demand | on demand | on demand |
+//! | RTK corrections to this process's vehicles | [`rtk`] | `[rtk]`, `PUT /api/v1/rtk`; relayed to agents with `--dds` | `[rtk]`, its API, else the active coordinator's, relayed | `[rtk]`, its API: relayed to the agents while active |
+//! | Remote ID's live operator location: the ground station's GNSS | [`remote_id`] | `[remote_id] operator_gnss` | refused: its receiver is the aircraft's | `[remote_id] operator_gnss`, for its own vehicles |
 //! | DDS link and its roles | [`dds`] | `--dds`, `[dds] enabled` | always, the agent carrier | always, the election candidate |
 //! | process watchdog, systemd readiness | `crate::process`, `crate::service` | ✓ | ✓ | ✓ |
 //! | shutdown | [`lifecycle`] | exit | vehicles secured first (`crate::shutdown`) | exit |
@@ -30,7 +32,9 @@ mod lifecycle;
 mod options;
 mod plugins;
 mod recording;
+mod remote_id;
 mod role;
+mod rtk;
 mod services;
 mod simulator;
 mod vehicles;
@@ -38,6 +42,8 @@ mod vehicles;
 pub(crate) use election::hostname;
 pub(crate) use options::UpArgs;
 pub(crate) use role::{AgentRole, Candidate, Role};
+pub(crate) use simulator::spawn_spacing_m;
+pub(crate) use vehicles::sim_mix_model;
 
 use crate::config::ConfigFile;
 use skein_swarm::Swarm;
@@ -56,7 +62,11 @@ pub(crate) async fn run(role: Role, args: UpArgs) -> Result<ExitCode, String> {
     let fleet = vehicles::Fleet::plan(&role, &args, &file)?;
     let watchdog_deadline = watchdog_deadline(&file)?;
     let plugins = plugins::Plugins::start(&args, &file, &fleet)?;
-    let vehicles::Fleet { spec, simulated } = fleet;
+    let vehicles::Fleet {
+        mut spec,
+        simulated,
+    } = fleet;
+    remote_id::start_operator_gnss(&role, &file, &mut spec.config)?;
     let sim_slot = simulator::SimSlot::default();
     let mut swarm = start_swarm(&file, spec, &plugins, sim_slot.control(&simulated)).await?;
     // Kept for the life of the process: dropping it stops the forwarding.
@@ -66,8 +76,17 @@ pub(crate) async fn run(role: Role, args: UpArgs) -> Result<ExitCode, String> {
     let listener = api.bind()?;
     let dashboard = format!("{}://{}/", api.scheme(), listener.local);
     let recorder = recording::start(&args, &file, &swarm)?;
-    let dds = dds::prepare(&role, &args, &file, api.scheme(), listener.local, &swarm)?;
-    api.serve(listener, plugins, &recorder, dds.as_ref(), &swarm)
+    let rtk = rtk::start(&file, &swarm)?;
+    let dds = dds::prepare(
+        &role,
+        &args,
+        &file,
+        api.scheme(),
+        listener.local,
+        &swarm,
+        &rtk,
+    )?;
+    api.serve(listener, plugins, &recorder, rtk, dds.as_ref(), &swarm)
         .await?;
     if let Some(dds) = dds {
         dds.serve(&swarm).await?;

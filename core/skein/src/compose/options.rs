@@ -25,6 +25,12 @@ pub struct UpArgs {
     /// With --sim: seed of the simulator's random processes.
     #[arg(long, default_value_t = 0)]
     pub(crate) sim_seed: u64,
+    /// With --sim: each simulated GNSS receiver's position wanders as GNSS does (metres
+    /// with a 3D fix, decimetres with RTK float, centimetres with RTK fixed from
+    /// `GPS_RTCM_DATA` corrections), and the vehicles fly on that estimate (see
+    /// docs/simulator.md, "GNSS and RTK"). Off: exact positions.
+    #[arg(long)]
+    pub(crate) sim_gnss_wander: bool,
     /// With --sim: the vehicle model of every simulated vehicle (default: a mix, the
     /// even-numbered vehicles uav-2, uav-4, … `observation`, the others `generic`).
     #[arg(long, value_name = "MODEL")]

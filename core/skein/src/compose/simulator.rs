@@ -97,6 +97,7 @@ fn sim_config(
         .collect();
     let mut cfg = skein_sim::SimConfig::with_vehicles(vehicles);
     cfg.seed = args.sim_seed;
+    cfg.gnss_wander = args.sim_gnss_wander;
     if matches!(role, Role::Agent(_)) {
         // Agents on one machine lay their vehicles out by sysid on one grid.
         cfg.grid_columns = Some(AGENT_GRID_COLUMNS);
@@ -105,12 +106,18 @@ fn sim_config(
         cfg.signing_key = Some(key);
         cfg.params.push(("MAV_SIGN_CFG".into(), 2.0));
     }
-    // Vehicles start as far apart as formation slots must be, so that the first
-    // formation's transition keeps the separation too (see skein_swarm::formation).
-    cfg.spacing_m = cfg
-        .spacing_m
-        .max(1.05 * std::f64::consts::SQRT_2 * simulated.setpoint_separation_m);
+    cfg.spacing_m = spawn_spacing_m(simulated.setpoint_separation_m);
     cfg
+}
+
+/// The spacing of the simulated vehicles' spawn grid, metres, for a swarm whose setpoints
+/// keep `setpoint_separation_m`: the simulator's own (3 m), or as far apart as formation
+/// slots must be, so that the first formation's transition keeps the separation too (see
+/// skein_swarm::formation).
+pub(crate) fn spawn_spacing_m(setpoint_separation_m: f64) -> f64 {
+    skein_sim::SimConfig::default()
+        .spacing_m
+        .max(1.05 * std::f64::consts::SQRT_2 * setpoint_separation_m)
 }
 
 /// Opens the simulator's stats socket on `addr` and prints where it listens.

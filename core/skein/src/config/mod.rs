@@ -6,6 +6,7 @@
 //! stream_rate_hz = 50.0        # offboard setpoints per second per vehicle
 //! min_separation_m = 3.0        # guaranteed distance between vehicles
 //! separation_margin_m = 0.5     # kept on top between setpoints, for tracking error
+//! position_uncertainty_sigmas = 1.0  # formations allow for the members' GNSS accuracy
 //! default_takeoff_altitude_m = 10.0
 //! geofence = { radius_m = 500.0, max_altitude_m = 120.0, min_altitude_m = 5.0 }
 //! # optional polygon in the swarm frame ([north_m, east_m] vertices):
@@ -57,6 +58,16 @@
 //! tiles = "field.mbtiles"      # an MBTiles file or a z/x/y folder; --map-tiles overrides
 //! # online_url = "https://tile.example.org/{z}/{x}/{y}.png"  # opt in, the browser fetches
 //! # online_attribution = "© …"  # what the online tiles must credit
+//!
+//! [rtk]                        # RTK corrections to every vehicle (docs/field-day.md)
+//! source = "ntrip://user:password@caster.example:2101/MOUNT"  # or tcp://, udp://, serial:
+//! max_bytes_s = 2000           # cap per vehicle, MAVLink framing included
+//! stall_timeout_s = 10.0       # no RTCM frame this long: reconnect
+//! send_gga = true              # tell a network RTK caster where the fleet is
+//!
+//! [logs]                       # the vehicles' flight logs (docs/field-day.md)
+//! max_bytes_s = 50000          # one cap over every download at once
+//! fetch_after_landing = true   # fetch each vehicle's newest log once it landed
 //!
 //! [gcs]                        # forward every vehicle's MAVLink to QGroundControl and
 //! forward = "udpout:127.0.0.1:14550"  # its commands back (setpoints refused); or udpin:
@@ -116,6 +127,9 @@ pub struct SwarmSection {
     pub min_separation_m: Option<f64>,
     /// Tracking margin kept between setpoints on top of the separation, metres.
     pub separation_margin_m: Option<f64>,
+    /// Standard deviations of the members' position uncertainty a formation's spacing
+    /// allows for (0 to 5; 0 ignores it).
+    pub position_uncertainty_sigmas: Option<f64>,
     /// Default takeoff altitude, metres above home.
     pub default_takeoff_altitude_m: Option<f64>,
     /// Geofence.
@@ -211,6 +225,18 @@ pub struct RecordingSection {
     pub dir: Option<std::path::PathBuf>,
 }
 
+/// `[logs]`: bringing the vehicles' flight logs home.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LogsSection {
+    /// One byte-rate cap over every log download at once, bytes/s (none by default).
+    pub max_bytes_s: Option<f64>,
+    /// Fetch each vehicle's newest log by itself once the vehicle has landed and
+    /// disarmed (default false: on request, `POST /api/v1/logs/fetch_latest`).
+    #[serde(default)]
+    pub fetch_after_landing: bool,
+}
+
 /// `[gcs]`.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -294,6 +320,9 @@ pub struct ConfigFile {
     /// `[recording]`.
     #[serde(default)]
     pub recording: RecordingSection,
+    /// `[logs]`.
+    #[serde(default)]
+    pub logs: LogsSection,
     /// `[dds]`.
     #[serde(default)]
     pub dds: DdsSection,
@@ -310,6 +339,9 @@ pub struct ConfigFile {
     /// `[remote_id]`: the operator's identity and location sent to every vehicle's
     /// Remote ID transmitter (see `skein_link::remote_id`).
     pub remote_id: Option<skein_link::remote_id::RemoteIdConfig>,
+    /// `[rtk]`: RTK corrections sent to every vehicle from this source at start
+    /// (`PUT /api/v1/rtk` changes it; see `skein_rtk`).
+    pub rtk: Option<skein_rtk::RtkConfig>,
     /// `[models.NAME]`.
     #[serde(default)]
     pub models: BTreeMap<String, ModelEntry>,
@@ -374,6 +406,11 @@ impl ConfigFile {
             _ => Ok(()),
         };
         positive("swarm.stream_rate_hz", self.swarm.stream_rate_hz)?;
+        positive("logs.max_bytes_s", self.logs.max_bytes_s)?;
+        if let Some(rtk) = &self.rtk {
+            rtk.settings()
+                .map_err(|e| format!("rtk.{}: {}", e.field, e.error))?;
+        }
         if let Some(r) = self.swarm.stream_rate_hz
             && r <= 2.0
         {
@@ -387,6 +424,13 @@ impl ConfigFile {
         {
             return Err(format!(
                 "swarm.separation_margin_m must be 0 or more, got {m}"
+            ));
+        }
+        if let Some(k) = self.swarm.position_uncertainty_sigmas
+            && !(0.0..=5.0).contains(&k)
+        {
+            return Err(format!(
+                "swarm.position_uncertainty_sigmas must be 0 to 5, got {k}"
             ));
         }
         positive(
@@ -475,6 +519,9 @@ impl ConfigFile {
         if let Some(v) = self.swarm.separation_margin_m {
             c.separation_margin_m = v;
         }
+        if let Some(v) = self.swarm.position_uncertainty_sigmas {
+            c.position_uncertainty_sigmas = v;
+        }
         if let Some(v) = self.swarm.default_takeoff_altitude_m {
             c.default_takeoff_altitude_m = v;
         }
@@ -491,7 +538,12 @@ impl ConfigFile {
                 .map(|(k, v)| (k.clone(), *v))
                 .collect(),
             remote_id: self.remote_id.clone(),
+            // The reader is started with the process (`compose::remote_id`).
+            operator_gnss: None,
+            metadata_cache_dir: Some(self.metadata_cache_dir()),
+            log_bandwidth: skein_link::log_bandwidth::LogBandwidth::new(self.logs.max_bytes_s),
         };
+        c.missions_dir = Some(self.missions_dir());
         if let Some(sup) = &self.supervision {
             c.supervision = sup.clone();
         }
@@ -509,6 +561,26 @@ impl ConfigFile {
             );
         }
         Ok(c)
+    }
+
+    /// The recordings' directory (`[recording] dir`, default `recordings`), where skein
+    /// keeps what it brings home and what it must remember.
+    fn data_dir(&self) -> std::path::PathBuf {
+        self.recording
+            .dir
+            .clone()
+            .unwrap_or_else(|| "recordings".into())
+    }
+
+    /// Where PX4's component metadata is cached: `px4-metadata` in the recordings'
+    /// directory.
+    pub fn metadata_cache_dir(&self) -> std::path::PathBuf {
+        self.data_dir().join("px4-metadata")
+    }
+
+    /// Where mission plans are stored: `missions` in the recordings' directory.
+    pub fn missions_dir(&self) -> std::path::PathBuf {
+        self.data_dir().join("missions")
     }
 
     /// Our MAVLink identity.

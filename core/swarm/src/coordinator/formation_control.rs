@@ -64,11 +64,19 @@ impl CoordinatorState {
     }
 
     /// Checks `spec` and, if sound, flies it at once (hovering vehicles join).
-    fn set_formation(&mut self, spec: FormationSpec) -> Result<FormationStatus, FieldError> {
-        let vehicles: Vec<(&str, VehicleState, bool)> = self
+    pub(super) fn set_formation(
+        &mut self,
+        spec: FormationSpec,
+    ) -> Result<FormationStatus, FieldError> {
+        let vehicles: Vec<validation::Candidate> = self
             .vehicles
             .iter()
-            .map(|(id, v)| (id.as_str(), v.state(), v.failed))
+            .map(|(id, v)| validation::Candidate {
+                id: id.as_str(),
+                state: v.state(),
+                failed: v.failed,
+                eph_m: v.snapshot().gps.and_then(|g| g.eph_m),
+            })
             .collect();
         let shared = self.tracking.shared();
         let (tracks, swarms) = (shared.tracks(), shared.swarms());
@@ -92,7 +100,10 @@ impl CoordinatorState {
     }
 
     /// Checks `motion` and, if sound, moves the formation's reference point with it.
-    fn leader_motion(&mut self, mut motion: LeaderMotion) -> Result<FormationStatus, FieldError> {
+    pub(super) fn leader_motion(
+        &mut self,
+        mut motion: LeaderMotion,
+    ) -> Result<FormationStatus, FieldError> {
         // A point without an altitude keeps the formation's.
         if let Some(down) = self
             .formation
@@ -117,7 +128,7 @@ impl CoordinatorState {
     }
 
     /// Stops flying the formation: its members leave it and hold where they are.
-    fn clear_formation(&mut self) -> FormationStatus {
+    pub(super) fn clear_formation(&mut self) -> FormationStatus {
         self.formation.deactivate();
         let members: Vec<String> = self
             .vehicles

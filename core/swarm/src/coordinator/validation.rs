@@ -1,5 +1,17 @@
 //! Validation of formation requests and leader motions: pure functions of the
 //! configuration and the vehicles' states, answered as a [`FieldError`] naming the field.
+//!
+//! A formation's spacing must keep the minimum separation through every change: the
+//! transition plan keeps members `1/√2` of the slot distance apart, so the spacing must
+//! be at least `√2 × (min_separation_m + separation_margin_m + u)`, where the margin is
+//! for the tracking error and `u` for where the members really are: each member flies on
+//! its own position estimate, off by about its receiver's accuracy `eph_m` (`GPS_RAW_INT`
+//! `h_acc`, the RMS of the horizontal error: `eph/√2` along any one axis), so along the
+//! line between two members their distance is off by `√((eph_a² + eph_b²) / 2)` (one
+//! standard deviation); `u` is that for the two least certain members, times
+//! `position_uncertainty_sigmas`. With plain GNSS (about 1.8 m each) a formation needs
+//! 7.5 m, with PX4 SIH's reported 0.9 m 6.2 m, with RTK float (0.35 m) 5.45 m; with RTK
+//! fixed (about 2 cm) `u` vanishes.
 
 use super::messages::FieldError;
 use crate::config::SwarmConfig;
@@ -89,8 +101,73 @@ pub fn validate_motion(
     }
 }
 
-/// Checks a formation request against the configuration and the vehicles that would fly
-/// it (`vehicles`: id, FSM state, and whether the vehicle has failed).
+/// A vehicle that might fly a formation, as its checks see it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Candidate<'a> {
+    /// Vehicle id.
+    pub id: &'a str,
+    /// Its FSM state.
+    pub state: VehicleState,
+    /// It has failed (its actor gave up).
+    pub failed: bool,
+    /// Its horizontal position accuracy, metres (`GpsStatus::eph_m`); `None`: unknown,
+    /// not counted.
+    pub eph_m: Option<f64>,
+}
+
+/// The vehicles that would fly a formation: the airborne healthy ones (those still
+/// climbing included: they join when they reach their altitude), or every connected one
+/// when the formation is set before takeoff.
+fn flying<'a>(vehicles: &[Candidate<'a>]) -> Vec<Candidate<'a>> {
+    let airborne = |s: VehicleState| {
+        matches!(
+            s,
+            VehicleState::TakingOff
+                | VehicleState::Hovering
+                | VehicleState::InFormation
+                | VehicleState::GoTo
+        )
+    };
+    let healthy = vehicles.iter().filter(|v| !v.failed);
+    let up: Vec<_> = healthy
+        .clone()
+        .filter(|v| airborne(v.state))
+        .copied()
+        .collect();
+    if up.is_empty() {
+        healthy
+            .filter(|v| v.state.is_connected())
+            .copied()
+            .collect()
+    } else {
+        up
+    }
+}
+
+/// The position uncertainty a spacing must allow for (see the module docs), metres, and
+/// the words that say where it comes from (`""` when it is zero).
+fn uncertainty(config: &SwarmConfig, members: &[Candidate]) -> (f64, String) {
+    let mut known: Vec<(&str, f64)> = members
+        .iter()
+        .filter_map(|c| Some((c.id, c.eph_m.filter(|e| e.is_finite() && *e > 0.0)?)))
+        .collect();
+    known.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let k = config.position_uncertainty_sigmas;
+    match known.as_slice() {
+        [a, b, ..] if k > 0.0 => {
+            let u = k * ((a.1 * a.1 + b.1 * b.1) / 2.0).sqrt();
+            let words = format!(
+                " + {u:.2} m for the position uncertainty of {} (eph {:.2} m) and {} (eph {:.2} m)",
+                a.0, a.1, b.0, b.1
+            );
+            (u, words)
+        }
+        _ => (0.0, String::new()),
+    }
+}
+
+/// Checks a formation request against the configuration and the vehicles that might fly
+/// it.
 ///
 /// # Errors
 /// The first offending field (`spacing_m`, `leader`, `offsets`, `heading_deg`,
@@ -99,7 +176,7 @@ pub fn validate_formation(
     config: &SwarmConfig,
     fence: &Geofence,
     spec: &FormationSpec,
-    vehicles: &[(&str, VehicleState, bool)],
+    vehicles: &[Candidate],
 ) -> Result<(), FieldError> {
     let err = |field: &str, error: String| {
         Err(FieldError {
@@ -119,13 +196,20 @@ pub fn validate_formation(
         );
     }
     let margin = config.separation_margin_m;
+    let members = flying(vehicles);
+    let (u, because) = uncertainty(config, &members);
     // Transitions keep members 1/√2 of the slot distance apart (see `formation`).
-    let needed = config.min_slot_distance_m();
+    let needed = config.min_slot_distance_m() + std::f64::consts::SQRT_2 * u;
+    let rtk = if u > 0.0 {
+        "; RTK corrections shrink the uncertainty"
+    } else {
+        ""
+    };
     if !custom && spec.spacing_m < needed - 1e-9 {
         return err(
             "spacing_m",
             format!(
-                "spacing_m {} is below √2 × (the minimum separation of {min_sep} m + the {margin} m tracking margin) = {needed:.2} m, what formation changes need to keep the separation",
+                "spacing_m {} is below √2 × (the minimum separation of {min_sep} m + the {margin} m tracking margin{because}) = {needed:.2} m, what formation changes need to keep the separation{rtk}",
                 spec.spacing_m
             ),
         );
@@ -133,7 +217,7 @@ pub fn validate_formation(
     if let Some(leader) = &spec.leader
         && leader != VIRTUAL
         && spec.track_leader().is_none()
-        && !vehicles.iter().any(|(id, _, _)| id == leader)
+        && !vehicles.iter().any(|c| c.id == leader)
     {
         return err(
             "leader",
@@ -154,7 +238,7 @@ pub fn validate_formation(
             return err(
                 "offsets",
                 format!(
-                    "two slots are {d:.2} m apart, below √2 × (the minimum separation of {min_sep} m + the {margin} m tracking margin) = {needed:.2} m"
+                    "two slots are {d:.2} m apart, below √2 × (the minimum separation of {min_sep} m + the {margin} m tracking margin{because}) = {needed:.2} m{rtk}"
                 ),
             );
         }
@@ -178,30 +262,7 @@ pub fn validate_formation(
             format!("altitude_m {a} outside (0, {}] m", fence.max_altitude_m),
         );
     }
-    // The vehicles that would fly it: the airborne healthy ones (those still climbing
-    // included: they join when they reach their altitude), or every connected one when
-    // the formation is set before takeoff.
-    let usable = |s: VehicleState| {
-        matches!(
-            s,
-            VehicleState::TakingOff
-                | VehicleState::Hovering
-                | VehicleState::InFormation
-                | VehicleState::GoTo
-        )
-    };
-    let airborne = vehicles
-        .iter()
-        .filter(|(_, s, failed)| !failed && usable(*s))
-        .count();
-    let n = if airborne > 0 {
-        airborne
-    } else {
-        vehicles
-            .iter()
-            .filter(|(_, s, failed)| !failed && s.is_connected())
-            .count()
-    };
+    let n = members.len();
     if n < spec.shape.min_vehicles() {
         return err(
             "shape",
@@ -234,16 +295,26 @@ mod tests {
         }
     }
 
-    fn hovering(n: usize) -> Vec<(String, VehicleState, bool)> {
-        (1..=n)
-            .map(|i| (format!("uav-{i}"), VehicleState::Hovering, false))
+    const IDS: [&str; 4] = ["uav-1", "uav-2", "uav-3", "uav-4"];
+
+    fn vehicles(n: usize, state: VehicleState) -> Vec<Candidate<'static>> {
+        IDS[..n]
+            .iter()
+            .map(|id| Candidate {
+                id,
+                state,
+                failed: false,
+                eph_m: None,
+            })
             .collect()
     }
 
-    fn check(spec: &FormationSpec, v: &[(String, VehicleState, bool)]) -> Result<(), FieldError> {
-        let v: Vec<(&str, VehicleState, bool)> =
-            v.iter().map(|(i, s, f)| (i.as_str(), *s, *f)).collect();
-        validate_formation(&SwarmConfig::default(), &Geofence::default(), spec, &v)
+    fn hovering(n: usize) -> Vec<Candidate<'static>> {
+        vehicles(n, VehicleState::Hovering)
+    }
+
+    fn check(spec: &FormationSpec, v: &[Candidate]) -> Result<(), FieldError> {
+        validate_formation(&SwarmConfig::default(), &Geofence::default(), spec, v)
     }
 
     fn field(r: Result<(), FieldError>) -> String {
@@ -257,6 +328,63 @@ mod tests {
         assert_eq!(field(check(&wedge(4.9), &hovering(3))), "spacing_m");
         assert_eq!(field(check(&wedge(f64::NAN), &hovering(3))), "spacing_m");
         assert_eq!(field(check(&wedge(-1.0), &hovering(3))), "spacing_m");
+    }
+
+    #[test]
+    fn the_spacing_allows_for_the_members_position_uncertainty() {
+        let with_eph = |eph: [f64; 3]| {
+            let mut v = hovering(3);
+            for (c, e) in v.iter_mut().zip(eph) {
+                c.eph_m = Some(e);
+            }
+            v
+        };
+        // Plain GNSS, 1.8 m each: √2 × (3.5 m + √((1.8² + 1.8²) / 2) m) = 7.5 m.
+        let plain = with_eph([1.8, 1.8, 1.2]);
+        let e = check(&wedge(7.0), &plain).expect_err("too tight for plain GNSS");
+        assert_eq!(e.field, "spacing_m");
+        assert!(
+            e.error
+                .contains("uav-1 (eph 1.80 m) and uav-2 (eph 1.80 m)"),
+            "{}",
+            e.error
+        );
+        assert!(
+            e.error.contains("= 7.50 m") && e.error.contains("RTK"),
+            "{}",
+            e.error
+        );
+        assert!(check(&wedge(7.5), &plain).is_ok());
+        // PX4 SIH's reported 0.9 m: 6.22 m.
+        assert_eq!(field(check(&wedge(6.0), &with_eph([0.9; 3]))), "spacing_m");
+        assert!(check(&wedge(6.3), &with_eph([0.9; 3])).is_ok());
+        // RTK fixed, 2 cm each: the 5 m formation flies.
+        assert!(check(&wedge(5.0), &with_eph([0.02, 0.014, 0.02])).is_ok());
+        // RTK float (0.35 m) on two: 5.45 m; the two least certain count.
+        assert_eq!(
+            field(check(&wedge(5.0), &with_eph([0.35, 0.017, 0.35]))),
+            "spacing_m"
+        );
+        // A landed vehicle that will not fly does not count once others are up.
+        let mut v = with_eph([0.02, 0.02, 0.02]);
+        v.push(Candidate {
+            id: "uav-4",
+            state: VehicleState::Landed,
+            failed: false,
+            eph_m: Some(3.0),
+        });
+        assert!(check(&wedge(5.0), &v).is_ok());
+        // Custom offsets too.
+        let mut spec = wedge(6.0);
+        spec.shape = Shape::Custom;
+        spec.offsets = vec![Ned::new(-6.0, 0.0, 0.0), Ned::new(-12.0, 0.0, 0.0)];
+        assert_eq!(field(check(&spec, &plain)), "offsets");
+        // With the factor at 0 the uncertainty is not counted.
+        let config = SwarmConfig {
+            position_uncertainty_sigmas: 0.0,
+            ..SwarmConfig::default()
+        };
+        assert!(validate_formation(&config, &Geofence::default(), &wedge(5.0), &plain).is_ok());
     }
 
     #[test]
@@ -298,25 +426,22 @@ mod tests {
     #[test]
     fn the_shape_needs_enough_vehicles_that_can_fly_it() {
         let mut v = hovering(3);
-        v[2].2 = true; // failed
+        v[2].failed = true;
         let e = check(&wedge(6.0), &v).expect_err("two can fly");
         assert_eq!(e.field, "shape");
         assert!(e.error.contains("2 can fly it"), "{}", e.error);
         // Before takeoff every connected vehicle counts.
-        let landed: Vec<_> = (1..=3)
-            .map(|i| (format!("uav-{i}"), VehicleState::Landed, false))
-            .collect();
-        assert!(check(&wedge(6.0), &landed).is_ok());
+        assert!(check(&wedge(6.0), &vehicles(3, VehicleState::Landed)).is_ok());
     }
 
     #[test]
     fn vehicles_still_climbing_count_and_join_on_arrival() {
         // Right after a swarm takeoff one vehicle hovers while two are a metre short.
         let mut v = hovering(3);
-        v[1].1 = VehicleState::TakingOff;
-        v[2].1 = VehicleState::TakingOff;
+        v[1].state = VehicleState::TakingOff;
+        v[2].state = VehicleState::TakingOff;
         assert!(check(&wedge(6.0), &v).is_ok());
-        v[2].1 = VehicleState::Landing;
+        v[2].state = VehicleState::Landing;
         assert_eq!(field(check(&wedge(6.0), &v)), "shape");
     }
 

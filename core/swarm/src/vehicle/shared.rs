@@ -16,8 +16,7 @@ use skein_model::geo::{FrameTransform, Ned, NedFrame, wrap_deg_360};
 use skein_model::geofence::FenceStatus;
 use skein_model::safety::{FenceViolation, SetpointShaper};
 use skein_model::vehicle::{
-    Battery, FormationSlot, GpsStatus, LinkStatus, Position, RemoteIdStatus, VehicleSnapshot,
-    Velocity,
+    Battery, FormationSlot, GpsStatus, LinkStatus, Position, VehicleSnapshot, Velocity,
 };
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError, RwLock};
@@ -38,6 +37,10 @@ pub(super) struct Memory {
     pub(super) procedure: u64,
     /// The takeoff procedure has PX4 in OFFBOARD and the climb target is set.
     pub(super) offboard_engaged: bool,
+    /// Generation of a running procedure that brings PX4 from another mode (LAND, RTL,
+    /// HOLD) into OFFBOARD for a hold or go-to: until it ends, PX4 still reporting the
+    /// mode it is leaving is expected, not a failsafe.
+    pub(super) entering_offboard: Option<u64>,
     pub(super) takeoff_altitude_m: f64,
     pub(super) goto_target: Option<Ned>,
     pub(super) last_fence: Option<FenceViolation>,
@@ -144,6 +147,7 @@ impl VehicleShared {
             gps: None,
             prearm_ok: None,
             px4_messages: vec![],
+            px4_arming_checks: vec![],
             link: LinkStatus {
                 connected: false,
                 last_seen_ms: 0,
@@ -168,6 +172,7 @@ impl VehicleShared {
                 yaw_rad: 0.0,
                 procedure: 0,
                 offboard_engaged: false,
+                entering_offboard: None,
                 takeoff_altitude_m: 0.0,
                 goto_target: None,
                 last_fence: None,
@@ -441,11 +446,18 @@ impl VehicleShared {
                     satellites: t.satellites.unwrap_or(0),
                     eph_m: t.gps_eph_m,
                     epv_m: t.gps_epv_m,
+                    correction_age_s: correction_age_s(link),
                 }),
                 prearm_ok: t.prearm_ok,
                 px4_messages: t.px4_messages.iter().cloned().collect(),
+                px4_arming_checks: t.px4_arming_checks(),
                 fence: Some(fence),
-                remote_id: remote_id_status(link.setup().remote_id.is_some(), t),
+                remote_id: link.remote_id().status(
+                    link.setup().remote_id.as_ref(),
+                    link.setup().operator_gnss.as_ref(),
+                    t.remote_id.clone(),
+                    std::time::Instant::now(),
+                ),
             }
         });
         self.snapshot.send_replace(snap);
@@ -483,13 +495,14 @@ impl VehicleShared {
 }
 
 /// Velocity, NED m/s: `LOCAL_POSITION_NED`'s, else `GLOBAL_POSITION_INT`'s.
-/// Remote ID on the vehicle: whether skein sends the operator's part (`sent`) and what
-/// its transmitter said; `None` when neither.
-fn remote_id_status(sent: bool, t: &Telemetry) -> Option<RemoteIdStatus> {
-    (sent || t.remote_id.is_some()).then(|| RemoteIdStatus {
-        operator_sent: sent,
-        transmitter: t.remote_id.clone(),
-    })
+/// Seconds since the vehicle was last sent RTK corrections, if ever.
+fn correction_age_s(link: &VehicleLink) -> Option<f64> {
+    let sent_ms = link.corrections().sent().last_unix_ms?;
+    let now_ms = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .ok()?
+        .as_millis() as u64;
+    Some(now_ms.saturating_sub(sent_ms) as f64 / 1000.0)
 }
 
 fn velocity_of(t: &Telemetry) -> Option<Ned> {

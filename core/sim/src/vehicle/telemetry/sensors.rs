@@ -5,10 +5,24 @@
 #![allow(deprecated)]
 
 use super::messages::{Stamp, heading_deg, ned_to_body};
+use crate::vehicle::gnss::GnssFix;
 use crate::vehicle::{GRAVITY_M_S2, Goal, Vehicle};
 use skein_mavlink::MavMessage;
 use skein_mavlink::dialect::*;
 use skein_model::geo::Ned;
+
+/// The receiver's HDOP × 100 (`GPS_RAW_INT.eph` as PX4 fills it): the sky's geometry,
+/// the same in every fix state (PX4 SIH's 0.7).
+const GNSS_HDOP_X100: u16 = 70;
+/// The receiver's VDOP × 100 (`GPS_RAW_INT.epv`; PX4 SIH's 1.1).
+const GNSS_VDOP_X100: u16 = 110;
+/// Without the error model, a 3D fix reports what PX4 SIH's GPS reports (`Sih::gps_fix`:
+/// `eph` 0.9 m, `epv` 1.78 m), as `GPS_RAW_INT.h_acc` / `v_acc`, mm: a PX4 SITL client
+/// sees the same accuracy from the simulator as from SIH.
+const SIH_3D_ACC_MM: (u32, u32) = (900, 1780);
+/// Satellites used in the fix (`GPS_RAW_INT.satellites_visible` is PX4's
+/// `satellites_used`).
+const GNSS_SATELLITES_USED: u8 = 12;
 
 /// ISA static pressure at `alt_m` AMSL, hPa.
 fn pressure_hpa(alt_m: f64) -> f64 {
@@ -101,7 +115,12 @@ impl Vehicle {
         })
     }
 
-    /// `GPS_RAW_INT`: the noisy GPS fix (none without the EKF's).
+    /// `GPS_RAW_INT` as PX4's stream fills it from the receiver (none before the EKF's
+    /// first fix): the fix type of the RTK state, the receiver's position (truth plus its
+    /// error and white noise with `gnss_wander`, plus the configured GPS noise), `eph` /
+    /// `epv` the DOPs × 100, `h_acc` / `v_acc` the accuracy the receiver reports in its
+    /// state (mm; without the error model a 3D fix reports PX4 SIH's figures),
+    /// `satellites_visible` the satellites used.
     pub(super) fn gps_raw_int(&mut self, s: &Stamp) -> MavMessage {
         let Stamp {
             now,
@@ -110,17 +129,26 @@ impl Vehicle {
             ..
         } = *s;
         let fix = self.ekf_ok(now);
-        let noisy = self.pos + self.est_noise + self.gps_white_noise();
-        let geo = self.geo_of(noisy);
+        let mut position = self.pos + self.est_noise + self.gps_white_noise();
+        if self.gnss.wanders() {
+            position = position + self.gnss.fix_error();
+        }
+        let geo = self.geo_of(position);
         let (lat, lon, alt) = if fix { geo.to_mavlink() } else { (0, 0, 0) };
         let speed = vel.horizontal_norm();
+        let figures = self.gnss.figures();
+        let (h_acc, v_acc) = if !self.gnss.wanders() && self.gnss.fix() == GnssFix::Fix3d {
+            SIH_3D_ACC_MM
+        } else {
+            (figures.h_acc_mm(), figures.v_acc_mm())
+        };
         MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
             time_usec,
             lat,
             lon,
             alt,
-            eph: if fix { 80 } else { u16::MAX },
-            epv: if fix { 120 } else { u16::MAX },
+            eph: if fix { GNSS_HDOP_X100 } else { u16::MAX },
+            epv: if fix { GNSS_VDOP_X100 } else { u16::MAX },
             vel: (speed * 100.0).round() as u16,
             cog: if speed > 0.5 {
                 (heading_deg(vel.east_m.atan2(vel.north_m)) * 100.0)
@@ -130,15 +158,15 @@ impl Vehicle {
                 u16::MAX
             },
             fix_type: if fix {
-                GpsFixType::GPS_FIX_TYPE_3D_FIX
+                self.gnss.fix().fix_type()
             } else {
                 GpsFixType::GPS_FIX_TYPE_NO_FIX
             },
-            satellites_visible: if fix { 12 } else { 3 },
+            satellites_visible: if fix { GNSS_SATELLITES_USED } else { 3 },
             // Geoid separation near Zurich: about 47 m.
             alt_ellipsoid: if fix { alt + 47_000 } else { 0 },
-            h_acc: if fix { 500 } else { u32::MAX },
-            v_acc: if fix { 800 } else { u32::MAX },
+            h_acc: if fix { h_acc } else { u32::MAX },
+            v_acc: if fix { v_acc } else { u32::MAX },
             vel_acc: if fix { 200 } else { u32::MAX },
             hdg_acc: 0,
             yaw: 0,

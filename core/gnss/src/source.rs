@@ -1,0 +1,228 @@
+//! Where the ground station's GNSS position comes from, as the operator writes it
+//! (`[remote_id] operator_gnss`):
+//!
+//! - `gpsd://HOST[:PORT]`: a gpsd daemon (port 2947 by default), asked for JSON reports
+//!   (`?WATCH={"enable":true,"json":true}`); its `TPV` reports are read.
+//! - `serial:DEVICE:BAUD`: a receiver streaming NMEA 0183 on a serial port
+//!   (`serial:/dev/ttyACM0:9600`).
+//! - `tcp://HOST:PORT`: NMEA 0183 from a TCP server (a receiver's or a phone's NMEA
+//!   stream, gpsd's `gpspipe -r` behind a socket).
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::str::FromStr;
+
+/// gpsd's port (IANA `gpsd`).
+pub const GPSD_PORT: u16 = 2947;
+
+/// A GNSS source (see the module docs for the forms).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum GnssSource {
+    /// A gpsd daemon: JSON `TPV` reports.
+    Gpsd {
+        /// Host name or address.
+        host: String,
+        /// TCP port.
+        port: u16,
+    },
+    /// NMEA 0183 on a serial port.
+    Serial {
+        /// Device path, e.g. `/dev/ttyACM0`.
+        device: String,
+        /// Baud rate.
+        baud: u32,
+    },
+    /// NMEA 0183 from a TCP server.
+    Tcp {
+        /// Host name or address.
+        host: String,
+        /// TCP port.
+        port: u16,
+    },
+}
+
+/// Why a source string was refused: the text and what is wrong with it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SourceError(pub String);
+
+impl fmt::Display for SourceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for SourceError {}
+
+const FORMS: &str = "gpsd://HOST[:PORT], serial:DEVICE:BAUD or tcp://HOST:PORT";
+
+impl FromStr for GnssSource {
+    type Err = SourceError;
+
+    fn from_str(s: &str) -> Result<Self, SourceError> {
+        let err = |what: &str| SourceError(format!("`{s}`: {what}"));
+        if let Some(rest) = s.strip_prefix("gpsd://") {
+            let (host, port) =
+                host_port(rest.trim_end_matches('/'), Some(GPSD_PORT)).map_err(|e| err(&e))?;
+            return Ok(GnssSource::Gpsd { host, port });
+        }
+        if let Some(rest) = s.strip_prefix("tcp://") {
+            let (host, port) = host_port(rest, None).map_err(|e| err(&e))?;
+            return Ok(GnssSource::Tcp { host, port });
+        }
+        if let Some(rest) = s.strip_prefix("serial:") {
+            let rest = rest.strip_prefix("//").unwrap_or(rest);
+            let (device, baud) = rest
+                .rsplit_once(':')
+                .ok_or_else(|| err("expected serial:DEVICE:BAUD"))?;
+            let baud = baud
+                .parse::<u32>()
+                .ok()
+                .filter(|b| *b > 0)
+                .ok_or_else(|| err(&format!("baud `{baud}` is not a positive number")))?;
+            if device.is_empty() {
+                return Err(err("empty serial device"));
+            }
+            return Ok(GnssSource::Serial {
+                device: device.into(),
+                baud,
+            });
+        }
+        Err(err(&format!("expected {FORMS}")))
+    }
+}
+
+/// `HOST:PORT`, `[V6]:PORT`, or `HOST` with the `default` port.
+fn host_port(s: &str, default: Option<u16>) -> Result<(String, u16), String> {
+    let (host, port) = if let Some(v6) = s.strip_prefix('[') {
+        let (h, after) = v6.split_once(']').ok_or("unclosed `[` in the host")?;
+        (h, after.strip_prefix(':'))
+    } else {
+        match s.rsplit_once(':') {
+            Some((h, p)) => (h, Some(p)),
+            None => (s, None),
+        }
+    };
+    if host.is_empty() {
+        return Err("no host".into());
+    }
+    let port = match (port, default) {
+        (Some(p), _) => p
+            .parse::<u16>()
+            .ok()
+            .filter(|p| *p > 0)
+            .ok_or_else(|| format!("port `{p}` is not 1 to 65535"))?,
+        (None, Some(d)) => d,
+        (None, None) => return Err("no port (HOST:PORT)".into()),
+    };
+    Ok((host.to_string(), port))
+}
+
+impl fmt::Display for GnssSource {
+    /// The source in its canonical form (the port always given).
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let bracket = |h: &str| {
+            if h.contains(':') {
+                format!("[{h}]")
+            } else {
+                h.to_string()
+            }
+        };
+        match self {
+            GnssSource::Gpsd { host, port } => write!(f, "gpsd://{}:{port}", bracket(host)),
+            GnssSource::Serial { device, baud } => write!(f, "serial:{device}:{baud}"),
+            GnssSource::Tcp { host, port } => write!(f, "tcp://{}:{port}", bracket(host)),
+        }
+    }
+}
+
+impl TryFrom<String> for GnssSource {
+    type Error = SourceError;
+
+    fn try_from(s: String) -> Result<Self, SourceError> {
+        s.parse()
+    }
+}
+
+impl From<GnssSource> for String {
+    fn from(s: GnssSource) -> String {
+        s.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_three_forms_parse_and_print_back() {
+        for (text, source, canonical) in [
+            (
+                "gpsd://127.0.0.1",
+                GnssSource::Gpsd {
+                    host: "127.0.0.1".into(),
+                    port: 2947,
+                },
+                "gpsd://127.0.0.1:2947",
+            ),
+            (
+                "gpsd://[::1]:3000/",
+                GnssSource::Gpsd {
+                    host: "::1".into(),
+                    port: 3000,
+                },
+                "gpsd://[::1]:3000",
+            ),
+            (
+                "serial:/dev/ttyACM0:9600",
+                GnssSource::Serial {
+                    device: "/dev/ttyACM0".into(),
+                    baud: 9600,
+                },
+                "serial:/dev/ttyACM0:9600",
+            ),
+            (
+                "tcp://phone.local:10110",
+                GnssSource::Tcp {
+                    host: "phone.local".into(),
+                    port: 10110,
+                },
+                "tcp://phone.local:10110",
+            ),
+        ] {
+            let parsed: GnssSource = text.parse().unwrap();
+            assert_eq!(parsed, source, "{text}");
+            assert_eq!(parsed.to_string(), canonical);
+        }
+    }
+
+    #[test]
+    fn bad_sources_say_what_is_wrong() {
+        for (s, says) in [
+            ("http://x", "expected gpsd://"),
+            ("gpsd://", "no host"),
+            ("gpsd://host:0", "port `0`"),
+            ("tcp://host", "no port"),
+            ("serial:/dev/ttyUSB0:fast", "baud `fast`"),
+            ("serial::9600", "empty serial device"),
+            ("serial:/dev/ttyUSB0", "serial:DEVICE:BAUD"),
+        ] {
+            let e = s.parse::<GnssSource>().unwrap_err();
+            assert!(e.0.contains(says), "{s}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_source_is_a_string_in_toml() {
+        #[derive(Deserialize)]
+        struct T {
+            operator_gnss: GnssSource,
+        }
+        let t: T = serde_json::from_str(r#"{"operator_gnss": "gpsd://gnss.local"}"#).unwrap();
+        assert_eq!(t.operator_gnss.to_string(), "gpsd://gnss.local:2947");
+        let e = serde_json::from_str::<T>(r#"{"operator_gnss": "gps://x"}"#)
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("expected gpsd://"), "{e}");
+    }
+}
