@@ -44,7 +44,7 @@ fn a_wedge_and_a_circle_behind_a_virtual_leader_at_5_m_s_over_udp() {
         // Reshape while the virtual leader holds …
         let (status, body) = skein.put(
             "/api/v1/formation",
-            json!({"shape": shape, "spacing_m": 6.0, "leader": "virtual", "altitude_m": 12.0}),
+            json!({"shape": shape, "spacing_m": 7.0, "leader": "virtual", "altitude_m": 12.0}),
         );
         assert_eq!(status, 200, "{shape}: {body}");
         let t0 = Instant::now();
@@ -128,7 +128,7 @@ fn the_leader_dies_and_the_nearest_member_takes_over_within_3_s() {
     skein.take_off(5, 10.0);
     let (status, body) = skein.put(
         "/api/v1/formation",
-        json!({"shape": "wedge", "spacing_m": 6.0, "leader": "uav-3"}),
+        json!({"shape": "wedge", "spacing_m": 7.0, "leader": "uav-3"}),
     );
     assert_eq!(status, 200, "{body}");
     settled(&skein, 5, 0.5, Duration::from_secs(60));
@@ -208,7 +208,7 @@ fn a_vehicle_that_joins_in_flight_gets_a_slot() {
     skein.take_off(4, 10.0);
     let (status, body) = skein.put(
         "/api/v1/formation",
-        json!({"shape": "line", "spacing_m": 5.0, "leader": "uav-1"}),
+        json!({"shape": "line", "spacing_m": 7.0, "leader": "uav-1"}),
     );
     assert_eq!(status, 200, "{body}");
     settled(&skein, 4, 0.5, Duration::from_secs(60));
@@ -250,14 +250,14 @@ fn formation_requests_are_validated_field_by_field() {
     let skein = up(2, &[]);
     skein.take_off(2, 8.0);
     for (body, field) in [
-        (json!({"shape": "diamond", "spacing_m": 5}), "shape"),
+        (json!({"shape": "diamond", "spacing_m": 7}), "shape"),
         (json!({"shape": "line", "spacing_m": 2}), "spacing_m"),
         (
-            json!({"shape": "line", "spacing_m": 5, "leader": "uav-7"}),
+            json!({"shape": "line", "spacing_m": 7.0, "leader": "uav-7"}),
             "leader",
         ),
         (
-            json!({"shape": "line", "spacing_m": 5, "frame": "body"}),
+            json!({"shape": "line", "spacing_m": 7.0, "frame": "body"}),
             "frame",
         ),
         (
@@ -265,7 +265,7 @@ fn formation_requests_are_validated_field_by_field() {
             "offsets",
         ),
         (
-            json!({"shape": "line", "spacing_m": 5, "altitude_m": 500}),
+            json!({"shape": "line", "spacing_m": 7.0, "altitude_m": 500}),
             "altitude_m",
         ),
     ] {
@@ -284,7 +284,7 @@ fn formation_requests_are_validated_field_by_field() {
     assert_eq!(status, 409, "{err}");
     let (status, _) = skein.put(
         "/api/v1/formation",
-        json!({"shape": "custom", "offsets": [{"forward_m": -5, "right_m": 0}], "leader": "virtual", "altitude_m": 8}),
+        json!({"shape": "custom", "offsets": [{"forward_m": -7, "right_m": 0}], "leader": "virtual", "altitude_m": 8}),
     );
     assert_eq!(status, 200);
     for (cmd, body, field) in [

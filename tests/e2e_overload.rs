@@ -104,7 +104,7 @@ fn starved_of_cpu_skein_sheds_work_kills_nothing_and_recovers_every_slot() {
     skein.take_off(n, 10.0);
     let (status, body) = skein.put(
         "/api/v1/formation",
-        json!({"shape": "grid", "spacing_m": 6.0, "leader": "virtual", "altitude_m": 10.0}),
+        json!({"shape": "grid", "spacing_m": 7.0, "leader": "virtual", "altitude_m": 10.0}),
     );
     assert_eq!(status, 200, "{body}");
     skein.settled(n, 0.5, Duration::from_secs(90));

@@ -66,7 +66,7 @@ fn a_flight_is_recorded_to_mcap_read_by_the_reference_reader_and_replayed() {
     skein.take_off(2, 5.0);
     let (status, body) = skein.put(
         "/api/v1/formation",
-        json!({"shape": "line", "spacing_m": 6.0, "leader": "virtual", "altitude_m": 8.0}),
+        json!({"shape": "line", "spacing_m": 7.0, "leader": "virtual", "altitude_m": 8.0}),
     );
     assert_eq!(status, 200, "{body}");
     eventually("a camera frame", Duration::from_secs(60), || {

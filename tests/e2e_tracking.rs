@@ -314,7 +314,7 @@ fn observe_the_track(skein: &Skein, id: &str, record: &mut TrackRecord) -> Obser
 fn follow_the_track(skein: &Skein, id: &str) {
     let wedge = |leader: &str, standoff: Option<f64>| {
         let mut f =
-            json!({"shape": "wedge", "spacing_m": 6.0, "leader": leader, "altitude_m": 10.0});
+            json!({"shape": "wedge", "spacing_m": 7.0, "leader": leader, "altitude_m": 10.0});
         if let Some(s) = standoff {
             f["standoff_m"] = json!(s);
         }

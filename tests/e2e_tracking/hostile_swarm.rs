@@ -347,7 +347,7 @@ fn fly_to_the_stations(skein: &Skein, id: &str, fence_radius: f64) {
 /// the field; then the observation ends.
 fn follow_it(skein: &Skein, id: &str) {
     // A formation may follow the swarm; an unknown one is refused naming the field.
-    let wedge = |leader: &str| json!({"shape": "wedge", "spacing_m": 6.0, "leader": leader, "altitude_m": 10.0, "standoff_m": 30.0});
+    let wedge = |leader: &str| json!({"shape": "wedge", "spacing_m": 7.0, "leader": leader, "altitude_m": 10.0, "standoff_m": 30.0});
     let (status, body) = skein.put("/api/v1/formation", wedge("swarm-999"));
     assert_eq!(
         (status, body["field"].as_str()),

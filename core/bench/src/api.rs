@@ -74,15 +74,15 @@ fn timed_get(agent: &ureq::Agent, url: &str) -> Result<f64, String> {
     Ok(t0.elapsed().as_secs_f64() * 1e3)
 }
 
-/// Keeps the coordinator busy until `stop`: `/metrics`, then the line again at 6 or
-/// 6.5 m spacing (each a formation change the coordinator checks and plans for every
+/// Keeps the coordinator busy until `stop`: `/metrics`, then the line again at 7 or
+/// 7.5 m spacing (each a formation change the coordinator checks and plans for every
 /// member, as an operator's is); counts the answered requests in `done`.
 fn busy_client(base: String, stop: Arc<AtomicBool>, done: Arc<AtomicU64>) {
     let agent = client();
-    let mut spacing_m = 6.0;
+    let mut spacing_m = 7.0;
     while !stop.load(Ordering::Relaxed) {
         let metrics = agent.get(format!("{base}/metrics")).call();
-        spacing_m = if spacing_m > 6.2 { 6.0 } else { 6.5 };
+        spacing_m = if spacing_m > 7.2 { 7.0 } else { 7.5 };
         let line = json!({"shape": "line", "spacing_m": spacing_m, "leader": "virtual",
             "altitude_m": 12.0});
         let write = agent

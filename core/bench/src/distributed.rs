@@ -54,7 +54,7 @@ pub(crate) fn fly(c: &UpProcess, n: usize) -> Result<(), String> {
     c.call(
         "PUT",
         "/api/v1/formation",
-        Some(json!({"shape": "line", "spacing_m": 6.0, "leader": "virtual", "altitude_m": 12.0})),
+        Some(json!({"shape": "line", "spacing_m": 7.0, "leader": "virtual", "altitude_m": 12.0})),
     )?;
     wait(c, "the line formed", |f| {
         f["members"].as_array().is_some_and(|m| m.len() == n)
