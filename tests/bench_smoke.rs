@@ -1,8 +1,8 @@
 //! The benchmarks end to end, small: `skein bench swarm` (20 vehicles at 50 Hz for 3 s, ten
 //! to a port, the simulator in its own process, then the same with the plain pymavlink loop;
 //! 3 vehicles with the floor controller), `skein bench formation` (8 vehicles), `skein bench
-//! restart` (40 panics), `skein bench tracking` (15 s) and `skein bench api` (3 vehicles,
-//! 2 s a phase). Each checks the report's shape
+//! restart` (40 panics), `skein bench tracking` (15 s), `skein bench mission` (a 30 s
+//! patrol) and `skein bench api` (3 vehicles, 2 s a phase). Each checks the report's shape
 //! and that the swarm really flew; never its timing (that is what the benchmarks themselves are for, on a quiet machine).
 
 mod support;
@@ -189,6 +189,43 @@ fn bench_formation_flies_every_shape_within_budget_and_separation() {
 /// have been restarted and no vehicle may have left offboard; the latencies are only
 /// checked to be present and ordered (timing is for the benchmark itself).
 #[test]
+fn bench_mission_rehearses_a_sortie_with_both_reactions() {
+    let report = bench_report(
+        &["mission", "--patrol-s", "30"],
+        "mission_s",
+        Duration::from_secs(300),
+    );
+    assert_eq!(report["state"], "done", "{report}");
+    assert_eq!(report["vehicles"], 8, "{report}");
+    let kinds: Vec<&str> = report["reactions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|r| r["kind"].as_str())
+        .collect();
+    assert!(kinds.contains(&"low_battery"), "{report}");
+    assert!(kinds.contains(&"intruder"), "{report}");
+    // Observers drawn off their lanes by the intruders leave some of the area unseen
+    // (0.95 in this run): the rehearsal says so rather than hiding it.
+    assert!(report["coverage"].as_f64().unwrap() > 0.9, "{report}");
+    assert!(
+        report["min_separation_m"].as_f64().unwrap() > 3.0,
+        "{report}"
+    );
+    assert!(
+        report["min_fence_margin_m"].as_f64().unwrap() > 0.0,
+        "{report}"
+    );
+    assert_eq!(
+        report["energy_left"].as_object().unwrap().len(),
+        8,
+        "{report}"
+    );
+    assert!(report["speed_factor"].as_f64().unwrap() > 1.0, "{report}");
+    assert!(report.get("picture_svg").is_none(), "{report}");
+}
+
+#[test]
 fn bench_restart_restarts_every_panic_with_vehicles_offboard() {
     let report = bench_report(
         &["restart", "--panics", "40", "--vehicles", "2"],
@@ -335,8 +372,10 @@ fn bench_tracking_reports_detection_and_track_quality() {
             "tracks.{key} missing: {report}"
         );
     }
+    // Frames were scored (how many in the 15 s depends on the CPU the cameras get: a
+    // figure for the benchmark, not a bound here).
     assert!(
-        report["detection"]["frames"].as_u64().unwrap() > 10,
+        report["detection"]["frames"].as_u64().unwrap() > 0,
         "{report}"
     );
     assert!(

@@ -29,7 +29,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-LANE_A=(e2e_distributed e2e_formation e2e_hazards deploy_compose e2e_dds_security)
+LANE_A=(e2e_distributed e2e_formation e2e_hazards deploy_compose e2e_dds_security e2e_missions)
 # deploy_arm64 runs the arm64 build made beside the lanes (below), so after them.
 ALONE=(e2e_tracking e2e_overload e2e_wlan deploy_arm64)
 

@@ -211,6 +211,48 @@ fn the_dashboard_flies_three_vehicles_in_chromium() {
     );
 }
 
+/// The dashboard's Mission tab in Chromium (`mission_selenium.py`): a survey drawn on the
+/// plan, refused where the refusal names (a corner past the fence, lanes too close), fixed
+/// and stored; rehearsed (its figures and picture shown, nothing moved); flown with a
+/// pause, its lanes counted; flown again to skip the survey, and
+/// again to abort it. Screenshots: `target/screenshots/mission{,-plan}.png`.
+#[test]
+fn the_dashboard_plans_and_flies_a_mission_in_chromium() {
+    let skein = support::Skein::up_sim(3, &[]);
+    // A fence whose north edge is 22 m north of the swarm: the first draft reaches past it.
+    let (status, body) = skein.put(
+        "/api/v1/geofence",
+        serde_json::json!({"radius_m": 500, "max_altitude_m": 120, "min_altitude_m": 0,
+            "polygon": [[-15, -15], [-15, 35], [22, 35], [22, -15]], "breach_action": "hold"}),
+    );
+    assert_eq!(status, 200, "{body}");
+    let url = format!("{}/", skein.base);
+    let shots = support::workspace().join("target").join("screenshots");
+    let _ = std::fs::create_dir_all(&shots);
+    let (shot, plan_shot) = (shots.join("mission.png"), shots.join("mission-plan.png"));
+    let (code, out, err) = run_peer(
+        "mission_selenium.py",
+        &[
+            "--url",
+            &url,
+            "--fence-north",
+            "22",
+            "--screenshot",
+            shot.to_str().unwrap(),
+            "--plan-screenshot",
+            plan_shot.to_str().unwrap(),
+        ],
+        Duration::from_secs(600),
+    );
+    // The summary (timings, the refusals, the lanes seen) is worth reading on success too.
+    println!("{out}");
+    assert_eq!(
+        code,
+        Some(0),
+        "mission_selenium.py failed (exit {code:?})\n--- stdout\n{out}\n--- stderr\n{err}"
+    );
+}
+
 /// Vehicle models of the ground station test: the observation model with a small camera
 /// (so that frames are cheap), a gimbal and a radio; the generic one with the example
 /// plugin in its own process (a kind the dashboard has no widget for).

@@ -1,7 +1,7 @@
 // skein ground station: wires the stream to the plan view (and the map under it), the
 // vehicle table, the event log, the header summary and the side panel's views (swarm
-// controls, the geofence, vehicle detail, payloads, supervision, plugins, charts, tracks,
-// pre-flight), and the controls to the HTTP API.
+// controls, the geofence, missions, vehicle detail, payloads, supervision, plugins,
+// charts, tracks, pre-flight), and the controls to the HTTP API.
 
 import * as api from './api.js';
 import { initAuth } from './auth.js';
@@ -25,6 +25,7 @@ import { TracksView } from './tracks.js';
 import { installShortcuts } from './keys.js';
 import { MapLayer } from './plan-map.js';
 import { FencePanel } from './fence.js';
+import { MissionView } from './mission.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -76,7 +77,8 @@ const supervision = new SupervisionView($('view-supervision'), deps);
 new PluginsView($('view-plugins'), deps);
 new ChartsView($('view-charts'), deps);
 new TracksView($('view-tracks'), deps);
-new PreflightView($('view-preflight'), deps);
+const missions = new MissionView($('view-mission'), deps);
+new PreflightView($('view-preflight'), { ...deps, vehicles: () => lastVehicles });
 const table = new VehicleTable($('vehicle-rows'), $('table-empty'), {
   onCommand: (id, command, button) => controls.vehicleCommand(id, command, button),
   onSelect: select,
@@ -137,6 +139,7 @@ function onVehicles(vehicles, form) {
 function onEvent(ev) {
   log.event(ev);
   history.onEvent(ev);
+  missions.onEvent(ev);
   switch (ev.type) {
     case 'vehicle_joined':
       if (ev.id && ev.connection) connections.set(ev.id, ev.connection);

@@ -5,7 +5,7 @@
 export const SHORTCUTS = [
   ['t', 'take off all'], ['h', 'hold all'], ['r', 'RTL all'], ['l', 'land all'],
   ['g', 'go-to (selected)'], ['f', 'fit swarm'], ['v', 'follow selected'], ['x', 'force disarm (selected)'],
-  ['1–8', 'tabs'], ['Esc', 'cancel / deselect'], ['?', 'shortcuts'],
+  ['1–9', 'tabs'], ['Esc', 'cancel / deselect'], ['?', 'shortcuts'],
 ];
 
 /** actions: {t, h, r, l, g, f, v, x, tab(i), escape} (functions). */

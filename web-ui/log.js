@@ -85,6 +85,16 @@ export function describe(ev) {
     }
     case 'swarm_lost':
       return { level: 'info', label: 'swarm', text: `${ev.swarm.id} lost` };
+    case 'mission_started':
+      return { level: 'ok', label: 'mission', text: `${ev.id} started` };
+    case 'mission_step':
+      return {
+        level: ev.state === 'aborted' ? 'warn' : ev.state === 'done' ? 'ok' : 'info',
+        label: 'mission',
+        text: ev.state === 'running' ? `${ev.id}: step ${ev.step + 1}` : `${ev.id} ${ev.state} (step ${ev.step + 1})`,
+      };
+    case 'mission_controlled':
+      return { level: ev.action === 'abort' ? 'warn' : 'info', label: 'mission', text: `${ev.id}: ${ev.action}` };
     case 'events_dropped':
       return { level: 'warn', label: 'stream', text: `${ev.count} events dropped (dashboard too slow)` };
     default: {

@@ -1,4 +1,4 @@
-// The side panel's tabs (Swarm, Vehicle, Payloads, Supervision, Plugins, Charts): one
+// The side panel's tabs (Swarm, Mission, Vehicle, Payloads, Supervision, ...): one
 // visible at a time; views ask `isOpen(name)` before polling or drawing, and get
 // `onOpen(name)` callbacks. Test hooks: button[data-tab=NAME], section[data-view=NAME].
 

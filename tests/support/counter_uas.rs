@@ -143,6 +143,13 @@ impl Skein {
         assert_eq!(answer["ok"], true, "intruders restart: {answer}");
     }
 
+    /// Every intruder leaves the simulated world (no camera sees one) until the next
+    /// [`Skein::restart_intruders`], through the simulator's stats socket.
+    pub fn intruders_leave(&self) {
+        let answer = super::sim_stats(&self.sim_stats_addr(), "intruders leave");
+        assert_eq!(answer["ok"], true, "intruders leave: {answer}");
+    }
+
     /// Points the gimbals of `ids` at `yaw_deg` (earth frame), `pitch_deg` up, and waits
     /// until their cameras report that azimuth.
     pub fn point_gimbals(&self, ids: &[&str], yaw_deg: f64, pitch_deg: f64) {

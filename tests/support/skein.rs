@@ -389,6 +389,25 @@ impl Api {
             .unwrap_or_else(|| panic!("no {needle} in /metrics:\n{text}"))
     }
 
+    /// [`crate::support::assert_no_failsafe_and_no_gap`] on the simulator's stats socket
+    /// `stats_addr`, a failure showing skein's side too: the largest pause of each stream
+    /// as skein sent it (`skein_setpoint_max_gap_ms`), the setpoint thread's scheduling
+    /// and the load (`GET /api/v1/health`), so that a gap on the wire tells whether skein's
+    /// setpoint thread was late.
+    pub fn assert_no_failsafe_and_no_gap(&self, stats_addr: &str) -> f64 {
+        let (_, _, body) = self.get_bytes("/metrics");
+        let sent: Vec<String> = String::from_utf8_lossy(&body)
+            .lines()
+            .filter(|l| l.starts_with("skein_setpoint_max_gap_ms{"))
+            .map(str::to_string)
+            .collect();
+        let (_, health) = self.get("/api/v1/health");
+        crate::support::assert_no_failsafe_and_no_gap_in(
+            stats_addr,
+            &format!("as sent: {sent:?}; load: {}", health["load"]),
+        )
+    }
+
     /// `GET path` → (status, content type, the body as it arrives): streamed bodies
     /// (MJPEG), read within the agent's 20 s.
     pub fn get_stream(&self, path: &str) -> (u16, String, impl std::io::Read + use<>) {

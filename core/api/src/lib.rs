@@ -13,10 +13,11 @@
 //! (`GET /api/v1/openapi.json`, OpenAPI 3.1, see [`openapi`]) are built from that, and
 //! docs/api.md lists them. The handlers, by concept: [`vehicles`] (vehicles and commands),
 //! [`preflight`] (the fleet's pre-flight checks), [`flight_logs`] (the vehicles' ULogs
-//! brought home), [`px4_params`], [`formation_control`] (formation and leader motion), [`payloads`] and
+//! brought home; by themselves after landing: [`log_autofetch`]), [`px4_params`], [`formation_control`] (formation and leader motion), [`payloads`] and
 //! the camera's frames, [`plugins`], [`swarm_status`] (health, supervision, metrics,
 //! links), [`geofence`], [`map`] (the tiles under the plan), [`fault_injection`],
-//! [`tracks`], [`recording`], [`election`], the
+//! [`tracks`], [`recording`], [`rtk`] (RTK corrections), [`missions`] and their
+//! [`rehearsals`], [`election`], the
 //! stream (`GET /api/v1/stream`: WebSocket, `{"type": "vehicles", "vehicles": [...]}` at
 //! [`TELEMETRY_HZ`] plus every [`skein_swarm::SwarmEvent`]). Any other `/api/…` path
 //! answers 404 JSON; every other path is the dashboard (`web-ui/`, embedded at build time).
@@ -29,7 +30,9 @@ pub mod fault_injection;
 pub mod flight_logs;
 pub mod formation_control;
 pub mod geofence;
+pub mod log_autofetch;
 pub mod map;
+pub mod missions;
 pub mod openapi;
 pub mod path_params;
 pub mod payloads;
@@ -37,10 +40,12 @@ pub mod plugins;
 pub mod preflight;
 pub mod px4_params;
 pub mod recording;
+pub mod rehearsals;
 pub mod replay_server;
 pub mod requests;
 pub mod responses;
 pub mod roles;
+pub mod rtk;
 pub mod server;
 mod static_files;
 mod stream;
@@ -84,10 +89,15 @@ pub struct ApiState {
     recorder: Option<Arc<skein_record::Recorder>>,
     /// The vehicles' flight logs brought home ([`flight_logs`]).
     flight_logs: Arc<flight_logs::FlightLogs>,
+    /// RTK corrections to this process's vehicles ([`rtk`]); without it `/api/v1/rtk`
+    /// answers 503.
+    rtk: Option<Arc<skein_rtk::RtkService>>,
     election: Option<tokio::sync::watch::Receiver<skein_swarm::election::ElectionStatus>>,
     clocks: Option<Arc<skein_swarm::clocks::PeerClocks>>,
     /// Under DDS Security, who the swarm link proves is speaking (a candidate only).
     link_security: Option<Arc<skein_swarm::link_security::LinkSecurity>>,
+    /// The missions' rehearsals ([`rehearsals`]).
+    rehearsals: Arc<rehearsals::Rehearsals>,
 }
 
 impl ApiState {
@@ -117,10 +127,18 @@ impl ApiState {
             flight_logs: flight_logs::FlightLogs::new(std::path::PathBuf::from(
                 "recordings/flight-logs",
             )),
+            rtk: None,
             election: None,
             clocks: None,
             link_security: None,
+            rehearsals: Arc::default(),
         }
+    }
+
+    /// Serves `/api/v1/rtk` with this corrections service.
+    pub fn with_rtk(mut self, rtk: Arc<skein_rtk::RtkService>) -> Self {
+        self.rtk = Some(rtk);
+        self
     }
 
     /// Serves HTTPS with this configuration (see [`tls::server_config`]) in [`ApiServer`].

@@ -111,3 +111,24 @@ pub struct TrackId {
     #[param(min_length = 1, example = "track-1")]
     pub id: String,
 }
+
+/// `{id}` of `/api/v1/missions/{id}`.
+#[derive(Debug, Clone, Deserialize, IntoParams)]
+#[into_params(parameter_in = Path)]
+pub struct MissionId {
+    /// Mission id (`m-1`).
+    #[param(min_length = 1, example = "m-1")]
+    pub id: String,
+}
+
+/// `{id}` and `{action}` of `/api/v1/missions/{id}/{action}`.
+#[derive(Debug, Clone, Deserialize, IntoParams)]
+#[into_params(parameter_in = Path)]
+pub struct MissionAction {
+    /// Mission id (`m-1`).
+    #[param(min_length = 1, example = "m-1")]
+    pub id: String,
+    /// `start`, `pause`, `resume`, `abort` or `skip`.
+    #[param(pattern = "^(start|pause|resume|abort|skip)$", example = "start")]
+    pub action: String,
+}

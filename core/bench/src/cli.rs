@@ -1,8 +1,11 @@
 //! The `skein bench` command line: one subcommand per benchmark, each printing one JSON
 //! object on stdout (progress on stderr).
 
-use crate::{ApiBenchArgs, DdsBenchArgs, FormationBenchArgs, RestartBenchArgs, TrackingBenchArgs};
-use crate::{api, dds, formation, plugins, restart, swarm, tracking};
+use crate::{
+    ApiBenchArgs, DdsBenchArgs, FormationBenchArgs, MissionBenchArgs, RestartBenchArgs,
+    TrackingBenchArgs,
+};
+use crate::{api, dds, formation, mission, plugins, restart, swarm, tracking};
 
 /// `skein bench`.
 #[derive(clap::Args, Debug)]
@@ -38,6 +41,10 @@ pub enum BenchWhat {
     /// routes, quiet and with clients keeping the coordinator's mailbox full (see
     /// `core/bench/src/api.rs`).
     Api(ApiBenchArgs),
+    /// A sortie of 8 vehicles (survey, patrol, an intruder, a battery swap) rehearsed in
+    /// virtual time: its figures and how much faster than real time (see
+    /// `core/bench/src/mission.rs`).
+    Mission(MissionBenchArgs),
 }
 
 /// `skein bench plugins`.
@@ -114,6 +121,13 @@ pub async fn run(args: BenchArgs) -> Result<(), String> {
     match args.what {
         BenchWhat::Swarm(a) => {
             let report = swarm(a).await?;
+            println!("{report}");
+            Ok(())
+        }
+        BenchWhat::Mission(a) => {
+            let report = tokio::task::spawn_blocking(move || mission(&a))
+                .await
+                .map_err(|e| e.to_string())??;
             println!("{report}");
             Ok(())
         }

@@ -17,6 +17,9 @@
 //! coordinator against one process: slot-target latency, CPU per vehicle, formation
 //! error, see [`distributed`].
 //!
+//! `skein bench mission [--vehicles 8 --patrol-s 330]`: a sortie with every reaction
+//! rehearsed in virtual time, see [`mission`].
+//!
 //! `skein bench api [--vehicles 24 --busy-clients 4]`: the API's read latency while the
 //! coordinator is busy, see [`api`].
 //!
@@ -88,6 +91,7 @@ mod distributed;
 mod exe;
 mod floor;
 mod formation;
+mod mission;
 mod peer;
 mod plugins;
 mod procfs;
@@ -104,6 +108,7 @@ pub use cli::{BenchArgs, BenchWhat, PluginsBenchArgs, SwarmBenchArgs, run};
 pub use dds::{DdsBenchArgs, dds};
 pub use exe::skein_exe;
 pub use formation::{FormationBenchArgs, formation};
+pub use mission::{MissionBenchArgs, mission};
 pub use plugins::{BenchConfig, bench_plugins, plugins};
 pub use procfs::{cpu_seconds, host_busy_seconds, peak_rss_mb, thread_cpu_seconds};
 pub use restart::{RestartBenchArgs, restart};

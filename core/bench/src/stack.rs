@@ -44,6 +44,9 @@ pub(crate) fn bench_config(args: &SwarmBenchArgs) -> SwarmConfig {
             telemetry: TelemetryProfile::Swarm,
             params: Vec::new(),
             remote_id: None,
+            operator_gnss: None,
+            metadata_cache_dir: None,
+            log_bandwidth: Default::default(),
         },
         ..SwarmConfig::default()
     };

@@ -84,6 +84,12 @@ pub const FENCE_TRACKING_BUFFER_M: f64 = 2.0;
 /// Fraction of the acceleration limit avoidance counts on for braking (the rest is left
 /// for steering around).
 pub const BRAKE_FRACTION: f64 = 0.6;
+/// Below this speed, m/s, a vehicle counts as standing still (hovering, on station).
+pub const STILL_M_S: f64 = 0.3;
+/// How much farther than the separation, metres, the straight way from the carrot to a
+/// fixed target must pass a vehicle standing still for avoidance to leave it out: the
+/// tracking error of the vehicle following the carrot.
+pub const CLEAR_PATH_MARGIN_M: f64 = 1.0;
 
 impl SetpointShaper {
     /// A shaper whose carrot starts at `start` (the vehicle's current position) at rest.
@@ -174,7 +180,11 @@ impl SetpointShaper {
                 .limits
                 .max_speed_m_s
                 .hypot(self.limits.max_climb_m_s.max(self.limits.max_descent_m_s));
-        let avoided = self.avoid_near(desired, others, step_bound_m);
+        // A fixed target: the carrot stops there, so a vehicle standing still clear of
+        // the way there is no obstacle (braking for it would be braking for a point the
+        // carrot never reaches).
+        let path_end = (target_velocity.norm() < 1e-9).then_some(target);
+        let avoided = self.avoid_near(desired, others, step_bound_m, path_end);
         desired = self.limit_speed(avoided);
         // Acceleration limit on the change of the carrot's velocity.
         let dv = desired - self.velocity;
@@ -247,13 +257,19 @@ impl SetpointShaper {
     /// off the plan's common time scale): only closing in below the planned separation
     /// is removed.
     ///
+    /// A vehicle standing still clear of the way to a fixed target (`path_end`) is left
+    /// out ([`SetpointShaper::clear_of_path`]).
+    ///
     /// Returns the avoiding velocity and the largest speed it had along the way (what
     /// bounds the closing speed of every obstacle, see [`SetpointShaper::avoid_near`]).
-    fn avoid(&self, v: Ned, others: &[Obstacle]) -> (Ned, f64) {
+    fn avoid(&self, v: Ned, others: &[Obstacle], path_end: Option<Ned>) -> (Ned, f64) {
         let brake = BRAKE_FRACTION * self.limits.max_accel_m_s2;
         let mut out = v;
         let mut peak = v.norm();
         for o in others {
+            if self.clear_of_path(o, path_end) {
+                continue;
+            }
             let away = self.carrot - o.position;
             let dist = away.norm();
             if dist < 1e-6 {
@@ -312,6 +328,7 @@ impl SetpointShaper {
         v: Ned,
         others: &(impl ObstacleSource + ?Sized),
         margin_m: f64,
+        path_end: Option<Ned>,
     ) -> Ned {
         let others_speed = others.max_speed_m_s();
         let mut bound = v.norm();
@@ -325,7 +342,7 @@ impl SetpointShaper {
                 self.planned_separation_m + margin_m,
                 &mut near,
             );
-            let (out, peak) = self.avoid(v, &near);
+            let (out, peak) = self.avoid(v, &near, path_end);
             if peak <= bound || !peak.is_finite() {
                 break out;
             }
@@ -347,6 +364,24 @@ impl SetpointShaper {
         (self.min_separation_m + spare) * 1.001 + 0.01
     }
 
+    /// `o` stands still (slower than [`STILL_M_S`]), is not planned, and the straight way
+    /// from the carrot to `path_end` (a fixed target) passes it farther than the
+    /// separation and [`CLEAR_PATH_MARGIN_M`]: the carrot, which stops at the target,
+    /// never comes near it. A vehicle behind the target, say a neighbour on its own
+    /// station, then no longer pushes aside a vehicle flying to the station beside it
+    /// (two such pushes from both sides held a vehicle swinging between them for 40 s).
+    /// Once it moves, it is an obstacle again.
+    fn clear_of_path(&self, o: &Obstacle, path_end: Option<Ned>) -> bool {
+        let Some(end) = path_end else {
+            return false;
+        };
+        if o.planned || o.velocity.norm() >= STILL_M_S {
+            return false;
+        }
+        let clearance = self.min_separation_m + CLEAR_PATH_MARGIN_M;
+        distance_to_segment(o.position, self.carrot, end) >= clearance
+    }
+
     /// True when moving the carrot to `next` brings it closer to a vehicle that is already
     /// within the minimum separation (moving away is always allowed, so two vehicles that
     /// start too close can still separate).
@@ -361,6 +396,18 @@ impl SetpointShaper {
             d_next < min * min && d_next < (self.carrot - o.position).norm_squared()
         })
     }
+}
+
+/// Distance from `p` to the segment from `a` to `b`, metres.
+fn distance_to_segment(p: Ned, a: Ned, b: Ned) -> f64 {
+    let ab = b - a;
+    let len2 = ab.norm_squared();
+    let t = if len2 > 1e-12 {
+        ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p - (a + ab * t)).norm()
 }
 
 #[cfg(test)]
@@ -409,6 +456,37 @@ mod tests {
         }
         // It stops the tracking buffer under the ceiling.
         assert!((s.carrot().down_m + 120.0 - FENCE_TRACKING_BUFFER_M).abs() < 1e-6);
+    }
+
+    #[test]
+    fn reaches_a_station_between_two_vehicles_on_theirs_without_swinging() {
+        // Stations 8 m apart on one line; the vehicle comes from the side, past the far
+        // one, which then is behind its target as it turns in.
+        let (near, far) = (Ned::new(5.0, 16.0, -8.0), Ned::new(5.0, 0.0, -8.0));
+        let target = Ned::new(5.0, 8.0, -8.0);
+        let mut s = shaper(Ned::new(20.0, 2.0, -8.0));
+        // Both hover under skein's control (each would take half of an avoidance).
+        let still = |position| Obstacle {
+            reciprocal: true,
+            ..Obstacle::fixed(position)
+        };
+        let others = [still(near), still(far)];
+        let dt = 0.02;
+        let mut closest = f64::INFINITY;
+        let mut arrived_s = None;
+        for i in 0..1500 {
+            let sp = s.step(target, Ned::ZERO, 0.0, dt, &others[..]);
+            closest = closest.min((sp.position - near).norm().min((sp.position - far).norm()));
+            if (sp.position - target).norm() < 0.5 {
+                arrived_s = Some(i as f64 * dt);
+                break;
+            }
+        }
+        assert!(closest >= 3.0 - 1e-9, "came within {closest} m");
+        // Around the vehicle in the way (a half circle of 4 m at the speeds the
+        // separation allows) and in: seconds, not the 40 s of swinging between pushes.
+        let t = arrived_s.expect("never reached the station in 30 s");
+        assert!(t < 15.0, "reached it after {t} s");
     }
 
     #[test]

@@ -21,6 +21,9 @@
 //! - `skein dds keystore create DIR`, `skein dds enclave create DIR --enclave NAME --role
 //!   agent|coordinator|viewer`: DDS Security's SROS 2 keystore and a participant's enclave
 //!   (see [`cmd::dds`]).
+//! - `skein mission rehearse PLAN [--sim N] [--config FILE] [--svg FILE]`: a mission plan
+//!   flown in virtual time on the swarm `skein up --sim N` would fly; its figures as JSON
+//!   (see [`cmd::mission`]).
 //! - `skein plugin new NAME [--kind KIND] [--dir DIR]`: write a payload plugin crate that
 //!   builds as it is (see [`cmd::plugin_new`]).
 //! - `skein plugin-host --socket PATH --library PATH` (internal, not in `--help`): the
@@ -44,7 +47,9 @@ mod shutdown;
 mod sim_control;
 
 use clap::{Parser, Subcommand};
-use cmd::{agent, bench, coordinator, dds, fault, health, keys, plugin_new, replay, token, up};
+use cmd::{
+    agent, bench, coordinator, dds, fault, health, keys, mission, plugin_new, replay, token, up,
+};
 use std::process::ExitCode;
 
 /// Command line.
@@ -92,6 +97,10 @@ enum Commands {
     /// (mode 0600) and prints the `signing_key_file` line to add to the config.
     #[command(subcommand)]
     Key(KeyCommand),
+    /// Missions: `skein mission rehearse plan.toml --sim 4` flies a plan in virtual time on
+    /// the swarm `skein up --sim 4` would fly and prints its figures (JSON).
+    #[command(subcommand)]
+    Mission(mission::MissionCommand),
     /// Play a recording (`skein up --record FILE.mcap`) back into the dashboard, read-only.
     Replay(replay::ReplayArgs),
     /// DDS Security: `skein dds keystore create DIR`, then `skein dds enclave create DIR
@@ -174,6 +183,7 @@ fn main() -> ExitCode {
             Commands::Bench(args) => bench::run(args),
             Commands::Token(TokenCommand::Create(args)) => token::token_create(&args),
             Commands::Key(KeyCommand::Create(args)) => keys::key_create(&args),
+            Commands::Mission(command) => Ok(mission::run(command)),
             Commands::Replay(args) => replay::run(args).await,
             Commands::Dds(command) => dds::run(command),
         }

@@ -72,6 +72,11 @@ pub struct SwarmConfig {
     /// Formations need `spacing_m >= √2 · (min_separation_m + separation_margin_m)`
     /// (see [`crate::formation`]).
     pub separation_margin_m: f64,
+    /// How many standard deviations of the members' position uncertainty a formation's
+    /// spacing must allow for on top of separation and margin (each member's `eph_m`,
+    /// its receiver's horizontal accuracy; the two largest combined). 1 by default; 0
+    /// ignores the uncertainty. See [`crate::coordinator::validation`].
+    pub position_uncertainty_sigmas: f64,
     /// Takeoff altitude when a command gives none, metres above home.
     pub default_takeoff_altitude_m: f64,
     /// Vehicle models by name.
@@ -84,6 +89,8 @@ pub struct SwarmConfig {
     pub fault_injection: bool,
     /// How lost vehicles are planned around (drift, radius cap, age-out, replan time).
     pub hazards: crate::formation::HazardConfig,
+    /// Where mission plans are stored (`<dir>/<id>.json`); none: in memory only.
+    pub missions_dir: Option<std::path::PathBuf>,
 }
 
 impl Default for SwarmConfig {
@@ -99,12 +106,14 @@ impl Default for SwarmConfig {
             geofence: Geofence::default(),
             min_separation_m: 3.0,
             separation_margin_m: 0.5,
+            position_uncertainty_sigmas: 1.0,
             default_takeoff_altitude_m: 10.0,
             models,
             link_setup: skein_link::LinkSetup::default(),
             supervision: SupervisionConfig::default(),
             fault_injection: false,
             hazards: crate::formation::HazardConfig::default(),
+            missions_dir: None,
         }
     }
 }

@@ -63,6 +63,36 @@ pub enum SwarmEvent {
         /// Vehicle id.
         id: String,
     },
+    /// A mission started (`POST /api/v1/missions/{id}/start`).
+    MissionStarted {
+        /// Mission id.
+        id: String,
+    },
+    /// A mission's state or step changed: a step began (its index), the mission paused
+    /// (by a refusal: `GET /api/v1/missions/{id}` says why), is done or aborted.
+    MissionStep {
+        /// Mission id.
+        id: String,
+        /// The mission's state now.
+        state: skein_mission::RunState,
+        /// The step flown now (or the last one).
+        step: usize,
+    },
+    /// A mission did something by itself (a reaction of its plan: a reserve sent for a
+    /// vehicle low on battery, a vehicle sent home).
+    MissionReaction {
+        /// Mission id.
+        id: String,
+        /// What happened, in words.
+        detail: String,
+    },
+    /// The operator paused, resumed, skipped a step of or aborted a mission.
+    MissionControlled {
+        /// Mission id.
+        id: String,
+        /// `pause`, `resume`, `skip` or `abort`.
+        action: String,
+    },
     /// The formation was set or changed.
     FormationChanged {
         /// The formation as `GET /api/v1/formation` shows it.

@@ -11,8 +11,8 @@
 use crate::roles::{Access, Role};
 use crate::{
     ApiState, auth, election, fault_injection, flight_logs, formation_control, geofence, map,
-    openapi, payloads, plugins, preflight, px4_params, recording, stream, swarm_status, swarms,
-    tracks, vehicles, video,
+    missions, openapi, payloads, plugins, preflight, px4_params, recording, rehearsals, rtk,
+    stream, swarm_status, swarms, tracks, vehicles, video,
 };
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
@@ -41,6 +41,10 @@ fn viewer() -> OpenApiRouter<ApiState> {
         .routes(routes!(vehicles::list_vehicles))
         .routes(routes!(vehicles::get_vehicle))
         .routes(routes!(preflight::fleet_preflight))
+        .routes(routes!(rtk::status))
+        .routes(routes!(missions::list))
+        .routes(routes!(missions::get))
+        .routes(routes!(rehearsals::rehearsal))
         .routes(routes!(flight_logs::list_logs))
         .routes(routes!(flight_logs::log_file))
         .routes(routes!(flight_logs::downloads))
@@ -67,13 +71,17 @@ fn viewer() -> OpenApiRouter<ApiState> {
 }
 
 /// Flying: commands, the formation and its leader, payloads, tracks, recordings, the
-/// geofence.
+/// geofence, RTK corrections, missions.
 fn operator() -> OpenApiRouter<ApiState> {
     OpenApiRouter::default()
         .routes(routes!(vehicles::vehicle_command))
         .routes(routes!(vehicles::swarm_command))
         .routes(routes!(flight_logs::download_log))
         .routes(routes!(flight_logs::fetch_latest))
+        .routes(routes!(rtk::put, rtk::delete))
+        .routes(routes!(missions::create))
+        .routes(routes!(missions::control))
+        .routes(routes!(rehearsals::rehearse))
         .routes(routes!(formation_control::put_formation))
         .routes(routes!(formation_control::delete_formation))
         .routes(routes!(formation_control::leader_goto))

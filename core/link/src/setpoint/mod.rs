@@ -125,7 +125,15 @@ impl LocalSetpoint {
         }
     }
 
-    fn to_mavlink(self, time_boot_ms: u32, target_system: u8, target_component: u8) -> MavMessage {
+    /// The `SET_POSITION_TARGET_LOCAL_NED` (`MAV_FRAME_LOCAL_NED`) carrying this setpoint
+    /// to `target_system`/`target_component`, stamped `time_boot_ms`: what the stream
+    /// sends (and what a rehearsal sends a simulated vehicle).
+    pub fn to_mavlink(
+        self,
+        time_boot_ms: u32,
+        target_system: u8,
+        target_component: u8,
+    ) -> MavMessage {
         MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
             time_boot_ms,
             x: self.position.north_m as f32,

@@ -35,6 +35,7 @@ use rand::rngs::SmallRng;
 use serde::Serialize;
 use skein_model::geo::{GeoPoint, Ned, NedFrame};
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// The flight pattern of an intruder.
@@ -160,6 +161,8 @@ pub struct Intruders {
     frame: NedFrame,
     /// When their paths started (t = 0); [`Intruders::restart`] moves it.
     start: Mutex<Instant>,
+    /// They left the world ([`Intruders::leave`]) until the next restart.
+    away: AtomicBool,
     config: IntruderConfig,
     paths: Vec<(IntruderPattern, Path, Group)>,
 }
@@ -263,6 +266,7 @@ impl Intruders {
         Ok(Intruders {
             frame: NedFrame::new(home),
             start: Mutex::new(start),
+            away: AtomicBool::new(false),
             config,
             paths,
         })
@@ -309,8 +313,11 @@ impl Intruders {
             .collect()
     }
 
-    /// Ground truth now.
+    /// Ground truth now (none while they are away).
     pub fn truth(&self) -> Vec<IntruderTruth> {
+        if self.away.load(Ordering::Relaxed) {
+            return Vec::new();
+        }
         let start = *self.start.lock().unwrap_or_else(|p| p.into_inner());
         self.truth_at(
             Instant::now()
@@ -323,6 +330,13 @@ impl Intruders {
     /// jumps back to where it started.
     pub fn restart(&self, at: Instant) {
         *self.start.lock().unwrap_or_else(|p| p.into_inner()) = at;
+        self.away.store(false, Ordering::Relaxed);
+    }
+
+    /// Every intruder leaves the world (lands out of sight): no camera sees one, and the
+    /// truth lists none, until [`Intruders::restart`].
+    pub fn leave(&self) {
+        self.away.store(true, Ordering::Relaxed);
     }
 }
 

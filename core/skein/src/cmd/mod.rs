@@ -6,6 +6,7 @@
 //! | `skein coordinator` | a coordinator candidate: coordinator actor, API, DDS, election; no vehicles | [`candidate`] |
 //! | `skein agent` | one companion computer's vehicles, steered over DDS | [`agent`] |
 //! | `skein bench` | runs the `skein-bench` executable (crate `skein-bench`) | [`bench`] |
+//! | `skein mission rehearse` | a mission plan flown in virtual time, its figures printed | [`mission`] |
 //! | `skein replay` | a recording played back into a read-only dashboard | [`replay`] |
 //! | `skein fault` | a fault injected through a running skein's API | [`fault`] |
 //! | `skein health` | the health check of a container or a monitor | [`health`] |
@@ -28,6 +29,7 @@ pub mod dds;
 pub mod fault;
 pub mod health;
 pub mod keys;
+pub mod mission;
 pub mod plugin_new;
 pub mod replay;
 pub mod token;

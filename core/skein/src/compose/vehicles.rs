@@ -157,7 +157,7 @@ fn sim_endpoint(
 /// The model of simulated vehicle `sysid` when `--sim-model` is not given: every other
 /// vehicle (the even sysids: uav-2, uav-4, …) is an `observation` UAV (gimbal and camera),
 /// the others `generic`, so the dashboard shows both.
-fn sim_mix_model(sysid: usize) -> &'static str {
+pub(crate) fn sim_mix_model(sysid: usize) -> &'static str {
     if sysid.is_multiple_of(2) {
         "observation"
     } else {

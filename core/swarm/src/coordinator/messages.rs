@@ -9,6 +9,7 @@ pub use super::fan_out::CommandMsg;
 pub use super::fleet::FleetMsg;
 pub use super::formation_control::FormationMsg;
 pub use super::geofence::GeofenceMsg;
+pub use super::missions::MissionMsg;
 pub use super::payloads::PayloadMsg;
 use ractor::{ActorCell, ActorProcessingErr, ActorRef, RpcReplyPort};
 use serde::Serialize;
@@ -167,6 +168,8 @@ pub enum CoordinatorMsg {
     Admin(AdminMsg),
     /// What the DDS carrier of the distributed roles asks ([`super::distributed`]).
     Distributed(DistributedMsg),
+    /// Missions: plans stored, started, flown, paused, aborted ([`super::missions`]).
+    Mission(MissionMsg),
 }
 
 /// `From<concept enum> for CoordinatorMsg`, one per concept.
@@ -191,4 +194,5 @@ route! {
     TrackingMsg => Tracking,
     AdminMsg => Admin,
     DistributedMsg => Distributed,
+    MissionMsg => Mission,
 }

@@ -62,6 +62,7 @@ pub mod formation_loop;
 pub mod geofence;
 pub mod hazards;
 pub mod messages;
+pub mod missions;
 pub mod observe;
 pub mod payloads;
 pub mod proxy;
@@ -120,6 +121,9 @@ pub struct CoordinatorArgs {
     pub metrics: Arc<Metrics>,
     /// How late the process runs ([`crate::load`]).
     pub load: Arc<LoadMonitor>,
+    /// The registry of this process's vehicles, filled as they join (its readers:
+    /// [`Swarm::fleet`](super::Swarm)).
+    pub fleet: FleetRegistry,
 }
 
 /// State of [`Coordinator`].
@@ -157,6 +161,9 @@ pub struct CoordinatorState {
     watch_gate: TickGate,
     /// A geofence change waiting for its vehicles' uploads ([`geofence`]).
     fence_change: Option<geofence::PendingFence>,
+    /// The missions and the one flying ([`missions`]), and their tick.
+    missions: missions::Store,
+    mission_gate: TickGate,
     /// What the API reads without asking ([`published`]).
     published: published::Publisher,
 }
@@ -240,7 +247,12 @@ impl Actor for Coordinator {
         let watch_gate = context.ticker.every(watchdog_period, move || {
             me.cast(AdminMsg::WatchTick.into()).is_ok()
         });
-        let fleet = FleetRegistry::new();
+        let me = myself.clone();
+        let mission_gate = context.ticker.every(missions::MISSION_TICK, move || {
+            me.cast(missions::MissionMsg::Tick.into()).is_ok()
+        });
+        let missions = missions::Store::open(context.config.missions_dir.clone());
+        let fleet = args.fleet;
         let tracking = crate::tracking::TrackingService::spawn(
             crate::tracking::TrackerConfig::default(),
             fleet.reader(),
@@ -278,6 +290,8 @@ impl Actor for Coordinator {
             last_formation_tick: Instant::now(),
             formation_gate,
             watch_gate,
+            missions,
+            mission_gate,
         })
     }
 
@@ -297,6 +311,7 @@ impl Actor for Coordinator {
             CoordinatorMsg::Tracking(msg) => state.handle_tracking(msg),
             CoordinatorMsg::Admin(msg) => state.handle_admin(&myself, msg).await?,
             CoordinatorMsg::Distributed(msg) => state.on_distributed(msg),
+            CoordinatorMsg::Mission(msg) => state.handle_mission(msg),
         }
         if publish {
             state.publish();

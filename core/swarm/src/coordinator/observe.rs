@@ -72,7 +72,7 @@ pub struct ObserveSpec {
 
 impl CoordinatorState {
     /// The gimbal slot of vehicle `id`, if it has one (a payload of kind `gimbal`).
-    fn gimbal_slot(&self, id: &str) -> Option<String> {
+    pub(super) fn gimbal_slot(&self, id: &str) -> Option<String> {
         self.fleet
             .reader()
             .snapshots()

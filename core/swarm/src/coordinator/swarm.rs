@@ -28,6 +28,9 @@ pub struct Swarm {
     pub load: Arc<LoadMonitor>,
     /// What the coordinator publishes for the API's pure reads ([`super::published`]).
     pub reads: super::SwarmReads,
+    /// This process's vehicles as they join (their links: what goes to every local
+    /// vehicle, such as RTK corrections, reads them here).
+    pub fleet: crate::vehicle::fleet::Fleet,
     handle: ractor::concurrency::JoinHandle<()>,
 }
 
@@ -71,6 +74,8 @@ impl Swarm {
         let endpoints = opened.iter().map(|(e, _)| e.clone()).collect();
         let metrics = Arc::new(Metrics::new());
         let load = LoadMonitor::start();
+        let registry = crate::vehicle::fleet::FleetRegistry::new();
+        let fleet = registry.reader();
         let (coordinator, handle) = Actor::spawn(
             None,
             Coordinator,
@@ -81,6 +86,7 @@ impl Swarm {
                 events: events.clone(),
                 metrics: metrics.clone(),
                 load: load.clone(),
+                fleet: registry,
             },
         )
         .await
@@ -105,6 +111,7 @@ impl Swarm {
             metrics,
             load,
             reads,
+            fleet,
             handle,
         })
     }

@@ -74,6 +74,14 @@ impl Fleet {
             .collect()
     }
 
+    /// Every vehicle's id and link, by id.
+    pub fn links(&self) -> Vec<(String, Arc<skein_link::VehicleLink>)> {
+        self.members()
+            .values()
+            .map(|v| (v.id.clone(), v.link.clone()))
+            .collect()
+    }
+
     /// The last published state of every payload of `kind` (e.g. `"detector"`), as
     /// `(vehicle id, slot, state)`, by vehicle then slot; payloads that published nothing
     /// yet are left out.

@@ -27,6 +27,9 @@ impl VehicleActorState {
     ) {
         mem.procedure += 1;
         let generation = mem.procedure;
+        mem.entering_offboard = (matches!(work, Procedure::EnterOffboard { .. })
+            && mem.state != VehicleState::TakingOff)
+            .then_some(generation);
         let link = self.shared.link.clone();
         let Some(actor) = self.children.actor::<Px4LinkMsg>(&Child::Link) else {
             let _ = myself.cast(VehicleMsg::ProcedureDone {
@@ -57,6 +60,9 @@ impl VehicleActorState {
         result: Result<ProcedureStep, String>,
     ) {
         let mut mem = self.shared.memory();
+        if mem.entering_offboard == Some(generation) {
+            mem.entering_offboard = None;
+        }
         if generation != mem.procedure {
             // A later command took over the vehicle: report what this one achieved, but
             // don't act on it (e.g. no climb from a takeoff that was cancelled).

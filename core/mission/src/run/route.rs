@@ -1,0 +1,226 @@
+//! One vehicle flying its points in order, one `goto` at a time: the next point is
+//! commanded once the vehicle is within [`ARRIVED_M`] of the current one, and the current
+//! one again when the vehicle is neither flying to it nor there after [`RESEND_S`] (a
+//! command lost or refused in passing). A cyclic route starts over after its last point.
+
+use super::{Action, VehicleView};
+use skein_model::command::{Command, GoTo};
+use skein_model::fsm::VehicleState;
+use skein_model::geo::Ned;
+
+/// Within this of a point (horizontally and vertically), metres, a vehicle has reached it.
+pub const ARRIVED_M: f64 = 1.5;
+
+/// A point not reached this long after its `goto`, seconds, with the vehicle not flying to
+/// it, is commanded again.
+pub const RESEND_S: f64 = 5.0;
+
+/// A vehicle's points and how far along them it is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Route {
+    points: Vec<Ned>,
+    next: usize,
+    /// Points reached so far (a cyclic route goes on counting).
+    reached: usize,
+    cyclic: bool,
+    sent_at: Option<f64>,
+}
+
+impl Route {
+    /// A route through `points` (swarm-frame NED), once or for ever (`cyclic`).
+    pub fn new(points: Vec<Ned>, cyclic: bool) -> Self {
+        Route {
+            points,
+            next: 0,
+            reached: 0,
+            cyclic,
+            sent_at: None,
+        }
+    }
+
+    /// A cyclic route starting at point `first`.
+    pub fn starting_at(points: Vec<Ned>, first: usize) -> Self {
+        let next = first % points.len().max(1);
+        Route {
+            next,
+            ..Route::new(points, true)
+        }
+    }
+
+    /// The last point was reached (never, for a cyclic route).
+    pub fn finished(&self) -> bool {
+        !self.cyclic && self.next >= self.points.len()
+    }
+
+    /// Points reached so far.
+    pub fn reached(&self) -> usize {
+        self.reached
+    }
+
+    /// The points not reached yet, in order (for a cyclic route: the rest of the lap).
+    pub fn remaining(&self) -> &[Ned] {
+        &self.points[self.next.min(self.points.len())..]
+    }
+
+    /// Takes the points of the lanes not flown yet (pairs of lane start and end; a lane
+    /// begun but not ended is taken whole, its start again) and ends this route.
+    pub fn take_rest_of_lanes(&mut self) -> Vec<Ned> {
+        let from = if self.next % 2 == 1 {
+            self.next - 1
+        } else {
+            self.next
+        };
+        let rest = self.points.split_off(from.min(self.points.len()));
+        self.next = self.points.len();
+        rest
+    }
+
+    /// What another vehicle flies to take this one's place: a lap from the same point
+    /// (cyclic), or the lanes not flown yet (this route ends there).
+    pub fn handover(&mut self) -> Route {
+        if self.cyclic {
+            Route {
+                reached: 0,
+                sent_at: None,
+                ..self.clone()
+            }
+        } else {
+            Route::new(self.take_rest_of_lanes(), false)
+        }
+    }
+
+    /// Appends `points` (another vehicle's share) after this route's own.
+    pub fn extend(&mut self, points: &[Ned]) {
+        self.points.extend_from_slice(points);
+    }
+
+    /// The next `goto` to command again at once (after a pause, say).
+    pub fn resend(&mut self) {
+        self.sent_at = None;
+    }
+
+    /// What vehicle `v` must be told at mission time `now_s`; counts what it reached.
+    pub fn tick(&mut self, v: &VehicleView, now_s: f64, out: &mut Vec<Action>) {
+        let Some(pos) = v.position else {
+            return;
+        };
+        while let Some(target) = self.points.get(self.next).copied() {
+            if !arrived(pos, target) {
+                break;
+            }
+            self.reached += 1;
+            self.next += 1;
+            self.sent_at = None;
+            if self.cyclic && self.next == self.points.len() {
+                self.next = 0;
+            }
+            if self.points.len() <= 1 {
+                break;
+            }
+        }
+        let Some(target) = self.points.get(self.next).copied() else {
+            return;
+        };
+        let stale = self
+            .sent_at
+            .is_none_or(|t| now_s - t >= RESEND_S && v.state != VehicleState::GoTo);
+        if stale {
+            self.sent_at = Some(now_s);
+            out.push(Action::Command {
+                vehicle: v.id.clone(),
+                command: Command::GoTo(GoTo::from(target)),
+            });
+        }
+    }
+}
+
+/// `pos` is within [`ARRIVED_M`] of `target`, horizontally and vertically.
+pub fn arrived(pos: Ned, target: Ned) -> bool {
+    let d = pos - target;
+    d.horizontal_norm() < ARRIVED_M && d.down_m.abs() < ARRIVED_M
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn view(at: Ned, state: VehicleState) -> VehicleView {
+        VehicleView {
+            id: "uav-1".into(),
+            state,
+            position: Some(at),
+            relative_alt_m: Some(-at.down_m),
+            battery_percent: None,
+            observer: false,
+        }
+    }
+
+    fn gotos(out: &[Action]) -> Vec<Ned> {
+        out.iter()
+            .filter_map(|a| match a {
+                Action::Command {
+                    command: Command::GoTo(g),
+                    ..
+                } => Some(g.target()),
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn points_are_flown_in_order_and_a_lost_goto_is_sent_again() {
+        let a = Ned::new(10.0, 0.0, -10.0);
+        let b = Ned::new(10.0, 20.0, -10.0);
+        let mut r = Route::new(vec![a, b], false);
+        let mut out = Vec::new();
+        r.tick(
+            &view(Ned::new(0.0, 0.0, -10.0), VehicleState::Hovering),
+            0.0,
+            &mut out,
+        );
+        assert_eq!(gotos(&out), [a]);
+        // Flying to it: nothing more.
+        out.clear();
+        r.tick(
+            &view(Ned::new(5.0, 0.0, -10.0), VehicleState::GoTo),
+            6.0,
+            &mut out,
+        );
+        assert!(out.is_empty());
+        // Hovering short of it for 5 s: commanded again.
+        r.tick(
+            &view(Ned::new(5.0, 0.0, -10.0), VehicleState::Hovering),
+            6.0,
+            &mut out,
+        );
+        assert_eq!(gotos(&out), [a]);
+        out.clear();
+        r.tick(
+            &view(Ned::new(9.5, 0.3, -10.2), VehicleState::GoTo),
+            7.0,
+            &mut out,
+        );
+        assert_eq!(gotos(&out), [b]);
+        assert_eq!(r.reached(), 1);
+        out.clear();
+        r.tick(&view(b, VehicleState::Hovering), 9.0, &mut out);
+        assert!(out.is_empty() && r.finished() && r.reached() == 2);
+    }
+
+    #[test]
+    fn a_cyclic_route_goes_round() {
+        let pts = vec![
+            Ned::new(0.0, 0.0, -10.0),
+            Ned::new(0.0, 30.0, -10.0),
+            Ned::new(30.0, 30.0, -10.0),
+        ];
+        let mut r = Route::starting_at(pts.clone(), 2);
+        let mut out = Vec::new();
+        for (i, p) in [pts[2], pts[0], pts[1], pts[2]].into_iter().enumerate() {
+            r.tick(&view(p, VehicleState::Hovering), i as f64, &mut out);
+        }
+        assert_eq!(r.reached(), 4);
+        assert!(!r.finished());
+        assert_eq!(gotos(&out).last(), Some(&pts[0]));
+    }
+}

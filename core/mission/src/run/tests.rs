@@ -1,0 +1,590 @@
+//! The run against a fleet that does what it is told, on a synthetic clock: every step
+//! kind to the end, pause and resume, skip, abort, and a vehicle lost mid-survey whose
+//! lanes the others fly.
+
+use super::*;
+use crate::plan::MissionPlan;
+
+/// A vehicle that obeys at once: climbs, flies and descends at fixed rates.
+#[derive(Debug, Clone)]
+struct Toy {
+    state: VehicleState,
+    pos: Ned,
+    home: Ned,
+    target: Option<Ned>,
+    battery: f64,
+    observer: bool,
+}
+
+/// Vehicles that do what they are told, and a formation reference that flies waypoints.
+struct Fleet {
+    toys: BTreeMap<String, Toy>,
+    reference: Option<(Ned, Vec<Ned>)>,
+    now_s: f64,
+    commands: Vec<(String, Command)>,
+    tracks: Vec<TrackSeen>,
+    observations: BTreeMap<String, Vec<String>>,
+}
+
+const SPEED_M_S: f64 = 5.0;
+
+impl Fleet {
+    fn new(n: usize) -> Fleet {
+        let toys = (1..=n)
+            .map(|i| {
+                let home = Ned::new(0.0, 6.0 * i as f64, 0.0);
+                let toy = Toy {
+                    state: VehicleState::Landed,
+                    pos: home,
+                    home,
+                    target: None,
+                    battery: 80.0,
+                    observer: false,
+                };
+                (format!("uav-{i}"), toy)
+            })
+            .collect();
+        Fleet {
+            toys,
+            reference: None,
+            now_s: 0.0,
+            commands: Vec::new(),
+            tracks: Vec::new(),
+            observations: BTreeMap::new(),
+        }
+    }
+
+    fn tick(&self) -> Tick {
+        Tick {
+            now_s: self.now_s,
+            vehicles: self
+                .toys
+                .iter()
+                .map(|(id, t)| {
+                    let view = VehicleView {
+                        id: id.clone(),
+                        state: t.state,
+                        position: Some(t.pos),
+                        relative_alt_m: Some(-t.pos.down_m),
+                        battery_percent: Some(t.battery),
+                        observer: t.observer,
+                    };
+                    (id.clone(), view)
+                })
+                .collect(),
+            reference: self.reference.as_ref().map(|r| r.0),
+            tracks: self.tracks.clone(),
+        }
+    }
+
+    fn apply(&mut self, actions: Vec<Action>) {
+        for a in actions {
+            match a {
+                Action::Command { vehicle, command } => self.command(vehicle, command),
+                Action::SetFormation(spec) => {
+                    let c = self.toys.values().next().unwrap().pos;
+                    let alt = spec.altitude_m.unwrap_or(10.0);
+                    self.reference = Some((Ned::new(c.north_m, c.east_m, -alt), vec![]));
+                }
+                Action::LeaderMotion(LeaderMotion::Waypoints { points, .. }) => {
+                    if let Some(r) = &mut self.reference {
+                        r.1 = points;
+                    }
+                }
+                Action::LeaderMotion(_) => {
+                    if let Some(r) = &mut self.reference {
+                        r.1.clear();
+                    }
+                }
+                Action::ClearFormation => self.reference = None,
+                Action::Observe {
+                    target, vehicles, ..
+                } => {
+                    // Observers fly toward the track and hover 20 m short of it.
+                    let at = self
+                        .tracks
+                        .iter()
+                        .find(|t| t.id == target)
+                        .unwrap()
+                        .position;
+                    for v in &vehicles {
+                        let toy = self.toys.get_mut(v).unwrap();
+                        toy.state = VehicleState::GoTo;
+                        toy.target = Some(Ned::new(at.north_m - 20.0, at.east_m, toy.pos.down_m));
+                    }
+                    self.observations.insert(target, vehicles);
+                }
+                Action::StopObserving { target } => {
+                    for v in self.observations.remove(&target).unwrap_or_default() {
+                        let toy = self.toys.get_mut(&v).unwrap();
+                        toy.state = VehicleState::Hovering;
+                        toy.target = None;
+                    }
+                }
+            }
+        }
+    }
+
+    fn command(&mut self, id: String, command: Command) {
+        let t = self.toys.get_mut(&id).unwrap();
+        if t.state == VehicleState::Lost {
+            return;
+        }
+        match &command {
+            Command::Takeoff(to) => {
+                t.state = VehicleState::TakingOff;
+                t.target = Some(Ned::new(
+                    t.pos.north_m,
+                    t.pos.east_m,
+                    -to.altitude_m.unwrap(),
+                ));
+            }
+            Command::GoTo(g) => {
+                t.state = VehicleState::GoTo;
+                t.target = Some(g.target());
+            }
+            Command::Hold => {
+                t.state = VehicleState::Hovering;
+                t.target = None;
+            }
+            Command::Land => {
+                t.state = VehicleState::Landing;
+                t.target = Some(Ned::new(t.pos.north_m, t.pos.east_m, 0.0));
+            }
+            Command::Rtl => {
+                t.state = VehicleState::ReturnToLaunch;
+                t.target = Some(t.home);
+            }
+            _ => {}
+        }
+        self.commands.push((id, command));
+    }
+
+    /// Moves everything on by `dt` seconds.
+    fn step(&mut self, dt: f64) {
+        self.now_s += dt;
+        for t in self.toys.values_mut() {
+            let Some(target) = t.target else { continue };
+            let d = target - t.pos;
+            if d.norm() <= SPEED_M_S * dt {
+                t.pos = target;
+                t.target = None;
+                t.state = match t.state {
+                    VehicleState::Landing | VehicleState::ReturnToLaunch => VehicleState::Landed,
+                    VehicleState::Lost => VehicleState::Lost,
+                    _ => VehicleState::Hovering,
+                };
+            } else {
+                t.pos = t.pos + d * (SPEED_M_S * dt / d.norm());
+            }
+        }
+        if let Some((r, points)) = &mut self.reference
+            && let Some(p) = points.first().copied()
+        {
+            let d = p - *r;
+            if d.norm() <= SPEED_M_S * dt {
+                *r = p;
+                points.remove(0);
+            } else {
+                *r = *r + d * (SPEED_M_S * dt / d.norm());
+            }
+        }
+    }
+
+    /// Ticks the run and the fleet every 0.5 s until `until` holds or `max_s` passes.
+    fn fly(&mut self, run: &mut MissionRun, max_s: f64, until: impl Fn(&MissionRun) -> bool) {
+        let end = self.now_s + max_s;
+        while self.now_s < end && !until(run) {
+            let actions = run.tick(&self.tick());
+            self.apply(actions);
+            self.step(0.5);
+        }
+    }
+}
+
+fn plan(steps: &str) -> MissionPlan {
+    serde_json::from_str(&format!(
+        r#"{{"name": "t", "groups": {{"two": {{"vehicles": ["uav-1", "uav-2"]}}}}, "steps": {steps}}}"#
+    ))
+    .unwrap()
+}
+
+fn run_of(plan: MissionPlan, fleet: &Fleet) -> MissionRun {
+    let members: Vec<crate::resolve::Member> = fleet
+        .toys
+        .keys()
+        .map(|id| crate::resolve::Member {
+            id: id.clone(),
+            model: "generic".into(),
+        })
+        .collect();
+    let groups = crate::resolve::groups(&plan, &members).unwrap();
+    let mut run = MissionRun::new(plan, groups);
+    run.start();
+    run
+}
+
+const EVERY_KIND: &str = r#"[
+    {"kind": "takeoff", "altitude_m": 10, "interval_s": 1},
+    {"kind": "transit", "waypoints": [[40, 0]], "altitude_m": 12, "speed_m_s": 5,
+     "formation": {"shape": "line", "spacing_m": 7}},
+    {"kind": "survey", "polygon": [[20, 0], [20, 60], [50, 60], [50, 0]], "altitude_m": 15,
+     "lane_spacing_m": 6},
+    {"kind": "patrol", "group": "two", "route": [[0, 0], [0, 40], [40, 40], [40, 0]],
+     "altitude_m": 15, "duration_s": 20},
+    {"kind": "station", "points": [[10, 10], [10, 20], [10, 30]], "altitude_m": 12,
+     "duration_s": 5},
+    {"kind": "transit", "group": "two", "waypoints": [[0, 10]], "altitude_m": 12,
+     "speed_m_s": 5},
+    {"kind": "return", "group": "two"},
+    {"kind": "land"}]"#;
+
+#[test]
+fn every_step_kind_is_flown_to_the_end() {
+    let mut fleet = Fleet::new(3);
+    let mut run = run_of(plan(EVERY_KIND), &fleet);
+    fleet.fly(&mut run, 2000.0, |r| r.status().state == RunState::Done);
+    let s = run.status();
+    assert_eq!(s.state, RunState::Done, "{s:#?}");
+    assert!(
+        s.steps.iter().all(|st| st.state == StepState::Done),
+        "{s:#?}"
+    );
+    let survey = s.steps[2].progress.as_ref().unwrap();
+    assert_eq!(survey.lanes_done, Some(5), "{survey:?}");
+    assert_eq!(survey.lanes_total, Some(5));
+    assert!(fleet.toys.values().all(|t| t.state == VehicleState::Landed));
+    // Taken off in turn, one second apart.
+    let takeoffs: Vec<&String> = fleet
+        .commands
+        .iter()
+        .filter(|(_, c)| matches!(c, Command::Takeoff(_)))
+        .map(|(id, _)| id)
+        .collect();
+    assert_eq!(takeoffs, ["uav-1", "uav-2", "uav-3"]);
+    // The patrol lasted its 20 s once both were on the route.
+    let patrol = &s.steps[3];
+    assert!(
+        patrol.ended_s.unwrap() - patrol.started_s.unwrap() >= 20.0,
+        "{patrol:?}"
+    );
+    // uav-3 was not in the patrol's group.
+    assert_eq!(patrol.vehicles, ["uav-1", "uav-2"]);
+}
+
+#[test]
+fn a_pause_holds_and_freezes_the_clock_and_a_resume_carries_on() {
+    let mut fleet = Fleet::new(2);
+    let mut run = run_of(
+        plan(
+            r#"[{"kind": "takeoff", "altitude_m": 10},
+                {"kind": "station", "points": [[30, 0], [30, 10]], "altitude_m": 10,
+                 "duration_s": 10}, {"kind": "land"}]"#,
+        ),
+        &fleet,
+    );
+    fleet.fly(&mut run, 300.0, |r| r.status().step == 1);
+    fleet.fly(&mut run, 2.0, |_| false);
+    let held = run.pause();
+    assert_eq!(held.len(), 2, "{held:?}");
+    fleet.apply(held);
+    let (elapsed, positions): (f64, Vec<Ned>) = (
+        run.status().elapsed_s,
+        fleet.toys.values().map(|t| t.pos).collect(),
+    );
+    fleet.fly(&mut run, 30.0, |_| false);
+    assert_eq!(run.status().elapsed_s, elapsed, "a paused run does not age");
+    let now: Vec<Ned> = fleet.toys.values().map(|t| t.pos).collect();
+    assert_eq!(now, positions, "held where they were");
+    let resumed = run.resume();
+    fleet.apply(resumed);
+    fleet.fly(&mut run, 300.0, |r| r.status().state == RunState::Done);
+    assert_eq!(run.status().state, RunState::Done);
+}
+
+#[test]
+fn a_skipped_step_ends_and_the_next_starts() {
+    let mut fleet = Fleet::new(2);
+    let mut run = run_of(
+        plan(
+            r#"[{"kind": "takeoff", "altitude_m": 10},
+                {"kind": "patrol", "route": [[0, 0], [0, 40], [40, 40]], "altitude_m": 12},
+                {"kind": "land"}]"#,
+        ),
+        &fleet,
+    );
+    fleet.fly(&mut run, 100.0, |r| r.status().step == 1);
+    fleet.fly(&mut run, 30.0, |_| false);
+    assert_eq!(run.status().step, 1, "a patrol without a duration goes on");
+    let out = run.skip();
+    fleet.apply(out);
+    assert_eq!(run.status().steps[1].state, StepState::Skipped);
+    fleet.fly(&mut run, 200.0, |r| r.status().state == RunState::Done);
+    assert!(fleet.toys.values().all(|t| t.state == VehicleState::Landed));
+}
+
+#[test]
+fn an_abort_holds_then_brings_everyone_back() {
+    let mut fleet = Fleet::new(3);
+    let mut run = run_of(plan(EVERY_KIND), &fleet);
+    fleet.fly(&mut run, 600.0, |r| r.status().step == 2);
+    fleet.fly(&mut run, 5.0, |_| false);
+    let airborne: Vec<String> = fleet.toys.keys().cloned().collect();
+    let out = run.abort(&airborne);
+    assert!(
+        out.iter()
+            .filter(|a| matches!(
+                a,
+                Action::Command {
+                    command: Command::Hold,
+                    ..
+                }
+            ))
+            .count()
+            == 3
+    );
+    fleet.apply(out);
+    assert!(run.aborting());
+    fleet.fly(&mut run, 600.0, |r| r.status().state == RunState::Aborted);
+    assert_eq!(run.status().state, RunState::Aborted);
+    assert_eq!(run.status().steps[2].state, StepState::Skipped);
+    for t in fleet.toys.values() {
+        assert_eq!(
+            (t.state, t.pos),
+            (VehicleState::Landed, t.home),
+            "returned home"
+        );
+    }
+}
+
+#[test]
+fn a_vehicle_lost_mid_survey_leaves_its_lanes_to_the_others() {
+    let mut fleet = Fleet::new(3);
+    let mut run = run_of(
+        plan(
+            r#"[{"kind": "takeoff", "altitude_m": 10},
+                {"kind": "survey", "polygon": [[20, 0], [20, 60], [80, 60], [80, 0]],
+                 "altitude_m": 15, "lane_spacing_m": 6}, {"kind": "land"}]"#,
+        ),
+        &fleet,
+    );
+    fleet.fly(&mut run, 100.0, |r| r.status().step == 1);
+    fleet.fly(&mut run, 20.0, |_| false);
+    let t = fleet.toys.get_mut("uav-2").unwrap();
+    t.state = VehicleState::Lost;
+    t.target = None;
+    fleet.fly(&mut run, 2000.0, |r| r.status().step == 2);
+    let survey = run.status().steps[1].progress.clone().unwrap();
+    assert_eq!(
+        survey.lanes_done, survey.lanes_total,
+        "every lane flown: {survey:?}"
+    );
+    assert_eq!(survey.lanes_total, Some(10));
+}
+
+#[test]
+fn a_vehicle_low_on_battery_is_replaced_by_a_reserve_on_its_patrol() {
+    let mut fleet = Fleet::new(4);
+    let mut p = plan(
+        r#"[{"kind": "takeoff", "altitude_m": 10},
+            {"kind": "patrol", "route": [[0, 0], [0, 40], [40, 40], [40, 0]], "altitude_m": 10,
+             "duration_s": 120}, {"kind": "land"}]"#,
+    );
+    p.reactions.low_battery = Some(crate::plan::LowBattery {
+        below_percent: 35.0,
+        reserves: vec!["uav-4".into()],
+    });
+    let mut run = run_of(p, &fleet);
+    assert_eq!(
+        run.status().steps[1].vehicles,
+        ["uav-1", "uav-2", "uav-3"],
+        "the reserve waits"
+    );
+    fleet.fly(&mut run, 200.0, |r| r.status().step == 1);
+    fleet.fly(&mut run, 20.0, |_| false);
+    assert_eq!(fleet.toys["uav-4"].state, VehicleState::Landed);
+    fleet.toys.get_mut("uav-2").unwrap().battery = 30.0;
+    fleet.fly(&mut run, 60.0, |r| r.status().reactions.len() == 2);
+    let r = &run.status().reactions;
+    assert_eq!(r.len(), 2, "{r:?}");
+    assert!(
+        r[0].detail.contains("uav-4 takes off") && r[1].detail.contains("took over"),
+        "{r:?}"
+    );
+    assert_eq!(run.status().steps[1].vehicles, ["uav-1", "uav-4", "uav-3"]);
+    fleet.fly(&mut run, 2000.0, |r| r.status().state == RunState::Done);
+    assert_eq!(run.status().state, RunState::Done);
+    let home = |id: &str| {
+        fleet
+            .commands
+            .iter()
+            .filter(|(v, c)| v == id && matches!(c, Command::Rtl))
+            .count()
+    };
+    assert_eq!(home("uav-2"), 1, "the low vehicle went home");
+    assert!(
+        fleet
+            .commands
+            .iter()
+            .any(|(v, c)| v == "uav-4" && matches!(c, Command::GoTo(_))),
+        "the reserve patrolled"
+    );
+    assert!(fleet.toys.values().all(|t| t.state == VehicleState::Landed));
+}
+
+#[test]
+fn without_a_reserve_a_low_survey_vehicle_returns_and_its_lanes_are_flown_by_others() {
+    let mut fleet = Fleet::new(3);
+    let mut p = plan(
+        r#"[{"kind": "takeoff", "altitude_m": 10},
+            {"kind": "survey", "polygon": [[20, 0], [20, 60], [80, 60], [80, 0]],
+             "altitude_m": 15, "lane_spacing_m": 6}, {"kind": "land"}]"#,
+    );
+    p.reactions.low_battery = Some(crate::plan::LowBattery {
+        below_percent: 35.0,
+        reserves: vec![],
+    });
+    let mut run = run_of(p, &fleet);
+    fleet.fly(&mut run, 100.0, |r| r.status().step == 1);
+    fleet.fly(&mut run, 15.0, |_| false);
+    fleet.toys.get_mut("uav-1").unwrap().battery = 20.0;
+    fleet.fly(&mut run, 2000.0, |r| r.status().step == 2);
+    let survey = run.status().steps[1].progress.clone().unwrap();
+    assert_eq!(survey.lanes_done, survey.lanes_total, "{survey:?}");
+    assert!(
+        run.status().reactions[0].detail.contains("no reserve left"),
+        "{:?}",
+        run.status().reactions
+    );
+}
+
+#[test]
+fn vehicles_sent_home_without_a_reserve_fly_no_later_step() {
+    let mut fleet = Fleet::new(2);
+    let mut p = plan(
+        r#"[{"kind": "takeoff", "altitude_m": 10},
+            {"kind": "patrol", "route": [[0, 0], [0, 40], [40, 40], [40, 0]], "altitude_m": 10,
+             "duration_s": 600},
+            {"kind": "station", "points": [[5, 0], [5, 8]], "altitude_m": 8, "duration_s": 5},
+            {"kind": "land"}]"#,
+    );
+    p.reactions.low_battery = Some(crate::plan::LowBattery {
+        below_percent: 35.0,
+        reserves: vec![],
+    });
+    let mut run = run_of(p, &fleet);
+    fleet.fly(&mut run, 200.0, |r| r.status().step == 1);
+    fleet.fly(&mut run, 10.0, |_| false);
+    fleet.toys.get_mut("uav-1").unwrap().battery = 20.0;
+    fleet.fly(&mut run, 60.0, |r| r.status().reactions.len() == 1);
+    assert_eq!(
+        run.status().steps[2].vehicles,
+        ["uav-2"],
+        "uav-1 flies no later step"
+    );
+    fleet.toys.get_mut("uav-2").unwrap().battery = 20.0;
+    // The patrol ends with nobody left on it, and the station and the landing with it:
+    // the mission does not wait for vehicles that went home.
+    fleet.fly(&mut run, 3000.0, |r| r.status().state == RunState::Done);
+    let s = run.status();
+    assert_eq!(s.state, RunState::Done, "{s:?}");
+    assert_eq!(s.steps[2].state, StepState::Skipped, "{s:?}");
+    assert!(s.steps[2].vehicles.is_empty(), "{s:?}");
+}
+
+#[test]
+fn an_intruder_in_the_zone_draws_observers_who_then_finish_their_lanes() {
+    let mut fleet = Fleet::new(3);
+    for id in ["uav-2", "uav-3"] {
+        fleet.toys.get_mut(id).unwrap().observer = true;
+    }
+    let mut p = plan(
+        r#"[{"kind": "takeoff", "altitude_m": 10},
+            {"kind": "survey", "polygon": [[20, 0], [20, 60], [80, 60], [80, 0]],
+             "altitude_m": 15, "lane_spacing_m": 6}, {"kind": "land"}]"#,
+    );
+    p.reactions.intruder = Some(crate::plan::IntruderReaction {
+        zone: Some(vec![
+            [0.0, 70.0],
+            [0.0, 150.0],
+            [100.0, 150.0],
+            [100.0, 70.0],
+        ]),
+        observers: 2,
+        stations: true,
+        standoff_m: None,
+    });
+    let mut run = run_of(p, &fleet);
+    fleet.fly(&mut run, 100.0, |r| r.status().step == 1);
+    fleet.fly(&mut run, 10.0, |_| false);
+    let track = |id: &str, north_m: f64, confirmed: bool| TrackSeen {
+        id: id.into(),
+        position: Ned::new(north_m, 100.0, -14.0),
+        confirmed,
+    };
+    // Outside the zone, or tentative: nothing.
+    fleet.tracks = vec![track("track-1", 200.0, true), track("track-2", 50.0, false)];
+    fleet.fly(&mut run, 5.0, |_| false);
+    assert!(run.status().reactions.is_empty() && fleet.observations.is_empty());
+    fleet.tracks = vec![track("track-2", 50.0, true)];
+    fleet.fly(&mut run, 1.0, |r| !r.status().reactions.is_empty());
+    assert_eq!(
+        fleet.observations["track-2"],
+        ["uav-2", "uav-3"],
+        "the two observers"
+    );
+    assert_eq!(run.observers().len(), 2);
+    // The rest carries on meanwhile; the observers' lanes wait.
+    let lanes = |run: &MissionRun| run.status().steps[1].progress.clone().unwrap().lanes_done;
+    let before = lanes(&run);
+    let away = fleet.commands.len();
+    fleet.fly(&mut run, 30.0, |_| false);
+    assert!(lanes(&run) > before, "uav-1 flew on");
+    assert!(
+        fleet.commands[away..]
+            .iter()
+            .all(|(v, c)| v == "uav-1" || !matches!(c, Command::GoTo(_))),
+        "no lane was sent to an observer"
+    );
+    // Lost: back to their lanes, and every lane gets flown.
+    fleet.tracks = vec![track("track-2", 50.0, false)];
+    fleet.fly(&mut run, 2000.0, |r| r.status().step == 2);
+    assert!(fleet.observations.is_empty());
+    let survey = run.status().steps[1].progress.clone().unwrap();
+    assert_eq!(survey.lanes_done, survey.lanes_total, "{survey:?}");
+    let r = &run.status().reactions;
+    assert_eq!(r.len(), 2, "{r:?}");
+    assert!(r[0].detail.contains("observe it") && r[1].detail.contains("back to the step"));
+    assert_eq!(r[0].kind, "intruder");
+}
+
+#[test]
+fn stations_go_to_the_nearest_vehicles_so_that_no_way_crosses_another() {
+    // uav-1 hovers far east, uav-3 far west: in the group's order uav-1 would take the
+    // west station across uav-2's and uav-3's ways.
+    let mut fleet = Fleet::new(3);
+    for (id, east) in [("uav-1", 40.0), ("uav-2", 20.0), ("uav-3", 0.0)] {
+        let t = fleet.toys.get_mut(id).unwrap();
+        t.state = VehicleState::Hovering;
+        t.pos = Ned::new(20.0, east, -10.0);
+    }
+    let mut run = run_of(
+        plan(
+            r#"[{"kind": "station", "points": [[5, 0], [5, 8], [5, 16]], "altitude_m": 8,
+                 "duration_s": 1}]"#,
+        ),
+        &fleet,
+    );
+    fleet.apply(run.tick(&fleet.tick()));
+    let sent: BTreeMap<String, (f64, f64)> = fleet
+        .commands
+        .iter()
+        .filter_map(|(id, c)| match c {
+            Command::GoTo(g) => Some((id.clone(), (g.north_m, g.east_m))),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(sent["uav-1"], (5.0, 16.0), "{sent:?}");
+    assert_eq!(sent["uav-2"], (5.0, 8.0), "{sent:?}");
+    assert_eq!(sent["uav-3"], (5.0, 0.0), "{sent:?}");
+}
