@@ -14,12 +14,15 @@
 # B, never; the test now spreads the cameras 20 m apart first, but keeps the machine;
 # e2e_wlan flies five processes under DDS Security through a lossy WLAN: beside lane B
 # every process ran 40-60 ms late in its bad-WLAN phase and the formation's RMS p95
-# reached 1.92 m, once in CI).
+# reached 1.92 m, once in CI; e2e_formation flies eight simulated PX4s at 50 Hz, most of
+# two cores in a debug build, and measures the wedge's slot error at 5 m/s: beside lane B
+# its skein ran 48 ms late and the error climbed to 0.47 m RMS (0.15-0.19 m alone), once in
+# CI).
 #
 # Two builds run beside all of it at idle priority (SCHED_IDLE: they get only the CPU no
-# test wants), but for e2e_tracking and e2e_wlan, during which they are stopped: the arm64
-# cross-build (deploy_arm64 waits for it) and the fuzz targets' (tests/fuzz.sh runs them
-# afterwards).
+# test wants), but for e2e_tracking, e2e_wlan and e2e_formation, during which they are
+# stopped: the arm64 cross-build (deploy_arm64 waits for it) and the fuzz targets'
+# (tests/fuzz.sh runs them afterwards).
 #
 # Tests that share something run in the same lane or keep it apart themselves: DDS
 # domains are derived from the test process id in disjoint ranges per target, network
@@ -29,9 +32,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-LANE_A=(e2e_distributed e2e_formation e2e_hazards deploy_compose e2e_dds_security e2e_missions)
+LANE_A=(e2e_distributed e2e_dynamic_payloads e2e_geofence e2e_swarm e2e_hazards deploy_compose
+  e2e_dds_security e2e_missions)
 # deploy_arm64 runs the arm64 build made beside the lanes (below), so after them.
-ALONE=(e2e_tracking e2e_overload e2e_wlan deploy_arm64)
+ALONE=(e2e_tracking e2e_overload e2e_wlan e2e_formation deploy_arm64)
 
 # Build everything first, once: the lanes then only run.
 cargo test --workspace --locked --no-run
@@ -109,8 +113,9 @@ wait "$pid_b" || failed="$failed b"
 echo "tests/lanes.sh: lanes done in $(($(date +%s) - started)) s" >&2
 # The tests in ALONE do not wait for the idle-priority builds, which go on beside them
 # (they take only what those tests leave idle), but for deploy_arm64, which needs one;
-# e2e_tracking and e2e_wlan have the machine to themselves all the same: the builds (each
-# its own process group, by setsid) are stopped while they run and continued after.
+# e2e_tracking, e2e_wlan and e2e_formation have the machine to themselves all the same:
+# the builds (each its own process group, by setsid) are stopped while they run and
+# continued after.
 # Beside them, once, e2e_tracking found no hostile swarm (its image processing is short of
 # CPU before anything else), and e2e_wlan failed in two CI runs of four and passed alone:
 # an agent's stream paused 123 ms while its process ran 41 ms late, and a member ended
@@ -121,7 +126,7 @@ builds() { # STOP|CONT: every idle-priority build still running
   for p in "$pid_arm64" "$pid_fuzz"; do kill "-$1" -- "-$p" 2>/dev/null || true; done
 }
 for t in "${ALONE[@]}"; do
-  case $t in e2e_tracking | e2e_wlan) builds STOP ;; esac
+  case $t in e2e_tracking | e2e_wlan | e2e_formation) builds STOP ;; esac
   if [ "$t" = deploy_arm64 ]; then
     if wait "$pid_arm64"; then
       echo "tests/lanes.sh: arm64 cross-build done in $(($(date +%s) - started)) s" >&2
@@ -130,7 +135,7 @@ for t in "${ALONE[@]}"; do
     fi
   fi
   cargo test --workspace --locked --test "$t" || failed="$failed $t"
-  case $t in e2e_tracking | e2e_wlan) builds CONT ;; esac
+  case $t in e2e_tracking | e2e_wlan | e2e_formation) builds CONT ;; esac
 done
 if wait "$pid_fuzz"; then
   echo "tests/lanes.sh: fuzz build done in $(($(date +%s) - started)) s" >&2
