@@ -69,6 +69,12 @@ fn a_flight_is_recorded_to_mcap_read_by_the_reference_reader_and_replayed() {
         json!({"shape": "line", "spacing_m": 7.0, "leader": "virtual", "altitude_m": 8.0}),
     );
     assert_eq!(status, 200, "{body}");
+    // A mission the coordinator holds is recorded with its state, each second.
+    let (status, body) = skein.post(
+        "/api/v1/missions",
+        json!({"name": "recorded", "steps": [{"kind": "takeoff", "altitude_m": 8}, {"kind": "land"}]}),
+    );
+    assert_eq!(status, 201, "{body}");
     eventually("a camera frame", Duration::from_secs(60), || {
         let v = skein.get("/api/v1/vehicles/uav-2").1;
         let frames = v["payloads"]
@@ -111,6 +117,7 @@ fn a_flight_is_recorded_to_mcap_read_by_the_reference_reader_and_replayed() {
         ("/skein/events", "skein.SwarmEvent"),
         ("/skein/commands", "skein.Command"),
         ("/skein/formation", "skein.Formation"),
+        ("/skein/missions", "skein.Missions"),
         ("/skein/uav-2/camera/image", "foxglove.CompressedImage"),
     ] {
         let c = &ch[topic];
@@ -148,6 +155,12 @@ fn a_flight_is_recorded_to_mcap_read_by_the_reference_reader_and_replayed() {
             .as_array()
             .unwrap()
             .contains(&json!("takeoff"))
+    );
+    let missions = &ch["/skein/missions"]["facts"];
+    assert_eq!(
+        (missions["names"].clone(), missions["states"].clone()),
+        (json!(["recorded"]), json!(["ready"])),
+        "{missions}"
     );
     let image = &ch["/skein/uav-2/camera/image"]["facts"];
     assert_eq!(

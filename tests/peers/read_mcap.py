@@ -1,7 +1,8 @@
 """Reads an MCAP recording of skein with the reference `mcap` reader (PyPI) and prints,
 as one JSON object, what every channel holds: schema name and encoding, message
 encoding, message count, and facts the Rust test checks (setpoint type_masks, command
-names, event types, JPEG magic of the camera frames, LocationFix ranges).
+names, event types, mission names and states, JPEG magic of the camera frames,
+LocationFix ranges).
 
 usage: read_mcap.py FILE.mcap
 """
@@ -55,6 +56,11 @@ def main() -> int:
                 facts.setdefault("types", [])
                 if value.get("type") not in facts["types"]:
                     facts["types"].append(value.get("type"))
+            elif channel.topic == "/skein/missions":
+                for m in value["missions"]:
+                    for key, seen in (("names", m["name"]), ("states", m["state"])):
+                        if seen not in facts.setdefault(key, []):
+                            facts[key].append(seen)
             elif channel.topic == "/skein/commands":
                 facts.setdefault("commands", []).append(value["request"].get("command"))
             elif schema and schema.name == "foxglove.CompressedImage":

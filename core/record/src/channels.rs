@@ -26,6 +26,8 @@ pub enum Kind {
     Command,
     /// The formation as `GET /api/v1/formation` shows it.
     Formation,
+    /// Every mission as `GET /api/v1/missions` lists it, state and progress included.
+    Missions,
     /// `foxglove.CompressedImage`: a camera frame (JPEG).
     CompressedImage,
 }
@@ -40,6 +42,7 @@ impl Kind {
             Kind::Event => "skein.SwarmEvent",
             Kind::Command => "skein.Command",
             Kind::Formation => "skein.Formation",
+            Kind::Missions => "skein.Missions",
             Kind::CompressedImage => "foxglove.CompressedImage",
         }
     }
@@ -103,6 +106,17 @@ impl Kind {
                 "title": "skein.Formation",
                 "description": "The formation as GET /api/v1/formation shows it.",
             }),
+            Kind::Missions => json!({
+                "type": "object",
+                "title": "skein.Missions",
+                "description": "Every mission the coordinator holds, as GET /api/v1/missions lists them: id, name, state (ready, running, paused, done, aborted), step, each step's kind and state, progress per group, and the plan.",
+                "properties": {"missions": {"type": "array", "items": {
+                    "type": "object",
+                    "properties": {"id": {"type": "string"}, "name": {"type": "string"}, "state": {"type": "string"}},
+                    "required": ["id", "state"],
+                }}},
+                "required": ["missions"],
+            }),
             Kind::CompressedImage => json!({
                 "type": "object",
                 "title": "foxglove.CompressedImage",
@@ -134,6 +148,8 @@ pub const EVENTS: &str = "/skein/events";
 pub const COMMANDS: &str = "/skein/commands";
 /// Topic of the formation.
 pub const FORMATION: &str = "/skein/formation";
+/// Topic of the missions.
+pub const MISSIONS: &str = "/skein/missions";
 
 /// A Foxglove `time` from ns since the Unix epoch.
 pub fn foxglove_time(ns: u64) -> Value {

@@ -10,6 +10,9 @@
 //!   failovers, hazards, plugin events) and the commands the API accepted
 //!   (`/skein/commands`);
 //! - the formation (`/skein/formation`, on every change and each second);
+//! - the missions (`/skein/missions`, each second while the coordinator holds any, and at
+//!   the stop: the `GET /api/v1/missions` list, each one's state, step and progress per
+//!   group);
 //! - camera frames as `foxglove.CompressedImage` (`/skein/<id>/<slot>/image`, JPEG).
 //!
 //! Messages are JSON with a JSON Schema per channel (MCAP `jsonschema` encoding), stamped

@@ -10,6 +10,7 @@ use serde::Serialize;
 use serde_json::{Value, json};
 use skein_link::Endpoint;
 use skein_model::vehicle::VehicleSnapshot;
+use skein_swarm::coordinator::missions::MissionMsg;
 use skein_swarm::{CoordinatorMsg, FleetMsg, FormationMsg, PayloadMsg, SwarmEvent};
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -21,7 +22,8 @@ use tokio::task::JoinHandle;
 
 /// Vehicle snapshots and positions are recorded at this rate, Hz.
 pub const STATE_HZ: f64 = 10.0;
-/// The formation is recorded on every change and at least this often, s.
+/// The formation, and the missions while the coordinator holds any, are recorded at
+/// least this often, s (the missions at the stop too).
 pub const FORMATION_PERIOD_S: f64 = 1.0;
 /// How long a coordinator query may take before the tick is skipped.
 const ASK_TIMEOUT: Duration = Duration::from_secs(2);
@@ -214,6 +216,8 @@ pub struct Recording {
     events_stop: Option<oneshot::Sender<()>>,
     events_task: JoinHandle<()>,
     endpoints: Vec<Arc<Endpoint>>,
+    /// Asked for the missions once more at the stop.
+    coordinator: ActorRef<CoordinatorMsg>,
 }
 
 impl Recording {
@@ -258,6 +262,7 @@ impl Recording {
             events_stop: Some(events_stop),
             events_task,
             endpoints: sources.endpoints.clone(),
+            coordinator: sources.coordinator.clone(),
         })
     }
 
@@ -274,7 +279,8 @@ impl Recording {
 
     /// Stops collecting and finishes the file. Every event sent on the bus before this
     /// call is in the file (an API request that emitted one and returned before the stop
-    /// request is recorded, however busy the runtime).
+    /// request is recorded, however busy the runtime), and so are the missions as they
+    /// are at the stop (a plan stored within the last second included).
     ///
     /// # Errors
     /// [`RecordError::Io`] when the file could not be written or finished.
@@ -289,6 +295,7 @@ impl Recording {
             let _ = stop.send(());
         }
         let _ = (&mut self.events_task).await;
+        record_missions(&self.coordinator, &self.tx).await;
         let (reply_tx, reply_rx) = mpsc::channel();
         self.tx
             .send(Command::Finish(reply_tx))
@@ -391,7 +398,7 @@ async fn ask<T: Send + 'static>(
     }
 }
 
-/// Vehicle snapshots and fixes at [`STATE_HZ`], the formation each
+/// Vehicle snapshots and fixes at [`STATE_HZ`], the formation and the missions each
 /// [`FORMATION_PERIOD_S`], and a frame watcher per payload that publishes frames.
 async fn record_swarm(
     coordinator: ActorRef<CoordinatorMsg>,
@@ -447,7 +454,27 @@ async fn record_swarm(
             {
                 put(&tx, channels::FORMATION.into(), Kind::Formation, &v);
             }
+            record_missions(&coordinator, &tx).await;
         }
+    }
+}
+
+/// Every mission the coordinator holds (none: nothing is written), as
+/// `GET /api/v1/missions` lists them: where each is, step by step.
+async fn record_missions(coordinator: &ActorRef<CoordinatorMsg>, tx: &mpsc::Sender<Command>) {
+    let Some(missions) = ask(coordinator, |r| MissionMsg::List(r).into()).await else {
+        return;
+    };
+    if missions.is_empty() {
+        return;
+    }
+    if let Ok(v) = serde_json::to_value(&missions) {
+        put(
+            tx,
+            channels::MISSIONS.into(),
+            Kind::Missions,
+            &json!({ "missions": v }),
+        );
     }
 }
 
