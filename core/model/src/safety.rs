@@ -186,6 +186,11 @@ impl SetpointShaper {
         let path_end = (target_velocity.norm() < 1e-9).then_some(target);
         let avoided = self.avoid_near(desired, others, step_bound_m, path_end);
         desired = self.limit_speed(avoided);
+        // Never toward a boundary of the fence faster than can be braked on it: a carrot
+        // the clamp stops at speed leaves the vehicle's momentum to carry it out.
+        desired =
+            self.fence
+                .braked_toward_boundaries(self.carrot, desired, brake, self.enforce_floor);
         // Acceleration limit on the change of the carrot's velocity.
         let dv = desired - self.velocity;
         let dv = dv.clamped_norm(self.limits.max_accel_m_s2 * dt_s);
@@ -456,6 +461,46 @@ mod tests {
         }
         // It stops the tracking buffer under the ceiling.
         assert!((s.carrot().down_m + 120.0 - FENCE_TRACKING_BUFFER_M).abs() < 1e-6);
+    }
+
+    /// A target running on out of the fence (a leader's motion, a push): the carrot
+    /// slows down toward the edge and reaches it at a walk, never at cruise speed.
+    #[test]
+    fn the_carrot_brakes_before_the_fence_edge_it_is_pushed_at() {
+        let fence = Geofence {
+            polygon: vec![[-60.0, -60.0], [-60.0, 60.0], [60.0, 60.0], [60.0, -60.0]],
+            ..Geofence::default()
+        };
+        let mut s = SetpointShaper::new(
+            Ned::new(0.0, 0.0, -10.0),
+            MotionLimits::default(),
+            fence,
+            3.0,
+        );
+        let edge_m = 60.0 - FENCE_TRACKING_BUFFER_M;
+        let brake = BRAKE_FRACTION * MotionLimits::default().max_accel_m_s2;
+        let dt = 0.02;
+        let mut target = Ned::new(5.0, 0.0, -10.0);
+        let mut at_edge = None;
+        for _ in 0..2000 {
+            target.north_m += 8.0 * dt;
+            let sp = s.step(target, Ned::new(8.0, 0.0, 0.0), 0.0, dt, &[]);
+            let left_m = edge_m - sp.position.north_m;
+            assert!(left_m > -1e-6, "past the edge: {sp:?}");
+            // What the carrot can still brake away, with two steps' acceleration of slack
+            // (the clamp's last sliver is stepped as velocity).
+            let allowed =
+                (2.0 * brake * left_m).sqrt() + 2.0 * MotionLimits::default().max_accel_m_s2 * dt;
+            assert!(
+                sp.velocity.north_m <= allowed + 1e-9,
+                "{left_m} m left at {sp:?}"
+            );
+            if left_m < 0.05 && at_edge.is_none() {
+                at_edge = Some(sp.velocity.north_m);
+            }
+        }
+        let at_edge = at_edge.expect("the carrot reached the edge");
+        assert!(at_edge < 0.5, "reached the edge at {at_edge} m/s");
     }
 
     #[test]

@@ -12,6 +12,7 @@
 //! - `validate`: what an operator's fence must satisfy (simple polygons, …);
 //! - [`sync`]: how far a vehicle's autopilot holds the fence.
 
+mod braking;
 mod margin;
 pub mod polygon;
 pub mod sync;
