@@ -34,8 +34,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-LANE_A=(e2e_distributed e2e_dynamic_payloads e2e_geofence e2e_swarm e2e_hazards deploy_compose
-  e2e_dds_security e2e_missions)
+LANE_A=(e2e_distributed e2e_hazards deploy_compose e2e_dds_security e2e_missions)
 # deploy_arm64 runs the arm64 build made beside the lanes (below), so after them.
 ALONE=(e2e_tracking e2e_overload e2e_wlan e2e_formation bench_smoke deploy_arm64)
 
