@@ -634,14 +634,25 @@ fn refused_arming_carries_px4s_reasons(skein: &Skein) {
         }]),
         "{v}"
     );
-    assert!(
-        v["px4_messages"]
-            .as_array()
-            .is_some_and(|m| m.iter().any(|m| m["text"]
-                == "Arming denied: Resolve system health failures first"
-                && m["severity"] == 2)),
-        "{}",
-        v["px4_messages"]
+    // The snapshot takes up PX4's messages at its next refresh, after the stream has them
+    // (once in CI, short of CPU, the first read still had none): polled.
+    eventually(
+        "PX4's refusal in the vehicle's messages",
+        Duration::from_secs(10),
+        || {
+            let (_, v) = skein.get("/api/v1/vehicles/uav-1");
+            let said = v["px4_messages"].as_array().is_some_and(|m| {
+                m.iter().any(|m| {
+                    m["text"] == "Arming denied: Resolve system health failures first"
+                        && m["severity"] == 2
+                })
+            });
+            if said {
+                Ok(())
+            } else {
+                Err(v["px4_messages"].to_string())
+            }
+        },
     );
     assert!(
         v["gps"]["fix_type"].as_u64() >= Some(3) && v["gps"]["eph_m"].is_number(),
