@@ -24,7 +24,11 @@ import argparse
 import sys
 import time
 
-from selenium.common.exceptions import NoSuchElementException, StaleElementReferenceException
+from selenium.common.exceptions import (
+    ElementNotInteractableException,
+    NoSuchElementException,
+    StaleElementReferenceException,
+)
 from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select
@@ -111,8 +115,12 @@ def run(args, driver, summary):
             driver.find_element(
                 By.CSS_SELECTOR,
                 f'li[data-track-id="{current["id"]}"] button[data-act="observe"]').send_keys(Keys.ENTER)
-        except (NoSuchElementException, StaleElementReferenceException):
-            continue  # ended between the listing and the click: the next one
+        except (NoSuchElementException, StaleElementReferenceException,
+                ElementNotInteractableException):
+            # Ended between the listing and the key press: its row is gone, or it is
+            # listed as lost and its Observe button disabled (the dashboard does not
+            # offer to observe a lost track). The next one.
+            continue
 
         def observed(_, tid=current["id"]):
             ui.last = driver.execute_script(TRACKS_JS)
