@@ -42,17 +42,8 @@ pub enum GnssSource {
     },
 }
 
-/// Why a source string was refused: the text and what is wrong with it.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct SourceError(pub String);
-
-impl fmt::Display for SourceError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for SourceError {}
+pub use skein_model::endpoint::SourceError;
+use skein_model::endpoint::{bracket, host_port, serial_device_baud};
 
 const FORMS: &str = "gpsd://HOST[:PORT], serial:DEVICE:BAUD or tcp://HOST:PORT";
 
@@ -63,71 +54,33 @@ impl FromStr for GnssSource {
         let err = |what: &str| SourceError(format!("`{s}`: {what}"));
         if let Some(rest) = s.strip_prefix("gpsd://") {
             let (host, port) =
-                host_port(rest.trim_end_matches('/'), Some(GPSD_PORT)).map_err(|e| err(&e))?;
+                host_named(rest.trim_end_matches('/'), Some(GPSD_PORT)).map_err(|e| err(&e))?;
             return Ok(GnssSource::Gpsd { host, port });
         }
         if let Some(rest) = s.strip_prefix("tcp://") {
-            let (host, port) = host_port(rest, None).map_err(|e| err(&e))?;
+            let (host, port) = host_named(rest, None).map_err(|e| err(&e))?;
             return Ok(GnssSource::Tcp { host, port });
         }
         if let Some(rest) = s.strip_prefix("serial:") {
-            let rest = rest.strip_prefix("//").unwrap_or(rest);
-            let (device, baud) = rest
-                .rsplit_once(':')
-                .ok_or_else(|| err("expected serial:DEVICE:BAUD"))?;
-            let baud = baud
-                .parse::<u32>()
-                .ok()
-                .filter(|b| *b > 0)
-                .ok_or_else(|| err(&format!("baud `{baud}` is not a positive number")))?;
-            if device.is_empty() {
-                return Err(err("empty serial device"));
-            }
-            return Ok(GnssSource::Serial {
-                device: device.into(),
-                baud,
-            });
+            let (device, baud) = serial_device_baud(rest).map_err(|e| err(&e))?;
+            return Ok(GnssSource::Serial { device, baud });
         }
         Err(err(&format!("expected {FORMS}")))
     }
 }
 
-/// `HOST:PORT`, `[V6]:PORT`, or `HOST` with the `default` port.
-fn host_port(s: &str, default: Option<u16>) -> Result<(String, u16), String> {
-    let (host, port) = if let Some(v6) = s.strip_prefix('[') {
-        let (h, after) = v6.split_once(']').ok_or("unclosed `[` in the host")?;
-        (h, after.strip_prefix(':'))
-    } else {
-        match s.rsplit_once(':') {
-            Some((h, p)) => (h, Some(p)),
-            None => (s, None),
-        }
-    };
+/// [`host_port`] with a host required (gpsd and a TCP receiver are somewhere).
+fn host_named(s: &str, default: Option<u16>) -> Result<(String, u16), String> {
+    let (host, port) = host_port(s, default)?;
     if host.is_empty() {
         return Err("no host".into());
     }
-    let port = match (port, default) {
-        (Some(p), _) => p
-            .parse::<u16>()
-            .ok()
-            .filter(|p| *p > 0)
-            .ok_or_else(|| format!("port `{p}` is not 1 to 65535"))?,
-        (None, Some(d)) => d,
-        (None, None) => return Err("no port (HOST:PORT)".into()),
-    };
-    Ok((host.to_string(), port))
+    Ok((host, port))
 }
 
 impl fmt::Display for GnssSource {
     /// The source in its canonical form (the port always given).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let bracket = |h: &str| {
-            if h.contains(':') {
-                format!("[{h}]")
-            } else {
-                h.to_string()
-            }
-        };
         match self {
             GnssSource::Gpsd { host, port } => write!(f, "gpsd://{}:{port}", bracket(host)),
             GnssSource::Serial { device, baud } => write!(f, "serial:{device}:{baud}"),

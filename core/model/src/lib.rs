@@ -5,6 +5,7 @@
 //!   apart so the plugin SDK can share it without this crate's dependencies).
 //! - [`px4`]: PX4 flight modes as carried in `HEARTBEAT.custom_mode`, landed states and
 //!   `SET_POSITION_TARGET_LOCAL_NED` type masks.
+//! - [`endpoint`]: `HOST:PORT` and serial `DEVICE:BAUD` in the operator's source strings.
 //! - [`command`]: the operator's commands, one type for the API, the swarm protocol, DDS
 //!   and (as [`command::CommandKind`]) the FSM.
 //! - [`fsm`]: the vehicle state machine (GenericUAVModel) as a plain transition function.
@@ -24,6 +25,7 @@
 #![warn(missing_docs)]
 
 pub mod command;
+pub mod endpoint;
 pub mod formation;
 pub mod fsm;
 pub use skein_geo as geo;

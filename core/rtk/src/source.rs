@@ -80,17 +80,8 @@ pub enum Source {
     },
 }
 
-/// Why a source string was refused: the whole text and what is wrong with it.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct SourceError(pub String);
-
-impl fmt::Display for SourceError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for SourceError {}
+pub use skein_model::endpoint::SourceError;
+use skein_model::endpoint::{bracket, host_port, serial_device_baud};
 
 const FORMS: &str = "ntrip://[USER[:PASSWORD]@]HOST[:PORT]/MOUNTPOINT, tcp://HOST:PORT, \
                      udp://[ADDRESS]:PORT or serial:DEVICE:BAUD";
@@ -116,20 +107,8 @@ impl FromStr for Source {
             return Ok(Source::Udp(SocketAddr::new(ip, port)));
         }
         if let Some(rest) = s.strip_prefix("serial:") {
-            let rest = rest.strip_prefix("//").unwrap_or(rest);
-            let (device, baud) = rest
-                .rsplit_once(':')
-                .ok_or_else(|| err("expected serial:DEVICE:BAUD"))?;
-            let baud = baud
-                .parse()
-                .map_err(|_| err(&format!("baud `{baud}` is not a number")))?;
-            if device.is_empty() {
-                return Err(err("empty serial device"));
-            }
-            return Ok(Source::Serial {
-                device: device.into(),
-                baud,
-            });
+            let (device, baud) = serial_device_baud(rest).map_err(|e| err(&e))?;
+            return Ok(Source::Serial { device, baud });
         }
         Err(err(&format!("expected {FORMS}")))
     }
@@ -174,29 +153,6 @@ fn parse_ntrip(rest: &str) -> Result<NtripSource, String> {
         password,
         version,
     })
-}
-
-/// `HOST:PORT`, `[V6]:PORT`, or `HOST` with `default` port.
-fn host_port(s: &str, default: Option<u16>) -> Result<(String, u16), String> {
-    let (host, port) = if let Some(v6) = s.strip_prefix('[') {
-        let (h, after) = v6.split_once(']').ok_or("unclosed `[` in the host")?;
-        (h, after.strip_prefix(':'))
-    } else {
-        match s.rsplit_once(':') {
-            Some((h, p)) => (h, Some(p)),
-            None => (s, None),
-        }
-    };
-    let port = match (port, default) {
-        (Some(p), _) => p
-            .parse::<u16>()
-            .ok()
-            .filter(|p| *p > 0)
-            .ok_or_else(|| format!("port `{p}` is not 1 to 65535"))?,
-        (None, Some(d)) => d,
-        (None, None) => return Err("no port (HOST:PORT)".into()),
-    };
-    Ok((host.to_string(), port))
 }
 
 fn percent_decode(s: &str) -> Result<String, String> {
@@ -261,14 +217,6 @@ impl Source {
             Source::Udp(a) => format!("udp://{a}"),
             Source::Serial { device, baud } => format!("serial:{device}:{baud}"),
         }
-    }
-}
-
-fn bracket(host: &str) -> String {
-    if host.contains(':') {
-        format!("[{host}]")
-    } else {
-        host.to_string()
     }
 }
 
