@@ -28,33 +28,33 @@ impl Geofence {
     ) -> Ned {
         let mut v = v;
         for _ in 0..ROUNDS {
-            for (distance_m, outward) in self.boundaries(p, enforce_floor) {
+            self.each_boundary(p, enforce_floor, &mut |distance_m, outward| {
                 let toward = v.dot(&outward);
                 let allowed = (2.0 * brake_m_s2 * distance_m.max(0.0)).sqrt();
                 if toward > allowed {
                     v = v - outward * (toward - allowed);
                 }
-            }
+            });
         }
         v
     }
 
-    /// Each boundary near enough to matter, as its distance from `p` (m) and the unit
-    /// vector from `p` toward it (NED).
-    fn boundaries(&self, p: Ned, enforce_floor: bool) -> Vec<(f64, Ned)> {
+    /// Calls `out` with each boundary near enough to matter: its distance from `p` (m)
+    /// and the unit vector from `p` toward it (NED). Allocates nothing: this runs in
+    /// every vehicle's control step.
+    fn each_boundary(&self, p: Ned, enforce_floor: bool, out: &mut impl FnMut(f64, Ned)) {
         let h = [p.north_m, p.east_m];
-        let mut out = Vec::new();
         let r = p.horizontal_norm();
         if r > 1e-9 && r <= self.radius_m {
-            out.push((self.radius_m - r, horizontal(h, [0.0, 0.0], -1.0)));
+            out(self.radius_m - r, horizontal(h, [0.0, 0.0], -1.0));
         }
         if self.polygon.len() >= 3 && polygon::inside(&self.polygon, h) {
-            edges_seen_from(&self.polygon, h, self.area_margin_m, &mut out);
+            edges_seen_from(&self.polygon, h, self.area_margin_m, out);
         }
         for area in &self.exclusions {
             match area {
                 FenceArea::Polygon(v) if v.len() >= 3 && !polygon::inside(v, h) => {
-                    edges_seen_from(v, h, self.area_margin_m, &mut out);
+                    edges_seen_from(v, h, self.area_margin_m, out);
                 }
                 FenceArea::Polygon(_) => {}
                 FenceArea::Circle {
@@ -65,18 +65,17 @@ impl Geofence {
                     let c = [*north_m, *east_m];
                     let d = polygon::distance(h, c);
                     if d > 1e-9 {
-                        out.push((d - radius_m - self.area_margin_m, horizontal(c, h, 1.0)));
+                        out(d - radius_m - self.area_margin_m, horizontal(c, h, 1.0));
                     }
                 }
             }
         }
         if -p.down_m <= self.max_altitude_m {
-            out.push((self.max_altitude_m + p.down_m, Ned::new(0.0, 0.0, -1.0)));
+            out(self.max_altitude_m + p.down_m, Ned::new(0.0, 0.0, -1.0));
         }
         if enforce_floor && -p.down_m >= self.min_altitude_m {
-            out.push((-p.down_m - self.min_altitude_m, Ned::new(0.0, 0.0, 1.0)));
+            out(-p.down_m - self.min_altitude_m, Ned::new(0.0, 0.0, 1.0));
         }
-        out
     }
 }
 
@@ -86,13 +85,13 @@ fn edges_seen_from(
     poly: &[polygon::Point],
     p: polygon::Point,
     margin_m: f64,
-    out: &mut Vec<(f64, Ned)>,
+    out: &mut impl FnMut(f64, Ned),
 ) {
     for i in 0..poly.len() {
         let b = polygon::nearest_on_segment(poly[i], poly[(i + 1) % poly.len()], p);
         let d = polygon::distance(p, b);
         if d > 1e-9 {
-            out.push((d - margin_m, horizontal(b, p, 1.0)));
+            out(d - margin_m, horizontal(b, p, 1.0));
         }
     }
 }
