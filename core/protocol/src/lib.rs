@@ -40,5 +40,8 @@ pub use from_vehicle::{FromVehicle, PayloadCommandError};
 pub use ports::{Uplink, VehiclePort};
 pub use report::VehicleReport;
 pub use skein_model::command::{Command, CommandKind};
-pub use stamp::{REPORT_EXTRAPOLATION, TARGET_EXTRAPOLATION, age_of, skew_wall_clock, wall_us};
+pub use stamp::{
+    REPORT_EXTRAPOLATION, TARGET_EXTRAPOLATION, age_of, extrapolate_target, skew_wall_clock,
+    wall_us,
+};
 pub use to_vehicle::{SlotTarget, ToVehicle};

@@ -1,7 +1,8 @@
 //! Time on the wire: wall-clock microseconds since the Unix epoch ([`wall_us`]), the age
 //! of a stamp ([`age_of`]), and how long a stamped target or report may be moved on by
-//! its age ([`TARGET_EXTRAPOLATION`], [`REPORT_EXTRAPOLATION`]).
+//! its age ([`TARGET_EXTRAPOLATION`], [`extrapolate_target`], [`REPORT_EXTRAPOLATION`]).
 
+use skein_model::geo::Ned;
 use std::sync::atomic::{AtomicI64, Ordering};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
@@ -27,6 +28,20 @@ pub fn skew_wall_clock(skew_ms: i64) {
 /// Longest a slot target is moved on along its velocity by its age (the formation loop
 /// sends one ten times a second); past this the vehicle holds where the target would be.
 pub const TARGET_EXTRAPOLATION: Duration = Duration::from_millis(500);
+
+/// A slot target (swarm-frame NED position, m, and velocity, m/s) `age` after its stamp:
+/// moved on along its velocity for at most [`TARGET_EXTRAPOLATION`], then held there
+/// (velocity zero). Returns the position and the velocity feed-forward.
+pub fn extrapolate_target(position: Ned, velocity: Ned, age: Duration) -> (Ned, Ned) {
+    if age > TARGET_EXTRAPOLATION {
+        (
+            position + velocity * TARGET_EXTRAPOLATION.as_secs_f64(),
+            Ned::ZERO,
+        )
+    } else {
+        (position + velocity * age.as_secs_f64(), velocity)
+    }
+}
 
 /// Longest a report's position is moved on by its age (reports come at the control rate;
 /// a vehicle at 5 m/s covers 1 m in this time).

@@ -12,13 +12,14 @@ use skein_model::geo::{Ned, NedFrame};
 use skein_model::obstacles::Obstacle;
 use skein_model::px4::Px4Mode;
 use skein_model::safety::SetpointShaper;
-use skein_swarm::protocol::TARGET_EXTRAPOLATION;
+use skein_swarm::protocol::extrapolate_target;
 use skein_swarm::vehicle::ARRIVAL_TOLERANCE_M;
-use skein_swarm::vehicle::slot_correction::SlotCorrectionGains;
+use skein_swarm::vehicle::slot_correction::{OnSlot, local_setpoint};
+use std::time::Duration;
 
 impl Target {
-    /// Position and velocity feed-forward at `now_s`: a slot moves on at its velocity
-    /// for at most [`TARGET_EXTRAPOLATION`], then holds there.
+    /// Position and velocity feed-forward at `now_s` (a slot moved on by its age, as
+    /// the Vehicle actor's).
     fn now(&self, now_s: f64) -> (Ned, Ned) {
         match *self {
             Target::Hold(p) => (p, Ned::ZERO),
@@ -26,15 +27,11 @@ impl Target {
                 position,
                 velocity,
                 at_s,
-            } => {
-                let age = (now_s - at_s).max(0.0);
-                let limit = TARGET_EXTRAPOLATION.as_secs_f64();
-                if age > limit {
-                    (position + velocity * limit, Ned::ZERO)
-                } else {
-                    (position + velocity * age, velocity)
-                }
-            }
+            } => extrapolate_target(
+                position,
+                velocity,
+                Duration::from_secs_f64((now_s - at_s).max(0.0)),
+            ),
         }
     }
 }
@@ -128,24 +125,12 @@ impl Aircraft {
             })
             .collect();
         let sp = shaper.step(tp, tv, self.yaw_rad, dt_s, &others);
-        let setpoint = if self.planned {
-            let c = self.slot_correction.update(
-                &SlotCorrectionGains::default(),
-                sp.position,
-                sp.velocity,
-                cur,
-                dt_s,
-            );
-            let (p, _) = self.fence.clamp(sp.position + c.offset, true);
-            LocalSetpoint::position_velocity_acceleration(
-                to_local.apply(p),
-                sp.velocity,
-                c.acceleration,
-                sp.yaw_rad,
-            )
-        } else {
-            LocalSetpoint::position_velocity(to_local.apply(sp.position), sp.velocity, sp.yaw_rad)
-        };
+        let slot = self.planned.then_some(OnSlot {
+            correction: &mut self.slot_correction,
+            measured: cur,
+            dt_s,
+        });
+        let setpoint = local_setpoint(&sp, slot, &self.fence, &to_local);
         let since = self.stream.map_or(self.time_s(), |(_, s)| s);
         self.stream = Some((setpoint, since));
         self.steered = Some((sp.position, sp.velocity));

@@ -10,11 +10,11 @@
 
 use super::VehicleCore;
 use super::shared::Memory;
-use super::slot_correction::SlotCorrectionGains;
+use super::slot_correction::{OnSlot, local_setpoint};
 use crate::context::LiveFence;
 use crate::events::SwarmEvent;
 use crate::load::ShedWork;
-use crate::protocol::{SlotTarget, TARGET_EXTRAPOLATION, age_of};
+use crate::protocol::{SlotTarget, age_of, extrapolate_target};
 use skein_link::LocalSetpoint;
 use skein_model::fsm::{Event, VehicleState};
 use skein_model::geo::{Ned, NedFrame};
@@ -48,7 +48,7 @@ impl Target {
         }
     }
 
-    /// Position and velocity feed-forward now.
+    /// Position and velocity feed-forward now (a slot moved on by its age).
     fn now(&self, now: Instant) -> (Ned, Ned) {
         match *self {
             Target::Hold(p) => (p, Ned::ZERO),
@@ -56,17 +56,7 @@ impl Target {
                 position,
                 velocity,
                 at,
-            } => {
-                let age = now.saturating_duration_since(at);
-                if age > TARGET_EXTRAPOLATION {
-                    (
-                        position + velocity * TARGET_EXTRAPOLATION.as_secs_f64(),
-                        Ned::ZERO,
-                    )
-                } else {
-                    (position + velocity * age.as_secs_f64(), velocity)
-                }
-            }
+            } => extrapolate_target(position, velocity, now.saturating_duration_since(at)),
         }
     }
 }
@@ -245,26 +235,13 @@ impl VehicleCore {
         let (tp, tv) = target.now(step.now);
         let fence = self.setpoint_fence(mem);
         let sp = self.shape(mem, step, &fence, cur, (tp, tv));
-        let setpoint = if step.planned {
-            // Flying a slot: cancel PX4's tracking lag (see `slot_correction`); the
-            // corrected point is clamped into the fence like any other.
-            let c = mem.slot_correction.update(
-                &SlotCorrectionGains::default(),
-                sp.position,
-                sp.velocity,
-                cur,
-                step.dt,
-            );
-            let (p, _) = fence.fence.clamp(sp.position + c.offset, true);
-            LocalSetpoint::position_velocity_acceleration(
-                to_local.apply(p),
-                sp.velocity,
-                c.acceleration,
-                sp.yaw_rad,
-            )
-        } else {
-            LocalSetpoint::position_velocity(to_local.apply(sp.position), sp.velocity, sp.yaw_rad)
-        };
+        // Flying a slot: cancel PX4's tracking lag (see `slot_correction`).
+        let slot = step.planned.then_some(OnSlot {
+            correction: &mut mem.slot_correction,
+            measured: cur,
+            dt_s: step.dt,
+        });
+        let setpoint = local_setpoint(&sp, slot, &fence.fence, &to_local);
         self.shared.link.stream().set(Some(setpoint));
         self.procedure_progress(mem, step.state, cur, tp);
         (sp.position, sp.velocity)

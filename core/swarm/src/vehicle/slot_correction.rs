@@ -22,7 +22,55 @@
 //! is visible in LOCAL_POSITION_NED: a slow integral of the measured height error
 //! (`ki_z_per_s`, learnt in level flight, bounded by `max_height_m`) cancels it.
 
-use skein_model::geo::Ned;
+use skein_link::LocalSetpoint;
+use skein_model::geo::{FrameTransform, Ned};
+use skein_model::geofence::Geofence;
+use skein_model::safety::ShapedSetpoint;
+
+/// What a vehicle flying its formation slot adds to the shaped setpoint: its
+/// [`SlotCorrection`], where it is (swarm-frame NED, m) and the control period (s).
+pub struct OnSlot<'a> {
+    /// The vehicle's correction state, updated by this step.
+    pub correction: &'a mut SlotCorrection,
+    /// The measured position, swarm-frame NED metres.
+    pub measured: Ned,
+    /// The control period, seconds.
+    pub dt_s: f64,
+}
+
+/// The setpoint sent to PX4 (`SET_POSITION_TARGET_LOCAL_NED`, the vehicle's local NED
+/// frame through `to_local`) for the shaped swarm-frame `sp`: on a slot, PX4's tracking
+/// lag cancelled (the correction's offset, the point clamped into `fence` like any
+/// other, and its acceleration feed-forward); otherwise position and velocity as shaped.
+/// The Vehicle actor and the rehearsal both send exactly this.
+pub fn local_setpoint(
+    sp: &ShapedSetpoint,
+    slot: Option<OnSlot<'_>>,
+    fence: &Geofence,
+    to_local: &FrameTransform,
+) -> LocalSetpoint {
+    match slot {
+        Some(on) => {
+            let c = on.correction.update(
+                &SlotCorrectionGains::default(),
+                sp.position,
+                sp.velocity,
+                on.measured,
+                on.dt_s,
+            );
+            let (p, _) = fence.clamp(sp.position + c.offset, true);
+            LocalSetpoint::position_velocity_acceleration(
+                to_local.apply(p),
+                sp.velocity,
+                c.acceleration,
+                sp.yaw_rad,
+            )
+        }
+        None => {
+            LocalSetpoint::position_velocity(to_local.apply(sp.position), sp.velocity, sp.yaw_rad)
+        }
+    }
+}
 
 /// Gains and bounds of [`SlotCorrection`].
 #[derive(Debug, Clone, Copy, PartialEq)]
