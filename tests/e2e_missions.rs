@@ -3,7 +3,8 @@
 //! reserve (take off in turn, transit in a formation, a survey split in lanes, a patrol,
 //! stations, land in turn), paused and resumed mid-survey; uav-3, given a small battery,
 //! runs low and the reserve takes its place; every lane flown, everyone down at the end;
-//! a plan naming what the swarm lacks is refused at start with the names. The intruder
+//! a plan naming what the swarm lacks is refused at start with the names; a point given
+//! as latitude/longitude is stored in the swarm frame. The intruder
 //! reaction flies in [`intruder`]; `skein mission rehearse` runs in [`cli`].
 
 /// `skein mission rehearse`'s test (its own file, as the next).
@@ -77,6 +78,7 @@ fn a_plan_with_every_step_kind_flies_to_the_end() {
         |v| v["state"] == "Landed" && v["home"].is_object(),
     );
     refusals(&skein);
+    geodetic_points(&skein);
     // uav-3's pack is 400 mAh, not 5000: it falls below 85 % about 18 s into its flight.
     let (status, p) = skein.put(
         "/api/v1/vehicles/uav-3/params/BAT1_CAPACITY",
@@ -338,6 +340,41 @@ fn pause_mid_survey(skein: &Skein, id: &str) {
         (status, &resumed["state"]),
         (200, &json!("running")),
         "{resumed}"
+    );
+}
+
+/// A plan's point given as `{"lat_deg", "lon_deg"}`: stored as `[north_m, east_m]` in the
+/// swarm frame (0.0001° of latitude north of the swarm origin: 11.1 m north); an
+/// impossible latitude refused naming it.
+fn geodetic_points(skein: &Skein) {
+    let (_, health) = skein.get("/api/v1/health");
+    let origin = &health["swarm_origin"];
+    let (lat, lon) = (origin["lat_deg"].as_f64(), origin["lon_deg"].as_f64());
+    let (Some(lat), Some(lon)) = (lat, lon) else {
+        panic!("no swarm origin: {health}")
+    };
+    let (status, m) = skein.post(
+        "/api/v1/missions",
+        json!({"name": "by latitude", "steps": [{"kind": "station",
+            "points": [{"lat_deg": lat + 0.0001, "lon_deg": lon}],
+            "altitude_m": 8, "duration_s": 1}]}),
+    );
+    assert_eq!(status, 201, "{m}");
+    let point = &m["plan"]["steps"][0]["points"][0];
+    let (north_m, east_m) = (point[0].as_f64().unwrap(), point[1].as_f64().unwrap());
+    assert!(
+        (north_m - 11.12).abs() < 0.05 && east_m.abs() < 0.01,
+        "{point}"
+    );
+    let (status, e) = skein.post(
+        "/api/v1/missions",
+        json!({"name": "x", "steps": [{"kind": "station",
+            "points": [{"lat_deg": 95.0, "lon_deg": lon}], "altitude_m": 8, "duration_s": 1}]}),
+    );
+    assert_eq!(
+        (status, e["field"].as_str()),
+        (400, Some("steps[0].points[0].lat_deg")),
+        "{e}"
     );
 }
 

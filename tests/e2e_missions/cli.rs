@@ -1,6 +1,6 @@
 //! `skein mission rehearse` from the command line: the README's first mission, as TOML,
 //! rehearsed on three simulated vehicles to the end, its picture written; a plan the
-//! checks refuse exits 2 naming the field.
+//! checks refuse exits 2 naming the field, as does an impossible latitude.
 
 use crate::support::skein_bin;
 use serde_json::Value;
@@ -56,4 +56,21 @@ fn the_first_mission_is_rehearsed_from_its_toml_file() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("steps[1].lane_spacing_m"), "{stderr}");
+
+    // A point as latitude/longitude is put into the swarm frame first: an impossible
+    // latitude is named.
+    std::fs::write(
+        &bad,
+        r#"{"name": "geo", "steps": [{"kind": "station",
+            "points": [{"lat_deg": 95, "lon_deg": 8.5}], "altitude_m": 8, "duration_s": 1}]}"#,
+    )
+    .unwrap();
+    let out = Command::new(skein_bin())
+        .args(["mission", "rehearse"])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("steps[0].points[0].lat_deg"), "{stderr}");
 }

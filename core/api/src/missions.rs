@@ -14,6 +14,8 @@ use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use skein_mission::MissionPlan;
+use skein_model::geo::NedFrame;
+use skein_swarm::AdminMsg;
 use skein_swarm::coordinator::missions::{MissionControl, MissionError, MissionInfo, MissionMsg};
 
 /// Store a mission plan
@@ -21,16 +23,38 @@ use skein_swarm::coordinator::missions::{MissionControl, MissionError, MissionIn
 /// The plan (`{"name", "groups"?, "steps": [{"kind", "group"?, ...}], "abort"?}`) is
 /// checked against the geofence in force with its margin, the separation the swarm
 /// keeps, and the vehicles' speed limit, and stored: 201 with the mission (`ready`). 400
-/// names the field (`steps[2].polygon[1]`) and says why.
+/// names the field (`steps[2].polygon[1]`) and says why. A point may be given as
+/// `{"lat_deg", "lon_deg"}` (WGS-84 degrees) instead of `[north_m, east_m]`: it is stored
+/// in the swarm frame (400 naming the point while the swarm frame is not anchored yet).
 #[utoipa::path(post, path = "/api/v1/missions", request_body = MissionPlan,
     responses((status = 201, body = MissionInfo), (status = 400), (status = 503)))]
 pub(crate) async fn create(State(s): State<ApiState>, body: Bytes) -> Result<Response, ApiError> {
-    let plan: MissionPlan = crate::requests::parse(&body)?;
+    let plan = plan_in_swarm_frame(&s, &body).await?;
     let info = s
         .ask(|r| MissionMsg::Create(plan, r).into())
         .await?
         .map_err(ApiError::from)?;
     Ok((StatusCode::CREATED, Json(info)).into_response())
+}
+
+/// The plan in `body`, its latitude/longitude points (if any) put into the swarm frame
+/// ([`skein_mission::geodetic`]).
+///
+/// # Errors
+/// 400 naming the field: the body is not a plan, or a point is not a valid
+/// latitude/longitude or has no swarm frame to go into; 503 without a coordinator.
+async fn plan_in_swarm_frame(s: &ApiState, body: &[u8]) -> Result<MissionPlan, ApiError> {
+    let mut plan = crate::requests::object(body)?;
+    // The swarm origin is asked for only when a point may need it.
+    let frame = if body.windows(3).any(|w| w == b"deg") {
+        let health = s.ask(|r| AdminMsg::Health(r).into()).await?;
+        health.swarm_origin.map(NedFrame::new)
+    } else {
+        None
+    };
+    skein_mission::geodetic::points_to_swarm_frame(&mut plan, frame.as_ref())
+        .map_err(|e| ApiError::field(&e.field, format!("{}: {}", e.field, e.error)))?;
+    crate::requests::from_map(plan)
 }
 
 /// Every mission

@@ -8,6 +8,7 @@
 //! coordinator runs it on the live swarm.
 //!
 //! - [`plan`]: the plan's types (the API's body, a TOML file).
+//! - [`geodetic`]: latitude/longitude points put into the swarm frame before a plan is read.
 //! - [`lanes`]: a survey's lanes and their split among the vehicles.
 //! - [`validate`]: the plan's checks, each refusal naming its step and field.
 //! - [`resolve`]: groups to vehicle ids, at start.
@@ -17,6 +18,7 @@
 #![warn(missing_docs)]
 
 pub mod energy;
+pub mod geodetic;
 pub mod lanes;
 pub mod plan;
 pub mod resolve;

@@ -1,8 +1,9 @@
 //! A mission plan as the operator writes it (`POST /api/v1/missions`, a TOML file for
 //! `skein mission`): named groups of vehicles, ordered steps for the whole swarm or a
 //! group, and what an abort does. Positions are swarm-frame `[north_m, east_m]` pairs, as
-//! the geofence takes them; altitudes are metres above the swarm origin, as a
-//! formation's.
+//! the geofence takes them (a request may give a point as `{"lat_deg", "lon_deg"}`: it is
+//! put into the swarm frame before the plan is read, see [`crate::geodetic`]); altitudes
+//! are metres above the swarm origin, as a formation's.
 
 use serde::{Deserialize, Serialize};
 use skein_model::formation::Shape;

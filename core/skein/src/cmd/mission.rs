@@ -10,6 +10,7 @@ use crate::config::ConfigFile;
 use skein_mission::MissionPlan;
 use skein_mission::resolve;
 use skein_mission::swarm::VehicleSetup;
+use skein_model::geo::NedFrame;
 use skein_rehearse::Scenario;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -77,12 +78,13 @@ pub fn run(command: MissionCommand) -> ExitCode {
 /// An unreadable or invalid plan, configuration or scenario (the field named), no
 /// vehicle, an unknown model, a plan group the fleet cannot fill.
 fn rehearse(args: &RehearseArgs) -> Result<skein_rehearse::RehearsalReport, String> {
-    let plan = read_plan(&args.plan)?;
     let file = match &args.config {
         Some(path) => ConfigFile::load(path)?,
         None => ConfigFile::default(),
     };
     let config = file.swarm_config()?;
+    let origin = config.swarm_origin.unwrap_or(skein_sim::PX4_SITL_HOME);
+    let plan = read_plan(&args.plan, &NedFrame::new(origin))?;
     if !(1..=255).contains(&args.sim) {
         return Err(format!("--sim {}: 1 to 255 vehicles", args.sim));
     }
@@ -117,7 +119,6 @@ fn rehearse(args: &RehearseArgs) -> Result<skein_rehearse::RehearsalReport, Stri
     let members = skein_mission::swarm::members(&vehicles);
     let groups =
         resolve::groups(&plan, &members).map_err(|e| format!("{}: {}", e.field, e.error))?;
-    let origin = config.swarm_origin.unwrap_or(skein_sim::PX4_SITL_HOME);
     let swarm = skein_swarm::coordinator::missions::rehearsal_swarm(
         &config,
         config.geofence.clone(),
@@ -128,14 +129,20 @@ fn rehearse(args: &RehearseArgs) -> Result<skein_rehearse::RehearsalReport, Stri
         .map_err(|e| format!("scenario: {}: {}", e.field, e.error))
 }
 
-/// The plan in `path`: TOML by a `.toml` name, else JSON.
-fn read_plan(path: &Path) -> Result<MissionPlan, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    if path.extension().is_some_and(|e| e == "toml") {
-        toml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
-    } else {
-        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
-    }
+/// The plan in `path` (TOML by a `.toml` name, else JSON), its latitude/longitude points
+/// put into `frame`, the swarm frame of the rehearsal.
+fn read_plan(path: &Path, frame: &NedFrame) -> Result<MissionPlan, String> {
+    let at = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let text = std::fs::read_to_string(path).map_err(|e| at(&e))?;
+    let mut plan: serde_json::Map<String, serde_json::Value> =
+        if path.extension().is_some_and(|e| e == "toml") {
+            toml::from_str(&text).map_err(|e| at(&e))?
+        } else {
+            serde_json::from_str(&text).map_err(|e| at(&e))?
+        };
+    skein_mission::geodetic::points_to_swarm_frame(&mut plan, Some(frame))
+        .map_err(|e| at(&format!("{}: {}", e.field, e.error)))?;
+    serde_json::from_value(serde_json::Value::Object(plan)).map_err(|e| at(&e))
 }
 
 /// The scenario in `path` (JSON), checked; none: the default.
