@@ -39,6 +39,9 @@ pub struct VehicleView {
     pub state: VehicleState,
     /// Swarm-frame position, metres; `None` before one is known.
     pub position: Option<Ned>,
+    /// Velocity, NED m/s; `None` when not known (a lane's start is then reached on the
+    /// position alone).
+    pub velocity: Option<Ned>,
     /// Height above its home, metres.
     pub relative_alt_m: Option<f64>,
     /// Battery, percent.

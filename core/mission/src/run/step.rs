@@ -187,7 +187,7 @@ impl Active {
                     .zip(lanes::sweep(&blocks, &from))
                     .map(|(id, way)| {
                         let pts = way.into_iter().map(|p| ned(p, s.altitude_m)).collect();
-                        (id.clone(), Route::new(pts, false))
+                        (id.clone(), Route::lanes(pts))
                     })
                     .collect();
                 Active::Routes {

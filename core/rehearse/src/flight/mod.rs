@@ -246,6 +246,7 @@ impl Flight {
                     id: a.id.clone(),
                     state: a.state,
                     position: a.measured.map(|m| m.0),
+                    velocity: a.measured.map(|m| m.1),
                     relative_alt_m: a.relative_alt_m(),
                     battery_percent: a.battery_percent(),
                     observer: a.observer,

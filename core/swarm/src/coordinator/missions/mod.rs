@@ -290,6 +290,10 @@ impl CoordinatorState {
                     id: id.clone(),
                     state: v.state(),
                     position: s.position.map(|p| p.ned()),
+                    velocity: s.position.map(|_| {
+                        let v = s.velocity;
+                        Ned::new(v.north_m_s, v.east_m_s, v.down_m_s)
+                    }),
                     relative_alt_m: s.position.map(|p| p.relative_alt_m),
                     battery_percent: s.battery.map(|b| b.percent),
                     observer: self.gimbal_slot(id).is_some(),
