@@ -205,9 +205,9 @@ fn bench_mission_rehearses_a_sortie_with_both_reactions() {
         .collect();
     assert!(kinds.contains(&"low_battery"), "{report}");
     assert!(kinds.contains(&"intruder"), "{report}");
-    // Observers drawn off their lanes by the intruders leave some of the area unseen
-    // (0.95 in this run): the rehearsal says so rather than hiding it.
-    assert!(report["coverage"].as_f64().unwrap() > 0.9, "{report}");
+    // Virtual time and a seed: the same figures on any machine (1.0 since lanes start on
+    // their line; the goal is 0.99).
+    assert!(report["coverage"].as_f64().unwrap() >= 0.99, "{report}");
     assert!(
         report["min_separation_m"].as_f64().unwrap() > 3.0,
         "{report}"

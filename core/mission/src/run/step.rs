@@ -498,16 +498,29 @@ fn tick_routes(
         .filter(|(id, _)| !released.contains(*id) && !gone(tick.vehicles.get(*id)))
         .map(|(_, r)| r)
         .collect();
+    // A timed step's clock runs once the vehicles on its duty are in place: those
+    // observing a track carry on with that (a bench sortie's 30 s patrol lasted 700 s,
+    // its clock held until its two observers, following an intruder, went home).
+    let on_duty: Vec<&Route> = routes
+        .iter()
+        .filter(|(id, _)| flown(id) && !gone(tick.vehicles.get(*id)))
+        .map(|(_, r)| r)
+        .collect();
     match kind {
         Routes::Once | Routes::Survey { .. } => live.iter().all(|r| r.finished()),
         Routes::Station { duration_s, since } => held_for(
-            live.iter().all(|r| r.finished()),
+            on_duty.iter().all(|r| r.finished()),
             since,
             *duration_s,
             tick.now_s,
         ),
         Routes::Patrol { duration_s, since } => match duration_s {
-            Some(d) => held_for(live.iter().all(|r| r.reached() > 0), since, *d, tick.now_s),
+            Some(d) => held_for(
+                on_duty.iter().all(|r| r.reached() > 0),
+                since,
+                *d,
+                tick.now_s,
+            ),
             None => false,
         },
     }

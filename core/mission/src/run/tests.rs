@@ -65,6 +65,7 @@ impl Fleet {
                         id: id.clone(),
                         state: t.state,
                         position: Some(t.pos),
+                        velocity: None,
                         relative_alt_m: Some(-t.pos.down_m),
                         battery_percent: Some(t.battery),
                         observer: t.observer,
@@ -556,6 +557,39 @@ fn an_intruder_in_the_zone_draws_observers_who_then_finish_their_lanes() {
     assert_eq!(r.len(), 2, "{r:?}");
     assert!(r[0].detail.contains("observe it") && r[1].detail.contains("back to the step"));
     assert_eq!(r[0].kind, "intruder");
+}
+
+#[test]
+fn a_timed_patrol_ends_on_time_while_its_observers_still_observe() {
+    let mut fleet = Fleet::new(3);
+    for id in ["uav-2", "uav-3"] {
+        fleet.toys.get_mut(id).unwrap().observer = true;
+    }
+    let mut p = plan(
+        r#"[{"kind": "takeoff", "altitude_m": 10},
+            {"kind": "patrol", "route": [[0, 0], [0, 40], [40, 40], [40, 0]],
+             "altitude_m": 15, "duration_s": 20}, {"kind": "land"}]"#,
+    );
+    p.reactions.intruder = Some(crate::plan::IntruderReaction {
+        zone: None,
+        observers: 2,
+        stations: true,
+        standoff_m: None,
+    });
+    let mut run = run_of(p, &fleet);
+    fleet.fly(&mut run, 100.0, |r| r.status().step == 1);
+    // A track confirmed as the patrol starts, before anyone is on the route, and never
+    // lost: two vehicles observe it for the rest of the step.
+    fleet.tracks = vec![TrackSeen {
+        id: "track-1".into(),
+        position: Ned::new(100.0, 100.0, -14.0),
+        confirmed: true,
+    }];
+    let started = fleet.now_s;
+    fleet.fly(&mut run, 300.0, |r| r.status().step == 2);
+    assert_eq!(run.status().step, 2, "the patrol never ended");
+    // uav-1 on the route, then 20 s: the observers do not hold the step's clock.
+    assert!(fleet.now_s - started < 60.0, "{} s", fleet.now_s - started);
 }
 
 #[test]
