@@ -39,38 +39,32 @@ fn the_first_mission_is_rehearsed_from_its_toml_file() {
     let picture = std::fs::read_to_string(&svg).unwrap();
     assert!(picture.starts_with("<svg") && picture.contains("uav-3"));
 
-    // Lanes 2 m apart: refused by the checks before anything flies.
-    let bad = dir.path().join("bad.json");
-    std::fs::write(
-        &bad,
-        r#"{"name": "tight", "steps": [{"kind": "takeoff", "altitude_m": 10},
-            {"kind": "survey", "polygon": [[20, -10], [20, 40], [60, 40]],
-             "altitude_m": 15, "lane_spacing_m": 2}]}"#,
-    )
-    .unwrap();
-    let out = Command::new(skein_bin())
-        .args(["mission", "rehearse"])
-        .arg(&bad)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("steps[1].lane_spacing_m"), "{stderr}");
-
-    // A point as latitude/longitude is put into the swarm frame first: an impossible
-    // latitude is named.
-    std::fs::write(
-        &bad,
-        r#"{"name": "geo", "steps": [{"kind": "station",
-            "points": [{"lat_deg": 95, "lon_deg": 8.5}], "altitude_m": 8, "duration_s": 1}]}"#,
-    )
-    .unwrap();
-    let out = Command::new(skein_bin())
-        .args(["mission", "rehearse"])
-        .arg(&bad)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("steps[0].points[0].lat_deg"), "{stderr}");
+    // Lanes 2 m apart: refused by the checks before anything flies. A point as
+    // latitude/longitude is put into the swarm frame first: an impossible latitude is
+    // named.
+    for (plan, field) in [
+        (
+            r#"{"name": "tight", "steps": [{"kind": "takeoff", "altitude_m": 10},
+                {"kind": "survey", "polygon": [[20, -10], [20, 40], [60, 40]],
+                 "altitude_m": 15, "lane_spacing_m": 2}]}"#,
+            "steps[1].lane_spacing_m",
+        ),
+        (
+            r#"{"name": "geo", "steps": [{"kind": "station",
+                "points": [{"lat_deg": 95, "lon_deg": 8.5}], "altitude_m": 8,
+                "duration_s": 1}]}"#,
+            "steps[0].points[0].lat_deg",
+        ),
+    ] {
+        let bad = dir.path().join("bad.json");
+        std::fs::write(&bad, plan).unwrap();
+        let out = Command::new(skein_bin())
+            .args(["mission", "rehearse"])
+            .arg(&bad)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains(field), "{field}: {stderr}");
+    }
 }
