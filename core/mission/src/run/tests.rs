@@ -493,28 +493,36 @@ fn vehicles_sent_home_without_a_reserve_fly_no_later_step() {
     assert!(s.steps[2].vehicles.is_empty(), "{s:?}");
 }
 
-#[test]
-fn an_intruder_in_the_zone_draws_observers_who_then_finish_their_lanes() {
+/// Three vehicles, uav-2 and uav-3 carrying gimbals, and `steps` with the intruder
+/// reaction: two observers, from stations, for tracks in `zone`.
+fn observed(steps: &str, zone: Option<Vec<[f64; 2]>>) -> (Fleet, MissionPlan) {
     let mut fleet = Fleet::new(3);
     for id in ["uav-2", "uav-3"] {
         fleet.toys.get_mut(id).unwrap().observer = true;
     }
-    let mut p = plan(
+    let mut p = plan(steps);
+    p.reactions.intruder = Some(crate::plan::IntruderReaction {
+        zone,
+        observers: 2,
+        stations: true,
+        standoff_m: None,
+    });
+    (fleet, p)
+}
+
+#[test]
+fn an_intruder_in_the_zone_draws_observers_who_then_finish_their_lanes() {
+    let (mut fleet, p) = observed(
         r#"[{"kind": "takeoff", "altitude_m": 10},
             {"kind": "survey", "polygon": [[20, 0], [20, 60], [80, 60], [80, 0]],
              "altitude_m": 15, "lane_spacing_m": 6}, {"kind": "land"}]"#,
-    );
-    p.reactions.intruder = Some(crate::plan::IntruderReaction {
-        zone: Some(vec![
+        Some(vec![
             [0.0, 70.0],
             [0.0, 150.0],
             [100.0, 150.0],
             [100.0, 70.0],
         ]),
-        observers: 2,
-        stations: true,
-        standoff_m: None,
-    });
+    );
     let mut run = run_of(p, &fleet);
     fleet.fly(&mut run, 100.0, |r| r.status().step == 1);
     fleet.fly(&mut run, 10.0, |_| false);
@@ -561,21 +569,12 @@ fn an_intruder_in_the_zone_draws_observers_who_then_finish_their_lanes() {
 
 #[test]
 fn a_timed_patrol_ends_on_time_while_its_observers_still_observe() {
-    let mut fleet = Fleet::new(3);
-    for id in ["uav-2", "uav-3"] {
-        fleet.toys.get_mut(id).unwrap().observer = true;
-    }
-    let mut p = plan(
+    let (mut fleet, p) = observed(
         r#"[{"kind": "takeoff", "altitude_m": 10},
             {"kind": "patrol", "route": [[0, 0], [0, 40], [40, 40], [40, 0]],
              "altitude_m": 15, "duration_s": 20}, {"kind": "land"}]"#,
+        None,
     );
-    p.reactions.intruder = Some(crate::plan::IntruderReaction {
-        zone: None,
-        observers: 2,
-        stations: true,
-        standoff_m: None,
-    });
     let mut run = run_of(p, &fleet);
     fleet.fly(&mut run, 100.0, |r| r.status().step == 1);
     // A track confirmed as the patrol starts, before anyone is on the route, and never
