@@ -4,7 +4,8 @@
 //! stations, land in turn), paused and resumed mid-survey; uav-3, given a small battery,
 //! runs low and the reserve takes its place; every lane flown, everyone down at the end;
 //! a plan naming what the swarm lacks is refused at start with the names; a point given
-//! as latitude/longitude is stored in the swarm frame. The intruder
+//! as latitude/longitude is stored in the swarm frame; uav-3's measured consumption
+//! refuses a plan the model's pack would fly. The intruder
 //! reaction flies in [`intruder`]; `skein mission rehearse` runs in [`cli`].
 
 /// `skein mission rehearse`'s test (its own file, as the next).
@@ -167,6 +168,7 @@ fn a_plan_with_every_step_kind_flies_to_the_end() {
     skein.wait_all("everyone down", 4, Duration::from_secs(60), |v| {
         v["state"] == "Landed"
     });
+    measured_consumption_refuses_uav_3(&skein);
     let (_, list) = skein.get("/api/v1/missions");
     assert!(
         list.as_array()
@@ -376,6 +378,28 @@ fn geodetic_points(skein: &Skein) {
         (400, Some("steps[0].points[0].lat_deg")),
         "{e}"
     );
+}
+
+/// uav-3 flew on a 400 mAh pack (about 50 % a minute hovering) and landed with about a
+/// quarter left: one more hop (up to 8 m and down, 14 s), which the model's 5000 mAh pack
+/// flies on 1 % and keeps its 20 % reserve, is refused at start at its measured
+/// consumption.
+fn measured_consumption_refuses_uav_3(skein: &Skein) {
+    let (status, m) = skein.post(
+        "/api/v1/missions",
+        json!({"name": "one more hop", "groups": {"three": {"vehicles": ["uav-3"]}},
+            "steps": [{"kind": "takeoff", "group": "three", "altitude_m": 8},
+                {"kind": "land", "group": "three"}]}),
+    );
+    assert_eq!(status, 201, "{m}");
+    let (status, e) = control(skein, m["id"].as_str().unwrap(), "start");
+    let error = e["error"].as_str().unwrap_or_default();
+    assert_eq!(status, 400, "{e}");
+    assert!(
+        error.contains("uav-3 needs") && error.contains("measured consumption"),
+        "{e}"
+    );
+    println!("refused: {error}");
 }
 
 /// Plans refused when posted (naming the step and field) and at start (naming what the

@@ -2,7 +2,8 @@
 //! left plus a reserve. Each vehicle's place is followed through the steps (from where it
 //! is now), each step's flight turned into time (distance at the speed it flies, climbs
 //! and descents at PX4's rates, holds and waits) and the time into battery at the
-//! model's consumption: hovering, plus a share per m/s of cruise.
+//! model's consumption: hovering, plus a share per m/s of cruise; a vehicle that has
+//! flown enough is estimated at its own measured rates ([`crate::consumption`]).
 //!
 //! The default consumption is the simulator's pack (`BAT1_CAPACITY` 5000 mAh; 12 A
 //! hovering, 0.6 A more per m/s): 4 % a minute hovering, 0.2 % a minute more per m/s. A
@@ -54,6 +55,9 @@ pub struct Start {
     pub at: Point,
     /// Its battery, percent; `None`: unknown (not checked).
     pub battery_percent: Option<f64>,
+    /// Its consumption as measured in flight ([`crate::consumption`]); `None`: the
+    /// model's defaults.
+    pub measured: Option<EnergyModel>,
 }
 
 /// What one vehicle's part of a plan takes.
@@ -63,10 +67,13 @@ pub struct Estimate {
     pub flight_s: f64,
     /// Battery used, percent.
     pub percent: f64,
+    /// Its hover rate, percent per minute, when measured (not the model's default).
+    pub measured_hover_percent_per_min: Option<f64>,
 }
 
 /// Each vehicle's estimate for `plan` with its steps' vehicles `groups` (from
-/// [`crate::resolve::groups`]), starting from `starts`.
+/// [`crate::resolve::groups`]), starting from `starts`: at each vehicle's measured
+/// consumption where it has one, else at `model`'s (whose cruise speed all keep).
 pub fn estimate(
     plan: &MissionPlan,
     groups: &[Vec<String>],
@@ -82,6 +89,9 @@ pub fn estimate(
                 Estimate {
                     flight_s: 0.0,
                     percent: 0.0,
+                    measured_hover_percent_per_min: starts[id]
+                        .measured
+                        .map(|m| m.hover_percent_per_min),
                 },
             )
         })
@@ -91,10 +101,11 @@ pub fn estimate(
         let plans = legs(&step.kind, ids, &at, &homes, model);
         for (id, (end, legs)) in plans {
             let e = out.get_mut(&id).expect("a known vehicle");
+            let rates = starts[&id].measured.as_ref().unwrap_or(model);
             for (secs, speed) in legs {
                 e.flight_s += secs;
                 e.percent += secs / 60.0
-                    * (model.hover_percent_per_min + model.cruise_percent_per_min_per_m_s * speed);
+                    * (rates.hover_percent_per_min + rates.cruise_percent_per_min_per_m_s * speed);
             }
             at.insert(id, end);
         }
@@ -115,11 +126,14 @@ pub fn check(
             continue;
         };
         if has - e.percent < RESERVE_PERCENT {
+            let at = e.measured_hover_percent_per_min.map_or(String::new(), |h| {
+                format!(" at its measured consumption ({h:.1} %/min hovering)")
+            });
             return Err(PlanError::new(
                 "steps",
                 format!(
-                    "{id} needs {:.0} % of its battery for its part ({:.0} s of flight) and \
-                     {RESERVE_PERCENT:.0} % in reserve, and has {has:.0} %",
+                    "{id} needs {:.0} % of its battery for its part ({:.0} s of flight{at}) \
+                     and {RESERVE_PERCENT:.0} % in reserve, and has {has:.0} %",
                     e.percent, e.flight_s
                 ),
             ));
@@ -222,6 +236,7 @@ mod tests {
                     Start {
                         at,
                         battery_percent: Some(battery),
+                        measured: None,
                     },
                 )
             })
@@ -244,6 +259,32 @@ mod tests {
         assert!(
             low.error.contains("uav-1 needs 5 %") && low.error.contains("has 24 %"),
             "{low}"
+        );
+    }
+
+    #[test]
+    fn a_vehicle_s_measured_consumption_replaces_the_model_s() {
+        let p = plan(
+            r#"[{"kind": "transit", "waypoints": [[300, 0]], "altitude_m": 20, "speed_m_s": 5}]"#,
+        );
+        let ids = vec!["uav-1".to_string(), "uav-2".into()];
+        let mut s = starts(60.0);
+        s.get_mut("uav-1").unwrap().measured = Some(EnergyModel {
+            hover_percent_per_min: 40.0,
+            cruise_percent_per_min_per_m_s: 2.0,
+            ..EnergyModel::default()
+        });
+        let e = estimate(&p, &[ids], &s, &EnergyModel::default());
+        // 60 s at 40 + 10 % a minute: 50 %, where the model's pack would use 5 %.
+        assert!((e["uav-1"].percent - 50.0).abs() < 1e-9, "{e:?}");
+        assert!(e["uav-2"].percent < 6.0, "{e:?}");
+        let refused = check(&e, &s).unwrap_err();
+        assert!(
+            refused.error.contains("uav-1 needs 50 %")
+                && refused
+                    .error
+                    .contains("measured consumption (40.0 %/min hovering)"),
+            "{refused}"
         );
     }
 

@@ -13,10 +13,12 @@
 //! - [`validate`]: the plan's checks, each refusal naming its step and field.
 //! - [`resolve`]: groups to vehicle ids, at start.
 //! - [`energy`]: the battery a plan takes per vehicle, against what each has.
+//! - [`consumption`]: each vehicle's consumption, measured in flight.
 //! - [`run`]: the run: steps, progress, pause, resume, abort, skip.
 //! - [`swarm`]: the swarm a plan is rehearsed with.
 #![warn(missing_docs)]
 
+pub mod consumption;
 pub mod energy;
 pub mod geodetic;
 pub mod lanes;

@@ -1,10 +1,12 @@
 //! Missions on the coordinator: plans checked against the fence and the separation and
-//! stored ([`store`]), started (groups resolved to vehicles, energy checked), and flown by
+//! stored ([`store`]), started (groups resolved to vehicles, energy checked at each
+//! vehicle's measured consumption, [`consumption`]), and flown by
 //! a [`MissionRun`] ticked at [`MISSION_TICK`]: what it asks for goes to the vehicles as
 //! the coordinator's own commands, to the formation engine as the operator's formation
 //! and leader motion would. One mission flies at a time. Every change of a mission's
 //! state or step is an event (`mission_*` on the stream).
 
+mod consumption;
 mod rehearsal;
 mod store;
 
@@ -110,6 +112,7 @@ impl CoordinatorState {
             }
             MissionMsg::Tick => {
                 self.mission_gate.done();
+                self.measure_consumption();
                 self.mission_tick();
             }
         }
@@ -212,6 +215,7 @@ impl CoordinatorState {
                     Start {
                         at,
                         battery_percent,
+                        measured: self.measured_consumption(&s.id),
                     },
                 )
             })

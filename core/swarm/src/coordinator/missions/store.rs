@@ -42,6 +42,8 @@ pub(crate) struct Store {
     dir: Option<PathBuf>,
     missions: BTreeMap<String, Mission>,
     next: u64,
+    /// Each vehicle's consumption measured in flight (see `consumption`).
+    pub(crate) consumption: BTreeMap<String, skein_mission::consumption::ConsumptionFit>,
 }
 
 impl Store {
