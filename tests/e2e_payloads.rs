@@ -124,12 +124,13 @@ fn payload_plugins_reach_the_running_swarm() {
         3,
         &["--plugin-dir", dir.to_str().unwrap(), "--config", &cfg],
     );
-    let plugin_line = stdout_line(&skein, "skein: plugins from");
+    let skein = &skein;
+    let plugin_line = stdout_line(skein, "skein: plugins from");
     assert!(
         plugin_line.contains("5 loaded") && plugin_line.contains("1 refused"),
         "{plugin_line}"
     );
-    let ports_line = stdout_line(&skein, "simulated vehicles, MAVLink links");
+    let ports_line = stdout_line(skein, "simulated vehicles, MAVLink links");
     let ports: Vec<String> = ports_line
         .rsplit(' ')
         .next()
@@ -142,6 +143,33 @@ fn payload_plugins_reach_the_running_swarm() {
     skein.take_off(3, 8.0);
     let t_flying = t_start.elapsed();
 
+    every_payload_runs(skein);
+    the_listing_and_its_refusals(skein);
+    let reached = gimbal_at_its_rate(skein);
+    camera_snapshot(skein);
+    let worst_faults = faults_restart_only_their_payload(skein, &stats);
+    let (worst_reload, reload_took) = reload_replaces_the_example(skein, &stats, &dir);
+    let (radio, sim_v, before_rate, after_rate) = radio_drops_the_link(skein, &stats, &ports);
+
+    eprintln!(
+        "{}",
+        json!({
+            "built_s": t_built.as_secs_f64(),
+            "flying_after_s": t_flying.as_secs_f64(),
+            "gimbal_reached_s": reached.as_secs_f64(),
+            "worst_setpoint_gap_faults_ms": worst_faults,
+            "worst_setpoint_gap_reload_ms": worst_reload,
+            "reload_to_running_ms": reload_took.as_millis() as u64,
+            "radio": radio["state"],
+            "sim_link": {"loss": sim_v["link_loss_fraction"], "dropped": sim_v["datagrams_dropped_link"]},
+            "datagrams_per_s": [before_rate, after_rate],
+            "total_s": t_start.elapsed().as_secs_f64(),
+        })
+    );
+}
+
+/// The default model mix, and every payload instance running.
+fn every_payload_runs(skein: &Skein) {
     // The default mix: every other vehicle is an observation UAV.
     let vs = skein.vehicles();
     let models: Vec<&str> = vs.iter().map(|v| v["model"].as_str().unwrap()).collect();
@@ -175,9 +203,13 @@ fn payload_plugins_reach_the_running_swarm() {
             Err(bad.join(", "))
         }
     });
+}
 
+/// The plugin listing (five plugins, the built-in provider, the refused fixture), and
+/// bad loads and unloads refused naming the field.
+fn the_listing_and_its_refusals(skein: &Skein) {
     // The listing: five plugins, the built-in provider, the refused fixture.
-    let listing = plugins(&skein);
+    let listing = plugins(skein);
     for name in ["example", "gimbal", "camera", "radio", "fault"] {
         let lib = library(&listing, name).unwrap_or_else(|| panic!("{name}: {listing}"));
         assert_eq!(lib["generation"], 1, "{lib}");
@@ -249,9 +281,12 @@ fn payload_plugins_reach_the_running_swarm() {
     assert_eq!((status, &body["field"]), (404, &json!("name")), "{body}");
     let (status, _) = skein.get("/api/v1/health");
     assert_eq!(status, 200, "skein keeps running after the refusals");
+}
 
+/// uav-2's gimbal pitched to -45° no faster than its rate; how long it took.
+fn gimbal_at_its_rate(skein: &Skein) -> Duration {
     // (a) Gimbal: pitch -45° is reached no sooner than its 30 °/s rate allows (1.5 s).
-    let start_pitch = payload(&skein, "uav-2", "gimbal")["state"]["pitch_deg"]
+    let start_pitch = payload(skein, "uav-2", "gimbal")["state"]["pitch_deg"]
         .as_f64()
         .unwrap();
     let t0 = Instant::now();
@@ -262,7 +297,7 @@ fn payload_plugins_reach_the_running_swarm() {
     assert_eq!(status, 200, "{body}");
     let mut seen_between = false;
     let reached = eventually("gimbal pitch at -45°", Duration::from_secs(15), || {
-        let p = payload(&skein, "uav-2", "gimbal")["state"]["pitch_deg"]
+        let p = payload(skein, "uav-2", "gimbal")["state"]["pitch_deg"]
             .as_f64()
             .unwrap_or(f64::NAN);
         if p < start_pitch - 5.0 && p > -40.0 {
@@ -285,6 +320,11 @@ fn payload_plugins_reach_the_running_swarm() {
     );
     assert!(seen_between, "the pitch moved through intermediate angles");
 
+    reached
+}
+
+/// uav-2's camera snapshot, a JPEG of the configured size; none on a generic vehicle.
+fn camera_snapshot(skein: &Skein) {
     // (b) Camera: the snapshot is a JPEG of the configured size.
     let frame = eventually("a camera frame", Duration::from_secs(10), || {
         let (status, ctype, body) =
@@ -299,9 +339,13 @@ fn payload_plugins_reach_the_running_swarm() {
     assert_eq!(jpeg_size(&frame.1), (320, 240));
     let (status, _, _) = skein.get_bytes("/api/v1/vehicles/uav-1/payloads/camera/snapshot");
     assert_eq!(status, 404, "a generic vehicle has no camera");
+}
 
+/// In-process and process-isolated plugins that panic, hang or abort: only their
+/// payload restarts. The worst setpoint gap meanwhile, ms.
+fn faults_restart_only_their_payload(skein: &Skein, stats: &str) -> f64 {
     // (e) An in-process plugin that panics: its payload is restarted, nothing else moves.
-    assert_eq!(sim_stats(&stats, "reset")["ok"], true);
+    assert_eq!(sim_stats(stats, "reset")["ok"], true);
     let path = "coordinator/uav-1/payload/fault";
     let before = skein.restarts(path);
     let (status, body) = skein.post(
@@ -311,7 +355,7 @@ fn payload_plugins_reach_the_running_swarm() {
     assert!((400..600).contains(&status), "{status} {body}");
     assert!(body["error"].as_str().unwrap().contains("panic"), "{body}");
     let rec = restarted(
-        &skein,
+        skein,
         path,
         before,
         "fault payload restarted after its panic",
@@ -332,7 +376,7 @@ fn payload_plugins_reach_the_running_swarm() {
         json!({"command": "hang"}),
     );
     assert!(status >= 500, "{status} {body}");
-    let rec = restarted(&skein, path3, before, "hung fault payload restarted");
+    let rec = restarted(skein, path3, before, "hung fault payload restarted");
     let reason = rec["last_failure"]["reason"].as_str().unwrap_or_default();
     assert!(
         reason.contains("did not return within") && reason.contains("abandoned"),
@@ -349,9 +393,13 @@ fn payload_plugins_reach_the_running_swarm() {
         status == 200 && abandoned.is_some_and(|n| n >= 1),
         "{status}: {text}"
     );
+    process_isolated_abort(skein);
+    skein.assert_no_failsafe_and_no_gap(stats)
+}
 
-    // (f) A process-isolated plugin that aborts: only its child dies, the payload restarts
-    // with a new child.
+/// A process-isolated plugin that aborts: only its child dies, the payload restarts
+/// with a new child, skein and the vehicles fly on.
+fn process_isolated_abort(skein: &Skein) {
     let pid_of = |listing: &Value| -> Option<u64> {
         library(listing, "fault")?["instances"]
             .as_array()?
@@ -359,7 +407,7 @@ fn payload_plugins_reach_the_running_swarm() {
             .find(|i| i["vehicle_id"] == "uav-1" && i["slot"] == "fault_proc")?["pid"]
             .as_u64()
     };
-    let old_pid = pid_of(&plugins(&skein)).expect("a child pid for uav-1/fault_proc");
+    let old_pid = pid_of(&plugins(skein)).expect("a child pid for uav-1/fault_proc");
     let path = "coordinator/uav-1/payload/fault_proc";
     let before = skein.restarts(path);
     let (status, body) = skein.post(
@@ -371,9 +419,9 @@ fn payload_plugins_reach_the_running_swarm() {
         body["error"].as_str().unwrap().contains("SIGABRT"),
         "{body}"
     );
-    restarted(&skein, path, before, "process-isolated payload restarted");
+    restarted(skein, path, before, "process-isolated payload restarted");
     let new_pid = eventually("a new child", Duration::from_secs(10), || {
-        match pid_of(&plugins(&skein)) {
+        match pid_of(&plugins(skein)) {
             Some(p) if p != old_pid => Ok(p),
             other => Err(format!("{other:?}")),
         }
@@ -393,15 +441,18 @@ fn payload_plugins_reach_the_running_swarm() {
         "{}",
         summary(&vs)
     );
-    let worst_faults = skein.assert_no_failsafe_and_no_gap(&stats);
+}
 
+/// The example plugin rebuilt and reloaded while the vehicles fly: the worst setpoint
+/// gap meanwhile (ms) and how long the reload took.
+fn reload_replaces_the_example(skein: &Skein, stats: &str, dir: &Path) -> (f64, Duration) {
     // (g) Reload: a rebuilt example plugin replaces the old one; its instances come back
     // on the new generation, the vehicles fly on.
-    assert_eq!(sim_stats(&stats, "reset")["ok"], true);
+    assert_eq!(sim_stats(stats, "reset")["ok"], true);
     build_into(
         &["skein-plugin-example"],
         &[("SKEIN_EXAMPLE_VERSION", "9.9.9")],
-        &dir,
+        dir,
     );
     let t0 = Instant::now();
     let (status, body) = skein.post("/api/v1/plugins/reload", json!({"name": "example"}));
@@ -417,7 +468,7 @@ fn payload_plugins_reach_the_running_swarm() {
         "example instances on generation 2",
         Duration::from_secs(10),
         || {
-            let l = plugins(&skein);
+            let l = plugins(skein);
             let Some(lib) = library(&l, "example") else {
                 return Err(l.to_string());
             };
@@ -459,10 +510,16 @@ fn payload_plugins_reach_the_running_swarm() {
         "{}",
         summary(&vs)
     );
-    let worst_reload = skein.assert_no_failsafe_and_no_gap(&stats);
+    let worst_reload = skein.assert_no_failsafe_and_no_gap(stats);
 
+    (worst_reload, reload_took)
+}
+
+/// A poor link on uav-2's radio drops its MAVLink traffic in the simulator: the radio's
+/// payload, the simulator's vehicle, the datagram rates before and after.
+fn radio_drops_the_link(skein: &Skein, stats: &str, ports: &[String]) -> (Value, Value, f64, f64) {
     // (c) Radio: a poor link commanded on uav-2 really drops its MAVLink traffic.
-    let before_rate = datagram_rate(&skein, &ports[1], 200);
+    let before_rate = datagram_rate(skein, &ports[1], 200);
     let (status, body) = skein.post(
         "/api/v1/vehicles/uav-2/payloads/radio",
         json!({"command": "override", "loss_fraction": 0.6, "latency_ms": 50.0}),
@@ -472,7 +529,7 @@ fn payload_plugins_reach_the_running_swarm() {
         "radio state shows the loss",
         Duration::from_secs(10),
         || {
-            let p = payload(&skein, "uav-2", "radio");
+            let p = payload(skein, "uav-2", "radio");
             let loss = p["state"]["loss_percent"].as_f64().unwrap_or(0.0);
             if loss > 50.0 && p["state"]["applied_to_simulator"] == true {
                 Ok(p)
@@ -485,7 +542,7 @@ fn payload_plugins_reach_the_running_swarm() {
         "the simulator drops uav-2's datagrams",
         Duration::from_secs(10),
         || {
-            let s = sim_stats(&stats, "stats");
+            let s = sim_stats(stats, "stats");
             let v = s["vehicles"]
                 .as_array()
                 .unwrap()
@@ -502,7 +559,7 @@ fn payload_plugins_reach_the_running_swarm() {
             }
         },
     );
-    let after_rate = datagram_rate(&skein, &ports[1], 100);
+    let after_rate = datagram_rate(skein, &ports[1], 100);
     assert!(
         after_rate < 0.7 * before_rate,
         "uav-2's telemetry rate fell from {before_rate:.0}/s to {after_rate:.0}/s only"
@@ -513,19 +570,5 @@ fn payload_plugins_reach_the_running_swarm() {
     );
     assert_eq!(status, 200, "{body}");
 
-    eprintln!(
-        "{}",
-        json!({
-            "built_s": t_built.as_secs_f64(),
-            "flying_after_s": t_flying.as_secs_f64(),
-            "gimbal_reached_s": reached.as_secs_f64(),
-            "worst_setpoint_gap_faults_ms": worst_faults,
-            "worst_setpoint_gap_reload_ms": worst_reload,
-            "reload_to_running_ms": reload_took.as_millis() as u64,
-            "radio": radio["state"],
-            "sim_link": {"loss": sim_v["link_loss_fraction"], "dropped": sim_v["datagrams_dropped_link"]},
-            "datagrams_per_s": [before_rate, after_rate],
-            "total_s": t_start.elapsed().as_secs_f64(),
-        })
-    );
+    (radio, sim_v, before_rate, after_rate)
 }
