@@ -543,48 +543,13 @@ fn refused_arming_carries_px4s_reasons(skein: &Skein) {
         |v| v["state"] == "Landed" && v["home"].is_object(),
     );
     let events = EventLog::connect(&skein.base);
-    let put_odid = |value: i64| {
-        let (status, p) = skein.put(
-            "/api/v1/vehicles/uav-1/params/COM_ARM_ODID",
-            json!({ "value": value }),
-        );
-        assert_eq!(status, 200, "{p}");
-    };
-    let arm = || {
-        let (status, body) =
-            skein.post("/api/v1/vehicles/uav-1/commands", json!({"command": "arm"}));
-        assert_eq!(status, 202, "{body}");
-        let id = body["command_id"].as_u64().unwrap();
-        eventually("the arm's outcome", Duration::from_secs(20), || {
-            events
-                .of_type("command_result")
-                .into_iter()
-                .find(|e| e["command_id"] == id)
-                .ok_or_else(|| format!("{:?}", events.of_type("command_result")))
-        })
-    };
-    put_odid(2);
+    put_odid(skein, 2);
     // PX4's arming checks fail (SYS_STATUS), and the fleet's pre-flight view says so.
-    let check = |state: &'static str| {
-        eventually("uav-1's PX4 arming checks", Duration::from_secs(10), || {
-            let (_, p) = skein.get("/api/v1/preflight");
-            let c = p["vehicles"][0]["checks"]
-                .as_array()
-                .and_then(|cs| cs.iter().find(|c| c["check"] == "px4_arming_checks"))
-                .cloned()
-                .unwrap_or_default();
-            if c["state"] == state {
-                Ok(c)
-            } else {
-                Err(p.to_string())
-            }
-        })
-    };
-    check("fail");
+    arming_check(skein, "fail");
     // PX4's own check, by name (its events' report, decoded with the metadata the
     // vehicle served over MAVLink FTP).
     let named = eventually("uav-1's check by name", Duration::from_secs(10), || {
-        let c = check("fail");
+        let c = arming_check(skein, "fail");
         let detail = c["detail"].as_str().unwrap_or_default();
         if detail.starts_with("fail: Open Drone ID system missing (error)") {
             Ok(c)
@@ -593,7 +558,7 @@ fn refused_arming_carries_px4s_reasons(skein: &Skein) {
         }
     });
     assert_eq!(named["state"], "fail", "{named}");
-    let refused = arm();
+    let refused = arm_outcome(skein, &events);
     assert_eq!(refused["ok"], false, "{refused}");
     let error = refused["error"].as_str().unwrap_or_default();
     assert!(
@@ -614,8 +579,59 @@ fn refused_arming_carries_px4s_reasons(skein: &Skein) {
             events.of_type("status_text")
         );
     }
-    // What PX4 said is the vehicle's, and the pre-flight check's detail.
-    let c = check("fail");
+    px4s_refusal_is_the_vehicles(skein);
+    put_odid(skein, 0);
+    arming_check(skein, "ok");
+    let (_, v) = skein.get("/api/v1/vehicles/uav-1");
+    assert_eq!(v["px4_arming_checks"], json!([]), "nothing fails now: {v}");
+    let armed = arm_outcome(skein, &events);
+    assert_eq!(armed["ok"], true, "{armed}");
+}
+
+/// Sets uav-1's `COM_ARM_ODID` (PX4: 2 refuses to arm without Remote ID, 0 ignores it).
+fn put_odid(skein: &Skein, value: i64) {
+    let (status, p) = skein.put(
+        "/api/v1/vehicles/uav-1/params/COM_ARM_ODID",
+        json!({ "value": value }),
+    );
+    assert_eq!(status, 200, "{p}");
+}
+
+/// Commands uav-1 to arm; the command's outcome (`command_result` on the stream).
+fn arm_outcome(skein: &Skein, events: &EventLog) -> Value {
+    let (status, body) = skein.post("/api/v1/vehicles/uav-1/commands", json!({"command": "arm"}));
+    assert_eq!(status, 202, "{body}");
+    let id = body["command_id"].as_u64().unwrap();
+    eventually("the arm's outcome", Duration::from_secs(20), || {
+        events
+            .of_type("command_result")
+            .into_iter()
+            .find(|e| e["command_id"] == id)
+            .ok_or_else(|| format!("{:?}", events.of_type("command_result")))
+    })
+}
+
+/// uav-1's `px4_arming_checks` pre-flight check, once in `state`.
+fn arming_check(skein: &Skein, state: &'static str) -> Value {
+    eventually("uav-1's PX4 arming checks", Duration::from_secs(10), || {
+        let (_, p) = skein.get("/api/v1/preflight");
+        let c = p["vehicles"][0]["checks"]
+            .as_array()
+            .and_then(|cs| cs.iter().find(|c| c["check"] == "px4_arming_checks"))
+            .cloned()
+            .unwrap_or_default();
+        if c["state"] == state {
+            Ok(c)
+        } else {
+            Err(p.to_string())
+        }
+    })
+}
+
+/// What PX4 said when it refused is the vehicle's (its arming checks, its messages) and
+/// the pre-flight check's detail; its GNSS fix is there too.
+fn px4s_refusal_is_the_vehicles(skein: &Skein) {
+    let c = arming_check(skein, "fail");
     assert!(
         c["detail"]
             .as_str()
@@ -659,12 +675,6 @@ fn refused_arming_carries_px4s_reasons(skein: &Skein) {
         "{}",
         v["gps"]
     );
-    put_odid(0);
-    check("ok");
-    let (_, v) = skein.get("/api/v1/vehicles/uav-1");
-    assert_eq!(v["px4_arming_checks"], json!([]), "nothing fails now: {v}");
-    let armed = arm();
-    assert_eq!(armed["ok"], true, "{armed}");
 }
 
 /// Where the ground station's receiver is in the NMEA log: 60°10.27404' N,
