@@ -25,17 +25,9 @@ pub enum ConnectionAddress {
     },
 }
 
-/// Why a connection string was refused.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct AddressError(pub String);
-
-impl fmt::Display for AddressError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for AddressError {}
+/// Why a connection string was refused: the text and what is wrong with it (the
+/// operator's source strings share one error, [`skein_model::endpoint::SourceError`]).
+pub use skein_model::endpoint::SourceError as AddressError;
 
 fn socket_addr(s: &str, whole: &str) -> Result<SocketAddr, AddressError> {
     if let Ok(a) = s.parse() {
@@ -67,19 +59,9 @@ impl std::str::FromStr for ConnectionAddress {
             "udpout" => Ok(ConnectionAddress::UdpOut(socket_addr(rest, s)?)),
             "tcpout" | "tcp" => Ok(ConnectionAddress::TcpOut(socket_addr(rest, s)?)),
             "serial" => {
-                let (device, baud) = rest
-                    .rsplit_once(':')
-                    .ok_or_else(|| AddressError(format!("`{s}`: expected serial:DEVICE:BAUD")))?;
-                let baud = baud
-                    .parse()
-                    .map_err(|_| AddressError(format!("`{s}`: baud `{baud}` is not a number")))?;
-                if device.is_empty() {
-                    return Err(AddressError(format!("`{s}`: empty serial device")));
-                }
-                Ok(ConnectionAddress::Serial {
-                    device: device.to_string(),
-                    baud,
-                })
+                let (device, baud) = skein_model::endpoint::serial_device_baud(rest)
+                    .map_err(|e| AddressError(format!("`{s}`: {e}")))?;
+                Ok(ConnectionAddress::Serial { device, baud })
             }
             other => Err(AddressError(format!(
                 "`{s}`: unknown scheme `{other}` (udpin, udpout, tcpout, serial)"
