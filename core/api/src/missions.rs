@@ -45,13 +45,8 @@ pub(crate) async fn create(State(s): State<ApiState>, body: Bytes) -> Result<Res
 /// latitude/longitude or has no swarm frame to go into; 503 without a coordinator.
 async fn plan_in_swarm_frame(s: &ApiState, body: &[u8]) -> Result<MissionPlan, ApiError> {
     let mut plan = crate::requests::object(body)?;
-    // The swarm origin is asked for only when a point may need it.
-    let frame = if body.windows(3).any(|w| w == b"deg") {
-        let health = s.ask(|r| AdminMsg::Health(r).into()).await?;
-        health.swarm_origin.map(NedFrame::new)
-    } else {
-        None
-    };
+    let health = s.ask(|r| AdminMsg::Health(r).into()).await?;
+    let frame = health.swarm_origin.map(NedFrame::new);
     skein_mission::geodetic::points_to_swarm_frame(&mut plan, frame.as_ref())
         .map_err(|e| ApiError::field(&e.field, format!("{}: {}", e.field, e.error)))?;
     crate::requests::from_map(plan)
