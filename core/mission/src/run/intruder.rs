@@ -224,6 +224,39 @@ impl Intrusions {
         self.unanswered.clear();
     }
 
+    /// Moves the zone's points through `flat` (into another swarm frame).
+    pub(super) fn reframe(&mut self, flat: &dyn Fn(&mut [f64; 2])) {
+        if let Some(zone) = self.rule.zone.as_mut() {
+            zone.iter_mut().for_each(flat);
+        }
+    }
+
+    /// Another coordinator takes the run over (mission time `now_s`): every observation
+    /// ends, its observers back to their routes (it flew the other coordinator's tracks;
+    /// this one's own confirmed tracks start the reaction afresh).
+    pub(super) fn hand_over(
+        &mut self,
+        active: &mut Active,
+        now_s: f64,
+        happened: &mut Vec<Reaction>,
+    ) {
+        let mut ignored = Vec::new();
+        let targets: Vec<String> = self.watching.keys().cloned().collect();
+        for target in targets {
+            let observers = self.stop(&target, active, &mut ignored);
+            happened.push(Reaction {
+                at_s: now_s,
+                kind: "intruder",
+                vehicles: observers.clone(),
+                detail: format!(
+                    "the coordinator changed: {} back to the step from {target}",
+                    observers.join(", ")
+                ),
+            });
+        }
+        self.unanswered.clear();
+    }
+
     /// The vehicles observing now.
     pub(super) fn observers(&self) -> BTreeSet<String> {
         self.watching.values().flatten().cloned().collect()

@@ -12,13 +12,14 @@ mod intruder;
 mod route;
 mod step;
 mod swap;
+mod takeover;
 
 pub use route::{ARRIVED_M, RESEND_S, Route, arrived};
 pub use step::{StepProgress, TAKEOFF_TOLERANCE_M};
 pub use swap::Reaction;
 
 use crate::plan::{AbortAction, InTurn, MissionPlan, StepKind};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use skein_formation::{FormationSpec, LeaderMotion};
 use skein_model::command::Command;
 use skein_model::fsm::VehicleState;
@@ -126,7 +127,7 @@ pub enum RunState {
 }
 
 /// Where a step stands.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ToSchema)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum StepState {
     /// Not reached yet.
@@ -140,10 +141,12 @@ pub enum StepState {
 }
 
 /// One step's record.
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct StepStatus {
     /// Its kind (`takeoff`, `survey`, ...).
-    pub kind: &'static str,
+    #[serde(deserialize_with = "takeover::step_kind")]
+    #[schema(value_type = String)]
+    pub kind: takeover::Name,
     /// Where it stands.
     pub state: StepState,
     /// Its vehicles (resolved at start), by id.
@@ -157,7 +160,7 @@ pub struct StepStatus {
 }
 
 /// A run's state and progress (`GET /api/v1/missions/{id}`'s).
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct RunStatus {
     /// Where it stands.
     pub state: RunState,
@@ -173,8 +176,9 @@ pub struct RunStatus {
     pub reactions: Vec<Reaction>,
 }
 
-/// A plan being flown (see the module docs).
-#[derive(Debug, Clone)]
+/// A plan being flown (see the module docs). Serialised whole, it is what the active
+/// coordinator mirrors to the standbys ([`MissionRun::take_over`]).
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct MissionRun {
     plan: MissionPlan,
     status: RunStatus,
@@ -188,7 +192,7 @@ pub struct MissionRun {
 
 /// An abort under way: every vehicle holding since `since_s`, then `kind` (return or
 /// land) for `ids`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 struct Abort {
     since_s: f64,
     kind: StepKind,

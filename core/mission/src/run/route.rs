@@ -28,7 +28,7 @@ pub const LANE_START_CROSS_M_S: f64 = 0.5;
 pub const RESEND_S: f64 = 5.0;
 
 /// A vehicle's points and how far along them it is.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Route {
     points: Vec<Ned>,
     next: usize,
@@ -142,6 +142,11 @@ impl Route {
     /// Appends `points` (another vehicle's share) after this route's own.
     pub fn extend(&mut self, points: &[Ned]) {
         self.points.extend_from_slice(points);
+    }
+
+    /// Moves the route's points through `f` (into another swarm frame).
+    pub(super) fn reframe(&mut self, f: &dyn Fn(Ned) -> Ned) {
+        self.points.iter_mut().for_each(|p| *p = f(*p));
     }
 
     /// The next `goto` to command again at once (after a pause, say).

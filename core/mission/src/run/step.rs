@@ -32,7 +32,7 @@ use std::collections::{BTreeMap, BTreeSet};
 pub const TAKEOFF_TOLERANCE_M: f64 = 1.0;
 
 /// How far along a step is.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize, utoipa::ToSchema)]
 pub struct StepProgress {
     /// Done so far, 0 to 1 (a patrol without a duration stays at 0).
     pub fraction: f64,
@@ -45,7 +45,7 @@ pub struct StepProgress {
 }
 
 /// Per-vehicle routes, and what kind of step flies them.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(super) enum Routes {
     Once,
     Survey {
@@ -62,7 +62,7 @@ pub(super) enum Routes {
 }
 
 /// The step being flown (see the module docs).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(super) enum Active {
     InTurn {
         ids: Vec<String>,

@@ -9,7 +9,7 @@
 use super::step::Active;
 use super::{Action, Tick, VehicleView};
 use crate::plan::LowBattery;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use skein_model::command::{Command, Takeoff};
 use skein_model::fsm::VehicleState;
 use std::collections::BTreeSet;
@@ -19,27 +19,29 @@ use utoipa::ToSchema;
 const UP_TOLERANCE_M: f64 = 1.5;
 
 /// Something the run did by itself.
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Reaction {
     /// Mission seconds when it happened.
     pub at_s: f64,
     /// `low_battery` (a reserve sent for a vehicle, or a vehicle sent home), or
     /// `intruder` (observers sent to a track, or back to the step).
-    pub kind: &'static str,
+    #[serde(deserialize_with = "super::takeover::reaction_kind")]
+    #[schema(value_type = String)]
+    pub kind: super::takeover::Name,
     /// The vehicles it concerns (the low one first).
     pub vehicles: Vec<String>,
     /// What happened, in words.
     pub detail: String,
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 struct Swap {
     low: String,
     reserve: String,
 }
 
 /// The reaction's state through the mission.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub(super) struct Swaps {
     rule: LowBattery,
     /// Reserves sent (each flies once).

@@ -621,3 +621,5 @@ fn stations_go_to_the_nearest_vehicles_so_that_no_way_crosses_another() {
     assert_eq!(sent["uav-2"], (5.0, 8.0), "{sent:?}");
     assert_eq!(sent["uav-3"], (5.0, 0.0), "{sent:?}");
 }
+
+mod takeover;
