@@ -4,10 +4,10 @@
 //! [`DdsRoles::new`] joins the domain ([`Ros2Carrier`]) and opens each role's topics:
 //! every process publishes its vehicles ([`crate::vehicles`]) and their TF frames
 //! ([`crate::tf`]); a candidate runs the election ([`crate::lease`]), steers the agents'
-//! vehicles ([`crate::remote`]), mirrors the formation ([`crate::mirror`]) and, while
-//! active, relays its RTK corrections ([`crate::rtcm`], as `skein up --dds` does); an
-//! agent obeys the active coordinator ([`crate::agent`]) and takes the relayed
-//! corrections; candidates and agents exchange clock samples ([`crate::clocks`]). Each
+//! vehicles ([`crate::remote`]), mirrors the formation and the flying mission
+//! ([`crate::mirror`]) and, while active, relays its RTK corrections ([`crate::rtcm`], as
+//! `skein up --dds` does); an agent obeys the active coordinator ([`crate::agent`]) and
+//! takes the relayed corrections; candidates and agents exchange clock samples ([`crate::clocks`]). Each
 //! role gets its own topics and the [`SwarmAdapter`] (the relay: the process's
 //! corrections service) as its context; the roles share nothing else but the counters and the peers' clocks
 //! (estimated by the clock exchange, used to age the others' stamps). What outlives a restart of
@@ -40,7 +40,9 @@ use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
 use skein_model::supervision::ChildKind;
 use skein_rtk::RtkService;
 use skein_swarm::clocks::PeerClocks;
+use skein_swarm::coordinator::missions::MissionMirror;
 use skein_swarm::election::ElectionStatus;
+use skein_swarm::formation::FormationMirror;
 use skein_swarm::link_security::LinkSecurity;
 use skein_swarm::metrics::Metrics;
 use skein_swarm::{CoordinatorMsg, ServiceMsg, ServiceSpec, SwarmEvent};
@@ -80,12 +82,13 @@ pub struct DdsConfig {
     pub tf_parent_frame: Option<String>,
 }
 
-/// A candidate's roles: the election, the remote vehicles, the formation mirror, the
-/// clock exchange, the corrections relay.
+/// A candidate's roles: the election, the remote vehicles, the formation's and the
+/// mission's mirrors, the clock exchange, the corrections relay.
 struct CandidateRoles {
     election: Arc<ElectionLink>,
     remotes: Arc<Remotes>,
-    mirror: Arc<Mirror>,
+    mirror: Arc<Mirror<FormationMirror>>,
+    mission: Arc<Mirror<MissionMirror>>,
     clocks: Arc<Clocks>,
     rtcm: Option<Arc<RtcmPublisher>>,
 }
@@ -276,6 +279,9 @@ impl DdsRoles {
                 mirror: Arc::new(
                     Mirror::open(carrier.as_ref(), &counters)?.with_clocks(peer_clocks.clone()),
                 ),
+                mission: Arc::new(
+                    Mirror::open(carrier.as_ref(), &counters)?.with_clocks(peer_clocks.clone()),
+                ),
                 clocks: Arc::new(Clocks::open(
                     carrier.as_ref(),
                     c.coordinator_id.clone(),
@@ -348,6 +354,11 @@ impl DdsRoles {
                 swarm.clone(),
             ));
             tasks.spawn(mirror::run(c.mirror.clone(), status.clone(), swarm.clone()));
+            tasks.spawn(mirror::run(
+                c.mission.clone(),
+                status.clone(),
+                swarm.clone(),
+            ));
             tasks.spawn(clocks::run(c.clocks.clone()));
             if let Some(p) = &c.rtcm {
                 tasks.spawn(rtcm::publish(p.clone(), Some(status), self.rtk.clone()));

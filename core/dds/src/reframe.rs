@@ -186,6 +186,12 @@ impl Positions for FormationMirror {
     }
 }
 
+impl Positions for skein_swarm::coordinator::missions::MissionMirror {
+    fn positions_finite(&self) -> bool {
+        self.run.positions_finite()
+    }
+}
+
 impl Positions for ToVehicle {
     fn positions_finite(&self) -> bool {
         match self {

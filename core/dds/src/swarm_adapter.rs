@@ -19,6 +19,7 @@ use ractor::rpc::CallResult;
 use skein_model::geo::{GeoPoint, NedFrame};
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::SwarmContext;
+use skein_swarm::coordinator::missions::MissionMirror;
 use skein_swarm::election::CoordinatorRole;
 use skein_swarm::formation::FormationMirror;
 use skein_swarm::load::{LoadMonitor, ShedWork};
@@ -184,14 +185,25 @@ impl RemoteContext for SwarmAdapter {
     }
 }
 
-impl MirrorContext for SwarmAdapter {
-    async fn formation(&self) -> Option<Option<FormationMirror>> {
+impl MirrorContext<FormationMirror> for SwarmAdapter {
+    async fn current(&self) -> Option<Option<FormationMirror>> {
         self.ask(|r| DistributedMsg::GetFormationMirror(r).into())
             .await
     }
 
     fn resume(&self, mirror: FormationMirror, from: String) {
         self.distributed(DistributedMsg::ResumeFormation(mirror, from));
+    }
+}
+
+impl MirrorContext<MissionMirror> for SwarmAdapter {
+    async fn current(&self) -> Option<Option<MissionMirror>> {
+        self.ask(|r| DistributedMsg::GetMissionMirror(r).into())
+            .await
+    }
+
+    fn resume(&self, mirror: MissionMirror, from: String) {
+        self.distributed(DistributedMsg::ResumeMission(Box::new(mirror), from));
     }
 }
 

@@ -16,6 +16,7 @@
 //! | `/skein/swarm/command_result` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | per command, state change |
 //! | `/skein/swarm/events` | `skein_msgs/SwarmMessage` | reliable, volatile, keep-last 64 | per vehicle event |
 //! | `/skein/formation` | `skein_msgs/SwarmMessage` | reliable, transient-local, keep-last 1 | 5 Hz from the active coordinator |
+//! | `/skein/mission` | `skein_msgs/SwarmMessage` | reliable, transient-local, keep-last 1 | 2 Hz from the active coordinator |
 //! | `/skein/swarm/clock` | `skein_msgs/SwarmMessage` | best-effort, volatile, keep-last 64 | 2 Hz per coordinator and agent |
 //! | `/skein/rtcm` | `rtcm_msgs/Message` | reliable, volatile, keep-last 16 | every RTCM frame of the active coordinator's source (a base: 5–15 a second) |
 //! | `/tf` | `tf2_msgs/TFMessage` | reliable, volatile, keep-last 1 | publish rate |
@@ -186,6 +187,12 @@ pub fn formation() -> TopicSpec {
     TopicSpec::new(NAMESPACE, "formation", formation_mirror())
 }
 
+/// `/skein/mission`: the active coordinator's flying mission, for the standbys
+/// ([`crate::mirror`]).
+pub fn mission() -> TopicSpec {
+    TopicSpec::new(NAMESPACE, "mission", formation_mirror())
+}
+
 /// `/skein/rtcm`: the active coordinator's RTK corrections, for the agents ([`crate::rtcm`]).
 pub fn rtcm() -> TopicSpec {
     TopicSpec::new(NAMESPACE, "rtcm", corrections())
@@ -276,7 +283,7 @@ pub fn static_transforms() -> QosProfile {
     formation_mirror()
 }
 
-/// The formation mirror: reliable, transient-local, keep-last 1.
+/// The formation's and the mission's mirrors: reliable, transient-local, keep-last 1.
 pub fn formation_mirror() -> QosProfile {
     QosProfile::publisher_default()
         .reliability_reliable(WhenFull::Wait(std::time::Duration::from_millis(20)))

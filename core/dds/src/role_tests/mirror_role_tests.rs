@@ -56,7 +56,7 @@ fn wedge(north_m: f64) -> FormationMirror {
 }
 
 /// The status of candidate `id` in `role` and `epoch`.
-fn status(id: &str, role: CoordinatorRole, epoch: u64) -> ElectionStatus {
+pub(super) fn status(id: &str, role: CoordinatorRole, epoch: u64) -> ElectionStatus {
     let this = Lease {
         coordinator_id: id.into(),
         priority: 1,
@@ -109,7 +109,9 @@ fn assert_in_b_frame(m: &FormationMirror, north_m: f64) {
 async fn a_standby_resumes_the_latest_mirror_of_the_highest_epoch_in_its_own_frame_once_active() {
     let bus = MemoryBus::new();
     let (b, mut calls) = Process::new(Some(origin_b()));
-    let mirror = Arc::new(Mirror::open(bus.as_ref(), &Arc::new(DdsCounters::default())).unwrap());
+    let mirror = Arc::new(
+        Mirror::<FormationMirror>::open(bus.as_ref(), &Arc::new(DdsCounters::default())).unwrap(),
+    );
     let (role, election) = watch::channel(status("gcs-b", CoordinatorRole::Standby, 1));
     let _b = tokio::spawn(mirror::run(mirror, election, b.clone()));
     let formation = Peer::open(&bus, &topics::formation());
@@ -139,7 +141,7 @@ fn candidate(bus: &Arc<MemoryBus>, process: &Arc<Process>, id: &str, priority: u
         timing: ElectionConfig::default(),
     };
     let election = Arc::new(ElectionLink::open(bus.as_ref(), c, &counters).unwrap());
-    let mirror = Arc::new(Mirror::open(bus.as_ref(), &counters).unwrap());
+    let mirror = Arc::new(Mirror::<FormationMirror>::open(bus.as_ref(), &counters).unwrap());
     let mut tasks = JoinSet::new();
     tasks.spawn(mirror::run(mirror, election.subscribe(), process.clone()));
     tasks.spawn(election.run(process.clone()));
@@ -199,8 +201,8 @@ impl crate::reframe::FrameSource for HandingOver {
     }
 }
 
-impl mirror::MirrorContext for HandingOver {
-    async fn formation(&self) -> Option<Option<FormationMirror>> {
+impl mirror::MirrorContext<FormationMirror> for HandingOver {
+    async fn current(&self) -> Option<Option<FormationMirror>> {
         if self.asks.fetch_add(1, std::sync::atomic::Ordering::SeqCst) < 3 {
             return Some(Some(wedge(5.0)));
         }
@@ -225,10 +227,10 @@ async fn a_coordinator_that_steps_down_during_an_ask_publishes_no_null_mirror_fo
         role,
         asks: Default::default(),
     });
-    let b_mirror = Arc::new(Mirror::open(bus.as_ref(), &counters).unwrap());
+    let b_mirror = Arc::new(Mirror::<FormationMirror>::open(bus.as_ref(), &counters).unwrap());
     let _b = tokio::spawn(mirror::run(b_mirror, b_election, handing_over.clone()));
     let (a, mut a_calls) = Process::new(Some(origin_b()));
-    let a_mirror = Arc::new(Mirror::open(bus.as_ref(), &counters).unwrap());
+    let a_mirror = Arc::new(Mirror::<FormationMirror>::open(bus.as_ref(), &counters).unwrap());
     let (a_role, a_election) = watch::channel(status("gcs-a", CoordinatorRole::Standby, 3));
     let _a = tokio::spawn(mirror::run(a_mirror, a_election, a));
 

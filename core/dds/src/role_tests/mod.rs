@@ -10,6 +10,7 @@
 
 mod agent_role_tests;
 mod mirror_role_tests;
+mod mission_mirror_role_tests;
 mod remote_role_tests;
 mod rtcm_role_tests;
 
@@ -29,6 +30,7 @@ use skein_model::fsm::VehicleState;
 use skein_model::geo::{GeoPoint, Ned, NedFrame};
 use skein_model::vehicle::VehicleSnapshot;
 use skein_swarm::SwarmEvent;
+use skein_swarm::coordinator::missions::MissionMirror;
 use skein_swarm::election::Lease;
 use skein_swarm::formation::FormationMirror;
 use skein_swarm::protocol::{FromVehicle, ToVehicle, VehicleReport, wall_us};
@@ -61,6 +63,8 @@ pub(super) enum Call {
     Event(SwarmEvent),
     /// `MirrorContext::resume`.
     Resume(FormationMirror, String),
+    /// `MirrorContext::resume` of a mission.
+    ResumeMission(Box<MissionMirror>, String),
     /// `ElectionContext::role_changed`.
     RoleChanged(RoleChange),
 }
@@ -110,6 +114,8 @@ pub(super) struct Process {
     vehicles: Mutex<Vec<(VehicleReport, VehicleSnapshot)>>,
     /// The formation its coordinator flies (for the mirror).
     formation: Mutex<Option<FormationMirror>>,
+    /// The mission its coordinator flies (for the mirror).
+    mission: Mutex<Option<MissionMirror>>,
     events: broadcast::Sender<SwarmEvent>,
     /// The agent role's tap of its vehicles' answers.
     uplink: Mutex<Option<mpsc::UnboundedSender<FromVehicle>>>,
@@ -125,6 +131,7 @@ impl Process {
             frame: Arc::new(AnchoredFrame::new(origin)),
             vehicles: Mutex::new(Vec::new()),
             formation: Mutex::new(None),
+            mission: Mutex::new(None),
             events: broadcast::channel(64).0,
             uplink: Mutex::new(None),
             calls,
@@ -159,6 +166,11 @@ impl Process {
             .formation
             .lock()
             .unwrap_or_else(PoisonError::into_inner) = Some(formation);
+    }
+
+    /// Makes its coordinator fly `mission`.
+    pub(super) fn flying_mission(&self, mission: MissionMirror) {
+        *self.mission.lock().unwrap_or_else(PoisonError::into_inner) = Some(mission);
     }
 
     /// One of its vehicles answers `msg` (to the agent role's tap).
@@ -276,8 +288,8 @@ impl RemoteContext for Process {
     }
 }
 
-impl MirrorContext for Process {
-    async fn formation(&self) -> Option<Option<FormationMirror>> {
+impl MirrorContext<FormationMirror> for Process {
+    async fn current(&self) -> Option<Option<FormationMirror>> {
         Some(
             self.formation
                 .lock()
@@ -288,6 +300,21 @@ impl MirrorContext for Process {
 
     fn resume(&self, mirror: FormationMirror, from: String) {
         self.call(Call::Resume(mirror, from));
+    }
+}
+
+impl MirrorContext<MissionMirror> for Process {
+    async fn current(&self) -> Option<Option<MissionMirror>> {
+        Some(
+            self.mission
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .clone(),
+        )
+    }
+
+    fn resume(&self, mirror: MissionMirror, from: String) {
+        self.call(Call::ResumeMission(Box::new(mirror), from));
     }
 }
 

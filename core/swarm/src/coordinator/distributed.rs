@@ -10,9 +10,10 @@
 //!   ([`DistributedMsg::ToLocalVehicle`]), taps what they answer
 //!   ([`DistributedMsg::TapUplink`]), reads their reports, and gives it the other
 //!   agents' vehicles as neighbours to keep separation from.
-//! - A **standby** coordinator mirrors the active one's formation and, once it holds the
-//!   role, flies it on ([`DistributedMsg::ResumeFormation`]); one that steps down lets
-//!   its own go ([`DistributedMsg::SteppedDown`]).
+//! - A **standby** coordinator mirrors the active one's formation and flying mission and,
+//!   once it holds the role, flies them on ([`DistributedMsg::ResumeFormation`],
+//!   [`DistributedMsg::ResumeMission`]); one that steps down lets its own go
+//!   ([`DistributedMsg::SteppedDown`]).
 
 use super::CoordinatorState;
 use super::proxy::VehicleProxy;
@@ -63,6 +64,12 @@ pub enum DistributedMsg {
     /// Coordinator that just took the role: fly on the formation of the one it replaces
     /// (its id), as mirrored (positions in this process's frame), unless it flies one.
     ResumeFormation(FormationMirror, String),
+    /// Coordinator: the flying mission to mirror to the standbys (`None`: none flies).
+    GetMissionMirror(RpcReplyPort<Option<super::missions::MissionMirror>>),
+    /// Coordinator that just took the role: fly on the mission of the one it replaces
+    /// (its id), as mirrored (positions in this process's frame, stamp in its clock),
+    /// unless one flies here.
+    ResumeMission(Box<super::missions::MissionMirror>, String),
     /// Coordinator that lost the role (a handover, or the loser of two actives after a
     /// partition; the reason): it flies no formation of its own from now on. The active
     /// one flies it and this one mirrors it, to resume it should it claim the role again;
@@ -136,7 +143,12 @@ impl CoordinatorState {
                 self.join_hovering();
                 self.formation_changed();
             }
+            DistributedMsg::GetMissionMirror(reply) => {
+                let _ = reply.send(self.mission_mirror());
+            }
+            DistributedMsg::ResumeMission(mirror, from) => self.resume_mission(*mirror, &from),
             DistributedMsg::SteppedDown(reason) => {
+                self.missions_stepped_down(&reason);
                 if self.formation.is_active() {
                     tracing::warn!(
                         "the formation is left to the active coordinator: this one stepped \

@@ -4,14 +4,18 @@
 //! a [`MissionRun`] ticked at [`MISSION_TICK`]: what it asks for goes to the vehicles as
 //! the coordinator's own commands, to the formation engine as the operator's formation
 //! and leader motion would. One mission flies at a time. Every change of a mission's
-//! state or step is an event (`mission_*` on the stream).
+//! state or step is an event (`mission_*` on the stream). The active coordinator mirrors
+//! the flying mission to the standbys, and one that takes the role flies it on
+//! ([`takeover`]).
 
 mod consumption;
 mod rehearsal;
 mod store;
+mod takeover;
 
 pub use rehearsal::rehearsal_swarm;
 pub use store::MissionInfo;
+pub use takeover::MissionMirror;
 
 use super::CoordinatorState;
 use super::messages::FieldError;

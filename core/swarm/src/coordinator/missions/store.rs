@@ -117,6 +117,28 @@ impl Store {
         });
     }
 
+    /// Takes over mission `id` from another coordinator, flying `run` (stored, its plan
+    /// written as if posted here; an earlier mission of that id is replaced).
+    pub(crate) fn adopt(&mut self, id: &str, run: MissionRun) {
+        let plan = run.plan().clone();
+        self.write(id, &plan);
+        self.next = self.next.max(number(id));
+        self.missions.insert(
+            id.to_string(),
+            Mission {
+                plan,
+                run: Some(run),
+            },
+        );
+    }
+
+    /// Lets the flying mission go (its run dropped: it is ready here again); its id.
+    pub(crate) fn let_go(&mut self) -> Option<String> {
+        let (id, m) = self.flying()?;
+        m.run = None;
+        Some(id.clone())
+    }
+
     pub(crate) fn get(&self, id: &str) -> Option<&Mission> {
         self.missions.get(id)
     }
