@@ -26,14 +26,23 @@
 //! - no simulated PX4 took the offboard-loss failsafe, and no setpoint gap in OFFBOARD
 //!   reached 100 ms.
 //!
+//! Then a mission carried through a failover: two coordinator candidates and the three
+//! agents; the active one flies a camera survey and is killed once a lane is done; the
+//! standby flies the mission on (same id, same step, the lanes as they were) to the
+//! landing, the survey covered at its planned overlap.
+//!
 //! Across hosts, through a WLAN's fades and coordinator failovers: `e2e_wlan.rs`.
 
 mod support;
 
 use serde_json::{Value, json};
+use skein_model::geo::Ned;
+use skein_rehearse::coverage::Coverage;
 use std::time::{Duration, Instant};
 use support::bench::bench_report;
-use support::distributed::{AgentOptions, agent_on, cyclone_intruder, role};
+use support::distributed::{
+    AgentOptions, agent_on, candidate_on, cyclone_intruder, role, wait_roles,
+};
 use support::formation::{cruise, wedge_north};
 use support::rtk::UdpBase;
 use support::{EventLog, Skein, assert_no_failsafe_and_no_gap, eventually, summary};
@@ -367,5 +376,201 @@ fn bench_dds_distributed_compares_agents_with_one_process() {
                 .is_some_and(|r| r > 0.0),
             "{ratio}: {report}"
         );
+    }
+}
+
+/// Takeoff, a survey of a 40 x 40 m square by camera (70° across, 30 % overlap: lanes
+/// 9.8 m apart at 10 m), landing.
+fn survey_plan() -> Value {
+    json!({
+        "name": "carried survey",
+        "steps": [
+            {"kind": "takeoff", "altitude_m": 10, "interval_s": 1},
+            {"kind": "survey", "polygon": [[15, -10], [15, 30], [55, 30], [55, -10]],
+             "altitude_m": 10, "camera": {"hfov_deg": 70, "overlap": 0.3}},
+            {"kind": "land", "interval_s": 1}
+        ]
+    })
+}
+
+/// What the test sees of the flight through the standby's API (it follows every remote
+/// vehicle's reports, before and after the takeover, in its own swarm frame): each
+/// airborne vehicle's positions, and the smallest distance between two vehicles.
+#[derive(Default)]
+struct Watch {
+    samples: Vec<(String, Ned)>,
+    min_separation_m: Option<f64>,
+}
+
+impl Watch {
+    fn sample(&mut self, standby: &Skein) {
+        let airborne: Vec<(String, Ned)> = standby
+            .vehicles()
+            .iter()
+            .filter(|v| v["position"]["relative_alt_m"].as_f64() > Some(2.0))
+            .filter_map(|v| {
+                let p = &v["position"];
+                Some((
+                    v["id"].as_str()?.to_string(),
+                    Ned::new(
+                        p["north_m"].as_f64()?,
+                        p["east_m"].as_f64()?,
+                        -p["relative_alt_m"].as_f64()?,
+                    ),
+                ))
+            })
+            .collect();
+        for (i, (_, p)) in airborne.iter().enumerate() {
+            for (_, q) in &airborne[i + 1..] {
+                let d = (*p - *q).norm();
+                self.min_separation_m = Some(self.min_separation_m.map_or(d, |m| m.min(d)));
+            }
+        }
+        self.samples.extend(airborne);
+    }
+
+    /// The fraction of survey `step` (a plan's step, in the standby's frame) seen at its
+    /// planned overlap ([`Coverage`]).
+    fn coverage(&self, step: &Value) -> f64 {
+        let mut survey = step.clone();
+        survey.as_object_mut().unwrap().remove("kind");
+        let mut coverage = Coverage::new(&serde_json::from_value(survey).unwrap());
+        for (id, p) in &self.samples {
+            coverage.sample(id, *p);
+        }
+        coverage.fraction()
+    }
+}
+
+/// The survey's progress in mission `m` (`GET /api/v1/missions/{id}`): lanes done, of
+/// how many.
+fn lanes(m: &Value) -> (u64, u64) {
+    let p = &m["steps"][1]["progress"];
+    (
+        p["lanes_done"].as_u64().unwrap_or(0),
+        p["lanes_total"].as_u64().unwrap_or(0),
+    )
+}
+
+/// A mission survives its coordinator: two candidates and three agents; the active one
+/// flies a survey, and is killed (SIGKILL) once a lane is done. The standby takes the
+/// role and flies the mission on under the same id, at the same step, from where each
+/// vehicle was: the survey is finished with no lane lost (coverage at the planned overlap
+/// measured from the vehicles' positions, at least 99 %), the vehicles land, none came
+/// within 3 m of another, no simulated PX4 took a failsafe and no setpoint gap in OFFBOARD
+/// reached 100 ms.
+#[test]
+fn a_mission_flies_on_when_its_coordinator_dies_mid_survey() {
+    let _one = support::one_at_a_time();
+    let d = domain(0);
+    let dir = support::plugins::scratch("mission-failover");
+    let config = |id: &str| {
+        let path = dir.join(format!("{id}.toml"));
+        let recordings = dir.join(id);
+        std::fs::write(
+            &path,
+            format!("[recording]\ndir = \"{}\"\n", recordings.display()),
+        )
+        .unwrap();
+        path.display().to_string()
+    };
+    let (config_a, config_b) = (config("gcs-a"), config("gcs-b"));
+    let mut a = candidate_on(None, "gcs-a", "2", &d, None, &["--config", &config_a]);
+    let b = candidate_on(None, "gcs-b", "1", &d, None, &["--config", &config_b]);
+    let agents: Vec<Skein> = (1..=3).map(|sysid| agent(sysid, &d)).collect();
+    wait_roles(&a, &b, Duration::from_secs(30));
+    for c in [&a, &b] {
+        c.wait_all("homes", 3, Duration::from_secs(60), |v| {
+            v["home"].is_object()
+        });
+    }
+
+    let plan = survey_plan();
+    let (status, created) = a.post("/api/v1/missions", plan.clone());
+    assert_eq!(status, 201, "{created}");
+    let id = created["id"].as_str().unwrap().to_string();
+    let path = format!("/api/v1/missions/{id}");
+    let (status, started) = a.post(&format!("{path}/start"), json!({}));
+    assert_eq!(status, 200, "{started}");
+
+    let mut watch = Watch::default();
+    let before = eventually(
+        "a lane of the survey done",
+        Duration::from_secs(120),
+        || {
+            watch.sample(&b);
+            let (_, m) = a.get(&path);
+            if m["step"] == 1 && lanes(&m).0 >= 1 {
+                Ok(m)
+            } else {
+                Err(
+                    json!({"state": m["state"], "step": m["step"], "steps": m["steps"]})
+                        .to_string(),
+                )
+            }
+        },
+    );
+    // The kill comes once the mission has flown a second more: the standby has heard
+    // the lane done (the mirror goes at 2 Hz).
+    let mirrored_s = before["elapsed_s"].as_f64().unwrap() + 1.0;
+    eventually(
+        "a second more of the mission",
+        Duration::from_secs(10),
+        || {
+            watch.sample(&b);
+            let (_, m) = a.get(&path);
+            let t = m["elapsed_s"].as_f64().unwrap_or(0.0);
+            (t >= mirrored_s).then_some(()).ok_or(t.to_string())
+        },
+    );
+    let killed = Instant::now();
+    a.kill_hard();
+    let resumed = eventually("the mission on gcs-b", Duration::from_secs(10), || {
+        watch.sample(&b);
+        let (status, m) = b.get(&path);
+        if status == 200 && m["state"] == "running" {
+            Ok((m, killed.elapsed()))
+        } else {
+            Err(format!("{status} {m}"))
+        }
+    });
+    let (m, resumed_after) = resumed;
+    assert_eq!(m["step"], 1, "the same step: {m}");
+    assert!(lanes(&m).0 >= lanes(&before).0, "{before}\n{m}");
+    assert_eq!(role(&b), "active");
+
+    let done = eventually(
+        "the mission done on gcs-b",
+        Duration::from_secs(180),
+        || {
+            watch.sample(&b);
+            let (_, m) = b.get(&path);
+            if m["state"] == "done" {
+                Ok(m)
+            } else {
+                Err(
+                    json!({"state": m["state"], "step": m["step"], "steps": m["steps"]})
+                        .to_string(),
+                )
+            }
+        },
+    );
+    let (flown, total) = lanes(&done);
+    assert_eq!(flown, total, "every lane flown: {done}");
+    // The standby's frame may be anchored elsewhere than the killed one's: the plan it
+    // flew is in its own.
+    let coverage = watch.coverage(&done["plan"]["steps"][1]);
+    let report = json!({"resumed_after_kill_s": resumed_after.as_secs_f64(),
+        "lanes_done_at_kill": lanes(&before).0, "lanes": total, "coverage": coverage,
+        "min_separation_m": watch.min_separation_m,
+        "polygon_posted": plan["steps"][1]["polygon"], "polygon_resumed": done["plan"]["steps"][1]["polygon"]});
+    eprintln!("{report}");
+    assert!(coverage >= 0.99, "{report}");
+    assert!(watch.min_separation_m > Some(3.0), "{report}");
+    b.wait_all("landed", 3, Duration::from_secs(60), |v| {
+        v["state"] == "Landed"
+    });
+    for agent in &agents {
+        assert_no_failsafe_and_no_gap(&agent.sim_stats_addr());
     }
 }

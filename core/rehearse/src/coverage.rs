@@ -20,7 +20,7 @@ pub const ALTITUDE_TOLERANCE_M: f64 = 2.0;
 
 /// One survey's raster and what has been seen of it.
 #[derive(Debug, Clone)]
-pub(crate) struct Coverage {
+pub struct Coverage {
     altitude_m: f64,
     half_width_m: f64,
     cell_m: f64,
