@@ -1,7 +1,7 @@
 //! What a rehearsal reports (`POST /api/v1/missions/{id}/rehearse`, `skein mission
 //! rehearse`): how the mission ended and how long it took, each step's start and end, the
 //! smallest separation and geofence margin, each vehicle's battery at landing, the
-//! surveys' coverage, the reactions fired, the commands refused, how fast it ran, and a
+//! surveys' coverage, the reactions fired (and the longest gap of a low-battery swap), the commands refused, how fast it ran, and a
 //! picture of the paths over the plan.
 
 use crate::flight::Flight;
@@ -72,6 +72,9 @@ pub struct RehearsalReport {
     pub surveys: Vec<SurveyFigure>,
     /// What the plan's reactions did, oldest first.
     pub reactions: Vec<Reaction>,
+    /// The longest a route taken by a reserve went unflown (a low-battery swap's gap, its
+    /// reaction's `gap_s`), seconds; `null` without one.
+    pub max_swap_gap_s: Option<f64>,
     /// Commands the vehicles refused, in words.
     pub refusals: Vec<String>,
     /// Virtual seconds simulated (boot included).
@@ -127,6 +130,11 @@ impl RehearsalReport {
             coverage: surveys.iter().map(|s| s.coverage).reduce(f64::min),
             surveys,
             reactions: status.reactions.clone(),
+            max_swap_gap_s: status
+                .reactions
+                .iter()
+                .filter_map(|r| r.gap_s)
+                .reduce(f64::max),
             refusals: flight.refusals.clone(),
             virtual_s,
             wall_s,

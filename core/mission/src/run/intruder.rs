@@ -82,6 +82,7 @@ impl Intrusions {
             let observers = self.stop(&target, active, out);
             self.unanswered.remove(&target);
             happened.push(Reaction {
+                gap_s: None,
                 at_s: tick.now_s,
                 kind: "intruder",
                 vehicles: observers.clone(),
@@ -146,6 +147,7 @@ impl Intrusions {
         if chosen.is_empty() {
             if self.unanswered.insert(track.id.clone()) {
                 happened.push(Reaction {
+                    gap_s: None,
                     at_s: tick.now_s,
                     kind: "intruder",
                     vehicles: vec![],
@@ -162,6 +164,7 @@ impl Intrusions {
         }
         out.push(self.observe(&track.id, &chosen));
         happened.push(Reaction {
+            gap_s: None,
             at_s: tick.now_s,
             kind: "intruder",
             vehicles: chosen.clone(),
@@ -209,6 +212,7 @@ impl Intrusions {
         }
         self.unanswered.insert(target.to_string());
         happened.push(Reaction {
+            gap_s: None,
             at_s: now_s,
             kind: "intruder",
             vehicles: observers,
@@ -245,6 +249,7 @@ impl Intrusions {
         for target in targets {
             let observers = self.stop(&target, active, &mut ignored);
             happened.push(Reaction {
+                gap_s: None,
                 at_s: now_s,
                 kind: "intruder",
                 vehicles: observers.clone(),

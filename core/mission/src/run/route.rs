@@ -109,6 +109,11 @@ impl Route {
         &self.points[self.next.min(self.points.len())..]
     }
 
+    /// The route's last point; `None` for an empty one.
+    pub fn last(&self) -> Option<&Ned> {
+        self.points.last()
+    }
+
     /// Takes the points of the lanes not flown yet (pairs of lane start and end; a lane
     /// begun but not ended is taken whole, its start again) and ends this route.
     pub fn take_rest_of_lanes(&mut self) -> Vec<Ned> {

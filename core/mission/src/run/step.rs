@@ -331,6 +331,14 @@ impl Active {
         matches!(self, Active::Routes { .. })
     }
 
+    /// Points vehicle `id` reached on its route in the step; `None` when it has none.
+    pub(super) fn reached(&self, id: &str) -> Option<usize> {
+        match self {
+            Active::Routes { routes, .. } => routes.get(id).map(Route::reached),
+            _ => None,
+        }
+    }
+
     /// Vehicle `id` has a route in the step and was not sent away.
     pub(super) fn flies(&self, id: &str) -> bool {
         matches!(self, Active::Routes { routes, released, .. }
@@ -376,12 +384,12 @@ impl Active {
     }
 
     /// The altitude of the step's routes (above the swarm origin), for a step whose
-    /// vehicles fly routes; `None` for the others.
+    /// vehicles fly routes (those on their stations too); `None` for the others.
     pub(super) fn route_altitude_m(&self) -> Option<f64> {
         match self {
             Active::Routes { routes, .. } => routes
                 .values()
-                .find_map(|r| r.remaining().first().copied())
+                .find_map(|r| r.remaining().first().or(r.last()).copied())
                 .map(|p| -p.down_m),
             _ => None,
         }

@@ -32,12 +32,28 @@ pub struct Reaction {
     pub vehicles: Vec<String>,
     /// What happened, in words.
     pub detail: String,
+    /// A reserve that took a vehicle's route, once it reached that route's next point:
+    /// seconds the route went unflown, from the low vehicle's leaving (the gap in a
+    /// persistent patrol's coverage); `null` for every other reaction.
+    #[serde(default)]
+    pub gap_s: Option<f64>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
 struct Swap {
     low: String,
     reserve: String,
+    /// The altitude the reserve was sent up to (its step's): it is up there, whatever
+    /// step flies when it gets there.
+    altitude_m: f64,
+}
+
+/// A reserve on its way to the route it took, since mission second `left_at_s` (when
+/// the low vehicle left it).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Joining {
+    swap: Swap,
+    left_at_s: f64,
 }
 
 /// The reaction's state through the mission.
@@ -51,6 +67,8 @@ pub(super) struct Swaps {
     pending: Vec<Swap>,
     /// Sent home with no reserve to take their place, since the last tick.
     retired: Vec<String>,
+    /// Reserves that took a route and have not reached its next point yet.
+    joining: Vec<Joining>,
 }
 
 impl Swaps {
@@ -61,6 +79,7 @@ impl Swaps {
             handled: BTreeSet::new(),
             pending: Vec::new(),
             retired: Vec::new(),
+            joining: Vec::new(),
         }
     }
 
@@ -80,15 +99,21 @@ impl Swaps {
             return took;
         };
         self.retired.clear();
+        self.notice_joined(active, tick, happened);
         self.notice_low(active, vehicles, tick, altitude_m, out, happened);
         let mut still = Vec::new();
         for swap in std::mem::take(&mut self.pending) {
             let reserve = tick.vehicles.get(&swap.reserve);
-            if reserve.is_some_and(|v| up(v, altitude_m)) {
+            if reserve.is_some_and(|v| up(v, swap.altitude_m)) {
                 active.replace(&swap.low, &swap.reserve);
                 took.push((swap.low.clone(), swap.reserve.clone()));
                 home(&swap.low, out);
+                self.joining.push(Joining {
+                    swap: swap.clone(),
+                    left_at_s: tick.now_s,
+                });
                 happened.push(Reaction {
+                    gap_s: None,
                     at_s: tick.now_s,
                     kind: "low_battery",
                     vehicles: vec![swap.low.clone(), swap.reserve.clone()],
@@ -107,6 +132,31 @@ impl Swaps {
         }
         self.pending = still;
         took
+    }
+
+    /// Reserves that reached the next point of the route they took: the gap, measured.
+    /// One whose route is not in this step (the step ended first) is not waited for.
+    fn notice_joined(&mut self, active: &Active, tick: &Tick, happened: &mut Vec<Reaction>) {
+        self.joining.retain(|j| {
+            let Some(reached) = active.reached(&j.swap.reserve) else {
+                return false;
+            };
+            if reached == 0 {
+                return true;
+            }
+            let gap_s = tick.now_s - j.left_at_s;
+            happened.push(Reaction {
+                gap_s: Some(gap_s),
+                at_s: tick.now_s,
+                kind: "low_battery",
+                vehicles: vec![j.swap.reserve.clone(), j.swap.low.clone()],
+                detail: format!(
+                    "{} on the route of {} {gap_s:.1} s after it left",
+                    j.swap.reserve, j.swap.low
+                ),
+            });
+            false
+        });
     }
 
     fn notice_low(
@@ -142,6 +192,7 @@ impl Swaps {
                 home(id, out);
                 self.retired.push(id.clone());
                 happened.push(Reaction {
+                    gap_s: None,
                     at_s: tick.now_s,
                     kind: "low_battery",
                     vehicles: vec![id.clone()],
@@ -157,6 +208,7 @@ impl Swaps {
                 }),
             });
             happened.push(Reaction {
+                gap_s: None,
                 at_s: tick.now_s,
                 kind: "low_battery",
                 vehicles: vec![id.clone(), reserve.clone()],
@@ -168,6 +220,7 @@ impl Swaps {
             self.pending.push(Swap {
                 low: id.clone(),
                 reserve,
+                altitude_m,
             });
         }
     }

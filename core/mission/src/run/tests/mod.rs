@@ -413,6 +413,14 @@ fn a_vehicle_low_on_battery_is_replaced_by_a_reserve_on_its_patrol() {
         "{r:?}"
     );
     assert_eq!(run.status().steps[1].vehicles, ["uav-1", "uav-4", "uav-3"]);
+    fleet.fly(&mut run, 60.0, |r| r.status().reactions.len() == 3);
+    // The patrol's gap: from uav-2's leaving until uav-4 reached its route's next point
+    // (the toys fly 5 m/s; uav-4 took off from 24 m east of the origin).
+    let joined = &run.status().reactions[2];
+    let gap_s = joined.gap_s.expect("a measured gap");
+    assert!(joined.detail.contains("uav-4 on the route of uav-2"), "{joined:?}");
+    assert!((0.5..15.0).contains(&gap_s), "{joined:?}");
+    assert!(run.status().reactions[..2].iter().all(|r| r.gap_s.is_none()));
     fleet.fly(&mut run, 2000.0, |r| r.status().state == RunState::Done);
     assert_eq!(run.status().state, RunState::Done);
     let home = |id: &str| {
@@ -431,6 +439,59 @@ fn a_vehicle_low_on_battery_is_replaced_by_a_reserve_on_its_patrol() {
         "the reserve patrolled"
     );
     assert!(fleet.toys.values().all(|t| t.state == VehicleState::Landed));
+}
+
+/// A reserve sent up during a step that ends before it is up takes its place in the
+/// next one, flown at another altitude (a rehearsed sortie had its reserve hover at the
+/// survey's 15 m through a patrol at 18 m, while the low vehicle flew to 0 %).
+#[test]
+fn a_reserve_up_after_its_step_ended_takes_over_in_the_next_at_another_altitude() {
+    let mut fleet = Fleet::new(4);
+    let mut p = plan(
+        r#"[{"kind": "takeoff", "altitude_m": 10},
+            {"kind": "transit", "waypoints": [[20, 12]], "altitude_m": 10, "speed_m_s": 5},
+            {"kind": "patrol", "route": [[0, 0], [0, 40], [40, 40], [40, 0]], "altitude_m": 16,
+             "duration_s": 60}, {"kind": "land"}]"#,
+    );
+    p.reactions.low_battery = Some(crate::plan::LowBattery {
+        below_percent: 35.0,
+        reserves: vec!["uav-4".into()],
+    });
+    let mut run = run_of(p, &fleet);
+    fleet.fly(&mut run, 200.0, |r| r.status().step == 1);
+    // Low 1.5 s before the transit's 20 m are flown: it ends before the reserve has
+    // climbed its 10 m (2 s).
+    fleet.fly(&mut run, 2.5, |_| false);
+    fleet.toys.get_mut("uav-2").unwrap().battery = 30.0;
+    fleet.fly(&mut run, 10.0, |r| r.status().step == 2);
+    assert_eq!(run.status().reactions.len(), 1, "{:?}", run.status().reactions);
+    assert_ne!(fleet.toys["uav-4"].state, VehicleState::Hovering, "not up yet");
+    fleet.fly(&mut run, 60.0, |r| r.status().reactions.len() >= 2);
+    let r = &run.status().reactions;
+    assert!(r[1].detail.contains("uav-4 took over from uav-2"), "{r:?}");
+    assert_eq!(run.status().steps[2].vehicles, ["uav-1", "uav-4", "uav-3"]);
+}
+
+/// A vehicle low while on its station (its route flown) is replaced too.
+#[test]
+fn a_vehicle_low_on_its_station_is_replaced() {
+    let mut fleet = Fleet::new(4);
+    let mut p = plan(
+        r#"[{"kind": "takeoff", "altitude_m": 10},
+            {"kind": "station", "points": [[0, 0], [0, 10], [0, 20]], "altitude_m": 10,
+             "duration_s": 60}, {"kind": "land"}]"#,
+    );
+    p.reactions.low_battery = Some(crate::plan::LowBattery {
+        below_percent: 35.0,
+        reserves: vec!["uav-4".into()],
+    });
+    let mut run = run_of(p, &fleet);
+    fleet.fly(&mut run, 200.0, |r| r.status().step == 1);
+    fleet.fly(&mut run, 10.0, |_| false);
+    fleet.toys.get_mut("uav-2").unwrap().battery = 30.0;
+    fleet.fly(&mut run, 30.0, |r| r.status().reactions.len() >= 2);
+    let r = &run.status().reactions;
+    assert!(r[1].detail.contains("uav-4 took over from uav-2"), "{r:?}");
 }
 
 #[test]
