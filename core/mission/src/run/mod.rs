@@ -9,6 +9,7 @@
 //! vehicle, then the plan's abort (return or land) one vehicle after the other.
 
 mod intruder;
+mod meet;
 mod route;
 mod step;
 mod swap;
@@ -186,6 +187,9 @@ pub struct MissionRun {
     /// The caller's time at the last tick, and the mission seconds then.
     last_now_s: Option<f64>,
     aborting: Option<Abort>,
+    /// The next step waits for vehicles sent home, its vehicles held.
+    #[serde(default)]
+    waiting: bool,
     swaps: Option<swap::Swaps>,
     intrusions: Option<intruder::Intrusions>,
 }
@@ -236,6 +240,7 @@ impl MissionRun {
             active: None,
             last_now_s: None,
             aborting: None,
+            waiting: false,
             swaps: plan_swaps,
             intrusions,
         }
@@ -284,6 +289,11 @@ impl MissionRun {
                 }
                 continue;
             }
+            if self.active.is_none() && self.returning(&t) {
+                self.hold_while_waiting(i, &t, &mut out);
+                return out;
+            }
+            self.waiting = false;
             if self.active.is_none() {
                 let (active, start) =
                     Active::start(&self.plan.steps[i].kind, &self.status.steps[i].vehicles, &t);
@@ -334,6 +344,37 @@ impl MissionRun {
             self.end_step(StepState::Done, t.now_s, &mut out);
             if self.status.state != RunState::Running {
                 return out;
+            }
+        }
+    }
+
+    /// A vehicle the low-battery reaction sent home is still in the air: the next step
+    /// waits for it. Its return is PX4's (RTL), which skein does not deconflict, and a
+    /// step's start sends many vehicles across the area at once (a rehearsal saw one
+    /// flying to its station pass 1.5 m from one landing at home).
+    fn returning(&self, t: &Tick) -> bool {
+        self.swaps.as_ref().is_some_and(|s| {
+            s.sent_home()
+                .iter()
+                .any(|id| t.vehicles.get(id).is_some_and(|v| v.state.is_airborne()))
+        })
+    }
+
+    /// Holds the vehicles of step `i` still flying their last step's way, once, while it
+    /// waits (a patrol's vehicles would fly on to their next corners).
+    fn hold_while_waiting(&mut self, i: usize, t: &Tick, out: &mut Vec<Action>) {
+        if std::mem::replace(&mut self.waiting, true) {
+            return;
+        }
+        for id in &self.status.steps[i].vehicles {
+            if t.vehicles
+                .get(id)
+                .is_some_and(|v| v.state == VehicleState::GoTo)
+            {
+                out.push(Action::Command {
+                    vehicle: id.clone(),
+                    command: Command::Hold,
+                });
             }
         }
     }

@@ -39,6 +39,10 @@ pub struct Route {
     /// Survey lanes (points in start/end pairs): a lane's start is reached within
     /// [`LANE_START_M`], not [`ARRIVED_M`].
     lanes: bool,
+    /// A point flown first, before the route's next (where the vehicle whose place this
+    /// one took left the route), counted as reached.
+    #[serde(default)]
+    join: Option<Ned>,
 }
 
 impl Route {
@@ -51,6 +55,7 @@ impl Route {
             cyclic,
             sent_at: None,
             lanes: false,
+            join: None,
         }
     }
 
@@ -109,6 +114,32 @@ impl Route {
         &self.points[self.next.min(self.points.len())..]
     }
 
+    /// The route starts over after its last point.
+    pub fn is_cyclic(&self) -> bool {
+        self.cyclic
+    }
+
+    /// The points ahead of a vehicle at `from` flying this route, for `laps` laps of a
+    /// cyclic one (the rest of it for another): how many points ahead (0: the next), the
+    /// point, and the way to it along the route from `from`, metres.
+    pub fn ahead(&self, from: Ned, laps: usize) -> Vec<(usize, Ned, f64)> {
+        let n = self.points.len();
+        let count = if self.cyclic {
+            n * laps
+        } else {
+            n.saturating_sub(self.next)
+        };
+        let (mut at, mut along_m) = (from, 0.0);
+        (0..count)
+            .map(|i| {
+                let p = self.points[(self.next + i) % n];
+                along_m += (p - at).norm();
+                at = p;
+                (i, p, along_m)
+            })
+            .collect()
+    }
+
     /// The route's last point; `None` for an empty one.
     pub fn last(&self) -> Option<&Ned> {
         self.points.last()
@@ -127,13 +158,15 @@ impl Route {
         rest
     }
 
-    /// What another vehicle flies to take this one's place: a lap from the same point
-    /// (cyclic), or the lanes not flown yet (this route ends there).
-    pub fn handover(&mut self) -> Route {
+    /// What another vehicle flies to take this one's place: from `at` (where this one
+    /// leaves it), a lap from the same point (cyclic), or the lanes not flown yet (this
+    /// route ends there; a lane begun is flown whole, `at` not used).
+    pub fn handover(&mut self, at: Option<Ned>) -> Route {
         if self.cyclic {
             Route {
                 reached: 0,
                 sent_at: None,
+                join: at,
                 ..self.clone()
             }
         } else {
@@ -152,6 +185,7 @@ impl Route {
     /// Moves the route's points through `f` (into another swarm frame).
     pub(super) fn reframe(&mut self, f: &dyn Fn(Ned) -> Ned) {
         self.points.iter_mut().for_each(|p| *p = f(*p));
+        self.join = self.join.map(f);
     }
 
     /// The next `goto` to command again at once (after a pause, say).
@@ -164,7 +198,12 @@ impl Route {
         let Some(pos) = v.position else {
             return;
         };
-        while self.next < self.points.len() {
+        if self.join.is_some_and(|j| arrived(pos, j)) {
+            self.join = None;
+            self.reached += 1;
+            self.sent_at = None;
+        }
+        while self.join.is_none() && self.next < self.points.len() {
             if !self.reached_point(self.next, pos, v.velocity) {
                 break;
             }
@@ -178,7 +217,7 @@ impl Route {
                 break;
             }
         }
-        let Some(target) = self.points.get(self.next).copied() else {
+        let Some(target) = self.join.or_else(|| self.points.get(self.next).copied()) else {
             return;
         };
         let stale = self

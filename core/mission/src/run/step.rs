@@ -333,8 +333,13 @@ impl Active {
 
     /// Points vehicle `id` reached on its route in the step; `None` when it has none.
     pub(super) fn reached(&self, id: &str) -> Option<usize> {
+        self.route(id).map(Route::reached)
+    }
+
+    /// Vehicle `id`'s route in the step, if it flies one.
+    pub(super) fn route(&self, id: &str) -> Option<&Route> {
         match self {
-            Active::Routes { routes, .. } => routes.get(id).map(Route::reached),
+            Active::Routes { routes, .. } => routes.get(id),
             _ => None,
         }
     }
@@ -395,8 +400,9 @@ impl Active {
         }
     }
 
-    /// Vehicle `reserve` flies `low`'s route on from where `low` was; `low` is released.
-    pub(super) fn replace(&mut self, low: &str, reserve: &str) {
+    /// Vehicle `reserve` flies `low`'s route on from where `low` was (`at`, its position,
+    /// for a cyclic route); `low` is released.
+    pub(super) fn replace(&mut self, low: &str, reserve: &str, at: Option<Ned>) {
         if let Active::Routes {
             routes,
             released,
@@ -405,7 +411,7 @@ impl Active {
         } = self
             && let Some(r) = routes.get_mut(low)
         {
-            let taken = r.handover();
+            let taken = r.handover(at);
             routes.insert(reserve.to_string(), taken);
             released.insert(low.to_string());
             observing.remove(low);

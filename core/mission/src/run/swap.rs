@@ -2,10 +2,13 @@
 //! fly their own routes (survey, patrol, station, transit without a formation), a
 //! vehicle below the threshold is replaced by the first idle reserve. The reserve takes
 //! off to the step's altitude while the low vehicle carries on; once the reserve is up,
-//! it takes the low vehicle's route from where that one was and the low vehicle returns
-//! to launch. Without a reserve left, the low vehicle returns at once and its survey
+//! it takes the low vehicle's route from where that one was (on a patrol, from where it
+//! met it on the route, [`super::meet`]) and the low vehicle returns to launch; the gap
+//! (from the low vehicle's leaving until the reserve reached the route's next point) is
+//! measured. Without a reserve left, the low vehicle returns at once and its survey
 //! lanes go to the others.
 
+use super::meet::{self, Verdict};
 use super::step::Active;
 use super::{Action, Tick, VehicleView};
 use crate::plan::LowBattery;
@@ -46,6 +49,8 @@ struct Swap {
     /// The altitude the reserve was sent up to (its step's): it is up there, whatever
     /// step flies when it gets there.
     altitude_m: f64,
+    /// Where it meets the low vehicle on a patrol, once up ([`super::meet`]).
+    meet: Option<super::meet::Meet>,
 }
 
 /// A reserve on its way to the route it took, since mission second `left_at_s` (when
@@ -69,6 +74,8 @@ pub(super) struct Swaps {
     retired: Vec<String>,
     /// Reserves that took a route and have not reached its next point yet.
     joining: Vec<Joining>,
+    /// Vehicles sent home (told to return to launch).
+    homing: BTreeSet<String>,
 }
 
 impl Swaps {
@@ -80,6 +87,7 @@ impl Swaps {
             pending: Vec::new(),
             retired: Vec::new(),
             joining: Vec::new(),
+            homing: BTreeSet::new(),
         }
     }
 
@@ -102,12 +110,18 @@ impl Swaps {
         self.notice_joined(active, tick, happened);
         self.notice_low(active, vehicles, tick, altitude_m, out, happened);
         let mut still = Vec::new();
-        for swap in std::mem::take(&mut self.pending) {
+        for mut swap in std::mem::take(&mut self.pending) {
             let reserve = tick.vehicles.get(&swap.reserve);
-            if reserve.is_some_and(|v| up(v, swap.altitude_m)) {
-                active.replace(&swap.low, &swap.reserve);
+            let ready = swap.meet.is_some() || reserve.is_some_and(|v| up(v, swap.altitude_m));
+            if ready && meeting(&mut swap, active, tick, out) == Verdict::Wait {
+                still.push(swap);
+                continue;
+            }
+            if ready {
+                let at = tick.vehicles.get(&swap.low).and_then(|v| v.position);
+                active.replace(&swap.low, &swap.reserve, at);
                 took.push((swap.low.clone(), swap.reserve.clone()));
-                home(&swap.low, out);
+                self.send_home(&swap.low, out);
                 self.joining.push(Joining {
                     swap: swap.clone(),
                     left_at_s: tick.now_s,
@@ -124,7 +138,7 @@ impl Swaps {
                 });
             } else if reserve.is_none_or(gone) {
                 active.release(&swap.low, tick);
-                home(&swap.low, out);
+                self.send_home(&swap.low, out);
                 self.retired.push(swap.low.clone());
             } else {
                 still.push(swap);
@@ -189,7 +203,7 @@ impl Swaps {
             });
             let Some(reserve) = reserve.cloned() else {
                 active.release(id, tick);
-                home(id, out);
+                self.send_home(id, out);
                 self.retired.push(id.clone());
                 happened.push(Reaction {
                     gap_s: None,
@@ -221,17 +235,54 @@ impl Swaps {
                 low: id.clone(),
                 reserve,
                 altitude_m,
+                meet: None,
             });
         }
     }
 }
 
 impl Swaps {
+    /// Every vehicle the reaction sent home (replaced, or with no reserve left).
+    pub(super) fn sent_home(&self) -> &BTreeSet<String> {
+        &self.homing
+    }
+
+    fn send_home(&mut self, id: &str, out: &mut Vec<Action>) {
+        self.homing.insert(id.to_string());
+        out.push(Action::Command {
+            vehicle: id.to_string(),
+            command: Command::Rtl,
+        });
+    }
+
     /// The vehicles the last tick sent home with no reserve in their place: they fly no
     /// later step.
     pub(super) fn retired(&self) -> &[String] {
         &self.retired
     }
+}
+
+/// A reserve that is up and the vehicle it replaces: on a patrol, the meeting on its
+/// route is planned (the reserve sent there) or checked ([`super::meet`]); elsewhere
+/// the handover is at once.
+fn meeting(swap: &mut Swap, active: &Active, tick: &Tick, out: &mut Vec<Action>) -> Verdict {
+    let Some(route) = active.route(&swap.low).filter(|r| r.is_cyclic()) else {
+        return Verdict::HandOver;
+    };
+    let at = |id: &str| tick.vehicles.get(id).and_then(|v| v.position);
+    let (low, reserve) = (at(&swap.low), at(&swap.reserve));
+    if let Some(m) = &swap.meet {
+        return meet::verdict(m, route, low, reserve);
+    }
+    let Some(m) = low.zip(reserve).and_then(|(l, r)| meet::plan(route, l, r)) else {
+        return Verdict::HandOver;
+    };
+    out.push(Action::Command {
+        vehicle: swap.reserve.clone(),
+        command: Command::GoTo(m.point.into()),
+    });
+    swap.meet = Some(m);
+    Verdict::Wait
 }
 
 fn up(v: &VehicleView, altitude_m: f64) -> bool {
@@ -245,11 +296,4 @@ fn gone(v: &VehicleView) -> bool {
         v.state,
         VehicleState::Lost | VehicleState::Disconnected | VehicleState::Failsafe
     )
-}
-
-fn home(id: &str, out: &mut Vec<Action>) {
-    out.push(Action::Command {
-        vehicle: id.to_string(),
-        command: Command::Rtl,
-    });
 }

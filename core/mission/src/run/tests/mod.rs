@@ -414,13 +414,22 @@ fn a_vehicle_low_on_battery_is_replaced_by_a_reserve_on_its_patrol() {
     );
     assert_eq!(run.status().steps[1].vehicles, ["uav-1", "uav-4", "uav-3"]);
     fleet.fly(&mut run, 60.0, |r| r.status().reactions.len() == 3);
-    // The patrol's gap: from uav-2's leaving until uav-4 reached its route's next point
-    // (the toys fly 5 m/s; uav-4 took off from 24 m east of the origin).
+    // The patrol's gap: from uav-2's leaving until uav-4 reached its route's next point.
+    // uav-4 met uav-2 ahead on its route and waited there; uav-2 left within 8 m of it,
+    // and uav-4 flew back to where it left: 2 s (flying from its home, 24 m east of the
+    // origin, after uav-2 left: 5.5 s).
     let joined = &run.status().reactions[2];
     let gap_s = joined.gap_s.expect("a measured gap");
-    assert!(joined.detail.contains("uav-4 on the route of uav-2"), "{joined:?}");
-    assert!((0.5..15.0).contains(&gap_s), "{joined:?}");
-    assert!(run.status().reactions[..2].iter().all(|r| r.gap_s.is_none()));
+    assert!(
+        joined.detail.contains("uav-4 on the route of uav-2"),
+        "{joined:?}"
+    );
+    assert!(gap_s <= 3.0, "{joined:?}");
+    assert!(
+        run.status().reactions[..2]
+            .iter()
+            .all(|r| r.gap_s.is_none())
+    );
     fleet.fly(&mut run, 2000.0, |r| r.status().state == RunState::Done);
     assert_eq!(run.status().state, RunState::Done);
     let home = |id: &str| {
@@ -464,12 +473,84 @@ fn a_reserve_up_after_its_step_ended_takes_over_in_the_next_at_another_altitude(
     fleet.fly(&mut run, 2.5, |_| false);
     fleet.toys.get_mut("uav-2").unwrap().battery = 30.0;
     fleet.fly(&mut run, 10.0, |r| r.status().step == 2);
-    assert_eq!(run.status().reactions.len(), 1, "{:?}", run.status().reactions);
-    assert_ne!(fleet.toys["uav-4"].state, VehicleState::Hovering, "not up yet");
+    assert_eq!(
+        run.status().reactions.len(),
+        1,
+        "{:?}",
+        run.status().reactions
+    );
+    assert_ne!(
+        fleet.toys["uav-4"].state,
+        VehicleState::Hovering,
+        "not up yet"
+    );
     fleet.fly(&mut run, 60.0, |r| r.status().reactions.len() >= 2);
     let r = &run.status().reactions;
     assert!(r[1].detail.contains("uav-4 took over from uav-2"), "{r:?}");
     assert_eq!(run.status().steps[2].vehicles, ["uav-1", "uav-4", "uav-3"]);
+}
+
+/// The next step waits for the vehicle the reaction sent home to be down.
+#[test]
+fn the_next_step_waits_for_a_vehicle_sent_home() {
+    let mut fleet = Fleet::new(4);
+    // uav-2's home is far south: its return outlasts the station.
+    let far = Ned::new(-80.0, 12.0, 0.0);
+    let t = fleet.toys.get_mut("uav-2").unwrap();
+    (t.pos, t.home) = (far, far);
+    let mut p = plan(
+        r#"[{"kind": "takeoff", "altitude_m": 10},
+            {"kind": "station", "points": [[60, 0], [60, 10], [60, 20]], "altitude_m": 10,
+             "duration_s": 1},
+            {"kind": "station", "points": [[5, 0], [5, 10], [5, 20]], "altitude_m": 10,
+             "duration_s": 1}, {"kind": "land"}]"#,
+    );
+    p.reactions.low_battery = Some(crate::plan::LowBattery {
+        below_percent: 35.0,
+        reserves: vec!["uav-4".into()],
+    });
+    let mut run = run_of(p, &fleet);
+    fleet.fly(&mut run, 200.0, |r| r.status().step == 1);
+    // Low once on its station, 140 m from home.
+    while fleet.toys["uav-2"].target.is_some() || fleet.toys["uav-2"].pos.north_m < 50.0 {
+        let actions = run.tick(&fleet.tick());
+        fleet.apply(actions);
+        fleet.step(0.5);
+    }
+    fleet.toys.get_mut("uav-2").unwrap().battery = 30.0;
+    let mut landed_at = None;
+    while fleet.now_s < 400.0 && run.status().state != RunState::Done {
+        let actions = run.tick(&fleet.tick());
+        fleet.apply(actions);
+        fleet.step(0.5);
+        if landed_at.is_none() && fleet.toys["uav-2"].state == VehicleState::Landed {
+            landed_at = Some(fleet.now_s);
+        }
+    }
+    let landed_at = landed_at.expect("uav-2 landed");
+    let status = run.status();
+    let left = status
+        .reactions
+        .iter()
+        .find(|r| r.detail.contains("took over"))
+        .expect("a swap")
+        .at_s;
+    // The first step to start after uav-2 left waited for it; the one before ended
+    // while it was still on its way.
+    let next = status
+        .steps
+        .iter()
+        .position(|s| s.started_s.is_some_and(|t| t > left))
+        .expect("a step after the swap");
+    let steps = &status.steps;
+    assert!(
+        steps[next - 1].ended_s.unwrap() < landed_at,
+        "nothing waited (uav-2 down at {landed_at} s): {steps:?}"
+    );
+    assert!(
+        steps[next].started_s.unwrap() >= landed_at,
+        "step {next} started before uav-2 was down ({landed_at} s): {steps:?}"
+    );
 }
 
 /// A vehicle low while on its station (its route flown) is replaced too.
