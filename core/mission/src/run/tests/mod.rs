@@ -225,6 +225,21 @@ fn run_of(plan: MissionPlan, fleet: &Fleet) -> MissionRun {
     run
 }
 
+/// A run of `steps` for `fleet` with the low-battery reaction at 35 % and `reserves`.
+fn with_reserves(steps: &str, reserves: &[&str], fleet: &Fleet) -> MissionRun {
+    let mut p = plan(steps);
+    p.reactions.low_battery = Some(crate::plan::LowBattery {
+        below_percent: 35.0,
+        reserves: reserves.iter().map(|r| r.to_string()).collect(),
+    });
+    run_of(p, fleet)
+}
+
+/// Take off, survey a 30 x 60 m rectangle in 6 m lanes (10 of them), land.
+const SURVEY: &str = r#"[{"kind": "takeoff", "altitude_m": 10},
+    {"kind": "survey", "polygon": [[20, 0], [20, 60], [80, 60], [80, 0]], "altitude_m": 15,
+     "lane_spacing_m": 6}, {"kind": "land"}]"#;
+
 const EVERY_KIND: &str = r#"[
     {"kind": "takeoff", "altitude_m": 10, "interval_s": 1},
     {"kind": "transit", "waypoints": [[40, 0]], "altitude_m": 12, "speed_m_s": 5,
@@ -361,14 +376,7 @@ fn an_abort_holds_then_brings_everyone_back() {
 #[test]
 fn a_vehicle_lost_mid_survey_leaves_its_lanes_to_the_others() {
     let mut fleet = Fleet::new(3);
-    let mut run = run_of(
-        plan(
-            r#"[{"kind": "takeoff", "altitude_m": 10},
-                {"kind": "survey", "polygon": [[20, 0], [20, 60], [80, 60], [80, 0]],
-                 "altitude_m": 15, "lane_spacing_m": 6}, {"kind": "land"}]"#,
-        ),
-        &fleet,
-    );
+    let mut run = run_of(plan(SURVEY), &fleet);
     fleet.fly(&mut run, 100.0, |r| r.status().step == 1);
     fleet.fly(&mut run, 20.0, |_| false);
     let t = fleet.toys.get_mut("uav-2").unwrap();
@@ -386,16 +394,13 @@ fn a_vehicle_lost_mid_survey_leaves_its_lanes_to_the_others() {
 #[test]
 fn a_vehicle_low_on_battery_is_replaced_by_a_reserve_on_its_patrol() {
     let mut fleet = Fleet::new(4);
-    let mut p = plan(
+    let mut run = with_reserves(
         r#"[{"kind": "takeoff", "altitude_m": 10},
             {"kind": "patrol", "route": [[0, 0], [0, 40], [40, 40], [40, 0]], "altitude_m": 10,
              "duration_s": 120}, {"kind": "land"}]"#,
+        &["uav-4"],
+        &fleet,
     );
-    p.reactions.low_battery = Some(crate::plan::LowBattery {
-        below_percent: 35.0,
-        reserves: vec!["uav-4".into()],
-    });
-    let mut run = run_of(p, &fleet);
     assert_eq!(
         run.status().steps[1].vehicles,
         ["uav-1", "uav-2", "uav-3"],
@@ -456,17 +461,14 @@ fn a_vehicle_low_on_battery_is_replaced_by_a_reserve_on_its_patrol() {
 #[test]
 fn a_reserve_up_after_its_step_ended_takes_over_in_the_next_at_another_altitude() {
     let mut fleet = Fleet::new(4);
-    let mut p = plan(
+    let mut run = with_reserves(
         r#"[{"kind": "takeoff", "altitude_m": 10},
             {"kind": "transit", "waypoints": [[20, 12]], "altitude_m": 10, "speed_m_s": 5},
             {"kind": "patrol", "route": [[0, 0], [0, 40], [40, 40], [40, 0]], "altitude_m": 16,
              "duration_s": 60}, {"kind": "land"}]"#,
+        &["uav-4"],
+        &fleet,
     );
-    p.reactions.low_battery = Some(crate::plan::LowBattery {
-        below_percent: 35.0,
-        reserves: vec!["uav-4".into()],
-    });
-    let mut run = run_of(p, &fleet);
     fleet.fly(&mut run, 200.0, |r| r.status().step == 1);
     // Low 1.5 s before the transit's 20 m are flown: it ends before the reserve has
     // climbed its 10 m (2 s).
@@ -498,18 +500,15 @@ fn the_next_step_waits_for_a_vehicle_sent_home() {
     let far = Ned::new(-80.0, 12.0, 0.0);
     let t = fleet.toys.get_mut("uav-2").unwrap();
     (t.pos, t.home) = (far, far);
-    let mut p = plan(
+    let mut run = with_reserves(
         r#"[{"kind": "takeoff", "altitude_m": 10},
             {"kind": "station", "points": [[60, 0], [60, 10], [60, 20]], "altitude_m": 10,
              "duration_s": 1},
             {"kind": "station", "points": [[5, 0], [5, 10], [5, 20]], "altitude_m": 10,
              "duration_s": 1}, {"kind": "land"}]"#,
+        &["uav-4"],
+        &fleet,
     );
-    p.reactions.low_battery = Some(crate::plan::LowBattery {
-        below_percent: 35.0,
-        reserves: vec!["uav-4".into()],
-    });
-    let mut run = run_of(p, &fleet);
     fleet.fly(&mut run, 200.0, |r| r.status().step == 1);
     // Low once on its station, 140 m from home.
     while fleet.toys["uav-2"].target.is_some() || fleet.toys["uav-2"].pos.north_m < 50.0 {
@@ -557,16 +556,13 @@ fn the_next_step_waits_for_a_vehicle_sent_home() {
 #[test]
 fn a_vehicle_low_on_its_station_is_replaced() {
     let mut fleet = Fleet::new(4);
-    let mut p = plan(
+    let mut run = with_reserves(
         r#"[{"kind": "takeoff", "altitude_m": 10},
             {"kind": "station", "points": [[0, 0], [0, 10], [0, 20]], "altitude_m": 10,
              "duration_s": 60}, {"kind": "land"}]"#,
+        &["uav-4"],
+        &fleet,
     );
-    p.reactions.low_battery = Some(crate::plan::LowBattery {
-        below_percent: 35.0,
-        reserves: vec!["uav-4".into()],
-    });
-    let mut run = run_of(p, &fleet);
     fleet.fly(&mut run, 200.0, |r| r.status().step == 1);
     fleet.fly(&mut run, 10.0, |_| false);
     fleet.toys.get_mut("uav-2").unwrap().battery = 30.0;
@@ -578,16 +574,7 @@ fn a_vehicle_low_on_its_station_is_replaced() {
 #[test]
 fn without_a_reserve_a_low_survey_vehicle_returns_and_its_lanes_are_flown_by_others() {
     let mut fleet = Fleet::new(3);
-    let mut p = plan(
-        r#"[{"kind": "takeoff", "altitude_m": 10},
-            {"kind": "survey", "polygon": [[20, 0], [20, 60], [80, 60], [80, 0]],
-             "altitude_m": 15, "lane_spacing_m": 6}, {"kind": "land"}]"#,
-    );
-    p.reactions.low_battery = Some(crate::plan::LowBattery {
-        below_percent: 35.0,
-        reserves: vec![],
-    });
-    let mut run = run_of(p, &fleet);
+    let mut run = with_reserves(SURVEY, &[], &fleet);
     fleet.fly(&mut run, 100.0, |r| r.status().step == 1);
     fleet.fly(&mut run, 15.0, |_| false);
     fleet.toys.get_mut("uav-1").unwrap().battery = 20.0;
@@ -604,18 +591,15 @@ fn without_a_reserve_a_low_survey_vehicle_returns_and_its_lanes_are_flown_by_oth
 #[test]
 fn vehicles_sent_home_without_a_reserve_fly_no_later_step() {
     let mut fleet = Fleet::new(2);
-    let mut p = plan(
+    let mut run = with_reserves(
         r#"[{"kind": "takeoff", "altitude_m": 10},
             {"kind": "patrol", "route": [[0, 0], [0, 40], [40, 40], [40, 0]], "altitude_m": 10,
              "duration_s": 600},
             {"kind": "station", "points": [[5, 0], [5, 8]], "altitude_m": 8, "duration_s": 5},
             {"kind": "land"}]"#,
+        &[],
+        &fleet,
     );
-    p.reactions.low_battery = Some(crate::plan::LowBattery {
-        below_percent: 35.0,
-        reserves: vec![],
-    });
-    let mut run = run_of(p, &fleet);
     fleet.fly(&mut run, 200.0, |r| r.status().step == 1);
     fleet.fly(&mut run, 10.0, |_| false);
     fleet.toys.get_mut("uav-1").unwrap().battery = 20.0;
@@ -655,9 +639,7 @@ fn observed(steps: &str, zone: Option<Vec<[f64; 2]>>) -> (Fleet, MissionPlan) {
 #[test]
 fn an_intruder_in_the_zone_draws_observers_who_then_finish_their_lanes() {
     let (mut fleet, p) = observed(
-        r#"[{"kind": "takeoff", "altitude_m": 10},
-            {"kind": "survey", "polygon": [[20, 0], [20, 60], [80, 60], [80, 0]],
-             "altitude_m": 15, "lane_spacing_m": 6}, {"kind": "land"}]"#,
+        SURVEY,
         Some(vec![
             [0.0, 70.0],
             [0.0, 150.0],

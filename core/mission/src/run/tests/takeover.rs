@@ -22,14 +22,7 @@ fn gotos(commands: &[(String, Command)]) -> Vec<Ned> {
 #[test]
 fn a_survey_taken_over_in_another_frame_flies_on_without_a_lane_twice() {
     let mut fleet = Fleet::new(3);
-    let mut run = run_of(
-        plan(
-            r#"[{"kind": "takeoff", "altitude_m": 10},
-                {"kind": "survey", "polygon": [[20, 0], [20, 60], [80, 60], [80, 0]],
-                 "altitude_m": 15, "lane_spacing_m": 6}, {"kind": "land"}]"#,
-        ),
-        &fleet,
-    );
+    let mut run = run_of(plan(SURVEY), &fleet);
     fleet.fly(&mut run, 100.0, |r| r.status().step == 1);
     let survey_from = fleet.commands.len();
     fleet.fly(&mut run, 25.0, |_| false);

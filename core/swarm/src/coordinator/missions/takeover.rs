@@ -121,30 +121,22 @@ mod tests {
         let info = ask().await.expect("m-7 adopted");
         assert_eq!(info.status.state, skein_mission::RunState::Running);
         assert_eq!(info.name, "carried");
-        let mirrored = swarm
-            .coordinator
-            .call(
-                |r| DistributedMsg::GetMissionMirror(r).into(),
-                Some(Duration::from_secs(5)),
-            )
-            .await
-            .unwrap()
-            .success_or(())
-            .unwrap();
-        assert_eq!(mirrored.map(|m| m.id), Some("m-7".to_string()));
+        let mirrored = || async {
+            swarm
+                .coordinator
+                .call(
+                    |r| DistributedMsg::GetMissionMirror(r).into(),
+                    Some(Duration::from_secs(5)),
+                )
+                .await
+                .expect("the coordinator answers")
+                .success_or(())
+                .expect("an answer")
+        };
+        assert_eq!(mirrored().await.map(|m| m.id), Some("m-7".to_string()));
 
         cast(DistributedMsg::SteppedDown("handed over to gcs-a".into()));
-        let mirrored = swarm
-            .coordinator
-            .call(
-                |r| DistributedMsg::GetMissionMirror(r).into(),
-                Some(Duration::from_secs(5)),
-            )
-            .await
-            .unwrap()
-            .success_or(())
-            .unwrap();
-        assert!(mirrored.is_none(), "a standby flies no mission");
+        assert!(mirrored().await.is_none(), "a standby flies no mission");
         assert_eq!(
             ask().await.unwrap().status.state,
             skein_mission::RunState::Ready
