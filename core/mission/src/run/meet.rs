@@ -4,10 +4,10 @@
 //! straight way shorter by [`MEET_MARGIN_M`] than the low vehicle's way along the route,
 //! both at the route's speed), within two laps; the low vehicle flies on meanwhile. The
 //! handover comes when the low vehicle, heading for that point, is within
-//! [`HANDOVER_M`] of it with the reserve there: the reserve flies on from the point, and
-//! the route went unflown only for the low vehicle's last metres. Should the low vehicle
-//! pass the point first (the reserve delayed), the handover is at once, as without a
-//! meeting.
+//! [`HANDOVER_M`] of it with the reserve there: the reserve joins the route where the low
+//! vehicle left it, a few metres back, and flies on, so the route went unflown only for
+//! those metres. Should the low vehicle pass the point first (the reserve delayed), the
+//! handover is at once, the reserve joining from where it is.
 
 use super::route::Route;
 use serde::{Deserialize, Serialize};
