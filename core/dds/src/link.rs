@@ -35,6 +35,7 @@ use crate::remote::{self, Remotes};
 use crate::rtcm::{self, RtcmPublisher, RtcmReceiver};
 use crate::swarm_adapter::SwarmAdapter;
 use crate::tf::{self, Tf, TfConfig};
+use crate::topics;
 use crate::vehicles::{self, Vehicles};
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
 use skein_model::supervision::ChildKind;
@@ -88,7 +89,9 @@ struct CandidateRoles {
     election: Arc<ElectionLink>,
     remotes: Arc<Remotes>,
     mirror: Arc<Mirror<FormationMirror>>,
-    mission: Arc<Mirror<MissionMirror>>,
+    /// `None`: an enclave whose permissions predate `/skein/mission` (missions are not
+    /// carried through a failover).
+    mission: Option<Arc<Mirror<MissionMirror>>>,
     clocks: Arc<Clocks>,
     rtcm: Option<Arc<RtcmPublisher>>,
 }
@@ -136,27 +139,41 @@ type LocalRtcm = (Option<Arc<RtcmReceiver>>, Option<Arc<RtcmPublisher>>);
 fn open_rtcm(carrier: &Ros2Carrier, config: &DdsConfig, counters: &Arc<DdsCounters>) -> LocalRtcm {
     match (&config.agent, &config.candidate) {
         (Some(_), _) => (
-            without_relay(RtcmReceiver::open(carrier, counters)).map(Arc::new),
+            without_relay(
+                RtcmReceiver::open(carrier, counters),
+                "RTK corrections relay",
+                topics::rtcm(),
+            )
+            .map(Arc::new),
             None,
         ),
         (None, None) => (
             None,
-            without_relay(RtcmPublisher::open(carrier, counters)).map(Arc::new),
+            without_relay(
+                RtcmPublisher::open(carrier, counters),
+                "RTK corrections relay",
+                topics::rtcm(),
+            )
+            .map(Arc::new),
         ),
         (None, Some(_)) => (None, None),
     }
 }
 
-/// The corrections relay's side `opened`, or `None`, said in the log, when it could not
-/// be: the rest of the link runs without it. Under DDS Security that is an enclave made
-/// before skein relayed corrections, whose permissions do not grant `/skein/rtcm`.
-fn without_relay<T>(opened: Result<T, DdsError>) -> Option<T> {
+/// A role's side `opened` (`what`, on `topic`: the corrections relay, the mission
+/// mirror), or `None`, said in the log, when it could not be: the rest of the link runs
+/// without it. Under DDS Security that is an enclave made before skein had the topic,
+/// whose permissions do not grant it.
+fn without_relay<T>(
+    opened: Result<T, DdsError>,
+    what: &str,
+    topic: impl std::fmt::Display,
+) -> Option<T> {
     opened
         .map_err(|e| {
             tracing::error!(
-                "dds: no RTK corrections relay on {}: {e} (under DDS Security: make this \
-                 enclave again, its permissions predate the topic)",
-                crate::topics::rtcm()
+                "dds: no {what} on {topic}: {e} (under DDS Security: make this enclave \
+                 again, its permissions predate the topic)"
             );
         })
         .ok()
@@ -279,16 +296,24 @@ impl DdsRoles {
                 mirror: Arc::new(
                     Mirror::open(carrier.as_ref(), &counters)?.with_clocks(peer_clocks.clone()),
                 ),
-                mission: Arc::new(
-                    Mirror::open(carrier.as_ref(), &counters)?.with_clocks(peer_clocks.clone()),
-                ),
+                mission: without_relay(
+                    Mirror::open(carrier.as_ref(), &counters),
+                    "mission mirror",
+                    topics::mission(),
+                )
+                .map(|m| Arc::new(m.with_clocks(peer_clocks.clone()))),
                 clocks: Arc::new(Clocks::open(
                     carrier.as_ref(),
                     c.coordinator_id.clone(),
                     peer_clocks.clone(),
                     &counters,
                 )?),
-                rtcm: without_relay(RtcmPublisher::open(carrier.as_ref(), &counters)).map(Arc::new),
+                rtcm: without_relay(
+                    RtcmPublisher::open(carrier.as_ref(), &counters),
+                    "RTK corrections relay",
+                    topics::rtcm(),
+                )
+                .map(Arc::new),
             }),
             None => None,
         };
@@ -354,11 +379,9 @@ impl DdsRoles {
                 swarm.clone(),
             ));
             tasks.spawn(mirror::run(c.mirror.clone(), status.clone(), swarm.clone()));
-            tasks.spawn(mirror::run(
-                c.mission.clone(),
-                status.clone(),
-                swarm.clone(),
-            ));
+            if let Some(m) = &c.mission {
+                tasks.spawn(mirror::run(m.clone(), status.clone(), swarm.clone()));
+            }
             tasks.spawn(clocks::run(c.clocks.clone()));
             if let Some(p) = &c.rtcm {
                 tasks.spawn(rtcm::publish(p.clone(), Some(status), self.rtk.clone()));

@@ -19,9 +19,9 @@ pub enum Role {
     /// swarm command or corrections.
     Agent,
     /// `skein coordinator` or `skein up --dds`: writes leases, targets, swarm commands,
-    /// clock exchanges, the formation mirror, RTK corrections (`/skein/rtcm`), tracks and
-    /// (its own vehicles') per-vehicle topics; reads every skein topic. Cannot write an
-    /// agent's report, event or result.
+    /// clock exchanges, the formation and mission mirrors (`/skein/mission`), RTK
+    /// corrections (`/skein/rtcm`), tracks and (its own vehicles') per-vehicle topics;
+    /// reads every skein topic. Cannot write an agent's report, event or result.
     Coordinator,
     /// A ground-station or ROS 2 tool that only watches: reads every skein topic, writes none.
     Viewer,
@@ -53,6 +53,7 @@ impl Role {
             Role::Coordinator => &[
                 "rt/skein/coordinator",
                 "rt/skein/formation",
+                "rt/skein/mission",
                 "rt/skein/tracks",
                 "rt/skein/swarm/target",
                 "rt/skein/swarm/command",
@@ -226,6 +227,7 @@ mod tests {
             "rt/skein/coordinator",
             "rt/skein/swarm/target",
             "rt/skein/swarm/command",
+            "rt/skein/mission",
         ] {
             assert!(writes(Role::Coordinator, t), "{t}");
             assert!(!writes(Role::Agent, t), "{t}");
