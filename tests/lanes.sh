@@ -19,7 +19,11 @@
 # its skein ran 48 ms late and the error climbed to 0.47 m RMS (0.15-0.19 m alone), once in
 # CI; bench_smoke runs the benchmarks, whose figures are the machine's when they have it:
 # beside lane A the tracking bench fell short in two CI runs in a row (its cameras made 66,
-# then 17 frames in 15 s: too few track samples, then no track error at all)).
+# then 17 frames in 15 s: too few track samples, then no track error at all);
+# e2e_distributed runs a coordinator (two, in its mission failover) and three agents with
+# their simulators, each a debug process: in lane A, once its mission failover was added,
+# lane B's DDS bench beside it timed out listing its vehicles and the Mission view test's
+# rehearsal (at nice 19, 4 s of CPU alone) did not end within 300 s, once in CI).
 #
 # Two builds run beside all of it at idle priority (SCHED_IDLE: they get only the CPU no
 # test wants), but for e2e_tracking, e2e_wlan, e2e_formation and bench_smoke, during which
@@ -34,9 +38,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-LANE_A=(e2e_distributed e2e_hazards deploy_compose e2e_dds_security e2e_missions)
+LANE_A=(e2e_hazards deploy_compose e2e_dds_security e2e_missions)
 # deploy_arm64 runs the arm64 build made beside the lanes (below), so after them.
-ALONE=(e2e_tracking e2e_overload e2e_wlan e2e_formation bench_smoke deploy_arm64)
+ALONE=(e2e_distributed e2e_tracking e2e_overload e2e_wlan e2e_formation bench_smoke deploy_arm64)
 
 # Build everything first, once: the lanes then only run.
 cargo test --workspace --locked --no-run
