@@ -161,8 +161,41 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
     let base = UdpBase::start(BASE);
     corrections_to(&coordinator, &base);
 
-    // Each agent spawned its vehicle at its own grid point (sysid - 1, 4 columns): the
-    // coordinator, whose frame is the first agent's, sees them apart, none at another's.
+    homes_apart(&coordinator);
+    agents_events_on_the_coordinators_stream(&coordinator);
+    let (mean_rms, worst_rms, min_sep) = cruise(&coordinator);
+    for a in &agents {
+        assert_eq!(own_vehicle(a)["state"], "InFormation", "{}", own_vehicle(a));
+    }
+    let rtk_wait_s = relayed_rtk_everywhere(&coordinator, &agents);
+
+    // The coordinator dies with no goodbye.
+    let norths: Vec<f64> = agents
+        .iter()
+        .map(|a| north_east(&own_vehicle(a)).0)
+        .collect();
+    let killed = Instant::now();
+    coordinator.kill_hard();
+    let held_at = held_after_the_ride_through(&agents, &norths, killed);
+    let times = landed_after_the_lost_action(&held_at, killed);
+    for a in &agents {
+        let worst = assert_no_failsafe_and_no_gap(&a.sim_stats_addr());
+        eprintln!(
+            "{}",
+            json!({"agent": a.base, "worst_setpoint_gap_ms": worst})
+        );
+    }
+    eprintln!(
+        "{}",
+        json!({"formation_mean_rms_m": mean_rms, "formation_worst_rms_m": worst_rms,
+               "min_separation_m": min_sep, "after_the_coordinator_died": times,
+               "relayed_rtk_wait_s": rtk_wait_s})
+    );
+}
+
+/// Each agent spawned its vehicle at its own grid point (sysid - 1, 4 columns): the
+/// coordinator, whose frame is the first agent's, sees them apart, none at another's.
+fn homes_apart(coordinator: &Skein) {
     // (A home can be reported before the first position in the swarm frame.)
     let vs = coordinator.wait_all("homes and positions", 3, Duration::from_secs(60), |v| {
         let (n, e) = north_east(v);
@@ -177,10 +210,13 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
             assert!(d > 3.0, "{} and {} are {d:.2} m apart", a["id"], b["id"]);
         }
     }
+}
 
+/// The swarm takes off into a wedge: the vehicles' own events (on their agents) reach the
+/// coordinator's stream.
+fn agents_events_on_the_coordinators_stream(coordinator: &Skein) {
     let events = EventLog::connect(&coordinator.base);
-    wedge_north(&coordinator);
-    // The vehicles' own events (on their agents) reach the coordinator's stream.
+    wedge_north(coordinator);
     eventually(
         "the agents' events on the coordinator's stream",
         Duration::from_secs(10),
@@ -202,22 +238,17 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
             }
         },
     );
-    let (mean_rms, worst_rms, min_sep) = cruise(&coordinator);
-    for a in &agents {
-        assert_eq!(own_vehicle(a)["state"], "InFormation", "{}", own_vehicle(a));
-    }
-    let rtk_wait_s = relayed_rtk_everywhere(&coordinator, &agents);
+}
 
-    // The coordinator dies with no goodbye. Each agent flies its vehicle on its slot for
-    // the ride-through (the wedge goes on north at 5 m/s), then holds it.
-    let norths: Vec<f64> = agents
-        .iter()
-        .map(|a| north_east(&own_vehicle(a)).0)
-        .collect();
-    let killed = Instant::now();
-    coordinator.kill_hard();
+/// Each agent flies its vehicle on its slot for the ride-through (the wedge goes on north
+/// at 5 m/s from `norths`), then holds it: where and when each held.
+fn held_after_the_ride_through<'a>(
+    agents: &'a [Skein],
+    norths: &[f64],
+    killed: Instant,
+) -> Vec<(&'a Skein, (f64, f64), f64)> {
     let mut held_at = Vec::new();
-    for (a, north0) in agents.iter().zip(norths) {
+    for (a, north0) in agents.iter().zip(norths.iter().copied()) {
         let v = eventually("a vehicle holding", Duration::from_secs(10), || {
             let v = own_vehicle(a);
             if v["state"] == "Hovering" {
@@ -243,10 +274,17 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
         );
         held_at.push((a, north_east(&v), after));
     }
-    // Holding: each stops within a few metres of where it held (it was doing 5 m/s), and
-    // lands after the lost-action time.
+    held_at
+}
+
+/// Holding: each stops within a few metres of where it held (it was doing 5 m/s), and
+/// lands after the lost-action time; the figures of each.
+fn landed_after_the_lost_action(
+    held_at: &[(&Skein, (f64, f64), f64)],
+    killed: Instant,
+) -> Vec<Value> {
     let mut times = Vec::new();
-    for (a, (n0, e0), held_s) in &held_at {
+    for (a, (n0, e0), held_s) in held_at {
         let v = eventually("a vehicle landing", Duration::from_secs(20), || {
             let v = own_vehicle(a);
             if v["state"] == "Landing" || v["state"] == "Landed" {
@@ -273,19 +311,7 @@ fn agents_fly_for_the_coordinator_and_hold_then_land_without_it() {
                           "drift_while_holding_m": drift}),
         );
     }
-    for a in &agents {
-        let worst = assert_no_failsafe_and_no_gap(&a.sim_stats_addr());
-        eprintln!(
-            "{}",
-            json!({"agent": a.base, "worst_setpoint_gap_ms": worst})
-        );
-    }
-    eprintln!(
-        "{}",
-        json!({"formation_mean_rms_m": mean_rms, "formation_worst_rms_m": worst_rms,
-               "min_separation_m": min_sep, "after_the_coordinator_died": times,
-               "relayed_rtk_wait_s": rtk_wait_s})
-    );
+    times
 }
 
 /// Without DDS Security the domain is an open door (what `e2e_dds_security.rs` closes): a
