@@ -197,6 +197,21 @@ def collinear_line(markers, n, spacing):
             "east_gaps_m": [round(g, 2) for g in gaps]}
 
 
+def wedge_norths(markers, n, spacing):
+    """Each marker's north (m, by vehicle id) if n markers stand in a wedge of this spacing
+    (m): one ahead of all others by at least 0.55 spacing (a wedge's rank is spacing x
+    cos 45 deg = 0.71 spacing behind), the rest in pairs level within 0.5 m; else None."""
+    if len(markers) != n or n < 3:
+        return None
+    ms = sorted(markers, key=lambda m: -m["north"])
+    if ms[0]["north"] - ms[1]["north"] < 0.55 * spacing:
+        return None
+    rest = ms[1:]
+    if any(abs(a["north"] - b["north"]) > 0.5 for a, b in zip(rest[0::2], rest[1::2])):
+        return None
+    return {m["id"]: m["north"] for m in markers}
+
+
 def run(args, driver, summary):
     ui = Dashboard(driver, args.timeout)
     n = args.vehicles
@@ -270,7 +285,11 @@ def run(args, driver, summary):
     ui.wait("the formation status to read a wedge behind the virtual leader",
             lambda d: "wedge" in status_text(d) and "leader virtual" in status_text(d))
     ui.wait("all rows InFormation in the wedge", lambda d: ui.all_rows(n, lambda r: r.get("state") == "InFormation"))
-    north0 = sum(m["north"] for m in ui.markers()) / n
+    # The rows read InFormation from the line until the members leave it: the start is
+    # taken once the markers stand in a wedge (each member's own north: the wedge's mean
+    # lies behind its leader, by how much depends on when it is read).
+    start = ui.wait("the markers to stand in a wedge", lambda d: wedge_norths(ui.markers(), n, args.spacing))
+    north0 = max(start.values())
     ui.set_input("leader-north", f"{north0 + 15:.0f}")
     ui.set_input("leader-east", "0")
     ui.set_input("leader-speed", "3")
@@ -278,10 +297,9 @@ def run(args, driver, summary):
 
     def followed(d):
         ms = ui.markers()
-        if len(ms) != n:
+        if len(ms) != n or any(m["id"] not in start or m["north"] < start[m["id"]] + 12 for m in ms):
             return None
-        mean_north = sum(m["north"] for m in ms) / n
-        return mean_north if mean_north >= north0 + 12 else None
+        return max(m["north"] for m in ms)
 
     summary["leader_goto_north_m"] = [round(north0, 1), round(ui.wait("the markers to follow the leader north", followed), 1)]
     summary["timings_s"]["followed_leader"] = lap()
