@@ -333,3 +333,49 @@ fn inside_the_separation_it_never_closes_in_and_can_move_away() {
     );
     assert!(!sp.separation_hold);
 }
+
+#[test]
+fn a_vehicle_on_the_next_lane_ahead_does_not_push_it_off_its_own() {
+    // A survey lane north along east 0 at full speed; a vehicle skein steers 8 m east,
+    // 40 m ahead, slowing at the end of its own lane: the straight way passes it 8 m off.
+    let other = Obstacle {
+        velocity: Ned::new(0.5, 0.0, 0.0),
+        reciprocal: true,
+        ..Obstacle::fixed(Ned::new(40.0, 8.0, -10.0))
+    };
+    let mut s = shaper(Ned::new(0.0, 0.0, -10.0));
+    let target = Ned::new(60.0, 0.0, -10.0);
+    let mut farthest_off_m: f64 = 0.0;
+    for _ in 0..4000 {
+        let sp = s.step(target, Ned::ZERO, 0.0, 0.05, &[other]);
+        farthest_off_m = farthest_off_m.max(sp.position.east_m.abs());
+    }
+    assert!(farthest_off_m < 0.01, "{farthest_off_m} m off the lane");
+    assert!((s.carrot() - target).norm() < 1e-3);
+}
+
+#[test]
+fn two_vehicles_on_neighbouring_lanes_keep_them() {
+    // Side by side 8 m apart, both north at full speed, one a little ahead: neither is
+    // in the other's way, and neither leaves its lane.
+    let mut a = shaper(Ned::new(0.0, 0.0, -10.0));
+    let mut b = shaper(Ned::new(5.0, 8.0, -10.0));
+    let (ta, tb) = (Ned::new(60.0, 0.0, -10.0), Ned::new(60.0, 8.0, -10.0));
+    let obstacle = |s: &SetpointShaper| Obstacle {
+        position: s.carrot(),
+        velocity: s.velocity,
+        reciprocal: true,
+        planned: false,
+    };
+    let mut farthest_off_m: f64 = 0.0;
+    for _ in 0..4000 {
+        let (oa, ob) = (obstacle(&a), obstacle(&b));
+        a.step(ta, Ned::ZERO, 0.0, 0.05, &[ob]);
+        b.step(tb, Ned::ZERO, 0.0, 0.05, &[oa]);
+        farthest_off_m = farthest_off_m
+            .max(a.carrot().east_m.abs())
+            .max((b.carrot().east_m - 8.0).abs());
+    }
+    assert!(farthest_off_m < 0.01, "{farthest_off_m} m off a lane");
+    assert!((a.carrot() - ta).norm() < 1e-3 && (b.carrot() - tb).norm() < 1e-3);
+}
