@@ -586,9 +586,17 @@ fn a_mission_flies_on_when_its_coordinator_dies_mid_survey() {
     // The standby's frame may be anchored elsewhere than the killed one's: the plan it
     // flew is in its own.
     let coverage = watch.coverage(&done["plan"]["steps"][1]);
+    // Every sampled position, for the failure's post-mortem.
+    let samples = dir.join("samples.json");
+    let rows: Vec<Value> = watch
+        .samples
+        .iter()
+        .map(|(id, p)| json!([id, p.north_m, p.east_m, -p.down_m]))
+        .collect();
+    std::fs::write(&samples, json!({"samples": rows, "done": done}).to_string()).unwrap();
     let report = json!({"resumed_after_kill_s": resumed_after.as_secs_f64(),
         "lanes_done_at_kill": lanes(&before).0, "lanes": total, "coverage": coverage,
-        "min_separation_m": watch.min_separation_m,
+        "min_separation_m": watch.min_separation_m, "samples": samples,
         "polygon_posted": plan["steps"][1]["polygon"], "polygon_resumed": done["plan"]["steps"][1]["polygon"]});
     eprintln!("{report}");
     assert!(coverage >= 0.99, "{report}");
