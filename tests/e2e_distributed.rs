@@ -61,11 +61,17 @@ const LOST_ACTION_S: f64 = 4.0;
 const RIDE_S: f64 = 2.0;
 
 fn agent(sysid: u8, d: &str) -> Skein {
+    agent_configured(sysid, d, None)
+}
+
+/// [`agent`] with a configuration file.
+fn agent_configured(sysid: u8, d: &str, config: Option<String>) -> Skein {
     let o = AgentOptions {
         timeout_s: TIMEOUT_S,
         ride_through_s: RIDE_S,
         lost_action: "land",
         lost_action_s: LOST_ACTION_S,
+        config,
         ..AgentOptions::default()
     };
     agent_on(None, sysid, d, &o)
@@ -483,19 +489,21 @@ fn lanes(m: &Value) -> (u64, u64) {
 /// role and flies the mission on under the same id, at the same step, from where each
 /// vehicle was: the survey is finished with no lane lost (coverage at the planned overlap
 /// measured from the vehicles' positions, at least 99 %), the vehicles land, none came
-/// within 3 m of another, no simulated PX4 took a failsafe and no setpoint gap in OFFBOARD
-/// reached 100 ms.
+/// within 3 m of another, every PX4 held the fence and none breached it, no simulated
+/// PX4 took a failsafe and no setpoint gap in OFFBOARD reached 100 ms.
 #[test]
 fn a_mission_flies_on_when_its_coordinator_dies_mid_survey() {
     let _one = support::one_at_a_time();
     let d = domain(0);
     let dir = support::plugins::scratch("mission-failover");
+    // Every process holds the same fence (each agent uploads it to its PX4, whose own
+    // fence check takes GF_ACTION on a breach: a failsafe the end of the test looks for).
     let config = |id: &str| {
         let path = dir.join(format!("{id}.toml"));
         let recordings = dir.join(id);
         std::fs::write(
             &path,
-            format!("[recording]\ndir = \"{}\"\n", recordings.display()),
+            format!("{FENCE}[recording]\ndir = \"{}\"\n", recordings.display()),
         )
         .unwrap();
         path.display().to_string()
@@ -503,7 +511,12 @@ fn a_mission_flies_on_when_its_coordinator_dies_mid_survey() {
     let (config_a, config_b) = (config("gcs-a"), config("gcs-b"));
     let mut a = candidate_on(None, "gcs-a", "2", &d, None, &["--config", &config_a]);
     let b = candidate_on(None, "gcs-b", "1", &d, None, &["--config", &config_b]);
-    let agents: Vec<Skein> = (1..=3).map(|sysid| agent(sysid, &d)).collect();
+    let fence = dir.join("fence.toml");
+    std::fs::write(&fence, FENCE).unwrap();
+    let fence = fence.display().to_string();
+    let agents: Vec<Skein> = (1..=3)
+        .map(|sysid| agent_configured(sysid, &d, Some(fence.clone())))
+        .collect();
     wait_roles(&a, &b, Duration::from_secs(30));
     for c in [&a, &b] {
         c.wait_all("homes", 3, Duration::from_secs(60), |v| {
@@ -606,5 +619,15 @@ fn a_mission_flies_on_when_its_coordinator_dies_mid_survey() {
     });
     for agent in &agents {
         assert_no_failsafe_and_no_gap(&agent.sim_stats_addr());
+        for v in agent.vehicles() {
+            let fence = &v["fence"];
+            assert_eq!(fence["state"], "synced", "{v}");
+            assert_eq!(fence["breached"], false, "{v}");
+        }
     }
 }
+
+/// The mission failover test's fence (a configuration file's lines): a circle 80 m
+/// round each process's swarm-frame origin (the survey's far corners are 63 m from
+/// it), 30 m high.
+const FENCE: &str = "[swarm]\ngeofence = { radius_m = 80.0, max_altitude_m = 30.0 }\n";

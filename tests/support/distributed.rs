@@ -22,6 +22,8 @@ pub struct AgentOptions {
     pub clock_skew_ms: Option<i64>,
     /// `--dds-keystore`, `--dds-enclave`: DDS Security with this enclave.
     pub dds_security: Option<(String, String)>,
+    /// `--config`: a configuration file (its `[swarm]` geofence, say).
+    pub config: Option<String>,
 }
 
 impl Default for AgentOptions {
@@ -34,6 +36,7 @@ impl Default for AgentOptions {
             lost_action_s: 60.0,
             clock_skew_ms: None,
             dds_security: None,
+            config: None,
         }
     }
 }
@@ -78,6 +81,9 @@ pub fn agent_on(host: Option<&Host>, sysid: u8, d: &str, o: &AgentOptions) -> Sk
     ];
     if let Some(ms) = &skew {
         args.extend_from_slice(&["--test-clock-skew-ms", ms]);
+    }
+    if let Some(config) = &o.config {
+        args.extend_from_slice(&["--config", config]);
     }
     args.extend(security_args(
         o.dds_security
