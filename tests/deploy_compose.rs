@@ -31,6 +31,11 @@ use support::docker::{Compose, Follower, Image, docker};
 use support::formation::{catch_up, cruise, wedge_north};
 use support::{Api, eventually};
 
+/// How long an agent flies its slot on without a coordinator before it holds, seconds
+/// (`skein agent`'s `coordinator_ride_through_s` default; deploy/compose/skein.toml
+/// leaves it so).
+const AGENT_RIDE_THROUGH_S: f64 = 4.0;
+
 /// The plugins in the image (build-image.sh's list).
 const PLUGINS: [&str; 5] = [
     "skein-plugin-gimbal",
@@ -154,9 +159,14 @@ fn the_compose_swarm_flies_fails_over_rejoins_and_lands_before_it_goes_down() {
             Err(role(&gcs_b))
         }
     });
+    // How fast is the benchmark's figure (`failover_s` in the report below; the lease
+    // times out after 1 s). What the test holds is that gcs-b took the role before any
+    // agent stopped riding through (`[agent] coordinator_ride_through_s`, 4 s by default),
+    // as measured here from before the docker CLI's kill to an HTTP answer from inside
+    // a container: on a loaded CI machine that read 2.46 s once, against a 2 s bound.
     assert!(
-        took < Duration::from_secs(2),
-        "gcs-b took {took:?} to take over"
+        took < Duration::from_secs_f64(AGENT_RIDE_THROUGH_S),
+        "gcs-b took {took:?} to take over: the agents held"
     );
     eventually(
         "the formation flown on by gcs-b",
