@@ -298,10 +298,10 @@ impl SetpointShaper {
             let spare = (dist - self.min_separation_m).max(0.0);
             let share = if o.reciprocal { 0.5 } else { 1.0 };
             let allowed = share * (2.0 * brake * spare).sqrt();
-            let Some(slide) = self.slide(away, out - o.velocity, closing - allowed) else {
+            let excess = closing - allowed;
+            let Some(slide) = self.slide(away, out - o.velocity, excess) else {
                 continue;
             };
-            let excess = closing - allowed;
             out = out + n * excess;
             // Sideways, horizontally: keep sliding the way the vehicle already slides
             // around the other one; when it comes straight at it, to the right.
