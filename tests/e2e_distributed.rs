@@ -496,27 +496,7 @@ fn a_mission_flies_on_when_its_coordinator_dies_mid_survey() {
     let _one = support::one_at_a_time();
     let d = domain(0);
     let dir = support::plugins::scratch("mission-failover");
-    // Every process holds the same fence (each agent uploads it to its PX4, whose own
-    // fence check takes GF_ACTION on a breach: a failsafe the end of the test looks for).
-    let config = |id: &str| {
-        let path = dir.join(format!("{id}.toml"));
-        let recordings = dir.join(id);
-        std::fs::write(
-            &path,
-            format!("{FENCE}[recording]\ndir = \"{}\"\n", recordings.display()),
-        )
-        .unwrap();
-        path.display().to_string()
-    };
-    let (config_a, config_b) = (config("gcs-a"), config("gcs-b"));
-    let mut a = candidate_on(None, "gcs-a", "2", &d, None, &["--config", &config_a]);
-    let b = candidate_on(None, "gcs-b", "1", &d, None, &["--config", &config_b]);
-    let fence = dir.join("fence.toml");
-    std::fs::write(&fence, FENCE).unwrap();
-    let fence = fence.display().to_string();
-    let agents: Vec<Skein> = (1..=3)
-        .map(|sysid| agent_configured(sysid, &d, Some(fence.clone())))
-        .collect();
+    let (mut a, b, agents) = fenced_swarm(&d, &dir);
     wait_roles(&a, &b, Duration::from_secs(30));
     for c in [&a, &b] {
         c.wait_all("homes", 3, Duration::from_secs(60), |v| {
@@ -533,35 +513,7 @@ fn a_mission_flies_on_when_its_coordinator_dies_mid_survey() {
     assert_eq!(status, 200, "{started}");
 
     let mut watch = Watch::default();
-    let before = eventually(
-        "a lane of the survey done",
-        Duration::from_secs(120),
-        || {
-            watch.sample(&b);
-            let (_, m) = a.get(&path);
-            if m["step"] == 1 && lanes(&m).0 >= 1 {
-                Ok(m)
-            } else {
-                Err(
-                    json!({"state": m["state"], "step": m["step"], "steps": m["steps"]})
-                        .to_string(),
-                )
-            }
-        },
-    );
-    // The kill comes once the mission has flown a second more: the standby has heard
-    // the lane done (the mirror goes at 2 Hz).
-    let mirrored_s = before["elapsed_s"].as_f64().unwrap() + 1.0;
-    eventually(
-        "a second more of the mission",
-        Duration::from_secs(10),
-        || {
-            watch.sample(&b);
-            let (_, m) = a.get(&path);
-            let t = m["elapsed_s"].as_f64().unwrap_or(0.0);
-            (t >= mirrored_s).then_some(()).ok_or(t.to_string())
-        },
-    );
+    let before = a_lane_and_a_second_more(&a, &b, &path, &mut watch);
     let killed = Instant::now();
     a.kill_hard();
     let resumed = eventually("the mission on gcs-b", Duration::from_secs(10), || {
@@ -619,11 +571,79 @@ fn a_mission_flies_on_when_its_coordinator_dies_mid_survey() {
     });
     for agent in &agents {
         assert_no_failsafe_and_no_gap(&agent.sim_stats_addr());
-        for v in agent.vehicles() {
-            let fence = &v["fence"];
-            assert_eq!(fence["state"], "synced", "{v}");
-            assert_eq!(fence["breached"], false, "{v}");
-        }
+        assert_fence_held(agent);
+    }
+}
+
+/// The mission failover test's processes: candidates gcs-a (priority 2) and gcs-b and
+/// three agents on domain `d`, every one holding [`FENCE`] (each agent uploads it to its
+/// PX4, whose own fence check takes GF_ACTION on a breach: a failsafe the test looks
+/// for); the coordinators record into `dir`.
+fn fenced_swarm(d: &str, dir: &std::path::Path) -> (Skein, Skein, Vec<Skein>) {
+    let config = |id: &str| {
+        let path = dir.join(format!("{id}.toml"));
+        let recordings = dir.join(id);
+        std::fs::write(
+            &path,
+            format!("{FENCE}[recording]\ndir = \"{}\"\n", recordings.display()),
+        )
+        .unwrap();
+        path.display().to_string()
+    };
+    let (config_a, config_b) = (config("gcs-a"), config("gcs-b"));
+    let a = candidate_on(None, "gcs-a", "2", d, None, &["--config", &config_a]);
+    let b = candidate_on(None, "gcs-b", "1", d, None, &["--config", &config_b]);
+    let fence = dir.join("fence.toml");
+    std::fs::write(&fence, FENCE).unwrap();
+    let fence = fence.display().to_string();
+    let agents: Vec<Skein> = (1..=3)
+        .map(|sysid| agent_configured(sysid, d, Some(fence.clone())))
+        .collect();
+    (a, b, agents)
+}
+
+/// Flies mission `path` on `a` until a survey lane is done and the mission has flown a
+/// second more (the standby `b` has heard it: the mirror goes at 2 Hz), `watch`
+/// sampling `b` all along; returns the mission as it was when the lane was done.
+fn a_lane_and_a_second_more(a: &Skein, b: &Skein, path: &str, watch: &mut Watch) -> Value {
+    let before = eventually(
+        "a lane of the survey done",
+        Duration::from_secs(120),
+        || {
+            watch.sample(b);
+            let (_, m) = a.get(path);
+            if m["step"] == 1 && lanes(&m).0 >= 1 {
+                Ok(m)
+            } else {
+                Err(
+                    json!({"state": m["state"], "step": m["step"], "steps": m["steps"]})
+                        .to_string(),
+                )
+            }
+        },
+    );
+    // The kill comes once the mission has flown a second more: the standby has heard
+    // the lane done (the mirror goes at 2 Hz).
+    let mirrored_s = before["elapsed_s"].as_f64().unwrap() + 1.0;
+    eventually(
+        "a second more of the mission",
+        Duration::from_secs(10),
+        || {
+            watch.sample(b);
+            let (_, m) = a.get(path);
+            let t = m["elapsed_s"].as_f64().unwrap_or(0.0);
+            (t >= mirrored_s).then_some(()).ok_or(t.to_string())
+        },
+    );
+    before
+}
+
+/// Every vehicle of `agent` held its fence (its PX4 took it) and none breached it.
+fn assert_fence_held(agent: &Skein) {
+    for v in agent.vehicles() {
+        let fence = &v["fence"];
+        assert_eq!(fence["state"], "synced", "{v}");
+        assert_eq!(fence["breached"], false, "{v}");
     }
 }
 
