@@ -1,7 +1,9 @@
 //! One vehicle flying its points in order, one `goto` at a time: the next point is
 //! commanded once the vehicle is within [`ARRIVED_M`] of the current one, and the current
 //! one again when the vehicle is neither flying to it nor there after [`RESEND_S`] (a
-//! command lost or refused in passing). A cyclic route starts over after its last point.
+//! command lost or refused in passing). A cyclic route starts over after its last point;
+//! a station's route holds its point: the vehicle found away from it (back from an
+//! observation) is flown to it again.
 
 use super::{Action, VehicleView};
 use skein_model::command::{Command, GoTo};
@@ -43,6 +45,10 @@ pub struct Route {
     /// one took left the route), counted as reached.
     #[serde(default)]
     join: Option<Ned>,
+    /// A station: once reached, the last point is held, flown to again whenever the
+    /// vehicle is found farther than [`ARRIVED_M`] from it.
+    #[serde(default)]
+    hold: bool,
 }
 
 impl Route {
@@ -56,6 +62,16 @@ impl Route {
             sent_at: None,
             lanes: false,
             join: None,
+            hold: false,
+        }
+    }
+
+    /// A station at `point` (swarm-frame NED): flown to once, then held (the vehicle
+    /// flown back whenever it is found away, as after an observation).
+    pub fn station(point: Ned) -> Self {
+        Route {
+            hold: true,
+            ..Route::new(vec![point], false)
         }
     }
 
@@ -160,7 +176,8 @@ impl Route {
 
     /// What another vehicle flies to take this one's place: from `at` (where this one
     /// leaves it), a lap from the same point (cyclic), or the lanes not flown yet (this
-    /// route ends there; a lane begun is flown whole, `at` not used).
+    /// route ends there; a lane begun is flown whole, `at` not used; a station's point,
+    /// held as this one held it).
     pub fn handover(&mut self, at: Option<Ned>) -> Route {
         if self.cyclic {
             Route {
@@ -172,6 +189,7 @@ impl Route {
         } else {
             Route {
                 lanes: self.lanes,
+                hold: self.hold,
                 ..Route::new(self.take_rest_of_lanes(), false)
             }
         }
@@ -217,7 +235,16 @@ impl Route {
                 break;
             }
         }
-        let Some(target) = self.join.or_else(|| self.points.get(self.next).copied()) else {
+        let held = || {
+            self.last()
+                .copied()
+                .filter(|p| self.hold && !arrived(pos, *p))
+        };
+        let Some(target) = self
+            .join
+            .or_else(|| self.points.get(self.next).copied())
+            .or_else(held)
+        else {
             return;
         };
         let stale = self
@@ -305,6 +332,43 @@ mod tests {
         out.clear();
         r.tick(&view(b, VehicleState::Hovering), 9.0, &mut out);
         assert!(out.is_empty() && r.finished() && r.reached() == 2);
+    }
+
+    #[test]
+    fn a_station_once_reached_is_flown_to_again_when_the_vehicle_is_found_away() {
+        let p = Ned::new(10.0, 0.0, -10.0);
+        let mut r = Route::station(p);
+        let mut out = Vec::new();
+        r.tick(
+            &view(Ned::new(0.0, 0.0, -10.0), VehicleState::Hovering),
+            0.0,
+            &mut out,
+        );
+        assert_eq!(gotos(&out), [p]);
+        out.clear();
+        r.tick(&view(p, VehicleState::Hovering), 3.0, &mut out);
+        assert!(out.is_empty() && r.finished());
+        // Back from an observation 4.8 m east of it: sent to it at once, again.
+        r.resend();
+        let away = Ned::new(10.0, 4.8, -10.0);
+        r.tick(&view(away, VehicleState::Hovering), 40.0, &mut out);
+        assert_eq!(gotos(&out), [p]);
+        assert!(
+            r.finished() && r.reached() == 1,
+            "still the step's one point"
+        );
+        // A Hold that overtook that goto: sent again after RESEND_S.
+        out.clear();
+        r.tick(&view(away, VehicleState::Hovering), 44.0, &mut out);
+        assert!(out.is_empty());
+        r.tick(&view(away, VehicleState::Hovering), 45.0, &mut out);
+        assert_eq!(gotos(&out), [p]);
+        // Another route's last point is not held.
+        let mut once = Route::new(vec![p], false);
+        out.clear();
+        once.tick(&view(p, VehicleState::Hovering), 0.0, &mut out);
+        once.tick(&view(away, VehicleState::Hovering), 10.0, &mut out);
+        assert!(out.is_empty());
     }
 
     #[test]

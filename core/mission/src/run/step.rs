@@ -201,7 +201,7 @@ impl Active {
                 routes: ids
                     .iter()
                     .zip(stations(&s.points, s.altitude_m, ids, tick))
-                    .map(|(id, p)| (id.clone(), Route::new(vec![p], false)))
+                    .map(|(id, p)| (id.clone(), Route::station(p)))
                     .collect(),
                 kind: Routes::Station {
                     duration_s: s.duration_s,

@@ -454,6 +454,50 @@ fn an_intruder_in_the_zone_draws_observers_who_then_finish_their_lanes() {
 }
 
 #[test]
+fn observers_drawn_from_their_stations_fly_back_to_them_when_the_track_is_lost() {
+    let (mut fleet, p) = observed(
+        r#"[{"kind": "takeoff", "altitude_m": 10},
+            {"kind": "station", "points": [[10, 0], [10, 8], [10, 16]], "altitude_m": 10,
+             "duration_s": 600}, {"kind": "land"}]"#,
+        None,
+    );
+    let mut run = run_of(p, &fleet);
+    let stations = |fleet: &Fleet| {
+        let at = |id: &str| fleet.toys[id].pos;
+        [at("uav-1"), at("uav-2"), at("uav-3")]
+    };
+    let held = |r: &MissionRun| {
+        r.status().steps[1]
+            .progress
+            .as_ref()
+            .is_some_and(|p| p.detail.contains("of 600 s"))
+    };
+    fleet.fly(&mut run, 100.0, held);
+    assert!(held(&run), "on station");
+    let on_station = stations(&fleet);
+    fleet.tracks = vec![TrackSeen {
+        id: "track-1".into(),
+        position: Ned::new(60.0, 40.0, -14.0),
+        confirmed: true,
+    }];
+    fleet.fly(&mut run, 30.0, |_| false);
+    let mut observers = fleet.observations["track-1"].clone();
+    observers.sort();
+    assert_eq!(observers, ["uav-2", "uav-3"]);
+    assert!(
+        (fleet.toys["uav-2"].pos - on_station[1]).norm() > 10.0,
+        "drawn away"
+    );
+    // Lost: the observers hold where they are, then fly back to their stations.
+    fleet.tracks.clear();
+    fleet.fly(&mut run, 60.0, |_| false);
+    for (at, station) in stations(&fleet).iter().zip(on_station) {
+        assert!((*at - station).norm() < ARRIVED_M, "{at:?} off {station:?}");
+    }
+    assert_eq!(run.status().step, 1, "the step's clock runs on");
+}
+
+#[test]
 fn a_timed_patrol_ends_on_time_while_its_observers_still_observe() {
     let (mut fleet, p) = observed(
         r#"[{"kind": "takeoff", "altitude_m": 10},
