@@ -23,7 +23,9 @@
 # e2e_distributed runs a coordinator (two, in its mission failover) and three agents with
 # their simulators, each a debug process: in lane A, once its mission failover was added,
 # lane B's DDS bench beside it timed out listing its vehicles and the Mission view test's
-# rehearsal (at nice 19, 4 s of CPU alone) did not end within 300 s, once in CI).
+# rehearsal (at nice 19, 4 s of CPU alone) did not end within 300 s, once in CI);
+# e2e_assembly starts seventeen agents (each a debug process with its simulator) and a
+# coordinator at once under DDS Security: more than the two cores while they assemble.
 #
 # Two builds run beside all of it at idle priority (SCHED_IDLE: they get only the CPU no
 # test wants), but for e2e_tracking, e2e_wlan, e2e_formation and bench_smoke, during which
@@ -40,7 +42,7 @@ cd "$(dirname "$0")/.."
 
 LANE_A=(e2e_hazards deploy_compose e2e_dds_security e2e_missions)
 # deploy_arm64 runs the arm64 build made beside the lanes (below), so after them.
-ALONE=(e2e_distributed e2e_tracking e2e_overload e2e_wlan e2e_formation bench_smoke deploy_arm64)
+ALONE=(e2e_distributed e2e_assembly e2e_tracking e2e_overload e2e_wlan e2e_formation bench_smoke deploy_arm64)
 
 # Build everything first, once: the lanes then only run.
 cargo test --workspace --locked --no-run
