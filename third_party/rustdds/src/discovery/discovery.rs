@@ -2153,12 +2153,23 @@ impl Discovery {
     // on the proxy while the reader required PresentationAccessScope::Topic,
     // causing a spurious QoS incompatibility that prevented the volatile
     // endpoints from matching and blocked all secure key exchange.
+    //
+    // skein patch: with the SEDP readers' ResourceLimits (see
+    // `SEDP_READER_RESOURCE_LIMITS`), not the DDSCache's default of 64 samples.
+    // A participant that authenticates with many at once (a late joiner to a
+    // secured swarm of 18: about 200 key exchange messages within a few hundred
+    // milliseconds) received more than 64 of them between two takes of
+    // Discovery; the oldest were removed unread although the RTPS Reader had
+    // acknowledged them, so some peers' participant and endpoint crypto tokens
+    // were never set, and everything those peers sent stayed undecodable for good
+    // ("KeysNotFound", about 150 messages a second, for 120 s).
     Self::builtin_subscriber_qos_builder()
       .reliability(Reliability::Reliable {
         max_blocking_time: Duration::from_std(StdDuration::from_millis(100)),
       })
       .history(History::KeepAll)
       .durability(Durability::Volatile)
+      .resource_limits(Self::SEDP_READER_RESOURCE_LIMITS)
       .build()
   }
 
