@@ -25,10 +25,14 @@
 # lane B's DDS bench beside it timed out listing its vehicles and the Mission view test's
 # rehearsal (at nice 19, 4 s of CPU alone) did not end within 300 s, once in CI);
 # e2e_assembly starts seventeen agents (each a debug process with its simulator) and a
-# coordinator at once under DDS Security: more than the two cores while they assemble.
+# coordinator at once under DDS Security: more than the two cores while they assemble;
+# peers drives the dashboard in Chromium against flying simulators and the counter-UAS
+# camera pipeline: in lane B beside lane A, its hostile swarm never formed on the plan
+# once, and once a vehicle of its mission ended in PX4's HOLD failsafe while landing
+# (two CI runs in a row, 2026-11-29; both passed in every run before).
 #
 # Two builds run beside all of it at idle priority (SCHED_IDLE: they get only the CPU no
-# test wants), but for e2e_tracking, e2e_wlan, e2e_formation and bench_smoke, during which
+# test wants), but for e2e_tracking, e2e_wlan, e2e_formation, peers and bench_smoke, during which
 # they are stopped: the arm64 cross-build (deploy_arm64 waits for it) and the fuzz targets'
 # (tests/fuzz.sh runs them afterwards).
 #
@@ -42,7 +46,7 @@ cd "$(dirname "$0")/.."
 
 LANE_A=(e2e_hazards deploy_compose e2e_dds_security e2e_missions)
 # deploy_arm64 runs the arm64 build made beside the lanes (below), so after them.
-ALONE=(e2e_distributed e2e_assembly e2e_tracking e2e_overload e2e_wlan e2e_formation bench_smoke deploy_arm64)
+ALONE=(e2e_distributed e2e_assembly e2e_tracking e2e_overload e2e_wlan e2e_formation peers bench_smoke deploy_arm64)
 
 # Build everything first, once: the lanes then only run.
 cargo test --workspace --locked --no-run
@@ -120,7 +124,7 @@ wait "$pid_b" || failed="$failed b"
 echo "tests/lanes.sh: lanes done in $(($(date +%s) - started)) s" >&2
 # The tests in ALONE do not wait for the idle-priority builds, which go on beside them
 # (they take only what those tests leave idle), but for deploy_arm64, which needs one;
-# e2e_tracking, e2e_wlan, e2e_formation and bench_smoke have the machine to themselves:
+# e2e_tracking, e2e_wlan, e2e_formation, peers and bench_smoke have the machine to themselves:
 # the builds (each its own process group, by setsid) are stopped while they run and
 # continued after.
 # Beside them, once, e2e_tracking found no hostile swarm (its image processing is short of
@@ -133,7 +137,7 @@ builds() { # STOP|CONT: every idle-priority build still running
   for p in "$pid_arm64" "$pid_fuzz"; do kill "-$1" -- "-$p" 2>/dev/null || true; done
 }
 for t in "${ALONE[@]}"; do
-  case $t in e2e_tracking | e2e_wlan | e2e_formation | bench_smoke) builds STOP ;; esac
+  case $t in e2e_tracking | e2e_wlan | e2e_formation | peers | bench_smoke) builds STOP ;; esac
   if [ "$t" = deploy_arm64 ]; then
     if wait "$pid_arm64"; then
       echo "tests/lanes.sh: arm64 cross-build done in $(($(date +%s) - started)) s" >&2
@@ -142,7 +146,7 @@ for t in "${ALONE[@]}"; do
     fi
   fi
   cargo test --workspace --locked --test "$t" || failed="$failed $t"
-  case $t in e2e_tracking | e2e_wlan | e2e_formation | bench_smoke) builds CONT ;; esac
+  case $t in e2e_tracking | e2e_wlan | e2e_formation | peers | bench_smoke) builds CONT ;; esac
 done
 if wait "$pid_fuzz"; then
   echo "tests/lanes.sh: fuzz build done in $(($(date +%s) - started)) s" >&2
