@@ -24,6 +24,9 @@ pub struct AgentOptions {
     pub dds_security: Option<(String, String)>,
     /// `--config`: a configuration file (its `[swarm]` geofence, say).
     pub config: Option<String>,
+    /// `--sim-model`: the simulated vehicle's model (`None`: the agent's default, an
+    /// `observation` UAV with its camera for an even sysid).
+    pub sim_model: Option<&'static str>,
 }
 
 impl Default for AgentOptions {
@@ -37,6 +40,7 @@ impl Default for AgentOptions {
             clock_skew_ms: None,
             dds_security: None,
             config: None,
+            sim_model: None,
         }
     }
 }
@@ -84,6 +88,9 @@ pub fn agent_on(host: Option<&Host>, sysid: u8, d: &str, o: &AgentOptions) -> Sk
     }
     if let Some(config) = &o.config {
         args.extend_from_slice(&["--config", config]);
+    }
+    if let Some(model) = o.sim_model {
+        args.extend_from_slice(&["--sim-model", model]);
     }
     args.extend(security_args(
         o.dds_security
