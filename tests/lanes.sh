@@ -27,9 +27,10 @@
 # e2e_assembly starts seventeen agents (each a debug process with its simulator) and a
 # coordinator at once under DDS Security: more than the two cores while they assemble;
 # peers drives the dashboard in Chromium against flying simulators and the counter-UAS
-# camera pipeline: in lane B beside lane A, its hostile swarm never formed on the plan
-# once, and once a vehicle of its mission ended in PX4's HOLD failsafe while landing
-# (two CI runs in a row, 2026-11-29; both passed in every run before).
+# camera pipeline: in lane B, after lane A had ended, beside the idle-priority builds,
+# its hostile swarm never formed on the plan once (as e2e_tracking's did beside them),
+# and once a vehicle of its mission ended in PX4's HOLD failsafe while landing (two CI
+# runs in a row, 2026-11-29; both passed in every run before).
 #
 # Two builds run beside all of it at idle priority (SCHED_IDLE: they get only the CPU no
 # test wants), but for e2e_tracking, e2e_wlan, e2e_formation, peers and bench_smoke, during which
