@@ -408,6 +408,10 @@ def on_failure(driver, summary):
     summary["view"] = driver.execute_script(VIEW_JS)
     summary["toasts"] = driver.execute_script(
         "return [...document.querySelectorAll('#toasts .toast')].map(t => t.textContent)")
+    # Each vehicle as the API has it (its fence state and breach among them): a vehicle
+    # that ended in a failsafe says why (once, in CI, one ended in HOLD while landing).
+    summary["vehicles_api"] = driver.execute_script(
+        "return fetch('/api/v1/vehicles').then(r => r.text())")
 
 
 if __name__ == "__main__":
