@@ -56,25 +56,11 @@ fn agent(host: &Host, sysid: usize, ks: &str) -> Skein {
     )
 }
 
-/// Waits until coordinator `c` lists each of `sysids`' vehicles with a home and not
-/// `Lost`; returns the seconds since `since`.
-fn listed(c: &Skein, sysids: &[usize], since: Instant, what: &str) -> f64 {
-    eventually(what, WITHIN, || {
-        let vs = c.vehicles();
-        let missing: Vec<String> = sysids
-            .iter()
-            .map(|s| format!("uav-{s}"))
-            .filter(|id| {
-                !vs.iter().any(|v| {
-                    v["id"] == id.as_str() && v["home"].is_object() && v["state"] != "Lost"
-                })
-            })
-            .collect();
-        if missing.is_empty() {
-            Ok(())
-        } else {
-            Err(format!("{} missing: {}", missing.len(), missing.join(", ")))
-        }
+/// Waits until coordinator `c` lists `n` vehicles, each with a home and not `Lost`
+/// ([`Skein::wait_all`]); returns the seconds since `since`.
+fn listed(c: &Skein, n: usize, since: Instant, what: &str) -> f64 {
+    c.wait_all(what, n, WITHIN, |v| {
+        v["home"].is_object() && v["state"] != "Lost"
     });
     since.elapsed().as_secs_f64()
 }
@@ -104,13 +90,12 @@ fn sixteen_secured_agents_assemble_and_a_late_joiner_and_a_rebooted_agent_are_li
             .collect();
         launching.into_iter().map(|h| h.join().unwrap()).collect()
     });
-    let all: Vec<usize> = (1..=AGENTS).collect();
-    let assembly_s = listed(&c, &all, started, "every vehicle listed with a home");
+    let assembly_s = listed(&c, AGENTS, started, "every vehicle listed with a home");
 
     let late = Instant::now();
     let _late = agent(&lan.hosts[AGENTS + 1], AGENTS + 1, &ks);
     let late_up_s = late.elapsed().as_secs_f64();
-    let late_joiner_s = listed(&c, &[AGENTS + 1], late, "the late joiner listed");
+    let late_joiner_s = listed(&c, AGENTS + 1, late, "the late joiner listed");
 
     agents[0].kill_hard();
     eventually("the killed agent's vehicle Lost", WITHIN, || {
@@ -120,9 +105,7 @@ fn sixteen_secured_agents_assemble_and_a_late_joiner_and_a_rebooted_agent_are_li
     let reboot = Instant::now();
     agents[0] = agent(&lan.hosts[1], 1, &ks);
     let rebooted_up_s = reboot.elapsed().as_secs_f64();
-    let rebooted_s = listed(&c, &[1], reboot, "the rebooted agent's vehicle back");
-    let everyone: Vec<usize> = (1..=AGENTS + 1).collect();
-    listed(&c, &everyone, started, "every vehicle still listed");
+    let rebooted_s = listed(&c, AGENTS + 1, reboot, "the rebooted agent's vehicle back");
 
     println!(
         "assembly report {}",
